@@ -1,0 +1,254 @@
+//! Symmetric sparse matrices of 3x3 blocks with a fixed sparsity pattern.
+//!
+//! The pattern (block compressed rows, both triangles stored) is built once
+//! from the interaction stencils; each time step refills the values in place.
+//! Storing both triangles costs memory but lets every row of a product be
+//! computed independently, so the parallel product needs no reduction.
+
+use crate::{Mat3, Vec3, par::ROW_CHUNK};
+use rayon::prelude::*;
+use std::ops::Range;
+
+/// Why a sparsity pattern could not be built.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum PatternError {
+    /// A pair names a row or column outside `0..n`.
+    #[error("block pair ({i}, {j}) is out of range for {n} block rows")]
+    OutOfRange {
+        /// Row of the offending pair.
+        i: usize,
+        /// Column of the offending pair.
+        j: usize,
+        /// Number of block rows.
+        n: usize,
+    },
+}
+
+/// The block sparsity pattern of a symmetric `n x n` block matrix: every
+/// diagonal block plus the blocks `(i, j)` and `(j, i)` of each coupled pair.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BlockPattern {
+    row_ptr: Vec<usize>,
+    cols: Vec<u32>,
+    diag: Vec<usize>,
+}
+
+impl BlockPattern {
+    /// Builds the pattern for `n` block rows from coupled pairs (duplicates and
+    /// self-pairs are allowed and merged). Columns are sorted within a row.
+    pub fn from_pairs(
+        n: usize,
+        pairs: impl IntoIterator<Item = (usize, usize)>,
+    ) -> Result<Self, PatternError> {
+        let mut rows: Vec<Vec<u32>> = (0..n).map(|i| vec![i as u32]).collect();
+        for (i, j) in pairs {
+            if i >= n || j >= n {
+                return Err(PatternError::OutOfRange { i, j, n });
+            }
+            rows[i].push(j as u32);
+            rows[j].push(i as u32);
+        }
+        let mut row_ptr = Vec::with_capacity(n + 1);
+        let mut cols = Vec::new();
+        let mut diag = Vec::with_capacity(n);
+        row_ptr.push(0);
+        for (i, mut r) in rows.into_iter().enumerate() {
+            r.sort_unstable();
+            r.dedup();
+            let d = r
+                .binary_search(&(i as u32))
+                .expect("diagonal is always present");
+            diag.push(cols.len() + d);
+            cols.extend_from_slice(&r);
+            row_ptr.push(cols.len());
+        }
+        Ok(Self {
+            row_ptr,
+            cols,
+            diag,
+        })
+    }
+
+    /// Number of block rows.
+    pub fn n(&self) -> usize {
+        self.diag.len()
+    }
+
+    /// Number of stored blocks (both triangles and the diagonal).
+    pub fn nnz_blocks(&self) -> usize {
+        self.cols.len()
+    }
+
+    /// Storage slot of block `(i, j)`, if it is in the pattern.
+    pub fn slot(&self, i: usize, j: usize) -> Option<usize> {
+        let r = self.row_range(i);
+        let found = self.cols[r.clone()].binary_search(&(j as u32)).ok()?;
+        Some(r.start + found)
+    }
+
+    /// Storage slot of the diagonal block `(i, i)`.
+    pub fn diag_slot(&self, i: usize) -> usize {
+        self.diag[i]
+    }
+
+    /// Storage slots of row `i`.
+    pub fn row_range(&self, i: usize) -> Range<usize> {
+        self.row_ptr[i]..self.row_ptr[i + 1]
+    }
+
+    /// Column indices of row `i`, sorted.
+    pub fn row_cols(&self, i: usize) -> &[u32] {
+        &self.cols[self.row_range(i)]
+    }
+}
+
+/// A symmetric block matrix with a fixed [`BlockPattern`].
+#[derive(Debug, Clone)]
+pub struct BlockSparseMatrix {
+    pattern: BlockPattern,
+    values: Vec<Mat3>,
+}
+
+impl BlockSparseMatrix {
+    /// A zero matrix with the given pattern.
+    pub fn new(pattern: BlockPattern) -> Self {
+        let values = vec![Mat3::zeros(); pattern.nnz_blocks()];
+        Self { pattern, values }
+    }
+
+    /// The sparsity pattern.
+    pub fn pattern(&self) -> &BlockPattern {
+        &self.pattern
+    }
+
+    /// Number of block rows.
+    pub fn n(&self) -> usize {
+        self.pattern.n()
+    }
+
+    /// All stored blocks, in slot order.
+    pub fn values(&self) -> &[Mat3] {
+        &self.values
+    }
+
+    /// All stored blocks, mutable (the pattern stays fixed).
+    pub fn values_mut(&mut self) -> &mut [Mat3] {
+        &mut self.values
+    }
+
+    /// The diagonal block of row `i`.
+    pub fn diag(&self, i: usize) -> &Mat3 {
+        &self.values[self.pattern.diag[i]]
+    }
+
+    /// Refills the matrix row by row in parallel: `fill(i, row_blocks)` gets
+    /// the blocks of row `i` (in the column order of [`BlockPattern::row_cols`])
+    /// and must overwrite all of them. Rows are disjoint, so no reduction and
+    /// no allocation is involved.
+    pub fn fill_rows<F>(&mut self, fill: F)
+    where
+        F: Fn(usize, &mut [Mat3]) + Sync,
+    {
+        let n = self.n();
+        fill_range(&self.pattern.row_ptr, 0..n, &mut self.values, 0, &fill);
+    }
+
+    /// `y = A x`, parallel over rows.
+    pub fn mul_vec(&self, x: &[Vec3], y: &mut [Vec3]) {
+        let n = self.n();
+        assert!(x.len() == n && y.len() == n, "mul_vec: dimension mismatch");
+        y.par_chunks_mut(ROW_CHUNK)
+            .enumerate()
+            .for_each(|(chunk, ys)| {
+                let first = chunk * ROW_CHUNK;
+                for (k, yi) in ys.iter_mut().enumerate() {
+                    let i = first + k;
+                    let mut acc = Vec3::zeros();
+                    for s in self.pattern.row_range(i) {
+                        acc += self.values[s] * x[self.pattern.cols[s] as usize];
+                    }
+                    *yi = acc;
+                }
+            });
+    }
+
+    /// Iterates over the stored blocks as `(row, col, block)`.
+    pub fn blocks(&self) -> impl Iterator<Item = (usize, usize, &Mat3)> + '_ {
+        (0..self.n()).flat_map(move |i| {
+            self.pattern
+                .row_range(i)
+                .map(move |s| (i, self.pattern.cols[s] as usize, &self.values[s]))
+        })
+    }
+}
+
+/// Rows per leaf task of [`BlockSparseMatrix::fill_rows`].
+const FILL_ROWS_PER_TASK: usize = 128;
+
+fn fill_range<F>(row_ptr: &[usize], rows: Range<usize>, vals: &mut [Mat3], base: usize, fill: &F)
+where
+    F: Fn(usize, &mut [Mat3]) + Sync,
+{
+    if rows.len() <= FILL_ROWS_PER_TASK {
+        for i in rows {
+            fill(i, &mut vals[row_ptr[i] - base..row_ptr[i + 1] - base]);
+        }
+        return;
+    }
+    let mid = rows.start + rows.len() / 2;
+    let (lo, hi) = vals.split_at_mut(row_ptr[mid] - base);
+    rayon::join(
+        || fill_range(row_ptr, rows.start..mid, lo, base, fill),
+        || fill_range(row_ptr, mid..rows.end, hi, row_ptr[mid], fill),
+    );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pattern_merges_duplicates_and_sorts() {
+        let p = BlockPattern::from_pairs(4, [(0, 2), (2, 0), (1, 1), (3, 0)]).unwrap();
+        assert_eq!(p.row_cols(0), &[0, 2, 3]);
+        assert_eq!(p.row_cols(1), &[1]);
+        assert_eq!(p.row_cols(2), &[0, 2]);
+        assert_eq!(p.slot(0, 3), Some(2));
+        assert_eq!(p.slot(1, 3), None);
+        assert_eq!(p.diag_slot(2), p.slot(2, 2).unwrap());
+    }
+
+    #[test]
+    fn pattern_rejects_out_of_range() {
+        assert_eq!(
+            BlockPattern::from_pairs(2, [(0, 2)]),
+            Err(PatternError::OutOfRange { i: 0, j: 2, n: 2 })
+        );
+    }
+
+    #[test]
+    fn mul_vec_matches_dense_product() {
+        let n = 600; // more than two chunks
+        let pairs: Vec<_> = (0..n - 3).flat_map(|i| [(i, i + 1), (i, i + 3)]).collect();
+        let mut a = BlockSparseMatrix::new(BlockPattern::from_pairs(n, pairs).unwrap());
+        let cols: Vec<Vec<u32>> = (0..n).map(|i| a.pattern().row_cols(i).to_vec()).collect();
+        a.fill_rows(|i, row| {
+            for (b, &j) in row.iter_mut().zip(&cols[i]) {
+                let (lo, hi) = (i.min(j as usize) as f64, i.max(j as usize) as f64);
+                *b = Mat3::from_fn(|r, c| 1.0 + lo * 0.01 + hi * 0.001 + (r + c) as f64);
+            }
+        });
+        let x: Vec<Vec3> = (0..n)
+            .map(|i| Vec3::new(i as f64, 1.0, -0.5 * i as f64))
+            .collect();
+        let mut y = vec![Vec3::zeros(); n];
+        a.mul_vec(&x, &mut y);
+        let mut expect = vec![Vec3::zeros(); n];
+        for (i, j, b) in a.blocks() {
+            expect[i] += b * x[j];
+        }
+        for i in 0..n {
+            assert!((y[i] - expect[i]).norm() <= 1e-12 * expect[i].norm().max(1.0));
+        }
+    }
+}

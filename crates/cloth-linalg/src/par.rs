@@ -1,0 +1,47 @@
+//! Deterministic data-parallel kernels on slices of [`Vec3`].
+//!
+//! Reductions are computed as one partial sum per fixed-size chunk, then
+//! summed serially in chunk order: the result does not depend on how rayon
+//! schedules the chunks, so it is the same with 1, 2 or 64 threads.
+
+use crate::Vec3;
+use rayon::prelude::*;
+
+/// Rows (particles) per parallel task. Fixed, so that reductions have a fixed
+/// summation order.
+pub const ROW_CHUNK: usize = 256;
+
+/// `sum_i a_i . b_i`, summed in a fixed order.
+pub fn dot(a: &[Vec3], b: &[Vec3]) -> f64 {
+    assert_eq!(a.len(), b.len(), "dot: length mismatch");
+    // Chunk partials are collected in chunk order by rayon's indexed collect.
+    let partials: Vec<f64> = a
+        .par_chunks(ROW_CHUNK)
+        .zip(b.par_chunks(ROW_CHUNK))
+        .map(|(ca, cb)| ca.iter().zip(cb).map(|(x, y)| x.dot(y)).sum::<f64>())
+        .collect();
+    partials.iter().sum()
+}
+
+/// Like [`dot`], writing the chunk partials into a caller-owned buffer so the
+/// hot loop does not allocate. `partials.len()` must be `a.len().div_ceil(ROW_CHUNK)`.
+pub(crate) fn dot_with(a: &[Vec3], b: &[Vec3], partials: &mut [f64]) -> f64 {
+    a.par_chunks(ROW_CHUNK)
+        .zip(b.par_chunks(ROW_CHUNK))
+        .zip(partials.par_iter_mut())
+        .for_each(|((ca, cb), p)| *p = ca.iter().zip(cb).map(|(x, y)| x.dot(y)).sum());
+    partials.iter().sum()
+}
+
+/// `y += alpha * x`.
+pub fn axpy(alpha: f64, x: &[Vec3], y: &mut [Vec3]) {
+    assert_eq!(x.len(), y.len(), "axpy: length mismatch");
+    y.par_chunks_mut(ROW_CHUNK)
+        .zip(x.par_chunks(ROW_CHUNK))
+        .for_each(|(cy, cx)| cy.iter_mut().zip(cx).for_each(|(yi, xi)| *yi += alpha * xi));
+}
+
+/// Number of chunk partials for a vector of `n` particles.
+pub(crate) fn chunk_count(n: usize) -> usize {
+    n.div_ceil(ROW_CHUNK).max(1)
+}

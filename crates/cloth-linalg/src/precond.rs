@@ -1,0 +1,97 @@
+//! Preconditioners for [`crate::Pcg`].
+
+use crate::{BlockSparseMatrix, Mat3, Vec3, par::ROW_CHUNK};
+use rayon::prelude::*;
+
+/// Which preconditioner PCG uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PreconditionerKind {
+    /// Plain conjugate gradients.
+    None,
+    /// Inverse of the scalar diagonal of the matrix (Jacobi).
+    Diagonal,
+    /// Inverse of each 3x3 diagonal block (block-Jacobi). Choi & Ko (2002,
+    /// §4) report it about 20% faster than the scalar diagonal.
+    #[default]
+    BlockJacobi,
+}
+
+/// A preconditioner `P^-1` built from a matrix, stored as one 3x3 block per
+/// row (diagonal for [`PreconditionerKind::Diagonal`]).
+#[derive(Debug, Clone, Default)]
+pub struct Preconditioner {
+    kind: PreconditionerKind,
+    inv: Vec<Mat3>,
+}
+
+impl Preconditioner {
+    /// Rebuilds `P^-1` from the diagonal blocks of `a`, reusing storage.
+    /// A block that cannot be inverted (not positive) falls back to the
+    /// identity for that row, which keeps `P^-1` symmetric positive definite.
+    pub fn update(&mut self, kind: PreconditionerKind, a: &BlockSparseMatrix) {
+        self.kind = kind;
+        if kind == PreconditionerKind::None {
+            self.inv.clear();
+            return;
+        }
+        self.inv.resize(a.n(), Mat3::identity());
+        self.inv
+            .par_chunks_mut(ROW_CHUNK)
+            .enumerate()
+            .for_each(|(c, chunk)| {
+                for (k, p) in chunk.iter_mut().enumerate() {
+                    let d = a.diag(c * ROW_CHUNK + k);
+                    *p = match kind {
+                        PreconditionerKind::Diagonal => {
+                            let inv = |x: f64| {
+                                if x > 0.0 && x.is_finite() {
+                                    1.0 / x
+                                } else {
+                                    1.0
+                                }
+                            };
+                            Mat3::from_diagonal(&Vec3::new(
+                                inv(d[(0, 0)]),
+                                inv(d[(1, 1)]),
+                                inv(d[(2, 2)]),
+                            ))
+                        }
+                        _ => d
+                            .cholesky()
+                            .map(|ch| ch.inverse())
+                            .unwrap_or_else(Mat3::identity),
+                    };
+                }
+            });
+    }
+
+    /// The kind last built.
+    pub fn kind(&self) -> PreconditionerKind {
+        self.kind
+    }
+
+    /// `P^-1 r` for row `i` alone.
+    #[inline]
+    pub fn apply_one(&self, i: usize, r: &Vec3) -> Vec3 {
+        match self.kind {
+            PreconditionerKind::None => *r,
+            _ => self.inv[i] * r,
+        }
+    }
+
+    /// `s = P^-1 r`.
+    pub fn apply(&self, r: &[Vec3], s: &mut [Vec3]) {
+        if self.kind == PreconditionerKind::None {
+            s.copy_from_slice(r);
+            return;
+        }
+        s.par_chunks_mut(ROW_CHUNK)
+            .zip(r.par_chunks(ROW_CHUNK))
+            .zip(self.inv.par_chunks(ROW_CHUNK))
+            .for_each(|((cs, cr), cp)| {
+                for ((si, ri), pi) in cs.iter_mut().zip(cr).zip(cp) {
+                    *si = pi * ri;
+                }
+            });
+    }
+}

@@ -1,0 +1,306 @@
+//! PCG against faer's sparse Cholesky on random SPD block systems, with and
+//! without Baraff-Witkin filters.
+
+use cloth_linalg::{
+    BlockPattern, BlockSparseMatrix, Constraint, ConstraintFilter, Mat3, Pcg, PcgError, PcgParams,
+    PreconditionerKind, Vec3,
+};
+use faer::linalg::solvers::Solve;
+use faer::sparse::{SparseColMat, Triplet};
+use faer::{Mat, Side};
+
+/// xorshift64*: a tiny deterministic generator, uniform in [-1, 1).
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> f64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        let bits = self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11;
+        bits as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    }
+    fn vec3(&mut self) -> Vec3 {
+        Vec3::new(self.next(), self.next(), self.next())
+    }
+    fn index(&mut self, n: usize) -> usize {
+        (((self.next() + 1.0) * 0.5 * n as f64) as usize).min(n - 1)
+    }
+}
+
+/// A = diag(m_i I) + sum_e L_e (x) B_e with random PSD B_e: the structure of
+/// the cloth system matrix. Returns A and the pair list.
+fn random_system(rng: &mut Rng, n: usize, pairs_per_node: usize, mass: f64) -> BlockSparseMatrix {
+    let mut pairs: Vec<(usize, usize)> = Vec::new();
+    for i in 0..n {
+        pairs.push((i, (i + 1) % n)); // a ring keeps it connected
+        for _ in 1..pairs_per_node {
+            let j = rng.index(n);
+            if j != i {
+                pairs.push((i, j));
+            }
+        }
+    }
+    let blocks: Vec<Mat3> = pairs
+        .iter()
+        .map(|_| {
+            let r = Mat3::from_fn(|_, _| rng.next());
+            r * r.transpose() * 10.0
+        })
+        .collect();
+    let pattern = BlockPattern::from_pairs(n, pairs.iter().copied()).unwrap();
+    let mut a = BlockSparseMatrix::new(pattern);
+    for i in 0..n {
+        let d = a.pattern().diag_slot(i);
+        a.values_mut()[d] = Mat3::identity() * mass;
+    }
+    for (&(i, j), b) in pairs.iter().zip(&blocks) {
+        let p = a.pattern().clone();
+        let v = a.values_mut();
+        v[p.diag_slot(i)] += b;
+        v[p.diag_slot(j)] += b;
+        v[p.slot(i, j).unwrap()] -= b;
+        v[p.slot(j, i).unwrap()] -= b;
+    }
+    a
+}
+
+/// Orthonormal basis (columns) of the free directions of a projector.
+fn free_basis(s: &Mat3) -> Vec<Vec3> {
+    let eig = s.symmetric_eigen();
+    (0..3)
+        .filter(|&k| eig.eigenvalues[k] > 0.5)
+        .map(|k| eig.eigenvectors.column(k).into_owned())
+        .collect()
+}
+
+/// Reference: eliminate the constrained components (x_i = z_i + T_i y_i) and
+/// solve T^T A T y = T^T (b - A z) with faer's sparse Cholesky.
+fn cholesky_reference(a: &BlockSparseMatrix, b: &[Vec3], filter: &ConstraintFilter) -> Vec<Vec3> {
+    let n = a.n();
+    let bases: Vec<Vec<Vec3>> = (0..n).map(|i| free_basis(&filter.projector(i))).collect();
+    let mut offset = vec![0usize; n + 1];
+    for i in 0..n {
+        offset[i + 1] = offset[i] + bases[i].len();
+    }
+    let dof = offset[n];
+    let z: Vec<Vec3> = (0..n).map(|i| filter.prescribed(i)).collect();
+    let mut az = vec![Vec3::zeros(); n];
+    a.mul_vec(&z, &mut az);
+    let mut triplets = Vec::new();
+    for (i, j, blk) in a.blocks() {
+        for (p, ti) in bases[i].iter().enumerate() {
+            for (q, tj) in bases[j].iter().enumerate() {
+                triplets.push(Triplet::new(
+                    offset[i] + p,
+                    offset[j] + q,
+                    ti.dot(&(blk * tj)),
+                ));
+            }
+        }
+    }
+    let mut rhs = Mat::<f64>::zeros(dof, 1);
+    for i in 0..n {
+        for (p, ti) in bases[i].iter().enumerate() {
+            rhs[(offset[i] + p, 0)] = ti.dot(&(b[i] - az[i]));
+        }
+    }
+    let mat = SparseColMat::<usize, f64>::try_new_from_triplets(dof, dof, &triplets).unwrap();
+    let llt = mat
+        .as_ref()
+        .sp_cholesky(Side::Lower)
+        .expect("reference system is SPD");
+    let y = llt.solve(&rhs);
+    (0..n)
+        .map(|i| {
+            z[i] + bases[i]
+                .iter()
+                .enumerate()
+                .map(|(p, t)| t * y[(offset[i] + p, 0)])
+                .sum::<Vec3>()
+        })
+        .collect()
+}
+
+fn max_rel_diff(a: &[Vec3], b: &[Vec3]) -> f64 {
+    let scale = b.iter().map(|v| v.norm()).fold(0.0, f64::max);
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).norm())
+        .fold(0.0, f64::max)
+        / scale
+}
+
+fn solve(
+    a: &BlockSparseMatrix,
+    b: &[Vec3],
+    f: &ConstraintFilter,
+    kind: PreconditionerKind,
+) -> (Vec<Vec3>, usize) {
+    let params = PcgParams {
+        rel_tol: 1e-12,
+        max_iter: 5000,
+        preconditioner: kind,
+    };
+    let mut x = vec![Vec3::zeros(); a.n()];
+    let info = Pcg::new(a.n())
+        .solve(a, b, f, &params, &mut x)
+        .expect("PCG converges");
+    assert!(info.rel_residual <= 1e-12);
+    (x, info.iterations)
+}
+
+#[test]
+fn unfiltered_pcg_matches_sparse_cholesky_for_every_preconditioner() {
+    let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
+    let a = random_system(&mut rng, 700, 4, 0.05);
+    let b: Vec<Vec3> = (0..a.n()).map(|_| rng.vec3()).collect();
+    let filter = ConstraintFilter::new(a.n());
+    let reference = cholesky_reference(&a, &b, &filter);
+    let mut iters = Vec::new();
+    for kind in [
+        PreconditionerKind::None,
+        PreconditionerKind::Diagonal,
+        PreconditionerKind::BlockJacobi,
+    ] {
+        let (x, it) = solve(&a, &b, &filter, kind);
+        let err = max_rel_diff(&x, &reference);
+        assert!(err < 1e-9, "{kind:?}: relative difference {err:e}");
+        iters.push(it);
+    }
+    // Block-Jacobi must not be worse than no preconditioning on this system.
+    assert!(
+        iters[2] <= iters[0],
+        "iterations none/diag/block: {iters:?}"
+    );
+}
+
+#[test]
+fn filtered_pcg_matches_reduced_cholesky_and_holds_constraints_exactly() {
+    let mut rng = Rng(42);
+    let a = random_system(&mut rng, 500, 3, 0.02);
+    let n = a.n();
+    let b: Vec<Vec3> = (0..n).map(|_| rng.vec3()).collect();
+    let mut filter = ConstraintFilter::new(n);
+    for i in (0..n).step_by(7) {
+        let c = match i % 4 {
+            0 => Constraint::Fixed,
+            1 => Constraint::OneDirection { normal: rng.vec3() },
+            2 => Constraint::TwoDirections {
+                n: rng.vec3(),
+                m: rng.vec3(),
+            },
+            _ => Constraint::Free,
+        };
+        filter.set(i, c, rng.vec3()).unwrap();
+    }
+    assert!(filter.constrained_count() > 40);
+    let reference = cholesky_reference(&a, &b, &filter);
+    for kind in [
+        PreconditionerKind::None,
+        PreconditionerKind::Diagonal,
+        PreconditionerKind::BlockJacobi,
+    ] {
+        let (x, _) = solve(&a, &b, &filter, kind);
+        let err = max_rel_diff(&x, &reference);
+        assert!(err < 1e-9, "{kind:?}: relative difference {err:e}");
+        for (i, s, z) in filter.iter() {
+            // Constrained components are exactly the prescribed ones (bitwise
+            // up to the projection's own rounding).
+            let constrained = x[i] - s * x[i];
+            assert!(
+                (constrained - z).norm() <= 1e-14 * (1.0 + z.norm()),
+                "particle {i}"
+            );
+        }
+    }
+}
+
+#[test]
+fn warm_start_from_the_solution_takes_no_iteration() {
+    let mut rng = Rng(7);
+    let a = random_system(&mut rng, 300, 3, 0.1);
+    let b: Vec<Vec3> = (0..a.n()).map(|_| rng.vec3()).collect();
+    let filter = ConstraintFilter::new(a.n());
+    let (mut x, cold) = solve(&a, &b, &filter, PreconditionerKind::BlockJacobi);
+    let params = PcgParams {
+        rel_tol: 1e-10,
+        ..Default::default()
+    };
+    let info = Pcg::new(a.n())
+        .solve(&a, &b, &filter, &params, &mut x)
+        .unwrap();
+    assert_eq!(info.iterations, 0);
+    assert!(cold > 5);
+}
+
+#[test]
+fn reports_non_convergence_and_indefiniteness() {
+    let mut rng = Rng(3);
+    let a = random_system(&mut rng, 200, 3, 0.01);
+    let b: Vec<Vec3> = (0..a.n()).map(|_| rng.vec3()).collect();
+    let filter = ConstraintFilter::new(a.n());
+    let params = PcgParams {
+        rel_tol: 1e-12,
+        max_iter: 3,
+        preconditioner: PreconditionerKind::None,
+    };
+    let mut x = vec![Vec3::zeros(); a.n()];
+    match Pcg::new(a.n()).solve(&a, &b, &filter, &params, &mut x) {
+        Err(PcgError::NotConverged { info }) => {
+            assert_eq!(info.iterations, 3);
+            assert!(info.rel_residual > 1e-12 && info.rel_residual < 1.0);
+        }
+        other => panic!("expected NotConverged, got {other:?}"),
+    }
+    // -A is negative definite: the first curvature is negative.
+    let mut neg = a.clone();
+    neg.values_mut().iter_mut().for_each(|v| *v = -*v);
+    let mut x = vec![Vec3::zeros(); a.n()];
+    let r = Pcg::new(a.n()).solve(
+        &neg,
+        &b,
+        &filter,
+        &PcgParams {
+            preconditioner: PreconditionerKind::None,
+            ..Default::default()
+        },
+        &mut x,
+    );
+    assert!(
+        matches!(r, Err(PcgError::NotPositiveDefinite { iteration: 1, .. })),
+        "{r:?}"
+    );
+    let mut bad = b.clone();
+    bad[5].x = f64::NAN;
+    let r = Pcg::new(a.n()).solve(&a, &bad, &filter, &PcgParams::default(), &mut x);
+    assert!(
+        matches!(r, Err(PcgError::NonFinite { iteration: 0 })),
+        "{r:?}"
+    );
+}
+
+#[test]
+fn solve_is_bit_identical_across_thread_counts() {
+    let mut rng = Rng(11);
+    let a = random_system(&mut rng, 2000, 4, 0.05);
+    let b: Vec<Vec3> = (0..a.n()).map(|_| rng.vec3()).collect();
+    let filter = ConstraintFilter::new(a.n());
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| solve(&a, &b, &filter, PreconditionerKind::BlockJacobi).0)
+    };
+    let one = run(1);
+    let two = run(2);
+    let four = run(4);
+    assert!(
+        one.iter()
+            .zip(&two)
+            .all(|(p, q)| p.x.to_bits() == q.x.to_bits()
+                && p.y.to_bits() == q.y.to_bits()
+                && p.z.to_bits() == q.z.to_bits())
+    );
+    assert_eq!(two, four);
+}
