@@ -1,1 +1,37 @@
-//! stub
+//! Cloth simulation core: quad-grid topology, Choi & Ko's (2002) interaction
+//! models, implicit integrators (backward Euler, BDF2) solved by filtered
+//! PCG, and TOML scene files.
+//!
+//! Data flow of one step: [`ClothModel`] (immutable) + [`ClothState`]
+//! (explicit) -> link laws ([`laws`], looped by [`forces`]) -> system matrix
+//! with a pattern built once -> PCG with pins as Baraff-Witkin constraints ->
+//! new state. Units are SI throughout.
+
+pub mod forces;
+mod integrator;
+pub mod laws;
+mod material;
+mod model;
+mod pins;
+pub mod scene;
+mod sim;
+mod state;
+mod topology;
+
+pub use cloth_linalg::{PcgParams, PreconditionerKind};
+pub use integrator::{
+    BackwardEuler, Bdf2, Integrator, IntegratorKind, SolverParams, StageTimes, StepError, StepReport, Workspace,
+};
+pub use material::{LinkConstants, Material};
+pub use model::{
+    BendLink, ClothModel, Edge, Effects, Incidence, ModelError, ModelSpec, PanelRange, PinSpec, StretchLink,
+};
+pub use pins::{Pin, PinMotion};
+pub use sim::Simulation;
+pub use state::ClothState;
+pub use topology::{GridPanel, LinkType, PanelError, PanelMesh};
+
+/// A 3-vector of `f64`.
+pub type Vec3 = nalgebra::Vector3<f64>;
+/// A 3x3 matrix of `f64`.
+pub type Mat3 = nalgebra::Matrix3<f64>;

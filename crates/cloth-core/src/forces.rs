@@ -1,0 +1,198 @@
+//! Drivers that loop the interaction laws over a model's links and build
+//! the linear system of an implicit step.
+//!
+//! Each link contributes (ARCSim-style bookkeeping):
+//! `f_i += phi u`, `f_j -= phi u`; `K_ij = K_ji += J_e`, `K_ii = K_jj -= J_e`
+//! with `J_e = df_i/dx_j` (type-2 without its orthogonal term);
+//! `D_ij = D_ji += k_d P`, `D_ii = D_jj -= k_d P`.
+//! Links are evaluated in parallel into per-link buffers, then each
+//! particle gathers its links in a fixed order: no atomics, no reduction
+//! whose order depends on scheduling, so results are bit-identical for any
+//! thread count.
+
+use crate::{
+    ClothModel, Mat3, Vec3,
+    laws::{ScalarLaw, buckling_ramped, directional_damping, pair_stiffness, tension_spring},
+};
+use cloth_linalg::{BlockSparseMatrix, ROW_CHUNK};
+use rayon::prelude::*;
+
+/// One link evaluated at a configuration.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LinkEval {
+    /// Elastic force on the link's first particle, N (`-force` on the second).
+    pub force: Vec3,
+    /// `df_i/dx_j` as used in the system matrix (PSD), N/m.
+    pub stiffness: Mat3,
+    /// `df_i/dv_j`, N s/m.
+    pub damping: Mat3,
+    /// Elastic energy, J.
+    pub energy: f64,
+}
+
+fn unit_and_length(xij: Vec3) -> (Vec3, f64) {
+    let d = xij.norm();
+    if d > 0.0 { (xij / d, d) } else { (Vec3::zeros(), 0.0) }
+}
+
+fn eval_with(law: ScalarLaw, u: Vec3, d: f64, keep_orthogonal: bool, k_d: f64) -> LinkEval {
+    LinkEval {
+        force: u * law.phi,
+        stiffness: pair_stiffness(&u, d, &law, keep_orthogonal),
+        damping: if k_d > 0.0 { directional_damping(&u, k_d) } else { Mat3::zeros() },
+        energy: law.energy,
+    }
+}
+
+/// Evaluates link `k` (stretch links first, then bend links) at positions `x`.
+#[inline]
+pub fn eval_link(model: &ClothModel, k: usize, x: &[Vec3]) -> LinkEval {
+    let ns = model.stretch_links().len();
+    if k < ns {
+        let l = &model.stretch_links()[k];
+        let (u, d) = unit_and_length(x[l.j as usize] - x[l.i as usize]);
+        eval_with(tension_spring(d, l.rest, l.k_s), u, d, true, l.k_d)
+    } else {
+        let l = &model.bend_links()[k - ns];
+        let (u, d) = unit_and_length(x[l.j as usize] - x[l.i as usize]);
+        eval_with(buckling_ramped(d, l.rest, l.k_b, l.c_b), u, d, false, 0.0)
+    }
+}
+
+/// Total potential energy at `x`: link energies plus gravity `-sum m g.x`, J.
+pub fn potential_energy(model: &ClothModel, x: &[Vec3]) -> f64 {
+    let links: f64 = (0..model.link_count()).map(|k| eval_link(model, k, x).energy).sum();
+    let gravity = model.effects().gravity.map_or(0.0, |g| {
+        -model.masses().iter().zip(x).map(|(m, xi)| m * g.dot(xi)).sum::<f64>()
+    });
+    links + gravity
+}
+
+/// Total force on every particle at `(x, v)`: elastic, damping and gravity, N.
+pub fn total_forces(model: &ClothModel, x: &[Vec3], v: &[Vec3]) -> Vec<Vec3> {
+    let evals: Vec<LinkEval> = (0..model.link_count()).into_par_iter().map(|k| eval_link(model, k, x)).collect();
+    (0..model.particle_count())
+        .map(|i| {
+            let mut f = model.effects().gravity.map_or(Vec3::zeros(), |g| g * model.masses()[i]);
+            for inc in model.incidence(i) {
+                let e = &evals[inc.link as usize];
+                let rel_v = v[inc.other as usize] - v[i];
+                let sign = if inc.first { 1.0 } else { -1.0 };
+                f += e.force * sign + e.damping * rel_v;
+            }
+            f
+        })
+        .collect()
+}
+
+/// The coefficients of one implicit step's linear system
+/// `A = M - c_v D - c_x K`,
+/// `b_i = m_i y_i + force (f_i + m_i g) + a_k (K w_k)_i + a_d (D w_d)_i`,
+/// with `f` the elastic (undamped) force.
+#[derive(Debug, Clone, Copy)]
+pub struct SystemTerms<'a> {
+    /// Coefficient of `-K` in the matrix, s^2.
+    pub c_x: f64,
+    /// Coefficient of `-D` in the matrix, s.
+    pub c_v: f64,
+    /// Coefficient of the elastic and gravity forces in the right-hand side.
+    pub force: f64,
+    /// Optional `(a_k, w_k)`: adds `a_k K w_k`.
+    pub k_times: Option<(f64, &'a [Vec3])>,
+    /// Optional `(a_d, w_d)`: adds `a_d D w_d`.
+    pub d_times: Option<(f64, &'a [Vec3])>,
+    /// Optional `y`: adds `M y`.
+    pub mass_times: Option<&'a [Vec3]>,
+}
+
+/// Scratch buffers for [`assemble`], sized once per model.
+#[derive(Debug, Clone)]
+pub struct SystemBuffers {
+    link_rhs: Vec<Vec3>,
+    link_block: Vec<Mat3>,
+    /// The assembled matrix `A`.
+    pub matrix: BlockSparseMatrix,
+    /// The assembled right-hand side `b`.
+    pub rhs: Vec<Vec3>,
+}
+
+impl SystemBuffers {
+    /// Buffers for `model`.
+    pub fn new(model: &ClothModel) -> Self {
+        Self {
+            link_rhs: vec![Vec3::zeros(); model.link_count()],
+            link_block: vec![Mat3::zeros(); model.link_count()],
+            matrix: BlockSparseMatrix::new(model.pattern().clone()),
+            rhs: vec![Vec3::zeros(); model.particle_count()],
+        }
+    }
+}
+
+/// Time spent in the two assembly stages, s.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct AssemblyTiming {
+    /// Evaluating the laws on every link.
+    pub links_s: f64,
+    /// Gathering links into matrix rows and the right-hand side.
+    pub gather_s: f64,
+}
+
+/// Builds `A` and `b` (see [`SystemTerms`]) at positions `x` without
+/// allocating: a parallel pass over links, then a parallel pass over rows.
+pub fn assemble(model: &ClothModel, x: &[Vec3], terms: &SystemTerms<'_>, bufs: &mut SystemBuffers) -> AssemblyTiming {
+    let t0 = std::time::Instant::now();
+    bufs.link_rhs
+        .par_chunks_mut(ROW_CHUNK)
+        .zip(bufs.link_block.par_chunks_mut(ROW_CHUNK))
+        .enumerate()
+        .for_each(|(chunk, (rhs, blocks))| {
+            for (k_local, (r, b)) in rhs.iter_mut().zip(blocks.iter_mut()).enumerate() {
+                let k = chunk * ROW_CHUNK + k_local;
+                let e = eval_link(model, k, x);
+                let (i, j, _) = model.link_ends(k);
+                let mut ri = e.force * terms.force;
+                if let Some((a, w)) = terms.k_times {
+                    ri += e.stiffness * (w[j] - w[i]) * a;
+                }
+                if let Some((a, w)) = terms.d_times {
+                    ri += e.damping * (w[j] - w[i]) * a;
+                }
+                *r = ri;
+                *b = e.stiffness * terms.c_x + e.damping * terms.c_v;
+            }
+        });
+    let t1 = std::time::Instant::now();
+    let link_block = &bufs.link_block;
+    let link_rhs = &bufs.link_rhs;
+    bufs.matrix.fill_rows(|i, row| {
+        row.iter_mut().for_each(|b| *b = Mat3::zeros());
+        let mut diag = Mat3::identity() * model.masses()[i];
+        for inc in model.incidence(i) {
+            let b = &link_block[inc.link as usize];
+            diag += b;
+            row[inc.slot as usize] -= b;
+        }
+        row[model.diag_local(i)] = diag;
+    });
+    let gravity = model.effects().gravity;
+    bufs.rhs.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(chunk, out)| {
+        for (k, bi) in out.iter_mut().enumerate() {
+            let i = chunk * ROW_CHUNK + k;
+            let m = model.masses()[i];
+            let mut acc = gravity.map_or(Vec3::zeros(), |g| g * (m * terms.force));
+            if let Some(y) = terms.mass_times {
+                acc += y[i] * m;
+            }
+            for inc in model.incidence(i) {
+                let r = &link_rhs[inc.link as usize];
+                if inc.first {
+                    acc += r;
+                } else {
+                    acc -= r;
+                }
+            }
+            *bi = acc;
+        }
+    });
+    AssemblyTiming { links_s: (t1 - t0).as_secs_f64(), gather_s: t1.elapsed().as_secs_f64() }
+}

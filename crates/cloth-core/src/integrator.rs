@@ -1,0 +1,373 @@
+//! Implicit integrators behind one trait: each takes one linearised
+//! (single Newton iteration) step solved by the filtered PCG.
+
+use crate::{
+    ClothModel, ClothState, Vec3,
+    forces::{SystemBuffers, SystemTerms, assemble},
+};
+use cloth_linalg::{Constraint, ConstraintFilter, Pcg, PcgError, PcgParams};
+use serde::{Deserialize, Serialize};
+use std::time::Instant;
+
+/// Which integrator a simulation uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum IntegratorKind {
+    /// Backward Euler, Baraff & Witkin (1998): first order, strongly damping.
+    BackwardEuler,
+    /// Second-order BDF, Choi & Ko (2002) Eq. 20; starts with one
+    /// backward-Euler step.
+    Bdf2,
+}
+
+impl IntegratorKind {
+    /// The integrator.
+    pub fn build(self) -> Box<dyn Integrator> {
+        match self {
+            IntegratorKind::BackwardEuler => Box::new(BackwardEuler),
+            IntegratorKind::Bdf2 => Box::new(Bdf2),
+        }
+    }
+
+    /// Name as written in scene files.
+    pub fn name(self) -> &'static str {
+        match self {
+            IntegratorKind::BackwardEuler => "backward-euler",
+            IntegratorKind::Bdf2 => "bdf2",
+        }
+    }
+}
+
+/// Linear-solver settings of a simulation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SolverParams {
+    /// PCG tolerance, iteration cap and preconditioner.
+    pub pcg: PcgParams,
+    /// Accept the last PCG iterate when `max_iter` is reached (the step is
+    /// then reported as unconverged) instead of failing the step.
+    pub accept_unconverged: bool,
+}
+
+impl Default for SolverParams {
+    fn default() -> Self {
+        Self { pcg: PcgParams::default(), accept_unconverged: true }
+    }
+}
+
+/// Wall time per stage of one step, s.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StageTimes {
+    /// Evaluating interaction laws on links (forces and Jacobian blocks).
+    pub forces_s: f64,
+    /// Gathering into the matrix and right-hand side; pin constraints.
+    pub assembly_s: f64,
+    /// PCG.
+    pub solve_s: f64,
+    /// State update and finiteness check.
+    pub update_s: f64,
+}
+
+impl std::ops::AddAssign for StageTimes {
+    fn add_assign(&mut self, o: Self) {
+        self.forces_s += o.forces_s;
+        self.assembly_s += o.assembly_s;
+        self.solve_s += o.solve_s;
+        self.update_s += o.update_s;
+    }
+}
+
+/// What one step did.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StepReport {
+    /// PCG iterations.
+    pub cg_iterations: usize,
+    /// Final relative residual of PCG.
+    pub rel_residual: f64,
+    /// False when PCG hit `max_iter` and its last iterate was accepted.
+    pub converged: bool,
+    /// Time per stage.
+    pub stages: StageTimes,
+}
+
+/// Why a step failed. The state is left as it was before the step.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum StepError {
+    /// The step size is not a finite positive number.
+    #[error("invalid time step {h} s: must be finite and > 0")]
+    InvalidTimeStep {
+        /// The offending step, s.
+        h: f64,
+    },
+    /// The linear solve failed.
+    #[error("step {step} (t = {time_s} s): linear solve failed: {source}")]
+    Solver {
+        /// Index of the failed step (1-based).
+        step: u64,
+        /// Time at the start of the step, s.
+        time_s: f64,
+        /// The solver's error.
+        source: PcgError,
+    },
+    /// The new state is not finite.
+    #[error("step {step} (t = {time_s} s): particle {particle} has a non-finite {quantity}")]
+    NonFinite {
+        /// Index of the failed step (1-based).
+        step: u64,
+        /// Time at the start of the step, s.
+        time_s: f64,
+        /// First offending particle.
+        particle: usize,
+        /// "position" or "velocity".
+        quantity: &'static str,
+    },
+    /// A state does not fit the model.
+    #[error("state has {got} particles but the model has {expected}")]
+    StateMismatch {
+        /// Particles in the model.
+        expected: usize,
+        /// Particles in the state.
+        got: usize,
+    },
+}
+
+/// Scratch space of the integrators, sized once per model.
+#[derive(Debug, Clone)]
+pub struct Workspace {
+    system: SystemBuffers,
+    pcg: Pcg,
+    filter: ConstraintFilter,
+    unknown: Vec<Vec3>,
+    aux: Vec<Vec3>,
+    aux2: Vec<Vec3>,
+    new_x: Vec<Vec3>,
+    new_v: Vec<Vec3>,
+}
+
+impl Workspace {
+    /// Buffers for `model`.
+    pub fn new(model: &ClothModel) -> Self {
+        let n = model.particle_count();
+        Self {
+            system: SystemBuffers::new(model),
+            pcg: Pcg::new(n),
+            filter: ConstraintFilter::new(n),
+            unknown: vec![Vec3::zeros(); n],
+            aux: vec![Vec3::zeros(); n],
+            aux2: vec![Vec3::zeros(); n],
+            new_x: vec![Vec3::zeros(); n],
+            new_v: vec![Vec3::zeros(); n],
+        }
+    }
+}
+
+/// A time integrator: advances `state` by `h` seconds. Integrators hold only
+/// parameters; everything that influences the result lives in the state,
+/// so a restored snapshot steps to the same bits.
+pub trait Integrator: Send + Sync + std::fmt::Debug {
+    /// Which integrator this is.
+    fn kind(&self) -> IntegratorKind;
+
+    /// One step of size `h` (s). On error the state is unchanged.
+    fn step(
+        &self,
+        model: &ClothModel,
+        state: &mut ClothState,
+        h: f64,
+        ws: &mut Workspace,
+        solver: &SolverParams,
+    ) -> Result<StepReport, StepError>;
+}
+
+/// Backward Euler (Baraff & Witkin 1998, Eq. 16):
+/// `[M - h D - h^2 K] dv = h (f + h K v)`, `x' = x + h (v + dv)`.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct BackwardEuler;
+
+/// Second-order BDF (Choi & Ko 2002, Eq. 20, multiplied by `M` to keep
+/// the matrix symmetric), with `dx = x' - x`, `delta = x - x_prev`:
+/// `[M - (2h/3) D - (4h^2/9) K] dx = M (delta/3 + h (8 v - 2 v_prev)/9)
+///   + (4h^2/9)(f - D v) - (2h/9) D delta`,  `v' = (3 dx - delta) / (2h)`.
+/// `f - D v` is the undamped force, since damping is linear in `v`.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Bdf2;
+
+impl Integrator for BackwardEuler {
+    fn kind(&self) -> IntegratorKind {
+        IntegratorKind::BackwardEuler
+    }
+
+    fn step(
+        &self,
+        model: &ClothModel,
+        state: &mut ClothState,
+        h: f64,
+        ws: &mut Workspace,
+        solver: &SolverParams,
+    ) -> Result<StepReport, StepError> {
+        check_step(model, state, h)?;
+        let v = &state.v;
+        let t = assemble(
+            model,
+            &state.x,
+            &SystemTerms {
+                c_x: h * h,
+                c_v: h,
+                force: h,
+                k_times: Some((h * h, v)),
+                d_times: Some((h, v)),
+                mass_times: None,
+            },
+            &mut ws.system,
+        );
+        let t_pins = Instant::now();
+        // Pins: dv = (p(t + h) - x) / h - v.
+        constrain_pins(model, state, h, &mut ws.filter, |target, i| (target - state.x[i]) / h - state.v[i]);
+        // Warm start: the previous change of velocity.
+        for i in 0..state.len() {
+            ws.unknown[i] = if state.has_history { state.v[i] - state.v_prev[i] } else { Vec3::zeros() };
+        }
+        let assembly_extra = t_pins.elapsed().as_secs_f64();
+        let (mut report, t_solve) = solve(ws, state, solver)?;
+        let t_update = Instant::now();
+        for i in 0..state.len() {
+            ws.new_v[i] = state.v[i] + ws.unknown[i];
+            ws.new_x[i] = state.x[i] + ws.new_v[i] * h;
+        }
+        commit(state, ws, h)?;
+        report.stages.forces_s = t.links_s;
+        report.stages.assembly_s = t.gather_s + assembly_extra;
+        report.stages.solve_s = t_solve;
+        report.stages.update_s = t_update.elapsed().as_secs_f64();
+        Ok(report)
+    }
+}
+
+impl Integrator for Bdf2 {
+    fn kind(&self) -> IntegratorKind {
+        IntegratorKind::Bdf2
+    }
+
+    fn step(
+        &self,
+        model: &ClothModel,
+        state: &mut ClothState,
+        h: f64,
+        ws: &mut Workspace,
+        solver: &SolverParams,
+    ) -> Result<StepReport, StepError> {
+        check_step(model, state, h)?;
+        // BDF2 needs one previous step of the same size; otherwise start
+        // (or restart) with backward Euler.
+        if !state.has_history || state.last_dt_s != h {
+            return BackwardEuler.step(model, state, h, ws, solver);
+        }
+        // aux = delta = x - x_prev; aux2 = y = delta/3 + h (8 v - 2 v_prev)/9.
+        for i in 0..state.len() {
+            let delta = state.x[i] - state.x_prev[i];
+            ws.aux[i] = delta;
+            ws.aux2[i] = delta / 3.0 + (state.v[i] * 8.0 - state.v_prev[i] * 2.0) * (h / 9.0);
+        }
+        let t = assemble(
+            model,
+            &state.x,
+            &SystemTerms {
+                c_x: 4.0 * h * h / 9.0,
+                c_v: 2.0 * h / 3.0,
+                force: 4.0 * h * h / 9.0,
+                k_times: None,
+                d_times: Some((-2.0 * h / 9.0, &ws.aux)),
+                mass_times: Some(&ws.aux2),
+            },
+            &mut ws.system,
+        );
+        let t_pins = Instant::now();
+        // Pins: dx = p(t + h) - x.
+        constrain_pins(model, state, h, &mut ws.filter, |target, i| target - state.x[i]);
+        // Warm start: the previous displacement.
+        ws.unknown.copy_from_slice(&ws.aux);
+        let assembly_extra = t_pins.elapsed().as_secs_f64();
+        let (mut report, t_solve) = solve(ws, state, solver)?;
+        let t_update = Instant::now();
+        for i in 0..state.len() {
+            ws.new_x[i] = state.x[i] + ws.unknown[i];
+            ws.new_v[i] = (ws.unknown[i] * 3.0 - ws.aux[i]) / (2.0 * h);
+        }
+        commit(state, ws, h)?;
+        report.stages.forces_s = t.links_s;
+        report.stages.assembly_s = t.gather_s + assembly_extra;
+        report.stages.solve_s = t_solve;
+        report.stages.update_s = t_update.elapsed().as_secs_f64();
+        Ok(report)
+    }
+}
+
+fn check_step(model: &ClothModel, state: &ClothState, h: f64) -> Result<(), StepError> {
+    if !(h.is_finite() && h > 0.0) {
+        return Err(StepError::InvalidTimeStep { h });
+    }
+    if state.len() != model.particle_count() || state.v.len() != state.len() {
+        return Err(StepError::StateMismatch { expected: model.particle_count(), got: state.len() });
+    }
+    Ok(())
+}
+
+/// Fully constrains every pinned particle; `value(target, i)` maps the pin's
+/// position at `t + h` to the integrator's unknown.
+fn constrain_pins(
+    model: &ClothModel,
+    state: &ClothState,
+    h: f64,
+    filter: &mut ConstraintFilter,
+    value: impl Fn(Vec3, usize) -> Vec3,
+) {
+    filter.clear();
+    let t_next = state.time_s + h;
+    for pin in model.pins() {
+        let z = value(pin.position(t_next), pin.particle);
+        // A non-finite prescribed value is caught as a non-finite state below.
+        let _ = filter.set(pin.particle, Constraint::Fixed, z);
+    }
+}
+
+fn solve(ws: &mut Workspace, state: &ClothState, solver: &SolverParams) -> Result<(StepReport, f64), StepError> {
+    let t0 = Instant::now();
+    let result = ws.pcg.solve(&ws.system.matrix, &ws.system.rhs, &ws.filter, &solver.pcg, &mut ws.unknown);
+    let elapsed = t0.elapsed().as_secs_f64();
+    let fail = |source| StepError::Solver { step: state.steps + 1, time_s: state.time_s, source };
+    let report = match result {
+        Ok(info) => StepReport { cg_iterations: info.iterations, rel_residual: info.rel_residual, converged: true, ..Default::default() },
+        Err(PcgError::NotConverged { info }) if solver.accept_unconverged => StepReport {
+            cg_iterations: info.iterations,
+            rel_residual: info.rel_residual,
+            converged: false,
+            ..Default::default()
+        },
+        Err(e) => return Err(fail(e)),
+    };
+    Ok((report, elapsed))
+}
+
+/// Checks the new state in `ws.new_x`/`new_v` and, if finite, makes it current.
+fn commit(state: &mut ClothState, ws: &mut Workspace, h: f64) -> Result<(), StepError> {
+    let bad = |v: &Vec3| !v.iter().all(|c| c.is_finite());
+    for i in 0..state.len() {
+        let quantity = if bad(&ws.new_x[i]) {
+            "position"
+        } else if bad(&ws.new_v[i]) {
+            "velocity"
+        } else {
+            continue;
+        };
+        return Err(StepError::NonFinite { step: state.steps + 1, time_s: state.time_s, particle: i, quantity });
+    }
+    // Rotate buffers: current -> previous, new -> current (no allocation).
+    std::mem::swap(&mut state.x_prev, &mut state.x);
+    std::mem::swap(&mut state.v_prev, &mut state.v);
+    std::mem::swap(&mut state.x, &mut ws.new_x);
+    std::mem::swap(&mut state.v, &mut ws.new_v);
+    state.has_history = true;
+    state.last_dt_s = h;
+    state.time_s += h;
+    state.steps += 1;
+    Ok(())
+}

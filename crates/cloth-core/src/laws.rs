@@ -1,0 +1,371 @@
+//! Interaction laws: small pure functions, one per law, each with its formula
+//! and source. Drivers that loop over links live in [`crate::forces`].
+//!
+//! Convention for a pair `(i, j)`: `x_ij = x_j - x_i`, `d = |x_ij|`,
+//! `u = x_ij / d`, `P = u u^T`. A central law with energy `E(d)` has
+//! `phi(d) = dE/dd`, force on `i` `f_i = phi u` (positive `phi` pulls `i`
+//! towards `j`), `f_j = -f_i`, and
+//! `df_i/dx_j = phi' P + (phi / d)(I - P)` (`df_i/dx_i = -df_i/dx_j`).
+
+use crate::{Mat3, Vec3};
+use std::f64::consts::PI;
+
+/// A central pair law evaluated at one chord length: energy (J), force
+/// magnitude `phi = dE/dd` (N) and its derivative `dphi = d phi / dd` (N/m).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ScalarLaw {
+    /// Energy stored in the pair, J.
+    pub energy: f64,
+    /// `phi = dE/dd`, N (positive: attraction).
+    pub phi: f64,
+    /// `d phi / dd`, N/m.
+    pub dphi: f64,
+}
+
+/// Tension-only linear spring, Choi & Ko (2002) Eq. 2-3 ("type 1"):
+/// `E = k_s (d - L)^2 / 2`, `phi = k_s (d - L)` for `d >= L`; zero in
+/// compression, where a linear spring's orthogonal stiffness
+/// `k_s (1 - L/d)` would be negative and unbounded.
+///
+/// `d`, `rest` in m; `k_s` in N/m.
+pub fn tension_spring(d: f64, rest: f64, k_s: f64) -> ScalarLaw {
+    if d < rest {
+        return ScalarLaw::default();
+    }
+    let e = d - rest;
+    ScalarLaw {
+        energy: 0.5 * k_s * e * e,
+        phi: k_s * e,
+        dphi: k_s,
+    }
+}
+
+/// Linear spring in tension and compression (Provot 1995):
+/// `E = k (d - L)^2 / 2`, `phi = k (d - L)`.
+pub fn linear_spring(d: f64, rest: f64, k: f64) -> ScalarLaw {
+    let e = d - rest;
+    ScalarLaw {
+        energy: 0.5 * k * e * e,
+        phi: k * e,
+        dphi: k,
+    }
+}
+
+/// `sinc(t) = sin(t) / t` (1 at 0).
+pub fn sinc(t: f64) -> f64 {
+    if t.abs() < 1e-4 { 1.0 - t * t / 6.0 * (1.0 - t * t / 20.0) } else { t.sin() / t }
+}
+
+/// `1 - sinc(t)`, accurate for small `t` (series below 0.1).
+fn one_minus_sinc(t: f64) -> f64 {
+    if t.abs() <= 0.1 {
+        let t2 = t * t;
+        // t^2/6 - t^4/120 + t^6/5040 - t^8/362880
+        t2 / 6.0 * (1.0 - t2 / 20.0 * (1.0 - t2 / 42.0 * (1.0 - t2 / 72.0)))
+    } else {
+        1.0 - t.sin() / t
+    }
+}
+
+/// `g(t) = cos t - sinc t` (negative on (0, pi]), accurate for small `t`.
+fn cos_minus_sinc(t: f64) -> f64 {
+    if t.abs() <= 0.1 {
+        let t2 = t * t;
+        // -t^2/3 (1 - t^2/10 + t^4/280 - t^6/15120)
+        -t2 / 3.0 * (1.0 - t2 / 10.0 * (1.0 - t2 / 28.0 * (1.0 - t2 / 54.0)))
+    } else {
+        t.cos() - t.sin() / t
+    }
+}
+
+/// `h(t) = 3 g(t) + t sin t`, accurate for small `t` (it is O(t^4)).
+fn three_g_plus_t_sin(t: f64) -> f64 {
+    if t.abs() <= 0.1 {
+        let t2 = t * t;
+        // -t^4/15 + t^6/210 - t^8/7560 + t^10/498960
+        -t2 * t2 / 15.0 * (1.0 - t2 / 14.0 * (1.0 - t2 / 36.0 * (1.0 - t2 / 66.0)))
+    } else {
+        3.0 * cos_minus_sinc(t) + t * t.sin()
+    }
+}
+
+/// Solves `sinc(t) = r` for `t` in `[0, pi)`, given `s = 1 - r` in `(0, 1]`
+/// (passing `1 - r` keeps full precision when `r` is close to 1).
+///
+/// Newton's method on `1 - sinc(t) - s` (monotone on `[0, pi]`), safeguarded by
+/// bisection: converges to machine precision in a handful of iterations.
+pub fn inverse_sinc(s: f64) -> f64 {
+    if s <= 0.0 {
+        return 0.0;
+    }
+    if s >= 1.0 {
+        return PI;
+    }
+    let (mut lo, mut hi) = (0.0_f64, PI);
+    // Start from the series inverse t ~ sqrt(6 s), clamped into the bracket.
+    let mut t = (6.0 * s).sqrt();
+    if !(t > lo && t < hi) {
+        t = 0.5 * (lo + hi);
+    }
+    for _ in 0..100 {
+        let f = one_minus_sinc(t) - s;
+        if f > 0.0 {
+            hi = t;
+        } else {
+            lo = t;
+        }
+        // d/dt (1 - sinc t) = -g(t)/t > 0.
+        let slope = -cos_minus_sinc(t) / t;
+        let mut next = t - f / slope;
+        if !(next > lo && next < hi) || !next.is_finite() {
+            next = 0.5 * (lo + hi);
+        }
+        if (next - t).abs() <= 4.0 * f64::EPSILON * t.max(1e-300) {
+            return next;
+        }
+        t = next;
+    }
+    t
+}
+
+/// Circular-arc post-buckling law, Choi & Ko (2002) §3.2 ("type 2"): the
+/// beam of arc length `L` between two particles bends into a circular arc
+/// of curvature `kappa` with chord `d`, `d / L = sinc(kappa L / 2)`;
+/// `E = k_b L kappa^2 / 2` and
+/// `phi = f_b(d) = k_b kappa^2 / (cos(kappa L/2) - sinc(kappa L/2))` (< 0, repulsive),
+/// with `f_b -> -12 k_b / L^2` as `d -> L` and `-4 pi^2 k_b / L^2` as `d -> 0`.
+/// Zero for `d >= L`.
+///
+/// `d`, `rest` in m; `k_b` (flexural rigidity of the link) in N m^2.
+pub fn buckling_arc(d: f64, rest: f64, k_b: f64) -> ScalarLaw {
+    if d >= rest {
+        return ScalarLaw::default();
+    }
+    let s = ((rest - d) / rest).min(1.0);
+    let t = inverse_sinc(s); // t = kappa L / 2
+    let kappa = 2.0 * t / rest;
+    let g = cos_minus_sinc(t);
+    let l2 = rest * rest;
+    if t < 1e-6 {
+        // Limits at d -> L: phi = -12 k_b/L^2, dphi = 7.2 k_b / L^3.
+        return ScalarLaw {
+            energy: 0.5 * k_b * rest * kappa * kappa,
+            phi: -12.0 * k_b / l2,
+            dphi: 7.2 * k_b / (l2 * rest),
+        };
+    }
+    // phi = (4 k_b / L^2) t^2 / g, and with dd/dt = L g / t:
+    // dphi/dd = (4 k_b / L^3) t^2 (3 g + t sin t) / g^3.
+    ScalarLaw {
+        energy: 0.5 * k_b * rest * kappa * kappa,
+        phi: 4.0 * k_b / l2 * t * t / g,
+        dphi: 4.0 * k_b / (l2 * rest) * t * t * three_g_plus_t_sin(t) / (g * g * g),
+    }
+}
+
+/// Choi & Ko's final type-2 law (Eq. 11): the arc force capped by a linear
+/// ramp, `|phi| = min(|f_b(d)|, c_b (L - d))` for `d < L`, zero for `d >= L`.
+/// Real fabric deflects from the onset of load; the ramp removes the
+/// arc law's jump to `-12 k_b / L^2` at `d = L`.
+///
+/// The energy is `E(d) = integral_d^L |phi|`, continuous across the switch
+/// point `d_c` where `c_b (L - d_c) = |f_b(d_c)|` (unique: see the proof in
+/// the module tests). `c_b` in N/m.
+pub fn buckling_ramped(d: f64, rest: f64, k_b: f64, c_b: f64) -> ScalarLaw {
+    if d >= rest {
+        return ScalarLaw::default();
+    }
+    let ramp = c_b * (d - rest);
+    let arc = buckling_arc(d, rest, k_b);
+    if arc.phi < ramp {
+        return ScalarLaw {
+            energy: 0.5 * c_b * (rest - d) * (rest - d),
+            phi: ramp,
+            dphi: c_b,
+        };
+    }
+    // Arc branch: energy = ramp energy up to d_c + arc energy from d_c to d.
+    let d_c = ramp_switch_point(rest, k_b, c_b);
+    let at_switch = buckling_arc(d_c, rest, k_b);
+    ScalarLaw {
+        energy: 0.5 * c_b * (rest - d_c) * (rest - d_c) + arc.energy - at_switch.energy,
+        ..arc
+    }
+}
+
+/// The chord `d_c` where the ramp `c_b (L - d)` meets `|f_b(d)|`, found by
+/// bisection (the difference is strictly monotone in `d`). Returns 0 when
+/// the ramp stays below the arc force for every `d` in `[0, L]`.
+fn ramp_switch_point(rest: f64, k_b: f64, c_b: f64) -> f64 {
+    let excess = |d: f64| c_b * (rest - d) + buckling_arc(d, rest, k_b).phi; // decreasing in d
+    if excess(0.0) <= 0.0 {
+        return 0.0;
+    }
+    let (mut lo, mut hi) = (0.0, rest);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if excess(mid) > 0.0 {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+        if hi - lo <= 1e-15 * rest {
+            break;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
+/// The 3x3 block `df_i/dx_j` of a central law at `x_ij = d u`:
+/// `dphi P + (phi/d)(I - P)`, or `dphi P` alone when `keep_orthogonal` is
+/// false (Choi & Ko drop the orthogonal term of type-2 links from the system
+/// matrix because `phi/d < 0` would make it indefinite; the force keeps it).
+pub fn pair_stiffness(u: &Vec3, d: f64, law: &ScalarLaw, keep_orthogonal: bool) -> Mat3 {
+    let p = u * u.transpose();
+    if keep_orthogonal && d > 0.0 {
+        let ortho = law.phi / d;
+        p * (law.dphi - ortho) + Mat3::identity() * ortho
+    } else {
+        p * law.dphi
+    }
+}
+
+/// Directional damping, Choi & Ko (2002) Eq. 13: `f_i = -k_d P (v_i - v_j)`,
+/// only along the link, so out-of-plane motion is not filtered.
+/// Returns `df_i/dv_j = k_d P`. `k_d` in N s/m.
+pub fn directional_damping(u: &Vec3, k_d: f64) -> Mat3 {
+    u * u.transpose() * k_d
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Central finite difference of a scalar function.
+    fn fd(f: impl Fn(f64) -> f64, x: f64, h: f64) -> f64 {
+        (f(x + h) - f(x - h)) / (2.0 * h)
+    }
+
+    #[test]
+    fn inverse_sinc_round_trips_over_the_whole_range() {
+        for k in 1..2000 {
+            let t = PI * k as f64 / 2000.0 * 0.9999;
+            let s = one_minus_sinc(t);
+            let back = inverse_sinc(s);
+            assert!((back - t).abs() <= 1e-12 * t.max(1e-3), "t={t}, back={back}");
+        }
+        for t in [1e-7, 1e-5, 1e-3, 0.05, 0.0999, 0.1001] {
+            let back = inverse_sinc(one_minus_sinc(t));
+            assert!((back - t).abs() <= 1e-9 * t, "t={t}, back={back}");
+        }
+    }
+
+    #[test]
+    fn series_branches_match_direct_formulas() {
+        // h(0.1) to 16 digits (computed with 40-digit arithmetic).
+        assert!((three_g_plus_t_sin(0.1) + 6.661_906_084_455_687e-6).abs() < 1e-14 * 6.7e-6);
+        for t in [0.099_999_f64, 0.100_001] {
+            let direct_g = t.cos() - t.sin() / t;
+            assert!((cos_minus_sinc(t) - direct_g).abs() < 1e-14);
+            // The direct h formula loses ~5 digits here to cancellation.
+            let direct_h = 3.0 * direct_g + t * t.sin();
+            assert!((three_g_plus_t_sin(t) - direct_h).abs() < 1e-10 * direct_h.abs());
+            assert!((one_minus_sinc(t) - (1.0 - t.sin() / t)).abs() < 1e-16);
+        }
+    }
+
+    /// Choi & Ko's buckling curve: f_b L^2 / k_b at three chord ratios.
+    #[test]
+    fn arc_force_matches_the_analytic_curve() {
+        for (ratio, expect) in [(0.99, -12.07), (0.5, -17.55), (0.2, -25.55)] {
+            let v = buckling_arc(ratio, 1.0, 1.0).phi;
+            assert!((v - expect).abs() < 0.006, "d/L={ratio}: {v}");
+        }
+        // Limits: -12 at d -> L (arc critical load), -4 pi^2 at d -> 0.
+        assert!((buckling_arc(1.0 - 1e-12, 1.0, 1.0).phi + 12.0).abs() < 1e-6);
+        assert!((buckling_arc(1e-9, 1.0, 1.0).phi + 4.0 * PI * PI).abs() < 1e-6);
+        // Scaling: phi ~ k_b / L^2.
+        let a = buckling_arc(0.3, 0.5, 2e-5).phi;
+        assert!((a - buckling_arc(0.6, 1.0, 1.0).phi * 2e-5 / 0.25).abs() < 1e-15);
+    }
+
+    #[test]
+    fn laws_are_derivatives_of_their_energies() {
+        let rest = 0.02;
+        for &d in &[0.001, 0.005, 0.01, 0.0150, 0.0199, 0.019_999_9] {
+            let h = 1e-7 * rest;
+            let arc = buckling_arc(d, rest, 3e-6);
+            let e = |x| buckling_arc(x, rest, 3e-6).energy;
+            let p = |x| buckling_arc(x, rest, 3e-6).phi;
+            assert!((fd(e, d, h) - arc.phi).abs() <= 1e-6 * arc.phi.abs(), "arc phi at {d}");
+            assert!((fd(p, d, h) - arc.dphi).abs() <= 1e-5 * arc.dphi.abs(), "arc dphi at {d}");
+            for c_b in [0.1, 10.0, 1000.0] {
+                let law = buckling_ramped(d, rest, 3e-6, c_b);
+                let e = |x| buckling_ramped(x, rest, 3e-6, c_b).energy;
+                let p = |x| buckling_ramped(x, rest, 3e-6, c_b).phi;
+                assert!((fd(e, d, h) - law.phi).abs() <= 1e-6 * law.phi.abs() + 1e-12, "ramped phi at {d}, c_b {c_b}");
+                assert!((fd(p, d, h) - law.dphi).abs() <= 1e-5 * law.dphi.abs(), "ramped dphi at {d}, c_b {c_b}");
+            }
+        }
+        for d in [0.9, 1.0001, 1.3] {
+            let s = tension_spring(d, 1.0, 50.0);
+            assert!((fd(|x| tension_spring(x, 1.0, 50.0).energy, d, 1e-6) - s.phi).abs() < 1e-6);
+            let l = linear_spring(d, 1.0, 50.0);
+            assert!((fd(|x| linear_spring(x, 1.0, 50.0).energy, d, 1e-6) - l.phi).abs() < 1e-6);
+        }
+        assert_eq!(tension_spring(0.9, 1.0, 50.0), ScalarLaw::default());
+    }
+
+    #[test]
+    fn ramped_law_is_continuous_and_never_stronger_than_either_branch() {
+        let (rest, k_b, c_b) = (0.02, 3e-6, 50.0);
+        let d_c = ramp_switch_point(rest, k_b, c_b);
+        assert!(d_c > 0.0 && d_c < rest);
+        let eps = 1e-10 * rest;
+        let below = buckling_ramped(d_c - eps, rest, k_b, c_b);
+        let above = buckling_ramped(d_c + eps, rest, k_b, c_b);
+        // No jump: the energy changes by no more than |phi| times the distance.
+        assert!((below.energy - above.energy).abs() <= 1.01 * above.phi.abs() * 2.0 * eps);
+        assert!((below.phi - above.phi).abs() < 1e-6 * above.phi.abs());
+        for k in 1..100 {
+            let d = rest * k as f64 / 100.0;
+            let law = buckling_ramped(d, rest, k_b, c_b);
+            assert!(law.phi <= 0.0 && law.dphi > 0.0);
+            assert!(law.phi >= buckling_arc(d, rest, k_b).phi - 1e-15);
+            assert!(law.phi >= c_b * (d - rest) - 1e-15);
+        }
+    }
+
+    #[test]
+    fn pair_stiffness_is_the_derivative_of_the_force() {
+        let xi = Vec3::new(0.1, -0.2, 0.05);
+        let xj = Vec3::new(0.112, -0.19, 0.049);
+        let rest = 0.02;
+        let force = |xi: &Vec3, xj: &Vec3, law: &dyn Fn(f64) -> ScalarLaw| {
+            let xij = xj - xi;
+            let d = xij.norm();
+            law(d).phi * xij / d
+        };
+        let laws: [(&dyn Fn(f64) -> ScalarLaw, f64); 2] = [
+            (&|d| tension_spring(d, 0.012, 80.0), 1e-6),
+            (&|d| buckling_ramped(d, rest, 3e-6, 50.0), 1e-5),
+        ];
+        for (law, tol) in laws {
+            let xij = xj - xi;
+            let d = xij.norm();
+            let k = pair_stiffness(&(xij / d), d, &law(d), true);
+            let h = 1e-8;
+            for c in 0..3 {
+                let mut p = xj;
+                let mut m = xj;
+                p[c] += h;
+                m[c] -= h;
+                let col = (force(&xi, &p, law) - force(&xi, &m, law)) / (2.0 * h);
+                assert!((col - k.column(c)).norm() <= tol * k.norm(), "column {c}");
+            }
+            // Dropping the orthogonal term keeps only the P part, which is PSD.
+            let dropped = pair_stiffness(&(xij / d), d, &law(d), false);
+            assert!(dropped.symmetric_eigen().eigenvalues.min() >= -1e-12);
+        }
+    }
+}

@@ -1,0 +1,109 @@
+//! Fabric material in physical units and its mapping to per-link constants.
+//!
+//! ## Why the mapping makes results resolution-independent
+//! A grid with spacing `dx x dy` has cells of area `A = dx dy`. Each link
+//! family (along u, along v, and the two diagonals) has one link per cell.
+//! A link of rest length `L` at angle `theta` to a uniform strain `eps` in
+//! direction 0 is strained by `eps cos^2 theta`; summed over the four
+//! families, `sum cos^4 = 3/2` for *any* direction on a square grid. So a
+//! link stiffness `k = (2/3) E A / L^2` stores the continuum energy density
+//! `E eps^2 / 2` per unit area, whatever the grid spacing and strain
+//! direction (exact for square cells, close for mildly rectangular ones).
+//! The same argument for curvature gives `k_b = (2/3) B A / L` for the
+//! arc law (`E = k_b L kappa^2 / 2`, normal curvature `kappa cos^2 theta`).
+//!
+//! | material field | unit | per-link constant |
+//! |---|---|---|
+//! | `areal_density` rho | kg/m^2 | mass of particle = rho x its share of cell area |
+//! | `tensile_stiffness` E | N/m | type-1 `k_s = (2/3) E A / L^2` (N/m) |
+//! | `flexural_rigidity` B | N m | type-2 `k_b = (2/3) B A / L` (N m^2) |
+//! | `buckling_stiffness` C_b | N/m | type-2 ramp `c_b = (2/3) C_b A / L^2` (N/m) |
+//! | `damping` D | N s/m | type-1 `k_d = (2/3) D A / L^2` (N s/m) |
+//!
+//! With type-1 links only in tension, the in-plane shear modulus that
+//! results is about `E / 6` (one diagonal per cell carries shear).
+
+use serde::{Deserialize, Serialize};
+
+/// A fabric, in SI units. See the module docs for how each field maps to
+/// per-link constants.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Material {
+    /// Mass per unit area, kg/m^2 (cotton: about 0.1).
+    pub areal_density_kg_m2: f64,
+    /// In-plane tensile stiffness (Young's modulus times thickness), N/m.
+    pub tensile_stiffness_n_m: f64,
+    /// Flexural rigidity (bending moment per unit width per unit curvature),
+    /// N m (cotton: 1e-6 to 1e-4).
+    pub flexural_rigidity_n_m: f64,
+    /// Compressive stiffness before buckling, the slope of Choi & Ko's ramp
+    /// `c_b` (Eq. 11) as a membrane property, N/m. "Of the order of k_s".
+    pub buckling_stiffness_n_m: f64,
+    /// Viscosity along links (stress per strain rate), N s/m. Used only
+    /// when the scene lists the `damping` effect.
+    #[serde(default)]
+    pub damping_n_s_m: f64,
+}
+
+/// Per-link constants derived from a [`Material`] for one link.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LinkConstants {
+    /// Type-1 spring stiffness `k_s`, N/m.
+    pub k_s: f64,
+    /// Type-1 damping `k_d`, N s/m.
+    pub k_d: f64,
+    /// Type-2 link flexural rigidity `k_b`, N m^2.
+    pub k_b: f64,
+    /// Type-2 ramp slope `c_b`, N/m.
+    pub c_b: f64,
+}
+
+impl Material {
+    /// Constants for a link of rest length `rest` (m) in a grid whose cells
+    /// have area `cell_area` (m^2).
+    pub fn link_constants(&self, rest: f64, cell_area: f64) -> LinkConstants {
+        let w = 2.0 / 3.0 * cell_area;
+        LinkConstants {
+            k_s: w * self.tensile_stiffness_n_m / (rest * rest),
+            k_d: w * self.damping_n_s_m / (rest * rest),
+            k_b: w * self.flexural_rigidity_n_m / rest,
+            c_b: w * self.buckling_stiffness_n_m / (rest * rest),
+        }
+    }
+
+    /// Checks every field is finite and in range; names the first bad field.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        let fields = [
+            ("areal_density_kg_m2", self.areal_density_kg_m2, false),
+            ("tensile_stiffness_n_m", self.tensile_stiffness_n_m, false),
+            ("flexural_rigidity_n_m", self.flexural_rigidity_n_m, true),
+            ("buckling_stiffness_n_m", self.buckling_stiffness_n_m, true),
+            ("damping_n_s_m", self.damping_n_s_m, true),
+        ];
+        for (name, value, zero_ok) in fields {
+            if !value.is_finite() {
+                return Err((name, format!("must be finite, got {value}")));
+            }
+            if value < 0.0 || (!zero_ok && value == 0.0) {
+                let need = if zero_ok { ">= 0" } else { "> 0" };
+                return Err((name, format!("must be {need}, got {value}")));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Default for Material {
+    /// A light cotton: 0.1 kg/m^2, E = 200 N/m, B = 1e-5 N m, C_b = E,
+    /// D = 0.02 N s/m.
+    fn default() -> Self {
+        Self {
+            areal_density_kg_m2: 0.1,
+            tensile_stiffness_n_m: 200.0,
+            flexural_rigidity_n_m: 1e-5,
+            buckling_stiffness_n_m: 200.0,
+            damping_n_s_m: 0.02,
+        }
+    }
+}

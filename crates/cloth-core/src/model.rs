@@ -1,0 +1,390 @@
+//! The immutable cloth model: particles, links grouped by law, pins, the
+//! effects a scene asked for, and the system matrix's sparsity pattern.
+
+use crate::{GridPanel, LinkType, Material, Pin, PinMotion, Vec3};
+use cloth_linalg::BlockPattern;
+use serde::{Deserialize, Serialize};
+
+/// Effects computed by a model. An effect that is off costs nothing: no
+/// links are built and no loop runs for it.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Effects {
+    /// Uniform gravitational acceleration, m/s^2 (`None`: no gravity).
+    pub gravity: Option<Vec3>,
+    /// Directional damping along type-1 links (Choi & Ko Eq. 13).
+    pub damping: bool,
+    /// Type-2 interlaced buckling links (bending and compression resistance).
+    pub bending: bool,
+}
+
+/// An edge of a grid panel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Edge {
+    /// Nodes with `i = 0`.
+    IMin,
+    /// Nodes with `i = nx - 1`.
+    IMax,
+    /// Nodes with `j = 0`.
+    JMin,
+    /// Nodes with `j = ny - 1`.
+    JMax,
+}
+
+/// A set of pinned grid nodes and the path they follow.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PinSpec {
+    /// Panel index (default 0).
+    #[serde(default)]
+    pub panel: usize,
+    /// Grid nodes `[i, j]` to pin.
+    #[serde(default)]
+    pub nodes: Vec<[usize; 2]>,
+    /// A whole edge to pin (in addition to `nodes`).
+    #[serde(default)]
+    pub edge: Option<Edge>,
+    /// The path (default: fixed).
+    #[serde(default = "fixed")]
+    pub motion: PinMotion,
+}
+
+fn fixed() -> PinMotion {
+    PinMotion::Fixed
+}
+
+/// Everything needed to build a [`ClothModel`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelSpec {
+    /// The cloth panels (particles are numbered panel after panel, `j * nx + i` within one).
+    pub panels: Vec<GridPanel>,
+    /// The fabric, shared by all panels.
+    pub material: Material,
+    /// Pinned nodes.
+    pub pins: Vec<PinSpec>,
+    /// Effects to compute.
+    pub effects: Effects,
+}
+
+/// Why a model could not be built. Field paths match the scene file's keys.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ModelError {
+    /// The model has no panel.
+    #[error("panels: at least one panel is required")]
+    NoPanels,
+    /// A panel is invalid.
+    #[error("panels[{panel}].{field}: {message}")]
+    Panel {
+        /// Panel index.
+        panel: usize,
+        /// Offending field.
+        field: &'static str,
+        /// What is wrong.
+        message: String,
+    },
+    /// The material is invalid.
+    #[error("material.{field}: {message}")]
+    Material {
+        /// Offending field.
+        field: &'static str,
+        /// What is wrong.
+        message: String,
+    },
+    /// A pin is impossible.
+    #[error("pins[{pin}].{field}: {message}")]
+    Pin {
+        /// Pin index.
+        pin: usize,
+        /// Offending field.
+        field: &'static str,
+        /// What is wrong.
+        message: String,
+    },
+    /// Gravity is not finite.
+    #[error("simulation.gravity_m_s2: must be finite, got {0:?}")]
+    Gravity([f64; 3]),
+}
+
+/// A type-1 link: tension-only spring with directional damping.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StretchLink {
+    /// First particle.
+    pub i: u32,
+    /// Second particle.
+    pub j: u32,
+    /// Rest length, m.
+    pub rest: f64,
+    /// Stiffness, N/m.
+    pub k_s: f64,
+    /// Damping, N s/m (0 when the damping effect is off).
+    pub k_d: f64,
+}
+
+/// A type-2 link: Choi-Ko buckling law with its ramp.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BendLink {
+    /// First particle.
+    pub i: u32,
+    /// Second particle.
+    pub j: u32,
+    /// Rest length (arc length of the buckled beam), m.
+    pub rest: f64,
+    /// Link flexural rigidity, N m^2.
+    pub k_b: f64,
+    /// Ramp slope, N/m.
+    pub c_b: f64,
+}
+
+/// One link incident to a particle, as seen from that particle's matrix row.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Incidence {
+    /// Link index (stretch links first, then bend links).
+    pub link: u32,
+    /// The other particle.
+    pub other: u32,
+    /// Whether this particle is the link's `i` (the link's force is then `+f`).
+    pub first: bool,
+    /// Offset of block `(row, other)` within the row's stored blocks.
+    pub slot: u32,
+}
+
+/// Where a panel's particles live in the model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PanelRange {
+    /// Index of the panel's particle (0, 0).
+    pub offset: usize,
+    /// Particles along u.
+    pub nx: usize,
+    /// Particles along v.
+    pub ny: usize,
+}
+
+/// An immutable cloth model. Build one with [`ClothModel::build`].
+#[derive(Debug, Clone)]
+pub struct ClothModel {
+    mass: Vec<f64>,
+    rest_positions: Vec<Vec3>,
+    stretch: Vec<StretchLink>,
+    bend: Vec<BendLink>,
+    pins: Vec<Pin>,
+    pinned: Vec<bool>,
+    effects: Effects,
+    material: Material,
+    panels: Vec<PanelRange>,
+    triangles: Vec<[u32; 3]>,
+    inc_ptr: Vec<usize>,
+    inc: Vec<Incidence>,
+    pattern: BlockPattern,
+    diag_local: Vec<u32>,
+}
+
+impl ClothModel {
+    /// Validates `spec` and builds the model: particle masses from areal
+    /// density, links with constants from [`Material::link_constants`],
+    /// rest lengths from the initial shape, pins, and the sparsity pattern.
+    pub fn build(spec: &ModelSpec) -> Result<Self, ModelError> {
+        if spec.panels.is_empty() {
+            return Err(ModelError::NoPanels);
+        }
+        spec.material
+            .validate()
+            .map_err(|(field, message)| ModelError::Material { field, message })?;
+        if let Some(g) = spec.effects.gravity
+            && g.iter().any(|c| !c.is_finite())
+        {
+            return Err(ModelError::Gravity([g.x, g.y, g.z]));
+        }
+        let mut mass = Vec::new();
+        let mut rest_positions = Vec::new();
+        let mut stretch = Vec::new();
+        let mut bend = Vec::new();
+        let mut panels = Vec::new();
+        let mut triangles = Vec::new();
+        let damping = spec.effects.damping;
+        for (p, panel) in spec.panels.iter().enumerate() {
+            let mesh = panel
+                .mesh()
+                .map_err(|(field, message)| ModelError::Panel { panel: p, field, message })?;
+            let offset = mass.len();
+            let at = |k: u32| offset as u32 + k;
+            let rest_of = |[a, b]: [u32; 2]| (mesh.positions[b as usize] - mesh.positions[a as usize]).norm();
+            for link in &mesh.sequential {
+                let rest = rest_of(*link);
+                let c = spec.material.link_constants(rest, mesh.cell_area);
+                stretch.push(StretchLink {
+                    i: at(link[0]),
+                    j: at(link[1]),
+                    rest,
+                    k_s: c.k_s,
+                    k_d: if damping { c.k_d } else { 0.0 },
+                });
+            }
+            if spec.effects.bending {
+                for link in &mesh.interlaced {
+                    let rest = rest_of(*link);
+                    let c = spec.material.link_constants(rest, mesh.cell_area);
+                    bend.push(BendLink { i: at(link[0]), j: at(link[1]), rest, k_b: c.k_b, c_b: c.c_b });
+                }
+            }
+            triangles.extend(mesh.triangles.iter().map(|t| t.map(at)));
+            mass.extend(mesh.area_share.iter().map(|a| a * spec.material.areal_density_kg_m2));
+            rest_positions.extend_from_slice(&mesh.positions);
+            panels.push(PanelRange { offset, nx: panel.particles[0], ny: panel.particles[1] });
+        }
+        let n = mass.len();
+        let (pins, pinned) = build_pins(spec, &panels, &rest_positions)?;
+
+        // Sparsity pattern and per-row incidence, in a fixed (link) order.
+        let pairs = stretch
+            .iter()
+            .map(|l| (l.i as usize, l.j as usize))
+            .chain(bend.iter().map(|l| (l.i as usize, l.j as usize)));
+        let pattern = BlockPattern::from_pairs(n, pairs.clone()).expect("links index existing particles");
+        let mut counts = vec![0usize; n + 1];
+        for (i, j) in pairs.clone() {
+            counts[i + 1] += 1;
+            counts[j + 1] += 1;
+        }
+        for k in 0..n {
+            counts[k + 1] += counts[k];
+        }
+        let inc_ptr = counts.clone();
+        let mut fill = counts;
+        let mut inc = vec![Incidence { link: 0, other: 0, first: true, slot: 0 }; inc_ptr[n]];
+        for (link, (i, j)) in pairs.enumerate() {
+            for (row, other, first) in [(i, j, true), (j, i, false)] {
+                let slot = pattern.slot(row, other).expect("pair is in the pattern") - pattern.row_range(row).start;
+                inc[fill[row]] = Incidence { link: link as u32, other: other as u32, first, slot: slot as u32 };
+                fill[row] += 1;
+            }
+        }
+        let diag_local = (0..n).map(|i| (pattern.diag_slot(i) - pattern.row_range(i).start) as u32).collect();
+        Ok(Self {
+            mass,
+            rest_positions,
+            stretch,
+            bend,
+            pins,
+            pinned,
+            effects: spec.effects,
+            material: spec.material,
+            panels,
+            triangles,
+            inc_ptr,
+            inc,
+            pattern,
+            diag_local,
+        })
+    }
+
+    /// Number of particles.
+    pub fn particle_count(&self) -> usize {
+        self.mass.len()
+    }
+    /// Particle masses, kg.
+    pub fn masses(&self) -> &[f64] {
+        &self.mass
+    }
+    /// Initial positions (which define rest lengths), m.
+    pub fn rest_positions(&self) -> &[Vec3] {
+        &self.rest_positions
+    }
+    /// Type-1 links.
+    pub fn stretch_links(&self) -> &[StretchLink] {
+        &self.stretch
+    }
+    /// Type-2 links (empty when bending is off).
+    pub fn bend_links(&self) -> &[BendLink] {
+        &self.bend
+    }
+    /// Total number of links of both types.
+    pub fn link_count(&self) -> usize {
+        self.stretch.len() + self.bend.len()
+    }
+    /// Endpoints of link `k` (stretch links first) and its type.
+    pub fn link_ends(&self, k: usize) -> (usize, usize, LinkType) {
+        if k < self.stretch.len() {
+            (self.stretch[k].i as usize, self.stretch[k].j as usize, LinkType::Sequential)
+        } else {
+            let l = &self.bend[k - self.stretch.len()];
+            (l.i as usize, l.j as usize, LinkType::Interlaced)
+        }
+    }
+    /// Pins.
+    pub fn pins(&self) -> &[Pin] {
+        &self.pins
+    }
+    /// Whether particle `i` is pinned.
+    pub fn is_pinned(&self, i: usize) -> bool {
+        self.pinned[i]
+    }
+    /// The effects this model computes.
+    pub fn effects(&self) -> &Effects {
+        &self.effects
+    }
+    /// The material.
+    pub fn material(&self) -> &Material {
+        &self.material
+    }
+    /// Panels, in particle order.
+    pub fn panels(&self) -> &[PanelRange] {
+        &self.panels
+    }
+    /// Surface triangles (two per grid cell), for output.
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.triangles
+    }
+    /// Links incident to particle `i`, in link order.
+    pub fn incidence(&self, i: usize) -> &[Incidence] {
+        &self.inc[self.inc_ptr[i]..self.inc_ptr[i + 1]]
+    }
+    /// The system matrix's sparsity pattern.
+    pub fn pattern(&self) -> &BlockPattern {
+        &self.pattern
+    }
+    /// Offset of the diagonal block within row `i`.
+    pub fn diag_local(&self, i: usize) -> usize {
+        self.diag_local[i] as usize
+    }
+}
+
+fn build_pins(
+    spec: &ModelSpec,
+    panels: &[PanelRange],
+    rest: &[Vec3],
+) -> Result<(Vec<Pin>, Vec<bool>), ModelError> {
+    let mut pins = Vec::new();
+    let mut pinned = vec![false; rest.len()];
+    for (k, ps) in spec.pins.iter().enumerate() {
+        let err = |field: &'static str, message: String| ModelError::Pin { pin: k, field, message };
+        let panel = *panels
+            .get(ps.panel)
+            .ok_or_else(|| err("panel", format!("no panel {} (the scene has {})", ps.panel, panels.len())))?;
+        ps.motion.validate().map_err(|(_, m)| err("motion", m))?;
+        let mut nodes = ps.nodes.clone();
+        if let Some(edge) = ps.edge {
+            let (nx, ny) = (panel.nx, panel.ny);
+            match edge {
+                Edge::IMin => nodes.extend((0..ny).map(|j| [0, j])),
+                Edge::IMax => nodes.extend((0..ny).map(|j| [nx - 1, j])),
+                Edge::JMin => nodes.extend((0..nx).map(|i| [i, 0])),
+                Edge::JMax => nodes.extend((0..nx).map(|i| [i, ny - 1])),
+            }
+        }
+        if nodes.is_empty() {
+            return Err(err("nodes", "pins nothing: give `nodes` or `edge`".into()));
+        }
+        for [i, j] in nodes {
+            if i >= panel.nx || j >= panel.ny {
+                return Err(err("nodes", format!("node [{i}, {j}] is outside the {} x {} grid", panel.nx, panel.ny)));
+            }
+            let particle = panel.offset + j * panel.nx + i;
+            if pinned[particle] {
+                return Err(err("nodes", format!("node [{i}, {j}] is pinned twice")));
+            }
+            pinned[particle] = true;
+            pins.push(Pin { particle, anchor: rest[particle], motion: ps.motion.clone() });
+        }
+    }
+    Ok((pins, pinned))
+}

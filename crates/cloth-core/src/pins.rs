@@ -1,0 +1,124 @@
+//! Pinned particles: fixed, or following a prescribed path.
+//!
+//! A pin prescribes the particle's position `x(t) = x_0 + offset(t)`. In the
+//! implicit step it becomes a fully constrained Baraff-Witkin filter entry,
+//! so pinned particles move exactly along their path.
+
+use crate::Vec3;
+use serde::{Deserialize, Serialize};
+
+/// The path a pinned particle follows, as an offset from its initial position.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum PinMotion {
+    /// Stays where it started.
+    Fixed,
+    /// Moves at a constant velocity, m/s.
+    Linear {
+        /// Velocity, m/s.
+        velocity_m_s: [f64; 3],
+    },
+    /// `offset = amplitude sin(2 pi f t)`.
+    Oscillate {
+        /// Peak offset, m.
+        amplitude_m: [f64; 3],
+        /// Frequency, Hz.
+        frequency_hz: f64,
+    },
+    /// Piecewise-linear offsets through keyframes; held constant outside them.
+    Keyframes {
+        /// Strictly increasing times, s.
+        times_s: Vec<f64>,
+        /// Offset at each time, m.
+        offsets_m: Vec<[f64; 3]>,
+    },
+}
+
+impl PinMotion {
+    /// Offset from the initial position at time `t` (s), m.
+    pub fn offset(&self, t: f64) -> Vec3 {
+        match self {
+            PinMotion::Fixed => Vec3::zeros(),
+            PinMotion::Linear { velocity_m_s } => Vec3::from(*velocity_m_s) * t,
+            PinMotion::Oscillate { amplitude_m, frequency_hz } => {
+                Vec3::from(*amplitude_m) * (2.0 * std::f64::consts::PI * frequency_hz * t).sin()
+            }
+            PinMotion::Keyframes { times_s, offsets_m } => {
+                let k = times_s.partition_point(|&tk| tk <= t);
+                if k == 0 {
+                    return Vec3::from(offsets_m[0]);
+                }
+                if k == times_s.len() {
+                    return Vec3::from(offsets_m[k - 1]);
+                }
+                let (t0, t1) = (times_s[k - 1], times_s[k]);
+                let a = (t - t0) / (t1 - t0);
+                Vec3::from(offsets_m[k - 1]) * (1.0 - a) + Vec3::from(offsets_m[k]) * a
+            }
+        }
+    }
+
+    /// Checks the motion's numbers; names the first bad field.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        let finite3 = |name: &'static str, v: &[f64; 3]| {
+            if v.iter().all(|c| c.is_finite()) { Ok(()) } else { Err((name, format!("must be finite, got {v:?}"))) }
+        };
+        match self {
+            PinMotion::Fixed => Ok(()),
+            PinMotion::Linear { velocity_m_s } => finite3("velocity_m_s", velocity_m_s),
+            PinMotion::Oscillate { amplitude_m, frequency_hz } => {
+                finite3("amplitude_m", amplitude_m)?;
+                if frequency_hz.is_finite() && *frequency_hz >= 0.0 {
+                    Ok(())
+                } else {
+                    Err(("frequency_hz", format!("must be finite and >= 0, got {frequency_hz}")))
+                }
+            }
+            PinMotion::Keyframes { times_s, offsets_m } => {
+                if times_s.is_empty() || times_s.len() != offsets_m.len() {
+                    return Err((
+                        "offsets_m",
+                        format!("needs one offset per time and at least one ({} times, {} offsets)", times_s.len(), offsets_m.len()),
+                    ));
+                }
+                if times_s.iter().any(|t| !t.is_finite()) || times_s.windows(2).any(|w| w[1] <= w[0]) {
+                    return Err(("times_s", "must be finite and strictly increasing".into()));
+                }
+                offsets_m.iter().try_for_each(|o| finite3("offsets_m", o))
+            }
+        }
+    }
+}
+
+/// One pinned particle of a built model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Pin {
+    /// Global particle index.
+    pub particle: usize,
+    /// Initial position, m.
+    pub anchor: Vec3,
+    /// Path relative to `anchor`.
+    pub motion: PinMotion,
+}
+
+impl Pin {
+    /// Prescribed position at time `t`, m.
+    pub fn position(&self, t: f64) -> Vec3 {
+        self.anchor + self.motion.offset(t)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn keyframes_interpolate_and_hold() {
+        let m = PinMotion::Keyframes { times_s: vec![1.0, 2.0], offsets_m: vec![[0.0; 3], [0.0, 0.0, 1.0]] };
+        assert_eq!(m.offset(0.0), Vec3::zeros());
+        assert!((m.offset(1.25).z - 0.25).abs() < 1e-15);
+        assert_eq!(m.offset(5.0), Vec3::new(0.0, 0.0, 1.0));
+        let bad = PinMotion::Keyframes { times_s: vec![1.0, 1.0], offsets_m: vec![[0.0; 3]; 2] };
+        assert_eq!(bad.validate().unwrap_err().0, "times_s");
+    }
+}

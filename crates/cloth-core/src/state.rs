@@ -1,0 +1,63 @@
+//! The explicit, complete simulation state. Cloning it is a snapshot:
+//! restoring a clone and stepping reproduces the same bits.
+
+use crate::{ClothModel, Vec3};
+
+/// Positions, velocities and the one-step history BDF2 needs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClothState {
+    /// Simulated time, s.
+    pub time_s: f64,
+    /// Steps taken.
+    pub steps: u64,
+    /// Positions, m.
+    pub x: Vec<Vec3>,
+    /// Velocities, m/s.
+    pub v: Vec<Vec3>,
+    /// Positions one step ago, m (meaningful when `has_history`).
+    pub x_prev: Vec<Vec3>,
+    /// Velocities one step ago, m/s (meaningful when `has_history`).
+    pub v_prev: Vec<Vec3>,
+    /// Whether `x_prev`, `v_prev` hold the previous step (false at the start
+    /// and after a change of step size: multistep methods restart then).
+    pub has_history: bool,
+    /// The step size that produced the current state, s (0 before the first step).
+    pub last_dt_s: f64,
+}
+
+impl ClothState {
+    /// The model's initial shape at rest, at time 0.
+    pub fn at_rest(model: &ClothModel) -> Self {
+        let n = model.particle_count();
+        Self {
+            time_s: 0.0,
+            steps: 0,
+            x: model.rest_positions().to_vec(),
+            v: vec![Vec3::zeros(); n],
+            x_prev: vec![Vec3::zeros(); n],
+            v_prev: vec![Vec3::zeros(); n],
+            has_history: false,
+            last_dt_s: 0.0,
+        }
+    }
+
+    /// Number of particles.
+    pub fn len(&self) -> usize {
+        self.x.len()
+    }
+
+    /// Whether the state has no particles.
+    pub fn is_empty(&self) -> bool {
+        self.x.is_empty()
+    }
+
+    /// First particle whose position or velocity is not finite, with which.
+    pub fn first_non_finite(&self) -> Option<(usize, &'static str)> {
+        let bad = |v: &Vec3| !v.iter().all(|c| c.is_finite());
+        self.x
+            .iter()
+            .zip(&self.v)
+            .enumerate()
+            .find_map(|(i, (x, v))| if bad(x) { Some((i, "position")) } else if bad(v) { Some((i, "velocity")) } else { None })
+    }
+}
