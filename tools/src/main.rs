@@ -1,1 +1,64 @@
-fn main() {}
+//! `cloth`: run and validate cloth scenes.
+
+mod output;
+mod run;
+
+use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(name = "cloth", version, about = "Run and validate cloth scenes (Choi & Ko 2002 implicit cloth)")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run a scene and write DIR/summary.json (and frames with --frames).
+    Run {
+        /// Scene file (TOML).
+        scene: PathBuf,
+        /// Output directory.
+        #[arg(long)]
+        out: PathBuf,
+        /// Override a scene field, e.g. --set panels.0.particles=[75,75] (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        overrides: Vec<String>,
+        /// Write every N-th state as DIR/frames/frame_NNNNN.obj.
+        #[arg(long, value_name = "N")]
+        frames: Option<u64>,
+        /// Worker threads (default: 2, the target machine's cores).
+        #[arg(long, default_value_t = 2)]
+        threads: usize,
+        /// No progress bar.
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// Check a scene without running it.
+    Validate {
+        /// Scene file (TOML).
+        scene: PathBuf,
+        /// Overrides, as for `run`.
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        overrides: Vec<String>,
+    },
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Run { scene, out, overrides, frames, threads, quiet } => {
+            run::run(&run::RunArgs { scene, out, overrides, frames, threads, quiet })
+        }
+        Command::Validate { scene, overrides } => run::validate(&scene, &overrides),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -12,7 +12,7 @@
 
 use crate::{
     ClothModel, Mat3, Vec3,
-    laws::{ScalarLaw, buckling_ramped, directional_damping, pair_stiffness, tension_spring},
+    laws::{ScalarLaw, directional_damping, pair_stiffness, tension_spring},
 };
 use cloth_linalg::{BlockSparseMatrix, ROW_CHUNK};
 use rayon::prelude::*;
@@ -55,7 +55,7 @@ pub fn eval_link(model: &ClothModel, k: usize, x: &[Vec3]) -> LinkEval {
     } else {
         let l = &model.bend_links()[k - ns];
         let (u, d) = unit_and_length(x[l.j as usize] - x[l.i as usize]);
-        eval_with(buckling_ramped(d, l.rest, l.k_b, l.c_b), u, d, false, 0.0)
+        eval_with(l.law.eval(d), u, d, false, 0.0)
     }
 }
 

@@ -168,36 +168,66 @@ pub fn buckling_arc(d: f64, rest: f64, k_b: f64) -> ScalarLaw {
 /// Real fabric deflects from the onset of load; the ramp removes the
 /// arc law's jump to `-12 k_b / L^2` at `d = L`.
 ///
-/// The energy is `E(d) = integral_d^L |phi|`, continuous across the switch
-/// point `d_c` where `c_b (L - d_c) = |f_b(d_c)|` (unique: see the proof in
-/// the module tests). `c_b` in N/m.
-pub fn buckling_ramped(d: f64, rest: f64, k_b: f64, c_b: f64) -> ScalarLaw {
-    if d >= rest {
-        return ScalarLaw::default();
+/// The two branches meet at a single chord `d_c` (where
+/// `c_b (L - d_c) = |f_b(d_c)|`; the difference is strictly monotone since
+/// both `c_b` and `d f_b/dd` are positive), found once at construction, so
+/// an evaluation costs one comparison on the ramp and one inverse sinc on
+/// the arc. The energy `E(d) = integral_d^L |phi|` is continuous at `d_c`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BucklingLaw {
+    /// Rest length (arc length), m.
+    pub rest: f64,
+    /// Link flexural rigidity, N m^2.
+    pub k_b: f64,
+    /// Ramp slope, N/m.
+    pub c_b: f64,
+    /// Switch chord `d_c`, m (0 when the ramp is weaker everywhere).
+    pub switch: f64,
+    /// Energy at the switch, J: `c_b (L - d_c)^2 / 2`.
+    switch_energy: f64,
+    /// Arc energy at the switch, J.
+    switch_arc_energy: f64,
+}
+
+impl BucklingLaw {
+    /// The law for one link; `rest` in m, `k_b` in N m^2, `c_b` in N/m.
+    pub fn new(rest: f64, k_b: f64, c_b: f64) -> Self {
+        let switch = ramp_switch_point(rest, k_b, c_b);
+        Self {
+            rest,
+            k_b,
+            c_b,
+            switch,
+            switch_energy: 0.5 * c_b * (rest - switch) * (rest - switch),
+            switch_arc_energy: buckling_arc(switch, rest, k_b).energy,
+        }
     }
-    let ramp = c_b * (d - rest);
-    let arc = buckling_arc(d, rest, k_b);
-    if arc.phi < ramp {
-        return ScalarLaw {
-            energy: 0.5 * c_b * (rest - d) * (rest - d),
-            phi: ramp,
-            dphi: c_b,
-        };
-    }
-    // Arc branch: energy = ramp energy up to d_c + arc energy from d_c to d.
-    let d_c = ramp_switch_point(rest, k_b, c_b);
-    let at_switch = buckling_arc(d_c, rest, k_b);
-    ScalarLaw {
-        energy: 0.5 * c_b * (rest - d_c) * (rest - d_c) + arc.energy - at_switch.energy,
-        ..arc
+
+    /// Energy, force magnitude and stiffness at chord `d` (m).
+    #[inline]
+    pub fn eval(&self, d: f64) -> ScalarLaw {
+        if d >= self.rest {
+            return ScalarLaw::default();
+        }
+        if d > self.switch {
+            let e = self.rest - d;
+            return ScalarLaw { energy: 0.5 * self.c_b * e * e, phi: -self.c_b * e, dphi: self.c_b };
+        }
+        let arc = buckling_arc(d, self.rest, self.k_b);
+        ScalarLaw { energy: self.switch_energy + arc.energy - self.switch_arc_energy, ..arc }
     }
 }
 
+/// [`BucklingLaw`] evaluated once, for callers with a single chord.
+pub fn buckling_ramped(d: f64, rest: f64, k_b: f64, c_b: f64) -> ScalarLaw {
+    BucklingLaw::new(rest, k_b, c_b).eval(d)
+}
+
 /// The chord `d_c` where the ramp `c_b (L - d)` meets `|f_b(d)|`, found by
-/// bisection (the difference is strictly monotone in `d`). Returns 0 when
+/// bisection (the difference is strictly decreasing in `d`). Returns 0 when
 /// the ramp stays below the arc force for every `d` in `[0, L]`.
 fn ramp_switch_point(rest: f64, k_b: f64, c_b: f64) -> f64 {
-    let excess = |d: f64| c_b * (rest - d) + buckling_arc(d, rest, k_b).phi; // decreasing in d
+    let excess = |d: f64| c_b * (rest - d) + buckling_arc(d, rest, k_b).phi;
     if excess(0.0) <= 0.0 {
         return 0.0;
     }
@@ -331,8 +361,12 @@ mod tests {
             let d = rest * k as f64 / 100.0;
             let law = buckling_ramped(d, rest, k_b, c_b);
             assert!(law.phi <= 0.0 && law.dphi > 0.0);
-            assert!(law.phi >= buckling_arc(d, rest, k_b).phi - 1e-15);
-            assert!(law.phi >= c_b * (d - rest) - 1e-15);
+            let arc = buckling_arc(d, rest, k_b).phi;
+            let ramp = c_b * (d - rest);
+            // |phi| = min(|f_b|, c_b (L - d)) exactly, away from the switch.
+            if (d - d_c).abs() > 1e-9 * rest {
+                assert_eq!(law.phi, arc.max(ramp), "d = {d}");
+            }
         }
     }
 

@@ -1,7 +1,7 @@
 //! The immutable cloth model: particles, links grouped by law, pins, the
 //! effects a scene asked for, and the system matrix's sparsity pattern.
 
-use crate::{GridPanel, LinkType, Material, Pin, PinMotion, Vec3};
+use crate::{GridPanel, LinkType, Material, Pin, PinMotion, Vec3, laws::BucklingLaw};
 use cloth_linalg::BlockPattern;
 use serde::{Deserialize, Serialize};
 
@@ -127,12 +127,8 @@ pub struct BendLink {
     pub i: u32,
     /// Second particle.
     pub j: u32,
-    /// Rest length (arc length of the buckled beam), m.
-    pub rest: f64,
-    /// Link flexural rigidity, N m^2.
-    pub k_b: f64,
-    /// Ramp slope, N/m.
-    pub c_b: f64,
+    /// The law with its constants (rest length = arc length of the buckled beam).
+    pub law: BucklingLaw,
 }
 
 /// One link incident to a particle, as seen from that particle's matrix row.
@@ -223,7 +219,7 @@ impl ClothModel {
                 for link in &mesh.interlaced {
                     let rest = rest_of(*link);
                     let c = spec.material.link_constants(rest, mesh.cell_area);
-                    bend.push(BendLink { i: at(link[0]), j: at(link[1]), rest, k_b: c.k_b, c_b: c.c_b });
+                    bend.push(BendLink { i: at(link[0]), j: at(link[1]), law: BucklingLaw::new(rest, c.k_b, c.c_b) });
                 }
             }
             triangles.extend(mesh.triangles.iter().map(|t| t.map(at)));

@@ -1,1 +1,435 @@
-//! scenes
+//! Scene files: TOML descriptions of a cloth, its material, pins, the
+//! integrator and the effects to compute.
+//!
+//! Every key is checked: unknown keys, missing fields, NaN or negative
+//! values and impossible pins are errors that name the file and the field.
+//! An effect the scene does not list in `simulation.effects` is not
+//! computed at all.
+//!
+//! ```toml
+//! [simulation]
+//! integrator = "bdf2"          # or "backward-euler"
+//! dt_s = 0.011111111111111112  # s
+//! duration_s = 2.0             # s
+//! effects = ["gravity", "bending", "damping"]
+//! gravity_m_s2 = [0.0, 0.0, -9.81]
+//!
+//! [solver]                     # optional, these are the defaults
+//! rel_tol = 1e-4
+//! max_iter = 1000
+//! preconditioner = "block-jacobi"   # or "diagonal", "none"
+//! accept_unconverged = true
+//!
+//! [material]
+//! areal_density_kg_m2 = 0.1
+//! tensile_stiffness_n_m = 200.0
+//! flexural_rigidity_n_m = 1e-5
+//! buckling_stiffness_n_m = 200.0
+//! damping_n_s_m = 0.02
+//!
+//! [[panels]]
+//! particles = [41, 41]
+//! size_m = [1.0, 1.0]
+//! origin_m = [-0.5, -0.5, 1.0]
+//!
+//! [[pins]]
+//! nodes = [[0, 40], [40, 40]]
+//! motion = { kind = "fixed" }
+//! ```
+
+use crate::{
+    ClothModel, Effects, GridPanel, IntegratorKind, Material, ModelSpec, PcgParams, PinSpec,
+    PreconditionerKind, SolverParams, Vec3,
+};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// A whole scene file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// Time stepping and effects.
+    pub simulation: SimulationSection,
+    /// Linear solver.
+    #[serde(default)]
+    pub solver: SolverSection,
+    /// The fabric.
+    pub material: Material,
+    /// Cloth panels.
+    pub panels: Vec<GridPanel>,
+    /// Pinned nodes.
+    #[serde(default)]
+    pub pins: Vec<PinSpec>,
+}
+
+/// An effect a scene can ask for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum EffectName {
+    /// Uniform gravity (`simulation.gravity_m_s2`).
+    Gravity,
+    /// Directional damping along type-1 links (`material.damping_n_s_m`).
+    Damping,
+    /// Type-2 buckling links (`material.flexural_rigidity_n_m`, `buckling_stiffness_n_m`).
+    Bending,
+}
+
+/// `[simulation]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimulationSection {
+    /// Integrator.
+    pub integrator: IntegratorKind,
+    /// Time step, s.
+    pub dt_s: f64,
+    /// Simulated duration, s.
+    pub duration_s: f64,
+    /// Effects to compute; anything not listed is not computed.
+    pub effects: Vec<EffectName>,
+    /// Gravitational acceleration, m/s^2 (used when `gravity` is listed).
+    #[serde(default = "default_gravity")]
+    pub gravity_m_s2: [f64; 3],
+}
+
+fn default_gravity() -> [f64; 3] {
+    [0.0, 0.0, -9.81]
+}
+
+/// `[solver]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SolverSection {
+    /// PCG relative tolerance (dimensionless, in (0, 1)).
+    pub rel_tol: f64,
+    /// PCG iteration cap.
+    pub max_iter: usize,
+    /// Preconditioner.
+    pub preconditioner: PreconditionerName,
+    /// Accept PCG's last iterate at `max_iter` instead of failing.
+    pub accept_unconverged: bool,
+}
+
+impl Default for SolverSection {
+    fn default() -> Self {
+        let p = SolverParams::default();
+        Self {
+            rel_tol: p.pcg.rel_tol,
+            max_iter: p.pcg.max_iter,
+            preconditioner: PreconditionerName::BlockJacobi,
+            accept_unconverged: p.accept_unconverged,
+        }
+    }
+}
+
+/// Preconditioner names in scene files.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum PreconditionerName {
+    /// No preconditioner.
+    None,
+    /// Scalar diagonal.
+    Diagonal,
+    /// 3x3 block diagonal (Choi & Ko).
+    BlockJacobi,
+}
+
+/// How to run a scene: everything but the model.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RunConfig {
+    /// Integrator.
+    pub integrator: IntegratorKind,
+    /// Time step, s.
+    pub dt_s: f64,
+    /// Number of steps (`duration_s / dt_s`, rounded).
+    pub steps: u64,
+    /// Solver settings.
+    pub solver: SolverParams,
+}
+
+/// A scene error: the file and what is wrong with it.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{}: {kind}", file.display())]
+pub struct SceneError {
+    /// The scene file.
+    pub file: PathBuf,
+    /// What went wrong.
+    pub kind: SceneErrorKind,
+}
+
+/// What is wrong with a scene.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SceneErrorKind {
+    /// The file could not be read.
+    #[error("cannot read: {0}")]
+    Io(String),
+    /// Not valid TOML, an unknown key, a missing field or a wrong type.
+    #[error("{0}")]
+    Parse(String),
+    /// A `--set key=value` override could not be applied.
+    #[error("--set {arg}: {message}")]
+    Override {
+        /// The override as given.
+        arg: String,
+        /// Why it failed.
+        message: String,
+    },
+    /// A value is out of range.
+    #[error("{field}: {message}")]
+    Invalid {
+        /// Dotted path of the field.
+        field: String,
+        /// Why it is invalid.
+        message: String,
+    },
+}
+
+impl Scene {
+    /// Reads `path`, applies `overrides` (`a.b=value`, array elements by
+    /// index: `panels.0.particles=[75, 75]`), parses and validates.
+    pub fn load(path: &Path, overrides: &[String]) -> Result<Self, SceneError> {
+        let err = |kind| SceneError { file: path.to_path_buf(), kind };
+        let text = std::fs::read_to_string(path).map_err(|e| err(SceneErrorKind::Io(e.to_string())))?;
+        let scene = Self::parse(&text, overrides).map_err(err)?;
+        scene.validate().map_err(err)?;
+        Ok(scene)
+    }
+
+    /// Parses scene text with overrides (no range checks; see [`Scene::validate`]).
+    pub fn parse(text: &str, overrides: &[String]) -> Result<Self, SceneErrorKind> {
+        if overrides.is_empty() {
+            return toml::from_str(text).map_err(|e| SceneErrorKind::Parse(e.to_string()));
+        }
+        let mut table: toml::Table = toml::from_str(text).map_err(|e| SceneErrorKind::Parse(e.to_string()))?;
+        for arg in overrides {
+            apply_override(&mut table, arg)
+                .map_err(|message| SceneErrorKind::Override { arg: arg.clone(), message })?;
+        }
+        let rewritten = toml::to_string(&table).map_err(|e| SceneErrorKind::Parse(e.to_string()))?;
+        toml::from_str(&rewritten).map_err(|e| SceneErrorKind::Parse(format!("after --set overrides: {e}")))
+    }
+
+    /// Range checks that the types cannot express, naming the field.
+    pub fn validate(&self) -> Result<(), SceneErrorKind> {
+        let invalid = |field: &str, message: String| SceneErrorKind::Invalid { field: field.into(), message };
+        let s = &self.simulation;
+        if !(s.dt_s.is_finite() && s.dt_s > 0.0) {
+            return Err(invalid("simulation.dt_s", format!("must be finite and > 0, got {}", s.dt_s)));
+        }
+        if !(s.duration_s.is_finite() && s.duration_s >= 0.0) {
+            return Err(invalid("simulation.duration_s", format!("must be finite and >= 0, got {}", s.duration_s)));
+        }
+        if s.duration_s / s.dt_s > 1e9 {
+            return Err(invalid("simulation.duration_s", "more than 1e9 steps".into()));
+        }
+        for (k, e) in s.effects.iter().enumerate() {
+            if s.effects[..k].contains(e) {
+                return Err(invalid("simulation.effects", format!("{e:?} is listed twice")));
+            }
+        }
+        let v = &self.solver;
+        if !(v.rel_tol.is_finite() && v.rel_tol > 0.0 && v.rel_tol < 1.0) {
+            return Err(invalid("solver.rel_tol", format!("must be in (0, 1), got {}", v.rel_tol)));
+        }
+        if v.max_iter == 0 {
+            return Err(invalid("solver.max_iter", "must be >= 1".into()));
+        }
+        // Panels, material, pins and gravity are checked by the model builder.
+        ClothModel::build(&self.model_spec())
+            .map(|_| ())
+            .map_err(|e| {
+                let text = e.to_string();
+                let (field, message) = text.split_once(": ").unwrap_or(("scene", &text));
+                invalid(field, message.to_string())
+            })
+    }
+
+    /// Whether the scene lists `effect`.
+    pub fn has_effect(&self, effect: EffectName) -> bool {
+        self.simulation.effects.contains(&effect)
+    }
+
+    /// The model description.
+    pub fn model_spec(&self) -> ModelSpec {
+        ModelSpec {
+            panels: self.panels.clone(),
+            material: self.material,
+            pins: self.pins.clone(),
+            effects: Effects {
+                gravity: self.has_effect(EffectName::Gravity).then(|| Vec3::from(self.simulation.gravity_m_s2)),
+                damping: self.has_effect(EffectName::Damping),
+                bending: self.has_effect(EffectName::Bending),
+            },
+        }
+    }
+
+    /// Builds the model and the run configuration.
+    pub fn build(&self) -> Result<(ClothModel, RunConfig), SceneErrorKind> {
+        self.validate()?;
+        let model = ClothModel::build(&self.model_spec())
+            .map_err(|e| SceneErrorKind::Invalid { field: "scene".into(), message: e.to_string() })?;
+        let s = &self.simulation;
+        let config = RunConfig {
+            integrator: s.integrator,
+            dt_s: s.dt_s,
+            steps: (s.duration_s / s.dt_s).round() as u64,
+            solver: SolverParams {
+                pcg: PcgParams {
+                    rel_tol: self.solver.rel_tol,
+                    max_iter: self.solver.max_iter,
+                    preconditioner: match self.solver.preconditioner {
+                        PreconditionerName::None => PreconditionerKind::None,
+                        PreconditionerName::Diagonal => PreconditionerKind::Diagonal,
+                        PreconditionerName::BlockJacobi => PreconditionerKind::BlockJacobi,
+                    },
+                },
+                accept_unconverged: self.solver.accept_unconverged,
+            },
+        };
+        Ok((model, config))
+    }
+}
+
+/// Sets `path=value` in a TOML table. `value` is parsed as a TOML value
+/// (`1e-3`, `[75, 75]`, `"bdf2"`, `true`); bare words become strings.
+/// Missing tables on the path are created; array elements are addressed by
+/// index and must exist.
+fn apply_override(table: &mut toml::Table, arg: &str) -> Result<(), String> {
+    let (path, raw) = arg.split_once('=').ok_or("expected key.path=value")?;
+    let keys: Vec<&str> = path.trim().split('.').collect();
+    if keys.iter().any(|k| k.is_empty()) {
+        return Err("empty key in the path".into());
+    }
+    let value = match toml::from_str::<toml::Table>(&format!("v = {}", raw.trim())) {
+        Ok(mut t) => t.remove("v").expect("the key just parsed"),
+        Err(_) => toml::Value::String(raw.trim().to_string()),
+    };
+    set_in_table(table, &keys, value)
+}
+
+fn set_in_table(t: &mut toml::Table, keys: &[&str], value: toml::Value) -> Result<(), String> {
+    let (key, rest) = keys.split_first().expect("non-empty path");
+    if rest.is_empty() {
+        t.insert((*key).to_string(), value);
+        return Ok(());
+    }
+    let child = t.entry(*key).or_insert_with(|| toml::Value::Table(toml::Table::new()));
+    set_in_value(child, key, rest, value)
+}
+
+fn set_in_value(node: &mut toml::Value, name: &str, keys: &[&str], value: toml::Value) -> Result<(), String> {
+    match node {
+        toml::Value::Table(t) => set_in_table(t, keys, value),
+        toml::Value::Array(a) => {
+            let idx: usize = keys[0].parse().map_err(|_| format!("`{name}` is an array: index it with a number"))?;
+            let len = a.len();
+            let slot = a.get_mut(idx).ok_or_else(|| format!("`{name}` has {len} entries, no index {idx}"))?;
+            if keys.len() == 1 {
+                *slot = value;
+                Ok(())
+            } else {
+                set_in_value(slot, keys[0], &keys[1..], value)
+            }
+        }
+        _ => Err(format!("`{name}` is a value, not a table or an array")),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const BASE: &str = r#"
+[simulation]
+integrator = "bdf2"
+dt_s = 0.01
+duration_s = 0.1
+effects = ["gravity"]
+
+[material]
+areal_density_kg_m2 = 0.1
+tensile_stiffness_n_m = 100.0
+flexural_rigidity_n_m = 1e-5
+buckling_stiffness_n_m = 100.0
+
+[[panels]]
+particles = [5, 4]
+size_m = [1.0, 1.0]
+
+[[pins]]
+nodes = [[0, 3]]
+"#;
+
+    fn field_of(e: SceneErrorKind) -> String {
+        match e {
+            SceneErrorKind::Invalid { field, .. } => field,
+            other => panic!("expected Invalid, got {other:?}"),
+        }
+    }
+
+    fn check(text: &str, overrides: &[&str]) -> Result<Scene, SceneErrorKind> {
+        let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+        let s = Scene::parse(text, &o)?;
+        s.validate()?;
+        Ok(s)
+    }
+
+    #[test]
+    fn base_scene_builds_and_counts_steps() {
+        let (model, cfg) = check(BASE, &[]).unwrap().build().unwrap();
+        assert_eq!(model.particle_count(), 20);
+        assert_eq!(cfg.steps, 10);
+        assert!(model.bend_links().is_empty(), "bending not listed, so no type-2 links");
+        assert!(model.stretch_links().iter().all(|l| l.k_d == 0.0), "damping not listed");
+    }
+
+    #[test]
+    fn overrides_set_nested_and_indexed_fields() {
+        let s = check(BASE, &["panels.0.particles=[9, 7]", "solver.rel_tol=1e-6", "simulation.integrator=backward-euler"])
+            .unwrap();
+        assert_eq!(s.panels[0].particles, [9, 7]);
+        assert_eq!(s.solver.rel_tol, 1e-6);
+        assert_eq!(s.simulation.integrator, IntegratorKind::BackwardEuler);
+        assert!(matches!(check(BASE, &["panels.3.particles=[9, 7]"]), Err(SceneErrorKind::Override { .. })));
+        assert!(matches!(check(BASE, &["simulation.dt_s.x=1"]), Err(SceneErrorKind::Override { .. })));
+        assert!(matches!(check(BASE, &["novalue"]), Err(SceneErrorKind::Override { .. })));
+        // A misspelt key is an unknown field, not silently ignored.
+        let e = check(BASE, &["solver.rel_toll=1e-6"]).unwrap_err();
+        assert!(matches!(&e, SceneErrorKind::Parse(m) if m.contains("rel_toll")), "{e}");
+    }
+
+    #[test]
+    fn bad_values_name_their_field() {
+        let cases = [
+            ("simulation.dt_s=-0.1", "simulation.dt_s"),
+            ("simulation.duration_s=nan", "simulation.duration_s"),
+            ("material.areal_density_kg_m2=-1.0", "material.areal_density_kg_m2"),
+            ("material.tensile_stiffness_n_m=nan", "material.tensile_stiffness_n_m"),
+            ("solver.rel_tol=2.0", "solver.rel_tol"),
+            ("panels.0.particles=[1, 4]", "panels[0].particles"),
+            ("panels.0.size_m=[1.0, inf]", "panels[0].size_m"),
+            ("pins.0.nodes=[[5, 0]]", "pins[0].nodes"),
+            ("pins.0.panel=2", "pins[0].panel"),
+            ("simulation.gravity_m_s2=[0.0, nan, 0.0]", "simulation.gravity_m_s2"),
+            ("simulation.effects=[\"gravity\", \"gravity\"]", "simulation.effects"),
+        ];
+        for (o, field) in cases {
+            assert_eq!(field_of(check(BASE, &[o]).unwrap_err()), field, "{o}");
+        }
+    }
+
+    #[test]
+    fn unknown_and_missing_keys_are_parse_errors() {
+        let e = check(&BASE.replace("dt_s = 0.01", "dt = 0.01"), &[]).unwrap_err();
+        assert!(matches!(&e, SceneErrorKind::Parse(m) if m.contains("dt")), "{e}");
+        let e = check(&BASE.replace("effects = [\"gravity\"]", "effects = [\"gravty\"]"), &[]).unwrap_err();
+        assert!(matches!(&e, SceneErrorKind::Parse(m) if m.contains("gravty")), "{e}");
+        let e = check(&format!("{BASE}\n[extra]\nx = 1\n"), &[]).unwrap_err();
+        assert!(matches!(&e, SceneErrorKind::Parse(m) if m.contains("extra")), "{e}");
+    }
+
+    #[test]
+    fn load_names_the_file() {
+        let e = Scene::load(Path::new("/nonexistent/scene.toml"), &[]).unwrap_err();
+        assert!(e.to_string().starts_with("/nonexistent/scene.toml: cannot read"), "{e}");
+    }
+}

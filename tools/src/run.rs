@@ -1,0 +1,160 @@
+//! `cloth run` and `cloth validate`.
+
+use crate::output::{StageWall, Summary, max_stretch_ratio, write_obj};
+use anyhow::{Context, Result, bail};
+use cloth_core::Simulation;
+use cloth_core::scene::{EffectName, Scene};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+pub struct RunArgs {
+    pub scene: PathBuf,
+    pub out: PathBuf,
+    pub overrides: Vec<String>,
+    pub frames: Option<u64>,
+    pub threads: usize,
+    pub quiet: bool,
+}
+
+fn load(path: &Path, overrides: &[String]) -> Result<Scene> {
+    Ok(Scene::load(path, overrides)?)
+}
+
+pub fn validate(path: &Path, overrides: &[String]) -> Result<()> {
+    let scene = load(path, overrides)?;
+    let (model, cfg) = scene.build().map_err(|kind| cloth_core::scene::SceneError { file: path.into(), kind })?;
+    println!(
+        "{}: ok ({} particles, {} type-1 and {} type-2 links, {} pins, {} steps of {} s with {})",
+        path.display(),
+        model.particle_count(),
+        model.stretch_links().len(),
+        model.bend_links().len(),
+        model.pins().len(),
+        cfg.steps,
+        cfg.dt_s,
+        cfg.integrator.name()
+    );
+    Ok(())
+}
+
+pub fn run(args: &RunArgs) -> Result<()> {
+    if args.threads == 0 {
+        bail!("--threads must be at least 1");
+    }
+    if args.frames == Some(0) {
+        bail!("--frames must be at least 1");
+    }
+    let scene = load(&args.scene, &args.overrides)?;
+    let (model, cfg) =
+        scene.build().map_err(|kind| cloth_core::scene::SceneError { file: args.scene.clone(), kind })?;
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(args.threads).build()?;
+    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    let frames_dir = args.out.join("frames");
+    if args.frames.is_some() {
+        std::fs::create_dir_all(&frames_dir).with_context(|| format!("creating {}", frames_dir.display()))?;
+    }
+
+    let mut sim = Simulation::new(model, cfg.integrator, cfg.solver);
+    let bar = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(cfg.steps) };
+    bar.set_style(
+        ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} steps  {msg}")
+            .expect("static template")
+            .progress_chars("=> "),
+    );
+    let mut stages = StageWall::default();
+    let mut step_walls = Vec::with_capacity(cfg.steps as usize);
+    let (mut cg_total, mut cg_max, mut unconverged) = (0u64, 0usize, 0u64);
+    let mut error = None;
+    let wall = Instant::now();
+    let write_frame = |sim: &Simulation, stages: &mut StageWall| -> Result<()> {
+        if let Some(every) = args.frames
+            && sim.state().steps % every == 0
+        {
+            let t = Instant::now();
+            let path = frames_dir.join(format!("frame_{:05}.obj", sim.state().steps));
+            write_obj(&path, sim.model(), &sim.state().x).with_context(|| format!("writing {}", path.display()))?;
+            stages.output += t.elapsed().as_secs_f64();
+        }
+        Ok(())
+    };
+    write_frame(&sim, &mut stages)?;
+    for _ in 0..cfg.steps {
+        let t = Instant::now();
+        let result = pool.install(|| sim.step(cfg.dt_s));
+        step_walls.push(t.elapsed().as_secs_f64());
+        match result {
+            Ok(r) => {
+                cg_total += r.cg_iterations as u64;
+                cg_max = cg_max.max(r.cg_iterations);
+                unconverged += u64::from(!r.converged);
+                stages.forces += r.stages.forces_s;
+                stages.assembly += r.stages.assembly_s;
+                stages.solve += r.stages.solve_s;
+                stages.update += r.stages.update_s;
+                bar.set_message(format!("t = {:.3} s, CG {}", sim.time(), r.cg_iterations));
+            }
+            Err(e) => {
+                error = Some(e.to_string());
+                break;
+            }
+        }
+        write_frame(&sim, &mut stages)?;
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let wall_s = wall.elapsed().as_secs_f64();
+    let state = sim.state();
+    let model = sim.model();
+    let steps = state.steps;
+    step_walls.sort_by(f64::total_cmp);
+    let summary = Summary {
+        scene: args.scene.display().to_string(),
+        particles: model.particle_count(),
+        stretch_links: model.stretch_links().len(),
+        bend_links: model.bend_links().len(),
+        effects: [EffectName::Gravity, EffectName::Damping, EffectName::Bending]
+            .into_iter()
+            .filter(|e| scene.has_effect(*e))
+            .map(|e| format!("{e:?}").to_lowercase())
+            .collect(),
+        integrator: cfg.integrator.name().to_string(),
+        threads: args.threads,
+        steps,
+        dt_s: cfg.dt_s,
+        sim_time_s: state.time_s,
+        wall_s,
+        step_wall_s_median: step_walls.get(step_walls.len() / 2).copied().unwrap_or(0.0),
+        cg_iterations_total: cg_total,
+        cg_iterations_max: cg_max,
+        cg_iterations_mean: if steps > 0 { cg_total as f64 / steps as f64 } else { 0.0 },
+        unconverged_steps: unconverged,
+        max_stretch_ratio: max_stretch_ratio(model, &state.x),
+        min_z_m: state.x.iter().map(|p| p.z).fold(f64::INFINITY, f64::min),
+        max_speed_m_s: state.v.iter().map(|v| v.norm()).fold(0.0, f64::max),
+        finite: error.is_none() && state.first_non_finite().is_none(),
+        error: error.clone(),
+        stage_wall_s: stages,
+    };
+    let path = args.out.join("summary.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&summary)? + "\n")
+        .with_context(|| format!("writing {}", path.display()))?;
+    if let Some(e) = error {
+        bail!("{}: {e}", args.scene.display());
+    }
+    if !args.quiet {
+        println!(
+            "{}: {} steps of {} s in {:.2} s wall ({:.2} ms/step median), CG {:.1}/step (max {}), max stretch {:.4}; wrote {}",
+            args.scene.display(),
+            steps,
+            cfg.dt_s,
+            wall_s,
+            summary.step_wall_s_median * 1e3,
+            summary.cg_iterations_mean,
+            cg_max,
+            summary.max_stretch_ratio,
+            path.display()
+        );
+    }
+    Ok(())
+}
