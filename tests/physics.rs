@@ -1,1 +1,363 @@
-fn main() {}
+//! Physics of the Choi-Ko model at the level of a whole cloth: forces against
+//! energies, Jacobians against forces, momentum, free fall, resolution
+//! independence, stability at large steps, determinism and rollback.
+
+use cloth_core::forces::{SystemBuffers, SystemTerms, assemble, eval_link, potential_energy, total_forces};
+use cloth_core::{
+    ClothModel, Effects, GridPanel, IntegratorKind, LinkType, Mat3, Material, ModelSpec, PcgParams, Simulation,
+    SolverParams, Vec3,
+};
+use cloth_tests::{Rng, max_stretch, same_bits, simulation};
+
+fn small_model(bending: bool, damping: bool, gravity: bool) -> ClothModel {
+    ClothModel::build(&ModelSpec {
+        panels: vec![GridPanel {
+            particles: [6, 5],
+            size_m: [0.1, 0.08],
+            origin_m: [0.0, 0.0, 0.5],
+            u_axis: [1.0, 0.0, 0.0],
+            v_axis: [0.0, 1.0, 0.0],
+            wrap_u: false,
+        }],
+        material: Material { damping_n_s_m: 0.5, ..Material::default() },
+        pins: vec![],
+        effects: Effects { gravity: gravity.then(|| Vec3::new(0.0, 0.0, -9.81)), damping, bending },
+    })
+    .unwrap()
+}
+
+/// Positions with some links stretched and some compressed enough to
+/// buckle (beyond the ramp), so every law branch is exercised.
+fn perturbed(model: &ClothModel, rng: &mut Rng, amplitude: f64) -> Vec<Vec3> {
+    let mut x: Vec<Vec3> = model.rest_positions().to_vec();
+    // Crumple along u (compresses type-2 links into the arc branch) and jitter.
+    for p in x.iter_mut() {
+        p.x *= 0.8;
+        p.z += 0.01 * (p.x * 60.0).sin();
+        *p += rng.vec3() * amplitude;
+    }
+    x
+}
+
+/// The assembled matrix as a dense (3n x 3n) row-major array.
+fn dense(bufs: &SystemBuffers, n: usize) -> Vec<f64> {
+    let mut a = vec![0.0; 9 * n * n];
+    for (i, j, b) in bufs.matrix.blocks() {
+        for r in 0..3 {
+            for c in 0..3 {
+                a[(3 * i + r) * 3 * n + 3 * j + c] += b[(r, c)];
+            }
+        }
+    }
+    a
+}
+
+#[test]
+fn forces_are_minus_the_energy_gradient() {
+    let model = small_model(true, false, true);
+    let mut rng = Rng(1);
+    let x = perturbed(&model, &mut rng, 2e-3);
+    let zero = vec![Vec3::zeros(); x.len()];
+    let f = total_forces(&model, &x, &zero);
+    // Both branches of the type-2 law and both states of type-1 links occur.
+    let kinds: Vec<(bool, bool)> = (0..model.link_count())
+        .map(|k| {
+            let (i, j, t) = model.link_ends(k);
+            let d = (x[j] - x[i]).norm();
+            let rest = (model.rest_positions()[j] - model.rest_positions()[i]).norm();
+            (t == LinkType::Interlaced, d < rest)
+        })
+        .collect();
+    assert!(kinds.contains(&(true, true)) && kinds.contains(&(false, false)) && kinds.contains(&(false, true)));
+    let scale = f.iter().map(|v| v.norm()).fold(0.0, f64::max);
+    let h = 1e-7;
+    for i in 0..x.len() {
+        for c in 0..3 {
+            let mut xp = x.clone();
+            let mut xm = x.clone();
+            xp[i][c] += h;
+            xm[i][c] -= h;
+            let grad = (potential_energy(&model, &xp) - potential_energy(&model, &xm)) / (2.0 * h);
+            assert!((f[i][c] + grad).abs() <= 1e-5 * scale, "particle {i} component {c}: f = {}, -dE/dx = {}", f[i][c], -grad);
+        }
+    }
+}
+
+/// Finite-difference Jacobian of the total force with respect to x (or v),
+/// compared with the assembled matrix `A = M - c_v D - c_x K` at c = -1.
+fn jacobian_error(model: &ClothModel, x: &[Vec3], v: &[Vec3], wrt_velocity: bool, dropped: &Mat3Sum) -> f64 {
+    let n = x.len();
+    let mut bufs = SystemBuffers::new(model);
+    let terms = SystemTerms {
+        c_x: if wrt_velocity { 0.0 } else { -1.0 },
+        c_v: if wrt_velocity { -1.0 } else { 0.0 },
+        force: 0.0,
+        k_times: None,
+        d_times: None,
+        mass_times: None,
+    };
+    assemble(model, x, &terms, &mut bufs);
+    let mut a = dense(&bufs, n);
+    for i in 0..n {
+        for c in 0..3 {
+            a[(3 * i + c) * 3 * n + 3 * i + c] -= model.masses()[i];
+        }
+    }
+    // Add back the orthogonal type-2 terms the system matrix drops.
+    for (i, j, b) in dropped {
+        for r in 0..3 {
+            for c in 0..3 {
+                a[(3 * i + r) * 3 * n + 3 * j + c] += b[(r, c)];
+            }
+        }
+    }
+    let h = 1e-7;
+    let mut worst: f64 = 0.0;
+    let scale = a.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    for j in 0..n {
+        for c in 0..3 {
+            let (mut xp, mut xm, mut vp, mut vm) = (x.to_vec(), x.to_vec(), v.to_vec(), v.to_vec());
+            if wrt_velocity {
+                vp[j][c] += h;
+                vm[j][c] -= h;
+            } else {
+                xp[j][c] += h;
+                xm[j][c] -= h;
+            }
+            let fp = total_forces(model, &xp, &vp);
+            let fm = total_forces(model, &xm, &vm);
+            for i in 0..n {
+                for r in 0..3 {
+                    let fd = (fp[i][r] - fm[i][r]) / (2.0 * h);
+                    worst = worst.max((fd - a[(3 * i + r) * 3 * n + 3 * j + c]).abs() / scale);
+                }
+            }
+        }
+    }
+    worst
+}
+
+type Mat3Sum = Vec<(usize, usize, Mat3)>;
+
+/// The orthogonal term `(phi/d)(I - P)` of every type-2 link, as blocks of df/dx.
+fn dropped_type2_terms(model: &ClothModel, x: &[Vec3]) -> Mat3Sum {
+    let mut out = Vec::new();
+    for k in model.stretch_links().len()..model.link_count() {
+        let (i, j, _) = model.link_ends(k);
+        let xij = x[j] - x[i];
+        let d = xij.norm();
+        let u = xij / d;
+        let phi = eval_link(model, k, x).force.dot(&u);
+        let ortho = (Mat3::identity() - u * u.transpose()) * (phi / d);
+        out.extend([(i, j, ortho), (j, i, ortho), (i, i, -ortho), (j, j, -ortho)]);
+    }
+    out
+}
+
+#[test]
+fn stiffness_matrix_matches_finite_differences_of_forces() {
+    let mut rng = Rng(2);
+    // Type-1 only: the assembled K is the exact Jacobian.
+    let model = small_model(false, false, true);
+    let mut x = perturbed(&model, &mut rng, 2e-3);
+    for p in x.iter_mut() {
+        p.x *= 1.3; // stretch most type-1 links
+    }
+    let v = vec![Vec3::zeros(); x.len()];
+    let err = jacobian_error(&model, &x, &v, false, &vec![]);
+    assert!(err < 1e-6, "type-1 Jacobian error {err:e}");
+    // With type-2 links: exact once the dropped orthogonal term is added back.
+    let model = small_model(true, false, true);
+    let x = perturbed(&model, &mut rng, 2e-3);
+    let dropped = dropped_type2_terms(&model, &x);
+    let err = jacobian_error(&model, &x, &v, false, &dropped);
+    assert!(err < 1e-6, "type-1 + type-2 Jacobian error {err:e}");
+    // And without adding it back, the difference is visible (the test can fail).
+    assert!(jacobian_error(&model, &x, &v, false, &vec![]) > 1e-4);
+}
+
+#[test]
+fn damping_matrix_matches_finite_differences_of_forces() {
+    let model = small_model(true, true, false);
+    let mut rng = Rng(3);
+    let x = perturbed(&model, &mut rng, 2e-3);
+    let v: Vec<Vec3> = (0..x.len()).map(|_| rng.vec3()).collect();
+    let err = jacobian_error(&model, &x, &v, true, &vec![]);
+    assert!(err < 1e-7, "damping Jacobian error {err:e}");
+}
+
+#[test]
+fn internal_forces_conserve_linear_and_angular_momentum() {
+    let model = small_model(true, true, false);
+    let mut rng = Rng(4);
+    let x = perturbed(&model, &mut rng, 3e-3);
+    let v: Vec<Vec3> = (0..x.len()).map(|_| rng.vec3()).collect();
+    let f = total_forces(&model, &x, &v);
+    let scale: f64 = f.iter().map(|v| v.norm()).sum();
+    let net: Vec3 = f.iter().sum();
+    let torque: Vec3 = x.iter().zip(&f).map(|(p, q)| p.cross(q)).sum();
+    assert!(scale > 1e-3);
+    assert!(net.norm() < 1e-14 * scale, "net force {net:?}");
+    assert!(torque.norm() < 1e-14 * scale, "net torque {torque:?}");
+}
+
+fn tight_solver() -> SolverParams {
+    SolverParams { pcg: PcgParams { rel_tol: 1e-12, max_iter: 5000, ..PcgParams::default() }, accept_unconverged: false }
+}
+
+#[test]
+fn implicit_steps_conserve_linear_momentum() {
+    for kind in [IntegratorKind::BackwardEuler, IntegratorKind::Bdf2] {
+        let model = small_model(true, true, false);
+        let mass = model.masses().to_vec();
+        let mut sim = Simulation::new(model, kind, tight_solver());
+        let mut rng = Rng(5);
+        let mut s = sim.snapshot();
+        for v in s.v.iter_mut() {
+            *v = rng.vec3() * 0.5;
+        }
+        sim.restore(&s).unwrap();
+        let momentum = |sim: &Simulation| -> Vec3 { sim.state().v.iter().zip(&mass).map(|(v, m)| v * *m).sum() };
+        let p0 = momentum(&sim);
+        let scale: f64 = sim.state().v.iter().zip(&mass).map(|(v, m)| v.norm() * m).sum();
+        for _ in 0..20 {
+            sim.step(0.01).unwrap();
+        }
+        let p1 = momentum(&sim);
+        assert!((p1 - p0).norm() < 1e-10 * scale, "{kind:?}: momentum drift {:?}", p1 - p0);
+    }
+}
+
+/// With no pins every link stays at rest length in free fall, so each
+/// integrator must reproduce its own discrete free-fall recurrence.
+#[test]
+fn free_fall_matches_the_exact_discrete_trajectories() {
+    let g = -10.0;
+    let h = 0.01;
+    for kind in ["backward-euler", "bdf2"] {
+        let set = format!("simulation.integrator={kind}");
+        let (mut sim, cfg) = simulation("freefall.toml", &[&set]);
+        assert_eq!(cfg.dt_s, h);
+        let z0 = sim.state().x.clone();
+        // Reference recurrences on (z, v) relative to the start.
+        let (mut z, mut v, mut z_prev, mut v_prev) = (0.0, 0.0, 0.0, 0.0);
+        for n in 0..cfg.steps {
+            sim.step(h).unwrap();
+            let (z_new, v_new) = if kind == "bdf2" && n > 0 {
+                let v_new = (4.0 * v - v_prev) / 3.0 + 2.0 * h / 3.0 * g;
+                ((4.0 * z - z_prev) / 3.0 + 2.0 * h / 3.0 * v_new, v_new)
+            } else {
+                (z + h * (v + h * g), v + h * g)
+            };
+            (z_prev, v_prev, z, v) = (z, v, z_new, v_new);
+            for (p, p0) in sim.state().x.iter().zip(&z0) {
+                assert!((p.z - p0.z - z).abs() < 1e-11, "{kind} step {n}: z error {}", p.z - p0.z - z);
+                assert!((p.x - p0.x).abs() < 1e-11 && (p.y - p0.y).abs() < 1e-11);
+            }
+        }
+        // Both approach the analytic fall g t^2 / 2 (first order for BE).
+        let t = sim.time();
+        let exact = 0.5 * g * t * t;
+        let tol = if kind == "bdf2" { 0.02 } else { 0.05 };
+        assert!((z - exact).abs() < tol * exact.abs(), "{kind}: {z} vs {exact}");
+    }
+}
+
+/// Choi & Ko claim stability at steps of 0.2 s and longer.
+#[test]
+fn hanging_cloth_is_stable_at_a_fifth_of_a_second() {
+    let (mut sim, _) = simulation("hang.toml", &["simulation.dt_s=0.2"]);
+    for _ in 0..100 {
+        sim.step(0.2).unwrap();
+    }
+    assert!(sim.state().first_non_finite().is_none());
+    let stretch = max_stretch(sim.model(), &sim.state().x);
+    assert!(stretch < 1.2, "max stretch {stretch}");
+    // It hangs: the lowest point is well below the pins (z = 1).
+    let min_z = sim.state().x.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
+    assert!(min_z < 0.2, "min z {min_z}");
+}
+
+#[test]
+fn restore_then_step_reproduces_the_same_bits() {
+    let (mut sim, cfg) = simulation("hang.toml", &["panels.0.particles=[15, 15]", "pins.0.nodes=[[0, 14], [14, 14]]"]);
+    for _ in 0..5 {
+        sim.step(cfg.dt_s).unwrap();
+    }
+    let snap = sim.snapshot();
+    for _ in 0..7 {
+        sim.step(cfg.dt_s).unwrap();
+    }
+    let first = sim.snapshot();
+    // Scribble over the state, then roll back.
+    sim.step(cfg.dt_s * 3.0).unwrap();
+    sim.restore(&snap).unwrap();
+    for _ in 0..7 {
+        sim.step(cfg.dt_s).unwrap();
+    }
+    assert!(same_bits(&first.x, &sim.state().x) && same_bits(&first.v, &sim.state().v));
+    assert_eq!(first, *sim.state());
+}
+
+#[test]
+fn results_are_bit_identical_with_one_and_two_threads() {
+    let run = |threads: usize| {
+        let pool = rayon_pool(threads);
+        pool.install(|| {
+            // Large enough for several parallel chunks.
+            let (mut sim, cfg) = simulation("hang.toml", &["panels.0.particles=[33, 33]", "pins.0.nodes=[[0, 32], [32, 32]]"]);
+            for _ in 0..10 {
+                sim.step(cfg.dt_s).unwrap();
+            }
+            sim.snapshot()
+        })
+    };
+    let (one, two) = (run(1), run(2));
+    assert!(same_bits(&one.x, &two.x) && same_bits(&one.v, &two.v));
+}
+
+fn rayon_pool(threads: usize) -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap()
+}
+
+/// The material mapping makes a finer grid of the same fabric behave the
+/// same: a cloth hanging from its top edge sags by the same amount at two
+/// resolutions (the stretch under its own weight is resolution independent).
+#[test]
+fn sag_is_resolution_independent() {
+    let sag = |n: usize| {
+        let mut sim = Simulation::new(
+            ClothModel::build(&ModelSpec {
+                panels: vec![GridPanel {
+                    particles: [n, n],
+                    size_m: [1.0, 1.0],
+                    origin_m: [0.0, 0.0, 1.0],
+                    u_axis: [1.0, 0.0, 0.0],
+                    v_axis: [0.0, 0.0, -1.0],
+                    wrap_u: false,
+                }],
+                material: Material { tensile_stiffness_n_m: 20.0, damping_n_s_m: 0.5, ..Material::default() },
+                pins: vec![cloth_core::PinSpec {
+                    panel: 0,
+                    nodes: vec![],
+                    edge: Some(cloth_core::Edge::JMin),
+                    motion: cloth_core::PinMotion::Fixed,
+                }],
+                effects: Effects { gravity: Some(Vec3::new(0.0, 0.0, -9.81)), damping: true, bending: true },
+            })
+            .unwrap(),
+            IntegratorKind::BackwardEuler,
+            SolverParams { pcg: PcgParams { rel_tol: 1e-8, ..PcgParams::default() }, accept_unconverged: false },
+        );
+        for _ in 0..60 {
+            sim.step(0.05).unwrap();
+        }
+        // Mean drop of the bottom edge below its rest height (z = 0).
+        let x = &sim.state().x;
+        -(0..n).map(|i| x[(n - 1) * n + i].z).sum::<f64>() / n as f64
+    };
+    let (coarse, fine) = (sag(11), sag(21));
+    // Linear elastic estimate: rho g H^2 / (2 E) = 0.1 * 9.81 / 40 = 2.5 cm.
+    assert!(coarse > 0.01 && coarse < 0.06, "coarse sag {coarse}");
+    assert!((coarse - fine).abs() < 0.05 * fine, "sag {coarse} (11x11) vs {fine} (21x21)");
+}

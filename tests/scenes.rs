@@ -1,1 +1,53 @@
-fn main() {}
+//! Fixture scenes: they validate, and they show the physics they are named for.
+
+use cloth_core::scene::Scene;
+use cloth_tests::{fixture, simulation};
+
+#[test]
+fn every_fixture_scene_validates_and_builds() {
+    let dir = fixture("");
+    let mut count = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "toml") {
+            let scene = Scene::load(&path, &[]).unwrap_or_else(|e| panic!("{e}"));
+            let (model, cfg) = scene.build().unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            assert!(model.particle_count() > 0 && cfg.steps > 0, "{}", path.display());
+            count += 1;
+        }
+    }
+    assert!(count >= 3, "expected at least hang, drape-edge and freefall, found {count}");
+}
+
+/// Volino's draping test: the cloth, fixed along one edge, first reaches
+/// the vertical slightly after 0.5 s (a free-falling edge would need
+/// sqrt(2/g) = 0.447 s to drop 1 m).
+#[test]
+fn drape_reaches_the_vertical_slightly_after_half_a_second() {
+    let (mut sim, cfg) = simulation("drape-edge.toml", &["panels.0.particles=[26, 26]"]);
+    let (nx, ny) = (26, 26);
+    let mut reached = None;
+    for _ in 0..cfg.steps {
+        sim.step(cfg.dt_s).unwrap();
+        // Mean x of the free edge (i = nx - 1), starting at 1 m; the fixed edge is at x = 0.
+        let x = &sim.state().x;
+        let free_x = (0..ny).map(|j| x[j * nx + nx - 1].x).sum::<f64>() / ny as f64;
+        if free_x <= 0.0 {
+            reached = Some(sim.time());
+            break;
+        }
+    }
+    let t = reached.expect("the cloth never reached the vertical");
+    assert!((0.45..0.65).contains(&t), "reached the vertical at {t} s");
+}
+
+#[test]
+fn scene_errors_name_the_file_and_the_field() {
+    let path = fixture("hang.toml");
+    let e = Scene::load(&path, &["material.areal_density_kg_m2=-0.1".into()]).unwrap_err();
+    let msg = e.to_string();
+    assert!(msg.contains("hang.toml") && msg.contains("material.areal_density_kg_m2"), "{msg}");
+    let e = Scene::load(&path, &["pins.0.nodes=[[0, 41]]".into()]).unwrap_err();
+    let msg = e.to_string();
+    assert!(msg.contains("hang.toml") && msg.contains("pins[0].nodes") && msg.contains("outside"), "{msg}");
+}

@@ -1,1 +1,56 @@
-//! stub
+//! Helpers shared by the workspace-level tests.
+
+use cloth_core::scene::{RunConfig, Scene};
+use cloth_core::{ClothModel, Simulation, Vec3};
+use std::path::PathBuf;
+
+/// Path of a fixture scene.
+pub fn fixture(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenes").join(name)
+}
+
+/// Loads a fixture scene with overrides and builds its model.
+pub fn load(name: &str, overrides: &[&str]) -> (ClothModel, RunConfig) {
+    let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+    let scene = Scene::load(&fixture(name), &o).unwrap_or_else(|e| panic!("{e}"));
+    scene.build().unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
+/// A simulation of a fixture scene.
+pub fn simulation(name: &str, overrides: &[&str]) -> (Simulation, RunConfig) {
+    let (model, cfg) = load(name, overrides);
+    (Simulation::new(model, cfg.integrator, cfg.solver), cfg)
+}
+
+/// Largest type-1 length / rest length.
+pub fn max_stretch(model: &ClothModel, x: &[Vec3]) -> f64 {
+    model
+        .stretch_links()
+        .iter()
+        .map(|l| (x[l.j as usize] - x[l.i as usize]).norm() / l.rest)
+        .fold(0.0, f64::max)
+}
+
+/// Bitwise equality of two position or velocity arrays.
+pub fn same_bits(a: &[Vec3], b: &[Vec3]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(p, q)| p.iter().zip(q.iter()).all(|(x, y)| x.to_bits() == y.to_bits()))
+}
+
+/// xorshift64*: deterministic pseudo-random numbers in [-1, 1).
+pub struct Rng(pub u64);
+
+impl Rng {
+    /// Next number in [-1, 1).
+    pub fn next(&mut self) -> f64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        let bits = self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11;
+        bits as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    }
+
+    /// A vector with components in [-1, 1).
+    pub fn vec3(&mut self) -> Vec3 {
+        Vec3::new(self.next(), self.next(), self.next())
+    }
+}

@@ -342,9 +342,28 @@ fn solve(ws: &mut Workspace, state: &ClothState, solver: &SolverParams) -> Resul
             converged: false,
             ..Default::default()
         },
+        Err(PcgError::NonFinite { .. }) => return Err(locate_non_finite(ws, state)),
         Err(e) => return Err(fail(e)),
     };
     Ok((report, elapsed))
+}
+
+/// Names the first particle whose force (right-hand side), matrix block or
+/// solver iterate is not finite, so a blown-up run says where it broke.
+fn locate_non_finite(ws: &Workspace, state: &ClothState) -> StepError {
+    let bad = |v: &Vec3| !v.iter().all(|c| c.is_finite());
+    let matrix_row_bad = |i: usize| ws.system.matrix.pattern().row_range(i).any(|s| !ws.system.matrix.values()[s].iter().all(|c| c.is_finite()));
+    let found = (0..state.len())
+        .find_map(|i| bad(&ws.system.rhs[i]).then_some((i, "force")))
+        .or_else(|| (0..state.len()).find_map(|i| matrix_row_bad(i).then_some((i, "stiffness"))))
+        .or_else(|| (0..state.len()).find_map(|i| bad(&ws.unknown[i]).then_some((i, "solver iterate"))))
+        .or_else(|| state.first_non_finite());
+    // Every input finite yet PCG overflowed: blame the largest force.
+    let (particle, quantity) = found.unwrap_or_else(|| {
+        let largest = (0..state.len()).max_by(|&a, &b| ws.system.rhs[a].norm().total_cmp(&ws.system.rhs[b].norm()));
+        (largest.unwrap_or(0), "value in the linear solve (overflow from its force)")
+    });
+    StepError::NonFinite { step: state.steps + 1, time_s: state.time_s, particle, quantity }
 }
 
 /// Checks the new state in `ws.new_x`/`new_v` and, if finite, makes it current.
