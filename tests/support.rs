@@ -6,7 +6,9 @@ use std::path::PathBuf;
 
 /// Path of a fixture scene.
 pub fn fixture(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenes").join(name)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../fixtures/scenes")
+        .join(name)
 }
 
 /// Loads a fixture scene with overrides and builds its model.
@@ -33,7 +35,12 @@ pub fn max_stretch(model: &ClothModel, x: &[Vec3]) -> f64 {
 
 /// Bitwise equality of two position or velocity arrays.
 pub fn same_bits(a: &[Vec3], b: &[Vec3]) -> bool {
-    a.len() == b.len() && a.iter().zip(b).all(|(p, q)| p.iter().zip(q.iter()).all(|(x, y)| x.to_bits() == y.to_bits()))
+    a.len() == b.len()
+        && a.iter().zip(b).all(|(p, q)| {
+            p.iter()
+                .zip(q.iter())
+                .all(|(x, y)| x.to_bits() == y.to_bits())
+        })
 }
 
 /// xorshift64*: deterministic pseudo-random numbers in [-1, 1).
@@ -41,7 +48,7 @@ pub struct Rng(pub u64);
 
 impl Rng {
     /// Next number in [-1, 1).
-    pub fn next(&mut self) -> f64 {
+    pub fn uniform(&mut self) -> f64 {
         self.0 ^= self.0 >> 12;
         self.0 ^= self.0 << 25;
         self.0 ^= self.0 >> 27;
@@ -51,6 +58,6 @@ impl Rng {
 
     /// A vector with components in [-1, 1).
     pub fn vec3(&mut self) -> Vec3 {
-        Vec3::new(self.next(), self.next(), self.next())
+        Vec3::new(self.uniform(), self.uniform(), self.uniform())
     }
 }

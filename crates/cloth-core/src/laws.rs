@@ -53,7 +53,11 @@ pub fn linear_spring(d: f64, rest: f64, k: f64) -> ScalarLaw {
 
 /// `sinc(t) = sin(t) / t` (1 at 0).
 pub fn sinc(t: f64) -> f64 {
-    if t.abs() < 1e-4 { 1.0 - t * t / 6.0 * (1.0 - t * t / 20.0) } else { t.sin() / t }
+    if t.abs() < 1e-4 {
+        1.0 - t * t / 6.0 * (1.0 - t * t / 20.0)
+    } else {
+        t.sin() / t
+    }
 }
 
 /// `1 - sinc(t)`, accurate for small `t` (series below 0.1).
@@ -117,7 +121,7 @@ pub fn inverse_sinc(s: f64) -> f64 {
         // d/dt (1 - sinc t) = -g(t)/t > 0.
         let slope = -cos_minus_sinc(t) / t;
         let mut next = t - f / slope;
-        if !(next > lo && next < hi) || !next.is_finite() {
+        if !(next > lo && next < hi && next.is_finite()) {
             next = 0.5 * (lo + hi);
         }
         if (next - t).abs() <= 4.0 * f64::EPSILON * t.max(1e-300) {
@@ -211,10 +215,17 @@ impl BucklingLaw {
         }
         if d > self.switch {
             let e = self.rest - d;
-            return ScalarLaw { energy: 0.5 * self.c_b * e * e, phi: -self.c_b * e, dphi: self.c_b };
+            return ScalarLaw {
+                energy: 0.5 * self.c_b * e * e,
+                phi: -self.c_b * e,
+                dphi: self.c_b,
+            };
         }
         let arc = buckling_arc(d, self.rest, self.k_b);
-        ScalarLaw { energy: self.switch_energy + arc.energy - self.switch_arc_energy, ..arc }
+        ScalarLaw {
+            energy: self.switch_energy + arc.energy - self.switch_arc_energy,
+            ..arc
+        }
     }
 }
 
@@ -282,7 +293,10 @@ mod tests {
             let t = PI * k as f64 / 2000.0 * 0.9999;
             let s = one_minus_sinc(t);
             let back = inverse_sinc(s);
-            assert!((back - t).abs() <= 1e-12 * t.max(1e-3), "t={t}, back={back}");
+            assert!(
+                (back - t).abs() <= 1e-12 * t.max(1e-3),
+                "t={t}, back={back}"
+            );
         }
         for t in [1e-7, 1e-5, 1e-3, 0.05, 0.0999, 0.1001] {
             let back = inverse_sinc(one_minus_sinc(t));
@@ -327,14 +341,26 @@ mod tests {
             let arc = buckling_arc(d, rest, 3e-6);
             let e = |x| buckling_arc(x, rest, 3e-6).energy;
             let p = |x| buckling_arc(x, rest, 3e-6).phi;
-            assert!((fd(e, d, h) - arc.phi).abs() <= 1e-6 * arc.phi.abs(), "arc phi at {d}");
-            assert!((fd(p, d, h) - arc.dphi).abs() <= 1e-5 * arc.dphi.abs(), "arc dphi at {d}");
+            assert!(
+                (fd(e, d, h) - arc.phi).abs() <= 1e-6 * arc.phi.abs(),
+                "arc phi at {d}"
+            );
+            assert!(
+                (fd(p, d, h) - arc.dphi).abs() <= 1e-5 * arc.dphi.abs(),
+                "arc dphi at {d}"
+            );
             for c_b in [0.1, 10.0, 1000.0] {
                 let law = buckling_ramped(d, rest, 3e-6, c_b);
                 let e = |x| buckling_ramped(x, rest, 3e-6, c_b).energy;
                 let p = |x| buckling_ramped(x, rest, 3e-6, c_b).phi;
-                assert!((fd(e, d, h) - law.phi).abs() <= 1e-6 * law.phi.abs() + 1e-12, "ramped phi at {d}, c_b {c_b}");
-                assert!((fd(p, d, h) - law.dphi).abs() <= 1e-5 * law.dphi.abs(), "ramped dphi at {d}, c_b {c_b}");
+                assert!(
+                    (fd(e, d, h) - law.phi).abs() <= 1e-6 * law.phi.abs() + 1e-12,
+                    "ramped phi at {d}, c_b {c_b}"
+                );
+                assert!(
+                    (fd(p, d, h) - law.dphi).abs() <= 1e-5 * law.dphi.abs(),
+                    "ramped dphi at {d}, c_b {c_b}"
+                );
             }
         }
         for d in [0.9, 1.0001, 1.3] {

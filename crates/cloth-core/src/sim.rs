@@ -2,7 +2,8 @@
 //! its scratch space.
 
 use crate::{
-    ClothModel, ClothState, Integrator, IntegratorKind, SolverParams, StepError, StepReport, Workspace,
+    ClothModel, ClothState, Integrator, IntegratorKind, SolverParams, StepError, StepReport,
+    Workspace,
 };
 use std::sync::Arc;
 
@@ -18,7 +19,11 @@ pub struct Simulation {
 
 impl Simulation {
     /// A simulation starting from the model's rest shape at time 0.
-    pub fn new(model: impl Into<Arc<ClothModel>>, integrator: IntegratorKind, solver: SolverParams) -> Self {
+    pub fn new(
+        model: impl Into<Arc<ClothModel>>,
+        integrator: IntegratorKind,
+        solver: SolverParams,
+    ) -> Self {
         let model = model.into();
         Self {
             state: ClothState::at_rest(&model),
@@ -31,7 +36,13 @@ impl Simulation {
 
     /// Advances by `h` seconds. On error the state is unchanged.
     pub fn step(&mut self, h: f64) -> Result<StepReport, StepError> {
-        self.integrator.step(&self.model, &mut self.state, h, &mut self.workspace, &self.solver)
+        self.integrator.step(
+            &self.model,
+            &mut self.state,
+            h,
+            &mut self.workspace,
+            &self.solver,
+        )
     }
 
     /// Simulated time, s.
@@ -63,7 +74,12 @@ impl Simulation {
     /// Stepping from it reproduces the original run bit for bit.
     pub fn restore(&mut self, snapshot: &ClothState) -> Result<(), StepError> {
         let n = self.model.particle_count();
-        let lens = [snapshot.x.len(), snapshot.v.len(), snapshot.x_prev.len(), snapshot.v_prev.len()];
+        let lens = [
+            snapshot.x.len(),
+            snapshot.v.len(),
+            snapshot.x_prev.len(),
+            snapshot.v_prev.len(),
+        ];
         if let Some(&got) = lens.iter().find(|&&l| l != n) {
             return Err(StepError::StateMismatch { expected: n, got });
         }

@@ -58,6 +58,14 @@ impl ClothState {
             .iter()
             .zip(&self.v)
             .enumerate()
-            .find_map(|(i, (x, v))| if bad(x) { Some((i, "position")) } else if bad(v) { Some((i, "velocity")) } else { None })
+            .find_map(|(i, (x, v))| {
+                if bad(x) {
+                    Some((i, "position"))
+                } else if bad(v) {
+                    Some((i, "velocity"))
+                } else {
+                    None
+                }
+            })
     }
 }

@@ -100,10 +100,17 @@ impl GridPanel {
         }
         for (k, s) in self.size_m.iter().enumerate() {
             if !s.is_finite() || *s <= 0.0 {
-                return Err(("size_m", format!("entry {k} must be finite and > 0, got {s}")));
+                return Err((
+                    "size_m",
+                    format!("entry {k} must be finite and > 0, got {s}"),
+                ));
             }
         }
-        for (name, v) in [("origin_m", self.origin_m), ("u_axis", self.u_axis), ("v_axis", self.v_axis)] {
+        for (name, v) in [
+            ("origin_m", self.origin_m),
+            ("u_axis", self.u_axis),
+            ("v_axis", self.v_axis),
+        ] {
             if v.iter().any(|c| !c.is_finite()) {
                 return Err((name, format!("must be finite, got {v:?}")));
             }
@@ -121,7 +128,10 @@ impl GridPanel {
         let u = u.normalize();
         let v_perp = v - u * u.dot(&v);
         if v_perp.norm() < 1e-9 * v.norm().max(1e-300) || v.norm() < 1e-12 {
-            return Err(("v_axis", "must be non-zero and not parallel to u_axis".into()));
+            return Err((
+                "v_axis",
+                "must be non-zero and not parallel to u_axis".into(),
+            ));
         }
         let v = v_perp.normalize();
         Ok((u, v, u.cross(&v)))
@@ -131,7 +141,10 @@ impl GridPanel {
     pub fn spacing(&self) -> (f64, f64) {
         let [nx, ny] = self.particles;
         let cols = if self.wrap_u { nx } else { nx - 1 };
-        (self.size_m[0] / cols as f64, self.size_m[1] / (ny - 1) as f64)
+        (
+            self.size_m[0] / cols as f64,
+            self.size_m[1] / (ny - 1) as f64,
+        )
     }
 
     /// Generates positions, area shares, links and triangles. Call
@@ -238,8 +251,14 @@ mod tests {
         let (nx, ny) = (6, 4);
         let m = panel(nx, ny, false).mesh().unwrap();
         // Structure (nx-1)ny + nx(ny-1), shear 2(nx-1)(ny-1).
-        assert_eq!(m.sequential.len(), (nx - 1) * ny + nx * (ny - 1) + 2 * (nx - 1) * (ny - 1));
-        assert_eq!(m.interlaced.len(), (nx - 2) * ny + nx * (ny - 2) + 2 * (nx - 2) * (ny - 2));
+        assert_eq!(
+            m.sequential.len(),
+            (nx - 1) * ny + nx * (ny - 1) + 2 * (nx - 1) * (ny - 1)
+        );
+        assert_eq!(
+            m.interlaced.len(),
+            (nx - 2) * ny + nx * (ny - 2) + 2 * (nx - 2) * (ny - 2)
+        );
         assert_eq!(m.triangles.len(), 2 * (nx - 1) * (ny - 1));
         let area: f64 = m.area_share.iter().sum();
         assert!((area - 0.5).abs() < 1e-15);
@@ -250,8 +269,14 @@ mod tests {
     fn wrapped_grid_closes_into_a_cylinder() {
         let (nx, ny) = (8, 3);
         let m = panel(nx, ny, true).mesh().unwrap();
-        assert_eq!(m.sequential.len(), nx * ny + nx * (ny - 1) + 2 * nx * (ny - 1));
-        assert_eq!(m.interlaced.len(), nx * ny + nx * (ny - 2) + 2 * nx * (ny - 2));
+        assert_eq!(
+            m.sequential.len(),
+            nx * ny + nx * (ny - 1) + 2 * nx * (ny - 1)
+        );
+        assert_eq!(
+            m.interlaced.len(),
+            nx * ny + nx * (ny - 2) + 2 * nx * (ny - 2)
+        );
         let area: f64 = m.area_share.iter().sum();
         assert!((area - 0.5).abs() < 1e-15);
         let r = 1.0 / (2.0 * std::f64::consts::PI);

@@ -157,7 +157,7 @@ impl Pcg {
         sub_into(b, &self.q, &mut self.r);
         filter.project(&mut self.r);
         let mut r_sq = dot_with(&self.r, &self.r, &mut self.partials);
-        if !(r_sq <= ref_sq) {
+        if r_sq.is_nan() || r_sq > ref_sq {
             x.copy_from_slice(&self.c);
             self.r.copy_from_slice(&self.s);
             r_sq = ref_sq;

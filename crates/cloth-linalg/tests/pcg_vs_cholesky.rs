@@ -12,7 +12,7 @@ use faer::{Mat, Side};
 /// xorshift64*: a tiny deterministic generator, uniform in [-1, 1).
 struct Rng(u64);
 impl Rng {
-    fn next(&mut self) -> f64 {
+    fn uniform(&mut self) -> f64 {
         self.0 ^= self.0 >> 12;
         self.0 ^= self.0 << 25;
         self.0 ^= self.0 >> 27;
@@ -20,10 +20,10 @@ impl Rng {
         bits as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
     }
     fn vec3(&mut self) -> Vec3 {
-        Vec3::new(self.next(), self.next(), self.next())
+        Vec3::new(self.uniform(), self.uniform(), self.uniform())
     }
     fn index(&mut self, n: usize) -> usize {
-        (((self.next() + 1.0) * 0.5 * n as f64) as usize).min(n - 1)
+        (((self.uniform() + 1.0) * 0.5 * n as f64) as usize).min(n - 1)
     }
 }
 
@@ -43,7 +43,7 @@ fn random_system(rng: &mut Rng, n: usize, pairs_per_node: usize, mass: f64) -> B
     let blocks: Vec<Mat3> = pairs
         .iter()
         .map(|_| {
-            let r = Mat3::from_fn(|_, _| rng.next());
+            let r = Mat3::from_fn(|_, _| rng.uniform());
             r * r.transpose() * 10.0
         })
         .collect();
