@@ -162,12 +162,18 @@ impl BlockSparseMatrix {
             .for_each(|(chunk, ys)| {
                 let first = chunk * ROW_CHUNK;
                 for (k, yi) in ys.iter_mut().enumerate() {
-                    let i = first + k;
-                    let mut acc = Vec3::zeros();
-                    for s in self.pattern.row_range(i) {
-                        acc += self.values[s] * x[self.pattern.cols[s] as usize];
+                    let range = self.pattern.row_range(first + k);
+                    let (mut a0, mut a1, mut a2) = (0.0, 0.0, 0.0);
+                    for (b, &c) in self.values[range.clone()].iter().zip(&self.pattern.cols[range]) {
+                        let xc = &x[c as usize];
+                        let (x0, x1, x2) = (xc.x, xc.y, xc.z);
+                        // Column-major 3x3 block times a 3-vector, written out.
+                        let m = b.as_slice();
+                        a0 += m[0] * x0 + m[3] * x1 + m[6] * x2;
+                        a1 += m[1] * x0 + m[4] * x1 + m[7] * x2;
+                        a2 += m[2] * x0 + m[5] * x1 + m[8] * x2;
                     }
-                    *yi = acc;
+                    *yi = Vec3::new(a0, a1, a2);
                 }
             });
     }
