@@ -10,10 +10,7 @@ pub const THREADS: usize = 2;
 
 /// A rayon pool of [`THREADS`] threads.
 pub fn pool() -> rayon::ThreadPool {
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(THREADS)
-        .build()
-        .expect("thread pool")
+    rayon::ThreadPoolBuilder::new().num_threads(THREADS).build().expect("thread pool")
 }
 
 /// `hang.toml` with an `n x n` grid, advanced by `steps` steps so the

@@ -2,12 +2,10 @@
 //! energies, Jacobians against forces, momentum, free fall, resolution
 //! independence, stability at large steps, determinism and rollback.
 
-use cloth_core::forces::{
-    SystemBuffers, SystemTerms, assemble, eval_link, potential_energy, total_forces,
-};
+use cloth_core::forces::{SystemBuffers, SystemTerms, assemble, eval_link, potential_energy, total_forces};
 use cloth_core::{
-    ClothModel, Effects, GridPanel, IntegratorKind, LinkType, Mat3, Material, ModelSpec, PcgParams,
-    Simulation, SolverParams, Vec3,
+    ClothModel, Effects, GridPanel, IntegratorKind, LinkType, Mat3, Material, ModelSpec, PcgParams, Simulation,
+    SolverParams, Vec3,
 };
 use cloth_tests::{Rng, max_stretch, same_bits, simulation};
 
@@ -21,16 +19,9 @@ fn small_model(bending: bool, damping: bool, gravity: bool) -> ClothModel {
             v_axis: [0.0, 1.0, 0.0],
             wrap_u: false,
         }],
-        material: Material {
-            damping_n_s_m: 0.5,
-            ..Material::default()
-        },
+        material: Material { damping_n_s_m: 0.5, ..Material::default() },
         pins: vec![],
-        effects: Effects {
-            gravity: gravity.then(|| Vec3::new(0.0, 0.0, -9.81)),
-            damping,
-            bending,
-        },
+        effects: Effects { gravity: gravity.then(|| Vec3::new(0.0, 0.0, -9.81)), damping, bending },
     })
     .unwrap()
 }
@@ -77,11 +68,7 @@ fn forces_are_minus_the_energy_gradient() {
             (t == LinkType::Interlaced, d < rest)
         })
         .collect();
-    assert!(
-        kinds.contains(&(true, true))
-            && kinds.contains(&(false, false))
-            && kinds.contains(&(false, true))
-    );
+    assert!(kinds.contains(&(true, true)) && kinds.contains(&(false, false)) && kinds.contains(&(false, true)));
     let scale = f.iter().map(|v| v.norm()).fold(0.0, f64::max);
     let h = 1e-7;
     for i in 0..x.len() {
@@ -103,13 +90,7 @@ fn forces_are_minus_the_energy_gradient() {
 
 /// Finite-difference Jacobian of the total force with respect to x (or v),
 /// compared with the assembled matrix `A = M - c_v D - c_x K` at c = -1.
-fn jacobian_error(
-    model: &ClothModel,
-    x: &[Vec3],
-    v: &[Vec3],
-    wrt_velocity: bool,
-    dropped: &Mat3Sum,
-) -> f64 {
+fn jacobian_error(model: &ClothModel, x: &[Vec3], v: &[Vec3], wrt_velocity: bool, dropped: &Mat3Sum) -> f64 {
     let n = x.len();
     let mut bufs = SystemBuffers::new(model);
     let terms = SystemTerms {
@@ -227,11 +208,7 @@ fn internal_forces_conserve_linear_and_angular_momentum() {
 
 fn tight_solver() -> SolverParams {
     SolverParams {
-        pcg: PcgParams {
-            rel_tol: 1e-12,
-            max_iter: 5000,
-            ..PcgParams::default()
-        },
+        pcg: PcgParams { rel_tol: 1e-12, max_iter: 5000, ..PcgParams::default() },
         accept_unconverged: false,
     }
 }
@@ -248,26 +225,14 @@ fn implicit_steps_conserve_linear_momentum() {
             *v = rng.vec3() * 0.5;
         }
         sim.restore(&s).unwrap();
-        let momentum = |sim: &Simulation| -> Vec3 {
-            sim.state().v.iter().zip(&mass).map(|(v, m)| v * *m).sum()
-        };
+        let momentum = |sim: &Simulation| -> Vec3 { sim.state().v.iter().zip(&mass).map(|(v, m)| v * *m).sum() };
         let p0 = momentum(&sim);
-        let scale: f64 = sim
-            .state()
-            .v
-            .iter()
-            .zip(&mass)
-            .map(|(v, m)| v.norm() * m)
-            .sum();
+        let scale: f64 = sim.state().v.iter().zip(&mass).map(|(v, m)| v.norm() * m).sum();
         for _ in 0..20 {
             sim.step(0.01).unwrap();
         }
         let p1 = momentum(&sim);
-        assert!(
-            (p1 - p0).norm() < 1e-10 * scale,
-            "{kind:?}: momentum drift {:?}",
-            p1 - p0
-        );
+        assert!((p1 - p0).norm() < 1e-10 * scale, "{kind:?}: momentum drift {:?}", p1 - p0);
     }
 }
 
@@ -294,11 +259,7 @@ fn free_fall_matches_the_exact_discrete_trajectories() {
             };
             (z_prev, v_prev, z, v) = (z, v, z_new, v_new);
             for (p, p0) in sim.state().x.iter().zip(&z0) {
-                assert!(
-                    (p.z - p0.z - z).abs() < 1e-11,
-                    "{kind} step {n}: z error {}",
-                    p.z - p0.z - z
-                );
+                assert!((p.z - p0.z - z).abs() < 1e-11, "{kind} step {n}: z error {}", p.z - p0.z - z);
                 assert!((p.x - p0.x).abs() < 1e-11 && (p.y - p0.y).abs() < 1e-11);
             }
         }
@@ -306,10 +267,7 @@ fn free_fall_matches_the_exact_discrete_trajectories() {
         let t = sim.time();
         let exact = 0.5 * g * t * t;
         let tol = if kind == "bdf2" { 0.02 } else { 0.05 };
-        assert!(
-            (z - exact).abs() < tol * exact.abs(),
-            "{kind}: {z} vs {exact}"
-        );
+        assert!((z - exact).abs() < tol * exact.abs(), "{kind}: {z} vs {exact}");
     }
 }
 
@@ -324,24 +282,13 @@ fn hanging_cloth_is_stable_at_a_fifth_of_a_second() {
     let stretch = max_stretch(sim.model(), &sim.state().x);
     assert!(stretch < 1.2, "max stretch {stretch}");
     // It hangs: the lowest point is well below the pins (z = 1).
-    let min_z = sim
-        .state()
-        .x
-        .iter()
-        .map(|p| p.z)
-        .fold(f64::INFINITY, f64::min);
+    let min_z = sim.state().x.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
     assert!(min_z < 0.2, "min z {min_z}");
 }
 
 #[test]
 fn restore_then_step_reproduces_the_same_bits() {
-    let (mut sim, cfg) = simulation(
-        "hang.toml",
-        &[
-            "panels.0.particles=[15, 15]",
-            "pins.0.nodes=[[0, 14], [14, 14]]",
-        ],
-    );
+    let (mut sim, cfg) = simulation("hang.toml", &["panels.0.particles=[15, 15]", "pins.0.nodes=[[0, 14], [14, 14]]"]);
     for _ in 0..5 {
         sim.step(cfg.dt_s).unwrap();
     }
@@ -366,13 +313,8 @@ fn results_are_bit_identical_with_one_and_two_threads() {
         let pool = rayon_pool(threads);
         pool.install(|| {
             // Large enough for several parallel chunks.
-            let (mut sim, cfg) = simulation(
-                "hang.toml",
-                &[
-                    "panels.0.particles=[33, 33]",
-                    "pins.0.nodes=[[0, 32], [32, 32]]",
-                ],
-            );
+            let (mut sim, cfg) =
+                simulation("hang.toml", &["panels.0.particles=[33, 33]", "pins.0.nodes=[[0, 32], [32, 32]]"]);
             for _ in 0..10 {
                 sim.step(cfg.dt_s).unwrap();
             }
@@ -384,10 +326,7 @@ fn results_are_bit_identical_with_one_and_two_threads() {
 }
 
 fn rayon_pool(threads: usize) -> rayon::ThreadPool {
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .unwrap()
+    rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap()
 }
 
 /// The material mapping makes a finer grid of the same fabric behave the
@@ -406,32 +345,18 @@ fn sag_is_resolution_independent() {
                     v_axis: [0.0, 0.0, -1.0],
                     wrap_u: false,
                 }],
-                material: Material {
-                    tensile_stiffness_n_m: 20.0,
-                    damping_n_s_m: 0.5,
-                    ..Material::default()
-                },
+                material: Material { tensile_stiffness_n_m: 20.0, damping_n_s_m: 0.5, ..Material::default() },
                 pins: vec![cloth_core::PinSpec {
                     panel: 0,
                     nodes: vec![],
                     edge: Some(cloth_core::Edge::JMin),
                     motion: cloth_core::PinMotion::Fixed,
                 }],
-                effects: Effects {
-                    gravity: Some(Vec3::new(0.0, 0.0, -9.81)),
-                    damping: true,
-                    bending: true,
-                },
+                effects: Effects { gravity: Some(Vec3::new(0.0, 0.0, -9.81)), damping: true, bending: true },
             })
             .unwrap(),
             IntegratorKind::BackwardEuler,
-            SolverParams {
-                pcg: PcgParams {
-                    rel_tol: 1e-8,
-                    ..PcgParams::default()
-                },
-                accept_unconverged: false,
-            },
+            SolverParams { pcg: PcgParams { rel_tol: 1e-8, ..PcgParams::default() }, accept_unconverged: false },
         );
         for _ in 0..60 {
             sim.step(0.05).unwrap();
@@ -443,8 +368,34 @@ fn sag_is_resolution_independent() {
     let (coarse, fine) = (sag(11), sag(21));
     // Linear elastic estimate: rho g H^2 / (2 E) = 0.1 * 9.81 / 40 = 2.5 cm.
     assert!(coarse > 0.01 && coarse < 0.06, "coarse sag {coarse}");
-    assert!(
-        (coarse - fine).abs() < 0.05 * fine,
-        "sag {coarse} (11x11) vs {fine} (21x21)"
-    );
+    assert!((coarse - fine).abs() < 0.05 * fine, "sag {coarse} (11x11) vs {fine} (21x21)");
+}
+
+/// A pin on a path is a hard constraint: it follows its path exactly and
+/// carries the path's velocity, with both integrators.
+#[test]
+fn pins_follow_their_prescribed_paths_exactly() {
+    let velocity = [0.3, -0.1, 0.2];
+    for kind in ["backward-euler", "bdf2"] {
+        let set_kind = format!("simulation.integrator={kind}");
+        let motion = format!("pins.0.motion={{ kind = \"linear\", velocity_m_s = {velocity:?} }}");
+        let (mut sim, cfg) = simulation(
+            "hang.toml",
+            &["panels.0.particles=[9, 9]", "pins.0.nodes=[[0, 8], [8, 8]]", &set_kind, &motion],
+        );
+        let pins = sim.model().pins().to_vec();
+        for _ in 0..30 {
+            sim.step(cfg.dt_s).unwrap();
+        }
+        let t = sim.time();
+        for pin in &pins {
+            let expect = pin.anchor + Vec3::from(velocity) * t;
+            let got = sim.state().x[pin.particle];
+            assert!((got - expect).norm() < 1e-12, "{kind}: pin {} at {got:?}, path at {expect:?}", pin.particle);
+            let v = sim.state().v[pin.particle];
+            assert!((v - Vec3::from(velocity)).norm() < 1e-9, "{kind}: pin velocity {v:?}");
+        }
+        // The free cloth is dragged along and stays finite.
+        assert!(sim.state().first_non_finite().is_none());
+    }
 }

@@ -11,21 +11,12 @@ fn every_fixture_scene_validates_and_builds() {
         let path = entry.unwrap().path();
         if path.extension().is_some_and(|e| e == "toml") {
             let scene = Scene::load(&path, &[]).unwrap_or_else(|e| panic!("{e}"));
-            let (model, cfg) = scene
-                .build()
-                .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-            assert!(
-                model.particle_count() > 0 && cfg.steps > 0,
-                "{}",
-                path.display()
-            );
+            let (model, cfg) = scene.build().unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            assert!(model.particle_count() > 0 && cfg.steps > 0, "{}", path.display());
             count += 1;
         }
     }
-    assert!(
-        count >= 3,
-        "expected at least hang, drape-edge and freefall, found {count}"
-    );
+    assert!(count >= 3, "expected at least hang, drape-edge and freefall, found {count}");
 }
 
 /// Volino's draping test: the cloth, fixed along one edge, first reaches
@@ -55,14 +46,8 @@ fn scene_errors_name_the_file_and_the_field() {
     let path = fixture("hang.toml");
     let e = Scene::load(&path, &["material.areal_density_kg_m2=-0.1".into()]).unwrap_err();
     let msg = e.to_string();
-    assert!(
-        msg.contains("hang.toml") && msg.contains("material.areal_density_kg_m2"),
-        "{msg}"
-    );
+    assert!(msg.contains("hang.toml") && msg.contains("material.areal_density_kg_m2"), "{msg}");
     let e = Scene::load(&path, &["pins.0.nodes=[[0, 41]]".into()]).unwrap_err();
     let msg = e.to_string();
-    assert!(
-        msg.contains("hang.toml") && msg.contains("pins[0].nodes") && msg.contains("outside"),
-        "{msg}"
-    );
+    assert!(msg.contains("hang.toml") && msg.contains("pins[0].nodes") && msg.contains("outside"), "{msg}");
 }

@@ -6,9 +6,7 @@ use std::path::PathBuf;
 
 /// Path of a fixture scene.
 pub fn fixture(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../fixtures/scenes")
-        .join(name)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenes").join(name)
 }
 
 /// Loads a fixture scene with overrides and builds its model.
@@ -26,21 +24,12 @@ pub fn simulation(name: &str, overrides: &[&str]) -> (Simulation, RunConfig) {
 
 /// Largest type-1 length / rest length.
 pub fn max_stretch(model: &ClothModel, x: &[Vec3]) -> f64 {
-    model
-        .stretch_links()
-        .iter()
-        .map(|l| (x[l.j as usize] - x[l.i as usize]).norm() / l.rest)
-        .fold(0.0, f64::max)
+    model.stretch_links().iter().map(|l| (x[l.j as usize] - x[l.i as usize]).norm() / l.rest).fold(0.0, f64::max)
 }
 
 /// Bitwise equality of two position or velocity arrays.
 pub fn same_bits(a: &[Vec3], b: &[Vec3]) -> bool {
-    a.len() == b.len()
-        && a.iter().zip(b).all(|(p, q)| {
-            p.iter()
-                .zip(q.iter())
-                .all(|(x, y)| x.to_bits() == y.to_bits())
-        })
+    a.len() == b.len() && a.iter().zip(b).all(|(p, q)| p.iter().zip(q.iter()).all(|(x, y)| x.to_bits() == y.to_bits()))
 }
 
 /// xorshift64*: deterministic pseudo-random numbers in [-1, 1).

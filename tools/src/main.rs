@@ -8,11 +8,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(Parser)]
-#[command(
-    name = "cloth",
-    version,
-    about = "Run and validate cloth scenes (Choi & Ko 2002 implicit cloth)"
-)]
+#[command(name = "cloth", version, about = "Run and validate cloth scenes (Choi & Ko 2002 implicit cloth)")]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -53,21 +49,9 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Run {
-            scene,
-            out,
-            overrides,
-            frames,
-            threads,
-            quiet,
-        } => run::run(&run::RunArgs {
-            scene,
-            out,
-            overrides,
-            frames,
-            threads,
-            quiet,
-        }),
+        Command::Run { scene, out, overrides, frames, threads, quiet } => {
+            run::run(&run::RunArgs { scene, out, overrides, frames, threads, quiet })
+        }
         Command::Validate { scene, overrides } => run::validate(&scene, &overrides),
     };
     match result {

@@ -64,9 +64,5 @@ pub struct Summary {
 
 /// Largest `|x_j - x_i| / rest` over type-1 links.
 pub fn max_stretch_ratio(model: &ClothModel, x: &[Vec3]) -> f64 {
-    model
-        .stretch_links()
-        .iter()
-        .map(|l| (x[l.j as usize] - x[l.i as usize]).norm() / l.rest)
-        .fold(0.0, f64::max)
+    model.stretch_links().iter().map(|l| (x[l.j as usize] - x[l.i as usize]).norm() / l.rest).fold(0.0, f64::max)
 }

@@ -23,12 +23,7 @@ fn load(path: &Path, overrides: &[String]) -> Result<Scene> {
 
 pub fn validate(path: &Path, overrides: &[String]) -> Result<()> {
     let scene = load(path, overrides)?;
-    let (model, cfg) = scene
-        .build()
-        .map_err(|kind| cloth_core::scene::SceneError {
-            file: path.into(),
-            kind,
-        })?;
+    let (model, cfg) = scene.build().map_err(|kind| cloth_core::scene::SceneError { file: path.into(), kind })?;
     println!(
         "{}: ok ({} particles, {} type-1 and {} type-2 links, {} pins, {} steps of {} s with {})",
         path.display(),
@@ -51,29 +46,17 @@ pub fn run(args: &RunArgs) -> Result<()> {
         bail!("--frames must be at least 1");
     }
     let scene = load(&args.scene, &args.overrides)?;
-    let (model, cfg) = scene
-        .build()
-        .map_err(|kind| cloth_core::scene::SceneError {
-            file: args.scene.clone(),
-            kind,
-        })?;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(args.threads)
-        .build()?;
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
+    let (model, cfg) =
+        scene.build().map_err(|kind| cloth_core::scene::SceneError { file: args.scene.clone(), kind })?;
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(args.threads).build()?;
+    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     let frames_dir = args.out.join("frames");
     if args.frames.is_some() {
-        std::fs::create_dir_all(&frames_dir)
-            .with_context(|| format!("creating {}", frames_dir.display()))?;
+        std::fs::create_dir_all(&frames_dir).with_context(|| format!("creating {}", frames_dir.display()))?;
     }
 
     let mut sim = Simulation::new(model, cfg.integrator, cfg.solver);
-    let bar = if args.quiet {
-        ProgressBar::hidden()
-    } else {
-        ProgressBar::new(cfg.steps)
-    };
+    let bar = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(cfg.steps) };
     bar.set_style(
         ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} steps  {msg}")
             .expect("static template")
@@ -90,8 +73,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         {
             let t = Instant::now();
             let path = frames_dir.join(format!("frame_{:05}.obj", sim.state().steps));
-            write_obj(&path, sim.model(), &sim.state().x)
-                .with_context(|| format!("writing {}", path.display()))?;
+            write_obj(&path, sim.model(), &sim.state().x).with_context(|| format!("writing {}", path.display()))?;
             stages.output += t.elapsed().as_secs_f64();
         }
         Ok(())
@@ -131,15 +113,11 @@ pub fn run(args: &RunArgs) -> Result<()> {
         particles: model.particle_count(),
         stretch_links: model.stretch_links().len(),
         bend_links: model.bend_links().len(),
-        effects: [
-            EffectName::Gravity,
-            EffectName::Damping,
-            EffectName::Bending,
-        ]
-        .into_iter()
-        .filter(|e| scene.has_effect(*e))
-        .map(|e| format!("{e:?}").to_lowercase())
-        .collect(),
+        effects: [EffectName::Gravity, EffectName::Damping, EffectName::Bending]
+            .into_iter()
+            .filter(|e| scene.has_effect(*e))
+            .map(|e| format!("{e:?}").to_lowercase())
+            .collect(),
         integrator: cfg.integrator.name().to_string(),
         threads: args.threads,
         steps,
@@ -149,11 +127,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         step_wall_s_median: step_walls.get(step_walls.len() / 2).copied().unwrap_or(0.0),
         cg_iterations_total: cg_total,
         cg_iterations_max: cg_max,
-        cg_iterations_mean: if steps > 0 {
-            cg_total as f64 / steps as f64
-        } else {
-            0.0
-        },
+        cg_iterations_mean: if steps > 0 { cg_total as f64 / steps as f64 } else { 0.0 },
         unconverged_steps: unconverged,
         max_stretch_ratio: max_stretch_ratio(model, &state.x),
         min_z_m: state.x.iter().map(|p| p.z).fold(f64::INFINITY, f64::min),

@@ -8,9 +8,7 @@ fn cloth() -> Command {
 }
 
 fn scene(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../fixtures/scenes")
-        .join(name)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenes").join(name)
 }
 
 fn out_dir(name: &str) -> PathBuf {
@@ -23,19 +21,8 @@ fn out_dir(name: &str) -> PathBuf {
 fn run_writes_summary_and_frames() {
     let out = out_dir("run");
     let status = cloth()
-        .args([
-            "run",
-            scene("hang.toml").to_str().unwrap(),
-            "--quiet",
-            "--frames",
-            "5",
-        ])
-        .args([
-            "--set",
-            "panels.0.particles=[11, 11]",
-            "--set",
-            "pins.0.nodes=[[0, 10], [10, 10]]",
-        ])
+        .args(["run", scene("hang.toml").to_str().unwrap(), "--quiet", "--frames", "5"])
+        .args(["--set", "panels.0.particles=[11, 11]", "--set", "pins.0.nodes=[[0, 10], [10, 10]]"])
         .args(["--set", "simulation.duration_s=0.1"])
         .arg("--out")
         .arg(&out)
@@ -48,14 +35,7 @@ fn run_writes_summary_and_frames() {
     assert_eq!(s["steps"], 9);
     assert_eq!(s["integrator"], "bdf2");
     assert_eq!(s["finite"], true);
-    for key in [
-        "dt_s",
-        "sim_time_s",
-        "wall_s",
-        "max_stretch_ratio",
-        "min_z_m",
-        "max_speed_m_s",
-    ] {
+    for key in ["dt_s", "sim_time_s", "wall_s", "max_stretch_ratio", "min_z_m", "max_speed_m_s"] {
         assert!(s[key].as_f64().is_some_and(f64::is_finite), "{key}");
     }
     assert!(s["cg_iterations_total"].as_u64().unwrap() >= s["cg_iterations_max"].as_u64().unwrap());
@@ -63,10 +43,7 @@ fn run_writes_summary_and_frames() {
         assert!(s["stage_wall_s"][stage].as_f64().unwrap() >= 0.0, "{stage}");
     }
     // Frames 0 and 5 (steps 0..=9 every 5th), each a valid OBJ of 121 vertices.
-    let frames: Vec<_> = std::fs::read_dir(out.join("frames"))
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .collect();
+    let frames: Vec<_> = std::fs::read_dir(out.join("frames")).unwrap().map(|e| e.unwrap().path()).collect();
     assert_eq!(frames.len(), 2, "{frames:?}");
     let obj = std::fs::read_to_string(out.join("frames/frame_00005.obj")).unwrap();
     assert_eq!(obj.lines().filter(|l| l.starts_with("v ")).count(), 121);
@@ -75,33 +52,17 @@ fn run_writes_summary_and_frames() {
 
 #[test]
 fn validate_accepts_fixtures_and_names_bad_fields() {
-    let ok = cloth()
-        .args(["validate", scene("hang.toml").to_str().unwrap()])
-        .output()
-        .unwrap();
+    let ok = cloth().args(["validate", scene("hang.toml").to_str().unwrap()]).output().unwrap();
     assert!(ok.status.success());
     let bad = cloth()
-        .args([
-            "validate",
-            scene("hang.toml").to_str().unwrap(),
-            "--set",
-            "simulation.dt_s=nan",
-        ])
+        .args(["validate", scene("hang.toml").to_str().unwrap(), "--set", "simulation.dt_s=nan"])
         .output()
         .unwrap();
     assert!(!bad.status.success());
     let err = String::from_utf8_lossy(&bad.stderr);
-    assert!(
-        err.contains("hang.toml") && err.contains("simulation.dt_s"),
-        "{err}"
-    );
+    assert!(err.contains("hang.toml") && err.contains("simulation.dt_s"), "{err}");
     let unknown = cloth()
-        .args([
-            "validate",
-            scene("hang.toml").to_str().unwrap(),
-            "--set",
-            "material.colour=1",
-        ])
+        .args(["validate", scene("hang.toml").to_str().unwrap(), "--set", "material.colour=1"])
         .output()
         .unwrap();
     assert!(!unknown.status.success());
@@ -117,26 +78,15 @@ fn a_run_that_goes_non_finite_says_where_and_when() {
     let out = out_dir("blowup");
     let output = cloth()
         .args(["run", scene("hang.toml").to_str().unwrap(), "--quiet"])
-        .args([
-            "--set",
-            "panels.0.particles=[6, 6]",
-            "--set",
-            "pins.0.nodes=[[0, 5]]",
-        ])
-        .args([
-            "--set",
-            "pins.0.motion={ kind = \"linear\", velocity_m_s = [1e307, 0.0, 0.0] }",
-        ])
+        .args(["--set", "panels.0.particles=[6, 6]", "--set", "pins.0.nodes=[[0, 5]]"])
+        .args(["--set", "pins.0.motion={ kind = \"linear\", velocity_m_s = [1e307, 0.0, 0.0] }"])
         .arg("--out")
         .arg(&out)
         .output()
         .unwrap();
     assert!(!output.status.success());
     let err = String::from_utf8_lossy(&output.stderr);
-    assert!(
-        err.contains("step ") && err.contains("particle ") && err.contains("non-finite"),
-        "{err}"
-    );
+    assert!(err.contains("step ") && err.contains("particle ") && err.contains("non-finite"), "{err}");
     let s: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(s["finite"], false);

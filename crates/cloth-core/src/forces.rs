@@ -32,22 +32,14 @@ pub struct LinkEval {
 
 fn unit_and_length(xij: Vec3) -> (Vec3, f64) {
     let d = xij.norm();
-    if d > 0.0 {
-        (xij / d, d)
-    } else {
-        (Vec3::zeros(), 0.0)
-    }
+    if d > 0.0 { (xij / d, d) } else { (Vec3::zeros(), 0.0) }
 }
 
 fn eval_with(law: ScalarLaw, u: Vec3, d: f64, keep_orthogonal: bool, k_d: f64) -> LinkEval {
     LinkEval {
         force: u * law.phi,
         stiffness: pair_stiffness(&u, d, &law, keep_orthogonal),
-        damping: if k_d > 0.0 {
-            directional_damping(&u, k_d)
-        } else {
-            Mat3::zeros()
-        },
+        damping: if k_d > 0.0 { directional_damping(&u, k_d) } else { Mat3::zeros() },
         energy: law.energy,
     }
 }
@@ -69,32 +61,20 @@ pub fn eval_link(model: &ClothModel, k: usize, x: &[Vec3]) -> LinkEval {
 
 /// Total potential energy at `x`: link energies plus gravity `-sum m g.x`, J.
 pub fn potential_energy(model: &ClothModel, x: &[Vec3]) -> f64 {
-    let links: f64 = (0..model.link_count())
-        .map(|k| eval_link(model, k, x).energy)
-        .sum();
-    let gravity = model.effects().gravity.map_or(0.0, |g| {
-        -model
-            .masses()
-            .iter()
-            .zip(x)
-            .map(|(m, xi)| m * g.dot(xi))
-            .sum::<f64>()
-    });
+    let links: f64 = (0..model.link_count()).map(|k| eval_link(model, k, x).energy).sum();
+    let gravity = model
+        .effects()
+        .gravity
+        .map_or(0.0, |g| -model.masses().iter().zip(x).map(|(m, xi)| m * g.dot(xi)).sum::<f64>());
     links + gravity
 }
 
 /// Total force on every particle at `(x, v)`: elastic, damping and gravity, N.
 pub fn total_forces(model: &ClothModel, x: &[Vec3], v: &[Vec3]) -> Vec<Vec3> {
-    let evals: Vec<LinkEval> = (0..model.link_count())
-        .into_par_iter()
-        .map(|k| eval_link(model, k, x))
-        .collect();
+    let evals: Vec<LinkEval> = (0..model.link_count()).into_par_iter().map(|k| eval_link(model, k, x)).collect();
     (0..model.particle_count())
         .map(|i| {
-            let mut f = model
-                .effects()
-                .gravity
-                .map_or(Vec3::zeros(), |g| g * model.masses()[i]);
+            let mut f = model.effects().gravity.map_or(Vec3::zeros(), |g| g * model.masses()[i]);
             for inc in model.incidence(i) {
                 let e = &evals[inc.link as usize];
                 let rel_v = v[inc.other as usize] - v[i];
@@ -160,18 +140,10 @@ pub struct AssemblyTiming {
 
 /// Builds `A` and `b` (see [`SystemTerms`]) at positions `x` without
 /// allocating: a parallel pass over links, then a parallel pass over rows.
-pub fn assemble(
-    model: &ClothModel,
-    x: &[Vec3],
-    terms: &SystemTerms<'_>,
-    bufs: &mut SystemBuffers,
-) -> AssemblyTiming {
+pub fn assemble(model: &ClothModel, x: &[Vec3], terms: &SystemTerms<'_>, bufs: &mut SystemBuffers) -> AssemblyTiming {
     let t0 = std::time::Instant::now();
-    bufs.link_rhs
-        .par_chunks_mut(ROW_CHUNK)
-        .zip(bufs.link_block.par_chunks_mut(ROW_CHUNK))
-        .enumerate()
-        .for_each(|(chunk, (rhs, blocks))| {
+    bufs.link_rhs.par_chunks_mut(ROW_CHUNK).zip(bufs.link_block.par_chunks_mut(ROW_CHUNK)).enumerate().for_each(
+        |(chunk, (rhs, blocks))| {
             for (k_local, (r, b)) in rhs.iter_mut().zip(blocks.iter_mut()).enumerate() {
                 let k = chunk * ROW_CHUNK + k_local;
                 let e = eval_link(model, k, x);
@@ -186,7 +158,8 @@ pub fn assemble(
                 *r = ri;
                 *b = e.stiffness * terms.c_x + e.damping * terms.c_v;
             }
-        });
+        },
+    );
     let t1 = std::time::Instant::now();
     let link_block = &bufs.link_block;
     let link_rhs = &bufs.link_rhs;
@@ -201,30 +174,24 @@ pub fn assemble(
         row[model.diag_local(i)] = diag;
     });
     let gravity = model.effects().gravity;
-    bufs.rhs
-        .par_chunks_mut(ROW_CHUNK)
-        .enumerate()
-        .for_each(|(chunk, out)| {
-            for (k, bi) in out.iter_mut().enumerate() {
-                let i = chunk * ROW_CHUNK + k;
-                let m = model.masses()[i];
-                let mut acc = gravity.map_or(Vec3::zeros(), |g| g * (m * terms.force));
-                if let Some(y) = terms.mass_times {
-                    acc += y[i] * m;
-                }
-                for inc in model.incidence(i) {
-                    let r = &link_rhs[inc.link as usize];
-                    if inc.first {
-                        acc += r;
-                    } else {
-                        acc -= r;
-                    }
-                }
-                *bi = acc;
+    bufs.rhs.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(chunk, out)| {
+        for (k, bi) in out.iter_mut().enumerate() {
+            let i = chunk * ROW_CHUNK + k;
+            let m = model.masses()[i];
+            let mut acc = gravity.map_or(Vec3::zeros(), |g| g * (m * terms.force));
+            if let Some(y) = terms.mass_times {
+                acc += y[i] * m;
             }
-        });
-    AssemblyTiming {
-        links_s: (t1 - t0).as_secs_f64(),
-        gather_s: t1.elapsed().as_secs_f64(),
-    }
+            for inc in model.incidence(i) {
+                let r = &link_rhs[inc.link as usize];
+                if inc.first {
+                    acc += r;
+                } else {
+                    acc -= r;
+                }
+            }
+            *bi = acc;
+        }
+    });
+    AssemblyTiming { links_s: (t1 - t0).as_secs_f64(), gather_s: t1.elapsed().as_secs_f64() }
 }

@@ -50,10 +50,7 @@ pub struct SolverParams {
 
 impl Default for SolverParams {
     fn default() -> Self {
-        Self {
-            pcg: PcgParams::default(),
-            accept_unconverged: true,
-        }
+        Self { pcg: PcgParams::default(), accept_unconverged: true }
     }
 }
 
@@ -224,16 +221,10 @@ impl Integrator for BackwardEuler {
         );
         let t_pins = Instant::now();
         // Pins: dv = (p(t + h) - x) / h - v.
-        constrain_pins(model, state, h, &mut ws.filter, |target, i| {
-            (target - state.x[i]) / h - state.v[i]
-        });
+        constrain_pins(model, state, h, &mut ws.filter, |target, i| (target - state.x[i]) / h - state.v[i]);
         // Warm start: the previous change of velocity.
         for i in 0..state.len() {
-            ws.unknown[i] = if state.has_history {
-                state.v[i] - state.v_prev[i]
-            } else {
-                Vec3::zeros()
-            };
+            ws.unknown[i] = if state.has_history { state.v[i] - state.v_prev[i] } else { Vec3::zeros() };
         }
         let assembly_extra = t_pins.elapsed().as_secs_f64();
         let (mut report, t_solve) = solve(ws, state, solver)?;
@@ -291,9 +282,7 @@ impl Integrator for Bdf2 {
         );
         let t_pins = Instant::now();
         // Pins: dx = p(t + h) - x.
-        constrain_pins(model, state, h, &mut ws.filter, |target, i| {
-            target - state.x[i]
-        });
+        constrain_pins(model, state, h, &mut ws.filter, |target, i| target - state.x[i]);
         // Warm start: the previous displacement.
         ws.unknown.copy_from_slice(&ws.aux);
         let assembly_extra = t_pins.elapsed().as_secs_f64();
@@ -317,10 +306,7 @@ fn check_step(model: &ClothModel, state: &ClothState, h: f64) -> Result<(), Step
         return Err(StepError::InvalidTimeStep { h });
     }
     if state.len() != model.particle_count() || state.v.len() != state.len() {
-        return Err(StepError::StateMismatch {
-            expected: model.particle_count(),
-            got: state.len(),
-        });
+        return Err(StepError::StateMismatch { expected: model.particle_count(), got: state.len() });
     }
     Ok(())
 }
@@ -343,25 +329,11 @@ fn constrain_pins(
     }
 }
 
-fn solve(
-    ws: &mut Workspace,
-    state: &ClothState,
-    solver: &SolverParams,
-) -> Result<(StepReport, f64), StepError> {
+fn solve(ws: &mut Workspace, state: &ClothState, solver: &SolverParams) -> Result<(StepReport, f64), StepError> {
     let t0 = Instant::now();
-    let result = ws.pcg.solve(
-        &ws.system.matrix,
-        &ws.system.rhs,
-        &ws.filter,
-        &solver.pcg,
-        &mut ws.unknown,
-    );
+    let result = ws.pcg.solve(&ws.system.matrix, &ws.system.rhs, &ws.filter, &solver.pcg, &mut ws.unknown);
     let elapsed = t0.elapsed().as_secs_f64();
-    let fail = |source| StepError::Solver {
-        step: state.steps + 1,
-        time_s: state.time_s,
-        source,
-    };
+    let fail = |source| StepError::Solver { step: state.steps + 1, time_s: state.time_s, source };
     let report = match result {
         Ok(info) => StepReport {
             cg_iterations: info.iterations,
@@ -386,34 +358,19 @@ fn solve(
 fn locate_non_finite(ws: &Workspace, state: &ClothState) -> StepError {
     let bad = |v: &Vec3| !v.iter().all(|c| c.is_finite());
     let matrix_row_bad = |i: usize| {
-        ws.system
-            .matrix
-            .pattern()
-            .row_range(i)
-            .any(|s| !ws.system.matrix.values()[s].iter().all(|c| c.is_finite()))
+        ws.system.matrix.pattern().row_range(i).any(|s| !ws.system.matrix.values()[s].iter().all(|c| c.is_finite()))
     };
     let found = (0..state.len())
         .find_map(|i| bad(&ws.system.rhs[i]).then_some((i, "force")))
         .or_else(|| (0..state.len()).find_map(|i| matrix_row_bad(i).then_some((i, "stiffness"))))
-        .or_else(|| {
-            (0..state.len()).find_map(|i| bad(&ws.unknown[i]).then_some((i, "solver iterate")))
-        })
+        .or_else(|| (0..state.len()).find_map(|i| bad(&ws.unknown[i]).then_some((i, "solver iterate"))))
         .or_else(|| state.first_non_finite());
     // Every input finite yet PCG overflowed: blame the largest force.
     let (particle, quantity) = found.unwrap_or_else(|| {
-        let largest = (0..state.len())
-            .max_by(|&a, &b| ws.system.rhs[a].norm().total_cmp(&ws.system.rhs[b].norm()));
-        (
-            largest.unwrap_or(0),
-            "value in the linear solve (overflow from its force)",
-        )
+        let largest = (0..state.len()).max_by(|&a, &b| ws.system.rhs[a].norm().total_cmp(&ws.system.rhs[b].norm()));
+        (largest.unwrap_or(0), "value in the linear solve (overflow from its force)")
     });
-    StepError::NonFinite {
-        step: state.steps + 1,
-        time_s: state.time_s,
-        particle,
-        quantity,
-    }
+    StepError::NonFinite { step: state.steps + 1, time_s: state.time_s, particle, quantity }
 }
 
 /// Checks the new state in `ws.new_x`/`new_v` and, if finite, makes it current.
@@ -427,12 +384,7 @@ fn commit(state: &mut ClothState, ws: &mut Workspace, h: f64) -> Result<(), Step
         } else {
             continue;
         };
-        return Err(StepError::NonFinite {
-            step: state.steps + 1,
-            time_s: state.time_s,
-            particle: i,
-            quantity,
-        });
+        return Err(StepError::NonFinite { step: state.steps + 1, time_s: state.time_s, particle: i, quantity });
     }
     // Rotate buffers: current -> previous, new -> current (no allocation).
     std::mem::swap(&mut state.x_prev, &mut state.x);

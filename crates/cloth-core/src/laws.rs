@@ -33,31 +33,19 @@ pub fn tension_spring(d: f64, rest: f64, k_s: f64) -> ScalarLaw {
         return ScalarLaw::default();
     }
     let e = d - rest;
-    ScalarLaw {
-        energy: 0.5 * k_s * e * e,
-        phi: k_s * e,
-        dphi: k_s,
-    }
+    ScalarLaw { energy: 0.5 * k_s * e * e, phi: k_s * e, dphi: k_s }
 }
 
 /// Linear spring in tension and compression (Provot 1995):
 /// `E = k (d - L)^2 / 2`, `phi = k (d - L)`.
 pub fn linear_spring(d: f64, rest: f64, k: f64) -> ScalarLaw {
     let e = d - rest;
-    ScalarLaw {
-        energy: 0.5 * k * e * e,
-        phi: k * e,
-        dphi: k,
-    }
+    ScalarLaw { energy: 0.5 * k * e * e, phi: k * e, dphi: k }
 }
 
 /// `sinc(t) = sin(t) / t` (1 at 0).
 pub fn sinc(t: f64) -> f64 {
-    if t.abs() < 1e-4 {
-        1.0 - t * t / 6.0 * (1.0 - t * t / 20.0)
-    } else {
-        t.sin() / t
-    }
+    if t.abs() < 1e-4 { 1.0 - t * t / 6.0 * (1.0 - t * t / 20.0) } else { t.sin() / t }
 }
 
 /// `1 - sinc(t)`, accurate for small `t` (series below 0.1).
@@ -215,17 +203,10 @@ impl BucklingLaw {
         }
         if d > self.switch {
             let e = self.rest - d;
-            return ScalarLaw {
-                energy: 0.5 * self.c_b * e * e,
-                phi: -self.c_b * e,
-                dphi: self.c_b,
-            };
+            return ScalarLaw { energy: 0.5 * self.c_b * e * e, phi: -self.c_b * e, dphi: self.c_b };
         }
         let arc = buckling_arc(d, self.rest, self.k_b);
-        ScalarLaw {
-            energy: self.switch_energy + arc.energy - self.switch_arc_energy,
-            ..arc
-        }
+        ScalarLaw { energy: self.switch_energy + arc.energy - self.switch_arc_energy, ..arc }
     }
 }
 
@@ -293,10 +274,7 @@ mod tests {
             let t = PI * k as f64 / 2000.0 * 0.9999;
             let s = one_minus_sinc(t);
             let back = inverse_sinc(s);
-            assert!(
-                (back - t).abs() <= 1e-12 * t.max(1e-3),
-                "t={t}, back={back}"
-            );
+            assert!((back - t).abs() <= 1e-12 * t.max(1e-3), "t={t}, back={back}");
         }
         for t in [1e-7, 1e-5, 1e-3, 0.05, 0.0999, 0.1001] {
             let back = inverse_sinc(one_minus_sinc(t));
@@ -341,26 +319,14 @@ mod tests {
             let arc = buckling_arc(d, rest, 3e-6);
             let e = |x| buckling_arc(x, rest, 3e-6).energy;
             let p = |x| buckling_arc(x, rest, 3e-6).phi;
-            assert!(
-                (fd(e, d, h) - arc.phi).abs() <= 1e-6 * arc.phi.abs(),
-                "arc phi at {d}"
-            );
-            assert!(
-                (fd(p, d, h) - arc.dphi).abs() <= 1e-5 * arc.dphi.abs(),
-                "arc dphi at {d}"
-            );
+            assert!((fd(e, d, h) - arc.phi).abs() <= 1e-6 * arc.phi.abs(), "arc phi at {d}");
+            assert!((fd(p, d, h) - arc.dphi).abs() <= 1e-5 * arc.dphi.abs(), "arc dphi at {d}");
             for c_b in [0.1, 10.0, 1000.0] {
                 let law = buckling_ramped(d, rest, 3e-6, c_b);
                 let e = |x| buckling_ramped(x, rest, 3e-6, c_b).energy;
                 let p = |x| buckling_ramped(x, rest, 3e-6, c_b).phi;
-                assert!(
-                    (fd(e, d, h) - law.phi).abs() <= 1e-6 * law.phi.abs() + 1e-12,
-                    "ramped phi at {d}, c_b {c_b}"
-                );
-                assert!(
-                    (fd(p, d, h) - law.dphi).abs() <= 1e-5 * law.dphi.abs(),
-                    "ramped dphi at {d}, c_b {c_b}"
-                );
+                assert!((fd(e, d, h) - law.phi).abs() <= 1e-6 * law.phi.abs() + 1e-12, "ramped phi at {d}, c_b {c_b}");
+                assert!((fd(p, d, h) - law.dphi).abs() <= 1e-5 * law.dphi.abs(), "ramped dphi at {d}, c_b {c_b}");
             }
         }
         for d in [0.9, 1.0001, 1.3] {
@@ -406,10 +372,8 @@ mod tests {
             let d = xij.norm();
             law(d).phi * xij / d
         };
-        let laws: [(&dyn Fn(f64) -> ScalarLaw, f64); 2] = [
-            (&|d| tension_spring(d, 0.012, 80.0), 1e-6),
-            (&|d| buckling_ramped(d, rest, 3e-6, 50.0), 1e-5),
-        ];
+        let laws: [(&dyn Fn(f64) -> ScalarLaw, f64); 2] =
+            [(&|d| tension_spring(d, 0.012, 80.0), 1e-6), (&|d| buckling_ramped(d, rest, 3e-6, 50.0), 1e-5)];
         for (law, tol) in laws {
             let xij = xj - xi;
             let d = xij.norm();

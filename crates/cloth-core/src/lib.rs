@@ -20,13 +20,11 @@ mod topology;
 
 pub use cloth_linalg::{PcgParams, PreconditionerKind};
 pub use integrator::{
-    BackwardEuler, Bdf2, Integrator, IntegratorKind, SolverParams, StageTimes, StepError,
-    StepReport, Workspace,
+    BackwardEuler, Bdf2, Integrator, IntegratorKind, SolverParams, StageTimes, StepError, StepReport, Workspace,
 };
 pub use material::{LinkConstants, Material};
 pub use model::{
-    BendLink, ClothModel, Edge, Effects, Incidence, ModelError, ModelSpec, PanelRange, PinSpec,
-    StretchLink,
+    BendLink, ClothModel, Edge, Effects, Incidence, ModelError, ModelSpec, PanelRange, PinSpec, StretchLink,
 };
 pub use pins::{Pin, PinMotion};
 pub use sim::Simulation;

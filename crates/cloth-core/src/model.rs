@@ -182,9 +182,7 @@ impl ClothModel {
         if spec.panels.is_empty() {
             return Err(ModelError::NoPanels);
         }
-        spec.material
-            .validate()
-            .map_err(|(field, message)| ModelError::Material { field, message })?;
+        spec.material.validate().map_err(|(field, message)| ModelError::Material { field, message })?;
         if let Some(g) = spec.effects.gravity
             && g.iter().any(|c| !c.is_finite())
         {
@@ -198,15 +196,10 @@ impl ClothModel {
         let mut triangles = Vec::new();
         let damping = spec.effects.damping;
         for (p, panel) in spec.panels.iter().enumerate() {
-            let mesh = panel.mesh().map_err(|(field, message)| ModelError::Panel {
-                panel: p,
-                field,
-                message,
-            })?;
+            let mesh = panel.mesh().map_err(|(field, message)| ModelError::Panel { panel: p, field, message })?;
             let offset = mass.len();
             let at = |k: u32| offset as u32 + k;
-            let rest_of =
-                |[a, b]: [u32; 2]| (mesh.positions[b as usize] - mesh.positions[a as usize]).norm();
+            let rest_of = |[a, b]: [u32; 2]| (mesh.positions[b as usize] - mesh.positions[a as usize]).norm();
             for link in &mesh.sequential {
                 let rest = rest_of(*link);
                 let c = spec.material.link_constants(rest, mesh.cell_area);
@@ -222,25 +215,13 @@ impl ClothModel {
                 for link in &mesh.interlaced {
                     let rest = rest_of(*link);
                     let c = spec.material.link_constants(rest, mesh.cell_area);
-                    bend.push(BendLink {
-                        i: at(link[0]),
-                        j: at(link[1]),
-                        law: BucklingLaw::new(rest, c.k_b, c.c_b),
-                    });
+                    bend.push(BendLink { i: at(link[0]), j: at(link[1]), law: BucklingLaw::new(rest, c.k_b, c.c_b) });
                 }
             }
             triangles.extend(mesh.triangles.iter().map(|t| t.map(at)));
-            mass.extend(
-                mesh.area_share
-                    .iter()
-                    .map(|a| a * spec.material.areal_density_kg_m2),
-            );
+            mass.extend(mesh.area_share.iter().map(|a| a * spec.material.areal_density_kg_m2));
             rest_positions.extend_from_slice(&mesh.positions);
-            panels.push(PanelRange {
-                offset,
-                nx: panel.particles[0],
-                ny: panel.particles[1],
-            });
+            panels.push(PanelRange { offset, nx: panel.particles[0], ny: panel.particles[1] });
         }
         let n = mass.len();
         let (pins, pinned) = build_pins(spec, &panels, &rest_positions)?;
@@ -250,8 +231,7 @@ impl ClothModel {
             .iter()
             .map(|l| (l.i as usize, l.j as usize))
             .chain(bend.iter().map(|l| (l.i as usize, l.j as usize)));
-        let pattern =
-            BlockPattern::from_pairs(n, pairs.clone()).expect("links index existing particles");
+        let pattern = BlockPattern::from_pairs(n, pairs.clone()).expect("links index existing particles");
         let mut counts = vec![0usize; n + 1];
         for (i, j) in pairs.clone() {
             counts[i + 1] += 1;
@@ -262,31 +242,15 @@ impl ClothModel {
         }
         let inc_ptr = counts.clone();
         let mut fill = counts;
-        let mut inc = vec![
-            Incidence {
-                link: 0,
-                other: 0,
-                first: true,
-                slot: 0
-            };
-            inc_ptr[n]
-        ];
+        let mut inc = vec![Incidence { link: 0, other: 0, first: true, slot: 0 }; inc_ptr[n]];
         for (link, (i, j)) in pairs.enumerate() {
             for (row, other, first) in [(i, j, true), (j, i, false)] {
-                let slot = pattern.slot(row, other).expect("pair is in the pattern")
-                    - pattern.row_range(row).start;
-                inc[fill[row]] = Incidence {
-                    link: link as u32,
-                    other: other as u32,
-                    first,
-                    slot: slot as u32,
-                };
+                let slot = pattern.slot(row, other).expect("pair is in the pattern") - pattern.row_range(row).start;
+                inc[fill[row]] = Incidence { link: link as u32, other: other as u32, first, slot: slot as u32 };
                 fill[row] += 1;
             }
         }
-        let diag_local = (0..n)
-            .map(|i| (pattern.diag_slot(i) - pattern.row_range(i).start) as u32)
-            .collect();
+        let diag_local = (0..n).map(|i| (pattern.diag_slot(i) - pattern.row_range(i).start) as u32).collect();
         Ok(Self {
             mass,
             rest_positions,
@@ -332,11 +296,7 @@ impl ClothModel {
     /// Endpoints of link `k` (stretch links first) and its type.
     pub fn link_ends(&self, k: usize) -> (usize, usize, LinkType) {
         if k < self.stretch.len() {
-            (
-                self.stretch[k].i as usize,
-                self.stretch[k].j as usize,
-                LinkType::Sequential,
-            )
+            (self.stretch[k].i as usize, self.stretch[k].j as usize, LinkType::Sequential)
         } else {
             let l = &self.bend[k - self.stretch.len()];
             (l.i as usize, l.j as usize, LinkType::Interlaced)
@@ -380,25 +340,14 @@ impl ClothModel {
     }
 }
 
-fn build_pins(
-    spec: &ModelSpec,
-    panels: &[PanelRange],
-    rest: &[Vec3],
-) -> Result<(Vec<Pin>, Vec<bool>), ModelError> {
+fn build_pins(spec: &ModelSpec, panels: &[PanelRange], rest: &[Vec3]) -> Result<(Vec<Pin>, Vec<bool>), ModelError> {
     let mut pins = Vec::new();
     let mut pinned = vec![false; rest.len()];
     for (k, ps) in spec.pins.iter().enumerate() {
-        let err = |field: &'static str, message: String| ModelError::Pin {
-            pin: k,
-            field,
-            message,
-        };
-        let panel = *panels.get(ps.panel).ok_or_else(|| {
-            err(
-                "panel",
-                format!("no panel {} (the scene has {})", ps.panel, panels.len()),
-            )
-        })?;
+        let err = |field: &'static str, message: String| ModelError::Pin { pin: k, field, message };
+        let panel = *panels
+            .get(ps.panel)
+            .ok_or_else(|| err("panel", format!("no panel {} (the scene has {})", ps.panel, panels.len())))?;
         ps.motion.validate().map_err(|(_, m)| err("motion", m))?;
         let mut nodes = ps.nodes.clone();
         if let Some(edge) = ps.edge {
@@ -415,24 +364,14 @@ fn build_pins(
         }
         for [i, j] in nodes {
             if i >= panel.nx || j >= panel.ny {
-                return Err(err(
-                    "nodes",
-                    format!(
-                        "node [{i}, {j}] is outside the {} x {} grid",
-                        panel.nx, panel.ny
-                    ),
-                ));
+                return Err(err("nodes", format!("node [{i}, {j}] is outside the {} x {} grid", panel.nx, panel.ny)));
             }
             let particle = panel.offset + j * panel.nx + i;
             if pinned[particle] {
                 return Err(err("nodes", format!("node [{i}, {j}] is pinned twice")));
             }
             pinned[particle] = true;
-            pins.push(Pin {
-                particle,
-                anchor: rest[particle],
-                motion: ps.motion.clone(),
-            });
+            pins.push(Pin { particle, anchor: rest[particle], motion: ps.motion.clone() });
         }
     }
     Ok((pins, pinned))

@@ -40,10 +40,9 @@ impl PinMotion {
         match self {
             PinMotion::Fixed => Vec3::zeros(),
             PinMotion::Linear { velocity_m_s } => Vec3::from(*velocity_m_s) * t,
-            PinMotion::Oscillate {
-                amplitude_m,
-                frequency_hz,
-            } => Vec3::from(*amplitude_m) * (2.0 * std::f64::consts::PI * frequency_hz * t).sin(),
+            PinMotion::Oscillate { amplitude_m, frequency_hz } => {
+                Vec3::from(*amplitude_m) * (2.0 * std::f64::consts::PI * frequency_hz * t).sin()
+            }
             PinMotion::Keyframes { times_s, offsets_m } => {
                 let k = times_s.partition_point(|&tk| tk <= t);
                 if k == 0 {
@@ -62,27 +61,17 @@ impl PinMotion {
     /// Checks the motion's numbers; names the first bad field.
     pub fn validate(&self) -> Result<(), (&'static str, String)> {
         let finite3 = |name: &'static str, v: &[f64; 3]| {
-            if v.iter().all(|c| c.is_finite()) {
-                Ok(())
-            } else {
-                Err((name, format!("must be finite, got {v:?}")))
-            }
+            if v.iter().all(|c| c.is_finite()) { Ok(()) } else { Err((name, format!("must be finite, got {v:?}"))) }
         };
         match self {
             PinMotion::Fixed => Ok(()),
             PinMotion::Linear { velocity_m_s } => finite3("velocity_m_s", velocity_m_s),
-            PinMotion::Oscillate {
-                amplitude_m,
-                frequency_hz,
-            } => {
+            PinMotion::Oscillate { amplitude_m, frequency_hz } => {
                 finite3("amplitude_m", amplitude_m)?;
                 if frequency_hz.is_finite() && *frequency_hz >= 0.0 {
                     Ok(())
                 } else {
-                    Err((
-                        "frequency_hz",
-                        format!("must be finite and >= 0, got {frequency_hz}"),
-                    ))
+                    Err(("frequency_hz", format!("must be finite and >= 0, got {frequency_hz}")))
                 }
             }
             PinMotion::Keyframes { times_s, offsets_m } => {
@@ -96,9 +85,7 @@ impl PinMotion {
                         ),
                     ));
                 }
-                if times_s.iter().any(|t| !t.is_finite())
-                    || times_s.windows(2).any(|w| w[1] <= w[0])
-                {
+                if times_s.iter().any(|t| !t.is_finite()) || times_s.windows(2).any(|w| w[1] <= w[0]) {
                     return Err(("times_s", "must be finite and strictly increasing".into()));
                 }
                 offsets_m.iter().try_for_each(|o| finite3("offsets_m", o))
@@ -131,17 +118,11 @@ mod tests {
 
     #[test]
     fn keyframes_interpolate_and_hold() {
-        let m = PinMotion::Keyframes {
-            times_s: vec![1.0, 2.0],
-            offsets_m: vec![[0.0; 3], [0.0, 0.0, 1.0]],
-        };
+        let m = PinMotion::Keyframes { times_s: vec![1.0, 2.0], offsets_m: vec![[0.0; 3], [0.0, 0.0, 1.0]] };
         assert_eq!(m.offset(0.0), Vec3::zeros());
         assert!((m.offset(1.25).z - 0.25).abs() < 1e-15);
         assert_eq!(m.offset(5.0), Vec3::new(0.0, 0.0, 1.0));
-        let bad = PinMotion::Keyframes {
-            times_s: vec![1.0, 1.0],
-            offsets_m: vec![[0.0; 3]; 2],
-        };
+        let bad = PinMotion::Keyframes { times_s: vec![1.0, 1.0], offsets_m: vec![[0.0; 3]; 2] };
         assert_eq!(bad.validate().unwrap_err().0, "times_s");
     }
 }

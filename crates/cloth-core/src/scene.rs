@@ -38,8 +38,8 @@
 //! ```
 
 use crate::{
-    ClothModel, Effects, GridPanel, IntegratorKind, Material, ModelSpec, PcgParams, PinSpec,
-    PreconditionerKind, SolverParams, Vec3,
+    ClothModel, Effects, GridPanel, IntegratorKind, Material, ModelSpec, PcgParams, PinSpec, PreconditionerKind,
+    SolverParams, Vec3,
 };
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -187,12 +187,8 @@ impl Scene {
     /// Reads `path`, applies `overrides` (`a.b=value`, array elements by
     /// index: `panels.0.particles=[75, 75]`), parses and validates.
     pub fn load(path: &Path, overrides: &[String]) -> Result<Self, SceneError> {
-        let err = |kind| SceneError {
-            file: path.to_path_buf(),
-            kind,
-        };
-        let text =
-            std::fs::read_to_string(path).map_err(|e| err(SceneErrorKind::Io(e.to_string())))?;
+        let err = |kind| SceneError { file: path.to_path_buf(), kind };
+        let text = std::fs::read_to_string(path).map_err(|e| err(SceneErrorKind::Io(e.to_string())))?;
         let scene = Self::parse(&text, overrides).map_err(err)?;
         scene.validate().map_err(err)?;
         Ok(scene)
@@ -203,71 +199,46 @@ impl Scene {
         if overrides.is_empty() {
             return toml::from_str(text).map_err(|e| SceneErrorKind::Parse(e.to_string()));
         }
-        let mut table: toml::Table =
-            toml::from_str(text).map_err(|e| SceneErrorKind::Parse(e.to_string()))?;
+        let mut table: toml::Table = toml::from_str(text).map_err(|e| SceneErrorKind::Parse(e.to_string()))?;
         for arg in overrides {
-            apply_override(&mut table, arg).map_err(|message| SceneErrorKind::Override {
-                arg: arg.clone(),
-                message,
-            })?;
+            apply_override(&mut table, arg)
+                .map_err(|message| SceneErrorKind::Override { arg: arg.clone(), message })?;
         }
-        let rewritten =
-            toml::to_string(&table).map_err(|e| SceneErrorKind::Parse(e.to_string()))?;
-        toml::from_str(&rewritten)
-            .map_err(|e| SceneErrorKind::Parse(format!("after --set overrides: {e}")))
+        let rewritten = toml::to_string(&table).map_err(|e| SceneErrorKind::Parse(e.to_string()))?;
+        toml::from_str(&rewritten).map_err(|e| SceneErrorKind::Parse(format!("after --set overrides: {e}")))
     }
 
     /// Range checks that the types cannot express, naming the field.
     pub fn validate(&self) -> Result<(), SceneErrorKind> {
-        let invalid = |field: &str, message: String| SceneErrorKind::Invalid {
-            field: field.into(),
-            message,
-        };
+        let invalid = |field: &str, message: String| SceneErrorKind::Invalid { field: field.into(), message };
         let s = &self.simulation;
         if !(s.dt_s.is_finite() && s.dt_s > 0.0) {
-            return Err(invalid(
-                "simulation.dt_s",
-                format!("must be finite and > 0, got {}", s.dt_s),
-            ));
+            return Err(invalid("simulation.dt_s", format!("must be finite and > 0, got {}", s.dt_s)));
         }
         if !(s.duration_s.is_finite() && s.duration_s >= 0.0) {
-            return Err(invalid(
-                "simulation.duration_s",
-                format!("must be finite and >= 0, got {}", s.duration_s),
-            ));
+            return Err(invalid("simulation.duration_s", format!("must be finite and >= 0, got {}", s.duration_s)));
         }
         if s.duration_s / s.dt_s > 1e9 {
-            return Err(invalid(
-                "simulation.duration_s",
-                "more than 1e9 steps".into(),
-            ));
+            return Err(invalid("simulation.duration_s", "more than 1e9 steps".into()));
         }
         for (k, e) in s.effects.iter().enumerate() {
             if s.effects[..k].contains(e) {
-                return Err(invalid(
-                    "simulation.effects",
-                    format!("{e:?} is listed twice"),
-                ));
+                return Err(invalid("simulation.effects", format!("{e:?} is listed twice")));
             }
         }
         let v = &self.solver;
         if !(v.rel_tol.is_finite() && v.rel_tol > 0.0 && v.rel_tol < 1.0) {
-            return Err(invalid(
-                "solver.rel_tol",
-                format!("must be in (0, 1), got {}", v.rel_tol),
-            ));
+            return Err(invalid("solver.rel_tol", format!("must be in (0, 1), got {}", v.rel_tol)));
         }
         if v.max_iter == 0 {
             return Err(invalid("solver.max_iter", "must be >= 1".into()));
         }
         // Panels, material, pins and gravity are checked by the model builder.
-        ClothModel::build(&self.model_spec())
-            .map(|_| ())
-            .map_err(|e| {
-                let text = e.to_string();
-                let (field, message) = text.split_once(": ").unwrap_or(("scene", &text));
-                invalid(field, message.to_string())
-            })
+        ClothModel::build(&self.model_spec()).map(|_| ()).map_err(|e| {
+            let text = e.to_string();
+            let (field, message) = text.split_once(": ").unwrap_or(("scene", &text));
+            invalid(field, message.to_string())
+        })
     }
 
     /// Whether the scene lists `effect`.
@@ -282,9 +253,7 @@ impl Scene {
             material: self.material,
             pins: self.pins.clone(),
             effects: Effects {
-                gravity: self
-                    .has_effect(EffectName::Gravity)
-                    .then(|| Vec3::from(self.simulation.gravity_m_s2)),
+                gravity: self.has_effect(EffectName::Gravity).then(|| Vec3::from(self.simulation.gravity_m_s2)),
                 damping: self.has_effect(EffectName::Damping),
                 bending: self.has_effect(EffectName::Bending),
             },
@@ -294,10 +263,8 @@ impl Scene {
     /// Builds the model and the run configuration.
     pub fn build(&self) -> Result<(ClothModel, RunConfig), SceneErrorKind> {
         self.validate()?;
-        let model = ClothModel::build(&self.model_spec()).map_err(|e| SceneErrorKind::Invalid {
-            field: "scene".into(),
-            message: e.to_string(),
-        })?;
+        let model = ClothModel::build(&self.model_spec())
+            .map_err(|e| SceneErrorKind::Invalid { field: "scene".into(), message: e.to_string() })?;
         let s = &self.simulation;
         let config = RunConfig {
             integrator: s.integrator,
@@ -343,28 +310,17 @@ fn set_in_table(t: &mut toml::Table, keys: &[&str], value: toml::Value) -> Resul
         t.insert((*key).to_string(), value);
         return Ok(());
     }
-    let child = t
-        .entry(*key)
-        .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+    let child = t.entry(*key).or_insert_with(|| toml::Value::Table(toml::Table::new()));
     set_in_value(child, key, rest, value)
 }
 
-fn set_in_value(
-    node: &mut toml::Value,
-    name: &str,
-    keys: &[&str],
-    value: toml::Value,
-) -> Result<(), String> {
+fn set_in_value(node: &mut toml::Value, name: &str, keys: &[&str], value: toml::Value) -> Result<(), String> {
     match node {
         toml::Value::Table(t) => set_in_table(t, keys, value),
         toml::Value::Array(a) => {
-            let idx: usize = keys[0]
-                .parse()
-                .map_err(|_| format!("`{name}` is an array: index it with a number"))?;
+            let idx: usize = keys[0].parse().map_err(|_| format!("`{name}` is an array: index it with a number"))?;
             let len = a.len();
-            let slot = a
-                .get_mut(idx)
-                .ok_or_else(|| format!("`{name}` has {len} entries, no index {idx}"))?;
+            let slot = a.get_mut(idx).ok_or_else(|| format!("`{name}` has {len} entries, no index {idx}"))?;
             if keys.len() == 1 {
                 *slot = value;
                 Ok(())
@@ -420,48 +376,24 @@ nodes = [[0, 3]]
         let (model, cfg) = check(BASE, &[]).unwrap().build().unwrap();
         assert_eq!(model.particle_count(), 20);
         assert_eq!(cfg.steps, 10);
-        assert!(
-            model.bend_links().is_empty(),
-            "bending not listed, so no type-2 links"
-        );
-        assert!(
-            model.stretch_links().iter().all(|l| l.k_d == 0.0),
-            "damping not listed"
-        );
+        assert!(model.bend_links().is_empty(), "bending not listed, so no type-2 links");
+        assert!(model.stretch_links().iter().all(|l| l.k_d == 0.0), "damping not listed");
     }
 
     #[test]
     fn overrides_set_nested_and_indexed_fields() {
-        let s = check(
-            BASE,
-            &[
-                "panels.0.particles=[9, 7]",
-                "solver.rel_tol=1e-6",
-                "simulation.integrator=backward-euler",
-            ],
-        )
-        .unwrap();
+        let s =
+            check(BASE, &["panels.0.particles=[9, 7]", "solver.rel_tol=1e-6", "simulation.integrator=backward-euler"])
+                .unwrap();
         assert_eq!(s.panels[0].particles, [9, 7]);
         assert_eq!(s.solver.rel_tol, 1e-6);
         assert_eq!(s.simulation.integrator, IntegratorKind::BackwardEuler);
-        assert!(matches!(
-            check(BASE, &["panels.3.particles=[9, 7]"]),
-            Err(SceneErrorKind::Override { .. })
-        ));
-        assert!(matches!(
-            check(BASE, &["simulation.dt_s.x=1"]),
-            Err(SceneErrorKind::Override { .. })
-        ));
-        assert!(matches!(
-            check(BASE, &["novalue"]),
-            Err(SceneErrorKind::Override { .. })
-        ));
+        assert!(matches!(check(BASE, &["panels.3.particles=[9, 7]"]), Err(SceneErrorKind::Override { .. })));
+        assert!(matches!(check(BASE, &["simulation.dt_s.x=1"]), Err(SceneErrorKind::Override { .. })));
+        assert!(matches!(check(BASE, &["novalue"]), Err(SceneErrorKind::Override { .. })));
         // A misspelt key is an unknown field, not silently ignored.
         let e = check(BASE, &["solver.rel_toll=1e-6"]).unwrap_err();
-        assert!(
-            matches!(&e, SceneErrorKind::Parse(m) if m.contains("rel_toll")),
-            "{e}"
-        );
+        assert!(matches!(&e, SceneErrorKind::Parse(m) if m.contains("rel_toll")), "{e}");
     }
 
     #[test]
@@ -469,27 +401,15 @@ nodes = [[0, 3]]
         let cases = [
             ("simulation.dt_s=-0.1", "simulation.dt_s"),
             ("simulation.duration_s=nan", "simulation.duration_s"),
-            (
-                "material.areal_density_kg_m2=-1.0",
-                "material.areal_density_kg_m2",
-            ),
-            (
-                "material.tensile_stiffness_n_m=nan",
-                "material.tensile_stiffness_n_m",
-            ),
+            ("material.areal_density_kg_m2=-1.0", "material.areal_density_kg_m2"),
+            ("material.tensile_stiffness_n_m=nan", "material.tensile_stiffness_n_m"),
             ("solver.rel_tol=2.0", "solver.rel_tol"),
             ("panels.0.particles=[1, 4]", "panels[0].particles"),
             ("panels.0.size_m=[1.0, inf]", "panels[0].size_m"),
             ("pins.0.nodes=[[5, 0]]", "pins[0].nodes"),
             ("pins.0.panel=2", "pins[0].panel"),
-            (
-                "simulation.gravity_m_s2=[0.0, nan, 0.0]",
-                "simulation.gravity_m_s2",
-            ),
-            (
-                "simulation.effects=[\"gravity\", \"gravity\"]",
-                "simulation.effects",
-            ),
+            ("simulation.gravity_m_s2=[0.0, nan, 0.0]", "simulation.gravity_m_s2"),
+            ("simulation.effects=[\"gravity\", \"gravity\"]", "simulation.effects"),
         ];
         for (o, field) in cases {
             assert_eq!(field_of(check(BASE, &[o]).unwrap_err()), field, "{o}");
@@ -499,33 +419,16 @@ nodes = [[0, 3]]
     #[test]
     fn unknown_and_missing_keys_are_parse_errors() {
         let e = check(&BASE.replace("dt_s = 0.01", "dt = 0.01"), &[]).unwrap_err();
-        assert!(
-            matches!(&e, SceneErrorKind::Parse(m) if m.contains("dt")),
-            "{e}"
-        );
-        let e = check(
-            &BASE.replace("effects = [\"gravity\"]", "effects = [\"gravty\"]"),
-            &[],
-        )
-        .unwrap_err();
-        assert!(
-            matches!(&e, SceneErrorKind::Parse(m) if m.contains("gravty")),
-            "{e}"
-        );
+        assert!(matches!(&e, SceneErrorKind::Parse(m) if m.contains("dt")), "{e}");
+        let e = check(&BASE.replace("effects = [\"gravity\"]", "effects = [\"gravty\"]"), &[]).unwrap_err();
+        assert!(matches!(&e, SceneErrorKind::Parse(m) if m.contains("gravty")), "{e}");
         let e = check(&format!("{BASE}\n[extra]\nx = 1\n"), &[]).unwrap_err();
-        assert!(
-            matches!(&e, SceneErrorKind::Parse(m) if m.contains("extra")),
-            "{e}"
-        );
+        assert!(matches!(&e, SceneErrorKind::Parse(m) if m.contains("extra")), "{e}");
     }
 
     #[test]
     fn load_names_the_file() {
         let e = Scene::load(Path::new("/nonexistent/scene.toml"), &[]).unwrap_err();
-        assert!(
-            e.to_string()
-                .starts_with("/nonexistent/scene.toml: cannot read"),
-            "{e}"
-        );
+        assert!(e.to_string().starts_with("/nonexistent/scene.toml: cannot read"), "{e}");
     }
 }

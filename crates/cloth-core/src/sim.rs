@@ -1,10 +1,7 @@
 //! A simulation: an immutable model, the explicit state, an integrator and
 //! its scratch space.
 
-use crate::{
-    ClothModel, ClothState, Integrator, IntegratorKind, SolverParams, StepError, StepReport,
-    Workspace,
-};
+use crate::{ClothModel, ClothState, Integrator, IntegratorKind, SolverParams, StepError, StepReport, Workspace};
 use std::sync::Arc;
 
 /// Owns a model and its state and advances them in time.
@@ -19,11 +16,7 @@ pub struct Simulation {
 
 impl Simulation {
     /// A simulation starting from the model's rest shape at time 0.
-    pub fn new(
-        model: impl Into<Arc<ClothModel>>,
-        integrator: IntegratorKind,
-        solver: SolverParams,
-    ) -> Self {
+    pub fn new(model: impl Into<Arc<ClothModel>>, integrator: IntegratorKind, solver: SolverParams) -> Self {
         let model = model.into();
         Self {
             state: ClothState::at_rest(&model),
@@ -36,13 +29,7 @@ impl Simulation {
 
     /// Advances by `h` seconds. On error the state is unchanged.
     pub fn step(&mut self, h: f64) -> Result<StepReport, StepError> {
-        self.integrator.step(
-            &self.model,
-            &mut self.state,
-            h,
-            &mut self.workspace,
-            &self.solver,
-        )
+        self.integrator.step(&self.model, &mut self.state, h, &mut self.workspace, &self.solver)
     }
 
     /// Simulated time, s.
@@ -74,12 +61,7 @@ impl Simulation {
     /// Stepping from it reproduces the original run bit for bit.
     pub fn restore(&mut self, snapshot: &ClothState) -> Result<(), StepError> {
         let n = self.model.particle_count();
-        let lens = [
-            snapshot.x.len(),
-            snapshot.v.len(),
-            snapshot.x_prev.len(),
-            snapshot.v_prev.len(),
-        ];
+        let lens = [snapshot.x.len(), snapshot.v.len(), snapshot.x_prev.len(), snapshot.v_prev.len()];
         if let Some(&got) = lens.iter().find(|&&l| l != n) {
             return Err(StepError::StateMismatch { expected: n, got });
         }

@@ -54,18 +54,14 @@ impl ClothState {
     /// First particle whose position or velocity is not finite, with which.
     pub fn first_non_finite(&self) -> Option<(usize, &'static str)> {
         let bad = |v: &Vec3| !v.iter().all(|c| c.is_finite());
-        self.x
-            .iter()
-            .zip(&self.v)
-            .enumerate()
-            .find_map(|(i, (x, v))| {
-                if bad(x) {
-                    Some((i, "position"))
-                } else if bad(v) {
-                    Some((i, "velocity"))
-                } else {
-                    None
-                }
-            })
+        self.x.iter().zip(&self.v).enumerate().find_map(|(i, (x, v))| {
+            if bad(x) {
+                Some((i, "position"))
+            } else if bad(v) {
+                Some((i, "velocity"))
+            } else {
+                None
+            }
+        })
     }
 }

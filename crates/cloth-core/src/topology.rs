@@ -90,27 +90,17 @@ impl GridPanel {
         let [nx, ny] = self.particles;
         let min_nx = if self.wrap_u { 5 } else { 2 };
         if nx < min_nx || ny < 2 {
-            return Err((
-                "particles",
-                format!("needs at least [{min_nx}, 2] particles, got [{nx}, {ny}]"),
-            ));
+            return Err(("particles", format!("needs at least [{min_nx}, 2] particles, got [{nx}, {ny}]")));
         }
         if nx.saturating_mul(ny) > 50_000_000 {
             return Err(("particles", format!("{nx} x {ny} particles is too many")));
         }
         for (k, s) in self.size_m.iter().enumerate() {
             if !s.is_finite() || *s <= 0.0 {
-                return Err((
-                    "size_m",
-                    format!("entry {k} must be finite and > 0, got {s}"),
-                ));
+                return Err(("size_m", format!("entry {k} must be finite and > 0, got {s}")));
             }
         }
-        for (name, v) in [
-            ("origin_m", self.origin_m),
-            ("u_axis", self.u_axis),
-            ("v_axis", self.v_axis),
-        ] {
+        for (name, v) in [("origin_m", self.origin_m), ("u_axis", self.u_axis), ("v_axis", self.v_axis)] {
             if v.iter().any(|c| !c.is_finite()) {
                 return Err((name, format!("must be finite, got {v:?}")));
             }
@@ -128,10 +118,7 @@ impl GridPanel {
         let u = u.normalize();
         let v_perp = v - u * u.dot(&v);
         if v_perp.norm() < 1e-9 * v.norm().max(1e-300) || v.norm() < 1e-12 {
-            return Err((
-                "v_axis",
-                "must be non-zero and not parallel to u_axis".into(),
-            ));
+            return Err(("v_axis", "must be non-zero and not parallel to u_axis".into()));
         }
         let v = v_perp.normalize();
         Ok((u, v, u.cross(&v)))
@@ -141,10 +128,7 @@ impl GridPanel {
     pub fn spacing(&self) -> (f64, f64) {
         let [nx, ny] = self.particles;
         let cols = if self.wrap_u { nx } else { nx - 1 };
-        (
-            self.size_m[0] / cols as f64,
-            self.size_m[1] / (ny - 1) as f64,
-        )
+        (self.size_m[0] / cols as f64, self.size_m[1] / (ny - 1) as f64)
     }
 
     /// Generates positions, area shares, links and triangles. Call
@@ -220,14 +204,7 @@ impl GridPanel {
                 triangles.push([a, c, d]);
             }
         }
-        Ok(PanelMesh {
-            positions,
-            area_share,
-            cell_area,
-            sequential: links(1),
-            interlaced: links(2),
-            triangles,
-        })
+        Ok(PanelMesh { positions, area_share, cell_area, sequential: links(1), interlaced: links(2), triangles })
     }
 }
 
@@ -251,14 +228,8 @@ mod tests {
         let (nx, ny) = (6, 4);
         let m = panel(nx, ny, false).mesh().unwrap();
         // Structure (nx-1)ny + nx(ny-1), shear 2(nx-1)(ny-1).
-        assert_eq!(
-            m.sequential.len(),
-            (nx - 1) * ny + nx * (ny - 1) + 2 * (nx - 1) * (ny - 1)
-        );
-        assert_eq!(
-            m.interlaced.len(),
-            (nx - 2) * ny + nx * (ny - 2) + 2 * (nx - 2) * (ny - 2)
-        );
+        assert_eq!(m.sequential.len(), (nx - 1) * ny + nx * (ny - 1) + 2 * (nx - 1) * (ny - 1));
+        assert_eq!(m.interlaced.len(), (nx - 2) * ny + nx * (ny - 2) + 2 * (nx - 2) * (ny - 2));
         assert_eq!(m.triangles.len(), 2 * (nx - 1) * (ny - 1));
         let area: f64 = m.area_share.iter().sum();
         assert!((area - 0.5).abs() < 1e-15);
@@ -269,14 +240,8 @@ mod tests {
     fn wrapped_grid_closes_into_a_cylinder() {
         let (nx, ny) = (8, 3);
         let m = panel(nx, ny, true).mesh().unwrap();
-        assert_eq!(
-            m.sequential.len(),
-            nx * ny + nx * (ny - 1) + 2 * nx * (ny - 1)
-        );
-        assert_eq!(
-            m.interlaced.len(),
-            nx * ny + nx * (ny - 2) + 2 * nx * (ny - 2)
-        );
+        assert_eq!(m.sequential.len(), nx * ny + nx * (ny - 1) + 2 * nx * (ny - 1));
+        assert_eq!(m.interlaced.len(), nx * ny + nx * (ny - 2) + 2 * nx * (ny - 2));
         let area: f64 = m.area_share.iter().sum();
         assert!((area - 0.5).abs() < 1e-15);
         let r = 1.0 / (2.0 * std::f64::consts::PI);

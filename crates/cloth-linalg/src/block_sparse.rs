@@ -36,10 +36,7 @@ pub struct BlockPattern {
 impl BlockPattern {
     /// Builds the pattern for `n` block rows from coupled pairs (duplicates and
     /// self-pairs are allowed and merged). Columns are sorted within a row.
-    pub fn from_pairs(
-        n: usize,
-        pairs: impl IntoIterator<Item = (usize, usize)>,
-    ) -> Result<Self, PatternError> {
+    pub fn from_pairs(n: usize, pairs: impl IntoIterator<Item = (usize, usize)>) -> Result<Self, PatternError> {
         let mut rows: Vec<Vec<u32>> = (0..n).map(|i| vec![i as u32]).collect();
         for (i, j) in pairs {
             if i >= n || j >= n {
@@ -55,18 +52,12 @@ impl BlockPattern {
         for (i, mut r) in rows.into_iter().enumerate() {
             r.sort_unstable();
             r.dedup();
-            let d = r
-                .binary_search(&(i as u32))
-                .expect("diagonal is always present");
+            let d = r.binary_search(&(i as u32)).expect("diagonal is always present");
             diag.push(cols.len() + d);
             cols.extend_from_slice(&r);
             row_ptr.push(cols.len());
         }
-        Ok(Self {
-            row_ptr,
-            cols,
-            diag,
-        })
+        Ok(Self { row_ptr, cols, diag })
     }
 
     /// Number of block rows.
@@ -153,37 +144,57 @@ impl BlockSparseMatrix {
         fill_range(&self.pattern.row_ptr, 0..n, &mut self.values, 0, &fill);
     }
 
+    /// Row `i` of `A x`.
+    #[inline]
+    fn row_times(&self, i: usize, x: &[Vec3]) -> Vec3 {
+        let range = self.pattern.row_range(i);
+        let (mut a0, mut a1, mut a2) = (0.0, 0.0, 0.0);
+        for (b, &c) in self.values[range.clone()].iter().zip(&self.pattern.cols[range]) {
+            let xc = &x[c as usize];
+            let (x0, x1, x2) = (xc.x, xc.y, xc.z);
+            // Column-major 3x3 block times a 3-vector, written out.
+            let m = b.as_slice();
+            a0 += m[0] * x0 + m[3] * x1 + m[6] * x2;
+            a1 += m[1] * x0 + m[4] * x1 + m[7] * x2;
+            a2 += m[2] * x0 + m[5] * x1 + m[8] * x2;
+        }
+        Vec3::new(a0, a1, a2)
+    }
+
     /// `y = A x`, parallel over rows.
     pub fn mul_vec(&self, x: &[Vec3], y: &mut [Vec3]) {
         let n = self.n();
         assert!(x.len() == n && y.len() == n, "mul_vec: dimension mismatch");
-        y.par_chunks_mut(ROW_CHUNK)
-            .enumerate()
-            .for_each(|(chunk, ys)| {
-                let first = chunk * ROW_CHUNK;
-                for (k, yi) in ys.iter_mut().enumerate() {
-                    let range = self.pattern.row_range(first + k);
-                    let (mut a0, mut a1, mut a2) = (0.0, 0.0, 0.0);
-                    for (b, &c) in self.values[range.clone()].iter().zip(&self.pattern.cols[range]) {
-                        let xc = &x[c as usize];
-                        let (x0, x1, x2) = (xc.x, xc.y, xc.z);
-                        // Column-major 3x3 block times a 3-vector, written out.
-                        let m = b.as_slice();
-                        a0 += m[0] * x0 + m[3] * x1 + m[6] * x2;
-                        a1 += m[1] * x0 + m[4] * x1 + m[7] * x2;
-                        a2 += m[2] * x0 + m[5] * x1 + m[8] * x2;
-                    }
-                    *yi = Vec3::new(a0, a1, a2);
-                }
-            });
+        y.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(chunk, ys)| {
+            for (k, yi) in ys.iter_mut().enumerate() {
+                *yi = self.row_times(chunk * ROW_CHUNK + k, x);
+            }
+        });
+    }
+
+    /// `y = A x` and returns `x . y` (the curvature CG needs) in the same
+    /// pass, summed in chunk order. `partials` needs one slot per
+    /// [`ROW_CHUNK`] rows.
+    pub fn mul_vec_dot(&self, x: &[Vec3], y: &mut [Vec3], partials: &mut [f64]) -> f64 {
+        let n = self.n();
+        assert!(x.len() == n && y.len() == n, "mul_vec_dot: dimension mismatch");
+        assert_eq!(partials.len(), n.div_ceil(ROW_CHUNK).max(1), "mul_vec_dot: partials length");
+        y.par_chunks_mut(ROW_CHUNK).zip(partials.par_iter_mut()).enumerate().for_each(|(chunk, (ys, p))| {
+            let mut acc = 0.0;
+            for (k, yi) in ys.iter_mut().enumerate() {
+                let i = chunk * ROW_CHUNK + k;
+                *yi = self.row_times(i, x);
+                acc += x[i].dot(yi);
+            }
+            *p = acc;
+        });
+        partials.iter().sum()
     }
 
     /// Iterates over the stored blocks as `(row, col, block)`.
     pub fn blocks(&self) -> impl Iterator<Item = (usize, usize, &Mat3)> + '_ {
         (0..self.n()).flat_map(move |i| {
-            self.pattern
-                .row_range(i)
-                .map(move |s| (i, self.pattern.cols[s] as usize, &self.values[s]))
+            self.pattern.row_range(i).map(move |s| (i, self.pattern.cols[s] as usize, &self.values[s]))
         })
     }
 }
@@ -226,10 +237,7 @@ mod tests {
 
     #[test]
     fn pattern_rejects_out_of_range() {
-        assert_eq!(
-            BlockPattern::from_pairs(2, [(0, 2)]),
-            Err(PatternError::OutOfRange { i: 0, j: 2, n: 2 })
-        );
+        assert_eq!(BlockPattern::from_pairs(2, [(0, 2)]), Err(PatternError::OutOfRange { i: 0, j: 2, n: 2 }));
     }
 
     #[test]
@@ -244,11 +252,15 @@ mod tests {
                 *b = Mat3::from_fn(|r, c| 1.0 + lo * 0.01 + hi * 0.001 + (r + c) as f64);
             }
         });
-        let x: Vec<Vec3> = (0..n)
-            .map(|i| Vec3::new(i as f64, 1.0, -0.5 * i as f64))
-            .collect();
+        let x: Vec<Vec3> = (0..n).map(|i| Vec3::new(i as f64, 1.0, -0.5 * i as f64)).collect();
         let mut y = vec![Vec3::zeros(); n];
         a.mul_vec(&x, &mut y);
+        let mut partials = vec![0.0; n.div_ceil(ROW_CHUNK)];
+        let mut y2 = vec![Vec3::zeros(); n];
+        let xay = a.mul_vec_dot(&x, &mut y2, &mut partials);
+        assert_eq!(y, y2);
+        let direct: f64 = x.iter().zip(&y).map(|(p, q)| p.dot(q)).sum();
+        assert!((xay - direct).abs() <= 1e-12 * direct.abs());
         let mut expect = vec![Vec3::zeros(); n];
         for (i, j, b) in a.blocks() {
             expect[i] += b * x[j];

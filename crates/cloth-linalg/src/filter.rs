@@ -79,11 +79,7 @@ pub struct ConstraintFilter {
 impl ConstraintFilter {
     /// A filter for `n` particles, all free.
     pub fn new(n: usize) -> Self {
-        Self {
-            n,
-            entries: Vec::new(),
-            slot: vec![usize::MAX; n],
-        }
+        Self { n, entries: Vec::new(), slot: vec![usize::MAX; n] }
     }
 
     /// Number of particles.
@@ -106,12 +102,7 @@ impl ConstraintFilter {
 
     /// Constrains particle `index`, replacing any earlier constraint on it.
     /// `value` is the prescribed unknown; only its constrained components are used.
-    pub fn set(
-        &mut self,
-        index: usize,
-        constraint: Constraint,
-        value: Vec3,
-    ) -> Result<(), FilterError> {
+    pub fn set(&mut self, index: usize, constraint: Constraint, value: Vec3) -> Result<(), FilterError> {
         if index >= self.n {
             return Err(FilterError::OutOfRange { index, n: self.n });
         }
@@ -121,11 +112,7 @@ impl ConstraintFilter {
         let degenerate = FilterError::DegenerateDirection { index };
         let unit = |v: Vec3| -> Result<Vec3, FilterError> {
             let len = v.norm();
-            if len.is_finite() && len > 1e-300 {
-                Ok(v / len)
-            } else {
-                Err(degenerate.clone())
-            }
+            if len.is_finite() && len > 1e-300 { Ok(v / len) } else { Err(degenerate.clone()) }
         };
         let s = match constraint {
             Constraint::Free => {
@@ -147,11 +134,7 @@ impl ConstraintFilter {
             }
             Constraint::Fixed => Mat3::zeros(),
         };
-        let entry = Entry {
-            index,
-            s,
-            z: value - s * value,
-        };
+        let entry = Entry { index, s, z: value - s * value };
         match self.slot[index] {
             usize::MAX => {
                 self.slot[index] = self.entries.len();
@@ -218,30 +201,11 @@ mod tests {
     #[test]
     fn projectors_have_the_right_rank() {
         let mut f = ConstraintFilter::new(4);
-        f.set(
-            1,
-            Constraint::OneDirection {
-                normal: Vec3::new(0.0, 0.0, 2.0),
-            },
-            Vec3::zeros(),
-        )
-        .unwrap();
-        f.set(
-            2,
-            Constraint::TwoDirections {
-                n: Vec3::x(),
-                m: Vec3::new(1.0, 1.0, 0.0),
-            },
-            Vec3::zeros(),
-        )
-        .unwrap();
-        f.set(3, Constraint::Fixed, Vec3::new(1.0, 2.0, 3.0))
-            .unwrap();
+        f.set(1, Constraint::OneDirection { normal: Vec3::new(0.0, 0.0, 2.0) }, Vec3::zeros()).unwrap();
+        f.set(2, Constraint::TwoDirections { n: Vec3::x(), m: Vec3::new(1.0, 1.0, 0.0) }, Vec3::zeros()).unwrap();
+        f.set(3, Constraint::Fixed, Vec3::new(1.0, 2.0, 3.0)).unwrap();
         let trace = |i| f.projector(i).trace();
-        assert_eq!(
-            [trace(0), trace(1), trace(2), trace(3)],
-            [3.0, 2.0, 1.0, 0.0]
-        );
+        assert_eq!([trace(0), trace(1), trace(2), trace(3)], [3.0, 2.0, 1.0, 0.0]);
         // Two directions x and (x+y) leave z free.
         assert!((f.projector(2) - Vec3::z() * Vec3::z().transpose()).norm() < 1e-15);
         assert_eq!(f.prescribed(3), Vec3::new(1.0, 2.0, 3.0));
@@ -250,12 +214,7 @@ mod tests {
     #[test]
     fn impose_keeps_free_components() {
         let mut f = ConstraintFilter::new(2);
-        f.set(
-            0,
-            Constraint::OneDirection { normal: Vec3::z() },
-            Vec3::new(9.0, 9.0, -1.0),
-        )
-        .unwrap();
+        f.set(0, Constraint::OneDirection { normal: Vec3::z() }, Vec3::new(9.0, 9.0, -1.0)).unwrap();
         let mut x = vec![Vec3::new(1.0, 2.0, 3.0), Vec3::new(4.0, 5.0, 6.0)];
         f.impose(&mut x);
         assert_eq!(x[0], Vec3::new(1.0, 2.0, -1.0));
@@ -265,29 +224,13 @@ mod tests {
     #[test]
     fn rejects_bad_constraints() {
         let mut f = ConstraintFilter::new(2);
+        assert!(matches!(f.set(5, Constraint::Fixed, Vec3::zeros()), Err(FilterError::OutOfRange { .. })));
         assert!(matches!(
-            f.set(5, Constraint::Fixed, Vec3::zeros()),
-            Err(FilterError::OutOfRange { .. })
-        ));
-        assert!(matches!(
-            f.set(
-                0,
-                Constraint::OneDirection {
-                    normal: Vec3::zeros()
-                },
-                Vec3::zeros()
-            ),
+            f.set(0, Constraint::OneDirection { normal: Vec3::zeros() }, Vec3::zeros()),
             Err(FilterError::DegenerateDirection { .. })
         ));
         assert!(matches!(
-            f.set(
-                0,
-                Constraint::TwoDirections {
-                    n: Vec3::x(),
-                    m: Vec3::x() * 2.0
-                },
-                Vec3::zeros()
-            ),
+            f.set(0, Constraint::TwoDirections { n: Vec3::x(), m: Vec3::x() * 2.0 }, Vec3::zeros()),
             Err(FilterError::DegenerateDirection { .. })
         ));
         assert!(matches!(

@@ -35,11 +35,7 @@ pub struct PcgParams {
 
 impl Default for PcgParams {
     fn default() -> Self {
-        Self {
-            rel_tol: 1e-4,
-            max_iter: 1000,
-            preconditioner: PreconditionerKind::BlockJacobi,
-        }
+        Self { rel_tol: 1e-4, max_iter: 1000, preconditioner: PreconditionerKind::BlockJacobi }
     }
 }
 
@@ -132,9 +128,7 @@ impl Pcg {
 
         // Reference residual S (b - A z), z = the prescribed part alone (kept in s).
         let z_only = &mut self.c;
-        z_only
-            .par_chunks_mut(ROW_CHUNK)
-            .for_each(|ch| ch.fill(Vec3::zeros()));
+        z_only.par_chunks_mut(ROW_CHUNK).for_each(|ch| ch.fill(Vec3::zeros()));
         filter.impose(z_only);
         a.mul_vec(&self.c, &mut self.q);
         sub_into(b, &self.q, &mut self.s);
@@ -170,50 +164,33 @@ impl Pcg {
         let mut iterations = 0;
         while r_sq > tol_sq {
             if iterations == params.max_iter {
-                let info = PcgInfo {
-                    iterations,
-                    rel_residual: r_sq.sqrt() / ref_norm,
-                };
+                let info = PcgInfo { iterations, rel_residual: r_sq.sqrt() / ref_norm };
                 return Err(PcgError::NotConverged { info });
             }
             iterations += 1;
-            a.mul_vec(&self.c, &mut self.q);
+            // c = S c, so c.(S A c) = c.(A c): the dot fuses with the product.
+            let curvature = a.mul_vec_dot(&self.c, &mut self.q, &mut self.partials);
             filter.project(&mut self.q);
-            let curvature = dot_with(&self.c, &self.q, &mut self.partials);
             if !curvature.is_finite() {
-                return Err(PcgError::NonFinite {
-                    iteration: iterations,
-                });
+                return Err(PcgError::NonFinite { iteration: iterations });
             }
             if curvature <= 0.0 {
-                return Err(PcgError::NotPositiveDefinite {
-                    iteration: iterations,
-                    curvature,
-                });
+                return Err(PcgError::NotPositiveDefinite { iteration: iterations, curvature });
             }
             let alpha = rho / curvature;
             let rho_old = rho;
             (r_sq, rho) = self.step_fused(alpha, x);
             if !r_sq.is_finite() || !rho.is_finite() {
-                return Err(PcgError::NonFinite {
-                    iteration: iterations,
-                });
+                return Err(PcgError::NonFinite { iteration: iterations });
             }
             let beta = rho / rho_old;
             self.c
                 .par_chunks_mut(ROW_CHUNK)
                 .zip(self.s.par_chunks(ROW_CHUNK))
-                .for_each(|(cc, cs)| {
-                    cc.iter_mut()
-                        .zip(cs)
-                        .for_each(|(ci, si)| *ci = si + beta * *ci)
-                });
+                .for_each(|(cc, cs)| cc.iter_mut().zip(cs).for_each(|(ci, si)| *ci = si + beta * *ci));
             filter.project(&mut self.c);
         }
-        Ok(PcgInfo {
-            iterations,
-            rel_residual: r_sq.sqrt() / ref_norm,
-        })
+        Ok(PcgInfo { iterations, rel_residual: r_sq.sqrt() / ref_norm })
     }
 
     /// `x += alpha c; r -= alpha q; s = P^-1 r`, returning `(r.r, r.s)` summed
@@ -223,16 +200,8 @@ impl Pcg {
         x.par_chunks_mut(ROW_CHUNK)
             .zip(self.r.par_chunks_mut(ROW_CHUNK))
             .zip(self.s.par_chunks_mut(ROW_CHUNK))
-            .zip(
-                self.c
-                    .par_chunks(ROW_CHUNK)
-                    .zip(self.q.par_chunks(ROW_CHUNK)),
-            )
-            .zip(
-                self.partials
-                    .par_iter_mut()
-                    .zip(self.partials2.par_iter_mut()),
-            )
+            .zip(self.c.par_chunks(ROW_CHUNK).zip(self.q.par_chunks(ROW_CHUNK)))
+            .zip(self.partials.par_iter_mut().zip(self.partials2.par_iter_mut()))
             .enumerate()
             .for_each(|(chunk, ((((cx, cr), cs), (cc, cq)), (p_rr, p_rs)))| {
                 let (mut rr, mut rs) = (0.0, 0.0);
@@ -251,11 +220,11 @@ impl Pcg {
 }
 
 fn sub_into(a: &[Vec3], b: &[Vec3], out: &mut [Vec3]) {
-    out.par_chunks_mut(ROW_CHUNK)
-        .zip(a.par_chunks(ROW_CHUNK).zip(b.par_chunks(ROW_CHUNK)))
-        .for_each(|(o, (ca, cb))| {
+    out.par_chunks_mut(ROW_CHUNK).zip(a.par_chunks(ROW_CHUNK).zip(b.par_chunks(ROW_CHUNK))).for_each(
+        |(o, (ca, cb))| {
             for ((oi, ai), bi) in o.iter_mut().zip(ca).zip(cb) {
                 *oi = ai - bi;
             }
-        });
+        },
+    );
 }

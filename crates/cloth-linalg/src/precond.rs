@@ -35,34 +35,20 @@ impl Preconditioner {
             return;
         }
         self.inv.resize(a.n(), Mat3::identity());
-        self.inv
-            .par_chunks_mut(ROW_CHUNK)
-            .enumerate()
-            .for_each(|(c, chunk)| {
-                for (k, p) in chunk.iter_mut().enumerate() {
-                    let d = a.diag(c * ROW_CHUNK + k);
-                    *p = match kind {
-                        PreconditionerKind::Diagonal => {
-                            let inv = |x: f64| {
-                                if x > 0.0 && x.is_finite() {
-                                    1.0 / x
-                                } else {
-                                    1.0
-                                }
-                            };
-                            Mat3::from_diagonal(&Vec3::new(
-                                inv(d[(0, 0)]),
-                                inv(d[(1, 1)]),
-                                inv(d[(2, 2)]),
-                            ))
-                        }
-                        _ => d
-                            .cholesky()
-                            .map(|ch| ch.inverse())
-                            .unwrap_or_else(Mat3::identity),
-                    };
-                }
-            });
+        self.inv.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(c, chunk)| {
+            for (k, p) in chunk.iter_mut().enumerate() {
+                let d = a.diag(c * ROW_CHUNK + k);
+                *p = match kind {
+                    PreconditionerKind::Diagonal => {
+                        let inv = |x: f64| {
+                            if x > 0.0 && x.is_finite() { 1.0 / x } else { 1.0 }
+                        };
+                        Mat3::from_diagonal(&Vec3::new(inv(d[(0, 0)]), inv(d[(1, 1)]), inv(d[(2, 2)])))
+                    }
+                    _ => d.cholesky().map(|ch| ch.inverse()).unwrap_or_else(Mat3::identity),
+                };
+            }
+        });
     }
 
     /// The kind last built.
@@ -85,13 +71,12 @@ impl Preconditioner {
             s.copy_from_slice(r);
             return;
         }
-        s.par_chunks_mut(ROW_CHUNK)
-            .zip(r.par_chunks(ROW_CHUNK))
-            .zip(self.inv.par_chunks(ROW_CHUNK))
-            .for_each(|((cs, cr), cp)| {
+        s.par_chunks_mut(ROW_CHUNK).zip(r.par_chunks(ROW_CHUNK)).zip(self.inv.par_chunks(ROW_CHUNK)).for_each(
+            |((cs, cr), cp)| {
                 for ((si, ri), pi) in cs.iter_mut().zip(cr).zip(cp) {
                     *si = pi * ri;
                 }
-            });
+            },
+        );
     }
 }

@@ -2,8 +2,8 @@
 //! without Baraff-Witkin filters.
 
 use cloth_linalg::{
-    BlockPattern, BlockSparseMatrix, Constraint, ConstraintFilter, Mat3, Pcg, PcgError, PcgParams,
-    PreconditionerKind, Vec3,
+    BlockPattern, BlockSparseMatrix, Constraint, ConstraintFilter, Mat3, Pcg, PcgError, PcgParams, PreconditionerKind,
+    Vec3,
 };
 use faer::linalg::solvers::Solve;
 use faer::sparse::{SparseColMat, Triplet};
@@ -67,10 +67,7 @@ fn random_system(rng: &mut Rng, n: usize, pairs_per_node: usize, mass: f64) -> B
 /// Orthonormal basis (columns) of the free directions of a projector.
 fn free_basis(s: &Mat3) -> Vec<Vec3> {
     let eig = s.symmetric_eigen();
-    (0..3)
-        .filter(|&k| eig.eigenvalues[k] > 0.5)
-        .map(|k| eig.eigenvectors.column(k).into_owned())
-        .collect()
+    (0..3).filter(|&k| eig.eigenvalues[k] > 0.5).map(|k| eig.eigenvectors.column(k).into_owned()).collect()
 }
 
 /// Reference: eliminate the constrained components (x_i = z_i + T_i y_i) and
@@ -90,11 +87,7 @@ fn cholesky_reference(a: &BlockSparseMatrix, b: &[Vec3], filter: &ConstraintFilt
     for (i, j, blk) in a.blocks() {
         for (p, ti) in bases[i].iter().enumerate() {
             for (q, tj) in bases[j].iter().enumerate() {
-                triplets.push(Triplet::new(
-                    offset[i] + p,
-                    offset[j] + q,
-                    ti.dot(&(blk * tj)),
-                ));
+                triplets.push(Triplet::new(offset[i] + p, offset[j] + q, ti.dot(&(blk * tj))));
             }
         }
     }
@@ -105,46 +98,20 @@ fn cholesky_reference(a: &BlockSparseMatrix, b: &[Vec3], filter: &ConstraintFilt
         }
     }
     let mat = SparseColMat::<usize, f64>::try_new_from_triplets(dof, dof, &triplets).unwrap();
-    let llt = mat
-        .as_ref()
-        .sp_cholesky(Side::Lower)
-        .expect("reference system is SPD");
+    let llt = mat.as_ref().sp_cholesky(Side::Lower).expect("reference system is SPD");
     let y = llt.solve(&rhs);
-    (0..n)
-        .map(|i| {
-            z[i] + bases[i]
-                .iter()
-                .enumerate()
-                .map(|(p, t)| t * y[(offset[i] + p, 0)])
-                .sum::<Vec3>()
-        })
-        .collect()
+    (0..n).map(|i| z[i] + bases[i].iter().enumerate().map(|(p, t)| t * y[(offset[i] + p, 0)]).sum::<Vec3>()).collect()
 }
 
 fn max_rel_diff(a: &[Vec3], b: &[Vec3]) -> f64 {
     let scale = b.iter().map(|v| v.norm()).fold(0.0, f64::max);
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (x - y).norm())
-        .fold(0.0, f64::max)
-        / scale
+    a.iter().zip(b).map(|(x, y)| (x - y).norm()).fold(0.0, f64::max) / scale
 }
 
-fn solve(
-    a: &BlockSparseMatrix,
-    b: &[Vec3],
-    f: &ConstraintFilter,
-    kind: PreconditionerKind,
-) -> (Vec<Vec3>, usize) {
-    let params = PcgParams {
-        rel_tol: 1e-12,
-        max_iter: 5000,
-        preconditioner: kind,
-    };
+fn solve(a: &BlockSparseMatrix, b: &[Vec3], f: &ConstraintFilter, kind: PreconditionerKind) -> (Vec<Vec3>, usize) {
+    let params = PcgParams { rel_tol: 1e-12, max_iter: 5000, preconditioner: kind };
     let mut x = vec![Vec3::zeros(); a.n()];
-    let info = Pcg::new(a.n())
-        .solve(a, b, f, &params, &mut x)
-        .expect("PCG converges");
+    let info = Pcg::new(a.n()).solve(a, b, f, &params, &mut x).expect("PCG converges");
     assert!(info.rel_residual <= 1e-12);
     (x, info.iterations)
 }
@@ -157,21 +124,14 @@ fn unfiltered_pcg_matches_sparse_cholesky_for_every_preconditioner() {
     let filter = ConstraintFilter::new(a.n());
     let reference = cholesky_reference(&a, &b, &filter);
     let mut iters = Vec::new();
-    for kind in [
-        PreconditionerKind::None,
-        PreconditionerKind::Diagonal,
-        PreconditionerKind::BlockJacobi,
-    ] {
+    for kind in [PreconditionerKind::None, PreconditionerKind::Diagonal, PreconditionerKind::BlockJacobi] {
         let (x, it) = solve(&a, &b, &filter, kind);
         let err = max_rel_diff(&x, &reference);
         assert!(err < 1e-9, "{kind:?}: relative difference {err:e}");
         iters.push(it);
     }
     // Block-Jacobi must not be worse than no preconditioning on this system.
-    assert!(
-        iters[2] <= iters[0],
-        "iterations none/diag/block: {iters:?}"
-    );
+    assert!(iters[2] <= iters[0], "iterations none/diag/block: {iters:?}");
 }
 
 #[test]
@@ -185,21 +145,14 @@ fn filtered_pcg_matches_reduced_cholesky_and_holds_constraints_exactly() {
         let c = match i % 4 {
             0 => Constraint::Fixed,
             1 => Constraint::OneDirection { normal: rng.vec3() },
-            2 => Constraint::TwoDirections {
-                n: rng.vec3(),
-                m: rng.vec3(),
-            },
+            2 => Constraint::TwoDirections { n: rng.vec3(), m: rng.vec3() },
             _ => Constraint::Free,
         };
         filter.set(i, c, rng.vec3()).unwrap();
     }
     assert!(filter.constrained_count() > 40);
     let reference = cholesky_reference(&a, &b, &filter);
-    for kind in [
-        PreconditionerKind::None,
-        PreconditionerKind::Diagonal,
-        PreconditionerKind::BlockJacobi,
-    ] {
+    for kind in [PreconditionerKind::None, PreconditionerKind::Diagonal, PreconditionerKind::BlockJacobi] {
         let (x, _) = solve(&a, &b, &filter, kind);
         let err = max_rel_diff(&x, &reference);
         assert!(err < 1e-9, "{kind:?}: relative difference {err:e}");
@@ -207,10 +160,7 @@ fn filtered_pcg_matches_reduced_cholesky_and_holds_constraints_exactly() {
             // Constrained components are exactly the prescribed ones (bitwise
             // up to the projection's own rounding).
             let constrained = x[i] - s * x[i];
-            assert!(
-                (constrained - z).norm() <= 1e-14 * (1.0 + z.norm()),
-                "particle {i}"
-            );
+            assert!((constrained - z).norm() <= 1e-14 * (1.0 + z.norm()), "particle {i}");
         }
     }
 }
@@ -222,13 +172,8 @@ fn warm_start_from_the_solution_takes_no_iteration() {
     let b: Vec<Vec3> = (0..a.n()).map(|_| rng.vec3()).collect();
     let filter = ConstraintFilter::new(a.n());
     let (mut x, cold) = solve(&a, &b, &filter, PreconditionerKind::BlockJacobi);
-    let params = PcgParams {
-        rel_tol: 1e-10,
-        ..Default::default()
-    };
-    let info = Pcg::new(a.n())
-        .solve(&a, &b, &filter, &params, &mut x)
-        .unwrap();
+    let params = PcgParams { rel_tol: 1e-10, ..Default::default() };
+    let info = Pcg::new(a.n()).solve(&a, &b, &filter, &params, &mut x).unwrap();
     assert_eq!(info.iterations, 0);
     assert!(cold > 5);
 }
@@ -239,11 +184,7 @@ fn reports_non_convergence_and_indefiniteness() {
     let a = random_system(&mut rng, 200, 3, 0.01);
     let b: Vec<Vec3> = (0..a.n()).map(|_| rng.vec3()).collect();
     let filter = ConstraintFilter::new(a.n());
-    let params = PcgParams {
-        rel_tol: 1e-12,
-        max_iter: 3,
-        preconditioner: PreconditionerKind::None,
-    };
+    let params = PcgParams { rel_tol: 1e-12, max_iter: 3, preconditioner: PreconditionerKind::None };
     let mut x = vec![Vec3::zeros(); a.n()];
     match Pcg::new(a.n()).solve(&a, &b, &filter, &params, &mut x) {
         Err(PcgError::NotConverged { info }) => {
@@ -260,23 +201,14 @@ fn reports_non_convergence_and_indefiniteness() {
         &neg,
         &b,
         &filter,
-        &PcgParams {
-            preconditioner: PreconditionerKind::None,
-            ..Default::default()
-        },
+        &PcgParams { preconditioner: PreconditionerKind::None, ..Default::default() },
         &mut x,
     );
-    assert!(
-        matches!(r, Err(PcgError::NotPositiveDefinite { iteration: 1, .. })),
-        "{r:?}"
-    );
+    assert!(matches!(r, Err(PcgError::NotPositiveDefinite { iteration: 1, .. })), "{r:?}");
     let mut bad = b.clone();
     bad[5].x = f64::NAN;
     let r = Pcg::new(a.n()).solve(&a, &bad, &filter, &PcgParams::default(), &mut x);
-    assert!(
-        matches!(r, Err(PcgError::NonFinite { iteration: 0 })),
-        "{r:?}"
-    );
+    assert!(matches!(r, Err(PcgError::NonFinite { iteration: 0 })), "{r:?}");
 }
 
 #[test]
@@ -286,21 +218,14 @@ fn solve_is_bit_identical_across_thread_counts() {
     let b: Vec<Vec3> = (0..a.n()).map(|_| rng.vec3()).collect();
     let filter = ConstraintFilter::new(a.n());
     let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
         pool.install(|| solve(&a, &b, &filter, PreconditionerKind::BlockJacobi).0)
     };
     let one = run(1);
     let two = run(2);
     let four = run(4);
-    assert!(
-        one.iter()
-            .zip(&two)
-            .all(|(p, q)| p.x.to_bits() == q.x.to_bits()
-                && p.y.to_bits() == q.y.to_bits()
-                && p.z.to_bits() == q.z.to_bits())
-    );
+    assert!(one.iter().zip(&two).all(|(p, q)| p.x.to_bits() == q.x.to_bits()
+        && p.y.to_bits() == q.y.to_bits()
+        && p.z.to_bits() == q.z.to_bits()));
     assert_eq!(two, four);
 }
