@@ -21,7 +21,7 @@ pub fn hanging_cloth(n: usize, steps: usize) -> (Simulation, RunConfig, ClothSta
         format!("panels.0.particles=[{n}, {n}]"),
         format!("pins.0.nodes=[[0, {last}], [{last}, {last}]]", last = n - 1),
     ];
-    let scene = Scene::load(&path, &overrides).expect("fixture loads");
+    let scene = Scene::parse_file(&path, &overrides).expect("fixture parses");
     let (model, cfg) = scene.build().expect("fixture builds");
     let mut sim = Simulation::new(model, cfg.integrator, cfg.solver);
     for _ in 0..steps {

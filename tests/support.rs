@@ -12,7 +12,7 @@ pub fn fixture(name: &str) -> PathBuf {
 /// Loads a fixture scene with overrides and builds its model.
 pub fn load(name: &str, overrides: &[&str]) -> (ClothModel, RunConfig) {
     let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
-    let scene = Scene::load(&fixture(name), &o).unwrap_or_else(|e| panic!("{e}"));
+    let scene = Scene::parse_file(&fixture(name), &o).unwrap_or_else(|e| panic!("{e}"));
     scene.build().unwrap_or_else(|e| panic!("{name}: {e}"))
 }
 

@@ -2,8 +2,8 @@
 
 use crate::output::{StageWall, Summary, max_stretch_ratio, write_obj};
 use anyhow::{Context, Result, bail};
-use cloth_core::Simulation;
-use cloth_core::scene::{EffectName, Scene};
+use cloth_core::scene::{EffectName, RunConfig, Scene, SceneError};
+use cloth_core::{ClothModel, Simulation};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -17,13 +17,15 @@ pub struct RunArgs {
     pub quiet: bool,
 }
 
-fn load(path: &Path, overrides: &[String]) -> Result<Scene> {
-    Ok(Scene::load(path, overrides)?)
+/// Reads, checks and builds a scene; errors name the file and the field.
+fn load(path: &Path, overrides: &[String]) -> Result<(Scene, ClothModel, RunConfig)> {
+    let scene = Scene::parse_file(path, overrides)?;
+    let (model, cfg) = scene.build().map_err(|kind| SceneError { file: path.into(), kind })?;
+    Ok((scene, model, cfg))
 }
 
 pub fn validate(path: &Path, overrides: &[String]) -> Result<()> {
-    let scene = load(path, overrides)?;
-    let (model, cfg) = scene.build().map_err(|kind| cloth_core::scene::SceneError { file: path.into(), kind })?;
+    let (_, model, cfg) = load(path, overrides)?;
     println!(
         "{}: ok ({} particles, {} type-1 and {} type-2 links, {} pins, {} steps of {} s with {})",
         path.display(),
@@ -45,9 +47,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
     if args.frames == Some(0) {
         bail!("--frames must be at least 1");
     }
-    let scene = load(&args.scene, &args.overrides)?;
-    let (model, cfg) =
-        scene.build().map_err(|kind| cloth_core::scene::SceneError { file: args.scene.clone(), kind })?;
+    let (scene, model, cfg) = load(&args.scene, &args.overrides)?;
     let pool = rayon::ThreadPoolBuilder::new().num_threads(args.threads).build()?;
     std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     let frames_dir = args.out.join("frames");

@@ -187,11 +187,17 @@ impl Scene {
     /// Reads `path`, applies `overrides` (`a.b=value`, array elements by
     /// index: `panels.0.particles=[75, 75]`), parses and validates.
     pub fn load(path: &Path, overrides: &[String]) -> Result<Self, SceneError> {
+        let scene = Self::parse_file(path, overrides)?;
+        scene.validate().map_err(|kind| SceneError { file: path.to_path_buf(), kind })?;
+        Ok(scene)
+    }
+
+    /// Reads and parses `path` with overrides, without range checks (call
+    /// [`Scene::build`], which checks everything, next).
+    pub fn parse_file(path: &Path, overrides: &[String]) -> Result<Self, SceneError> {
         let err = |kind| SceneError { file: path.to_path_buf(), kind };
         let text = std::fs::read_to_string(path).map_err(|e| err(SceneErrorKind::Io(e.to_string())))?;
-        let scene = Self::parse(&text, overrides).map_err(err)?;
-        scene.validate().map_err(err)?;
-        Ok(scene)
+        Self::parse(&text, overrides).map_err(err)
     }
 
     /// Parses scene text with overrides (no range checks; see [`Scene::validate`]).
@@ -208,8 +214,13 @@ impl Scene {
         toml::from_str(&rewritten).map_err(|e| SceneErrorKind::Parse(format!("after --set overrides: {e}")))
     }
 
-    /// Range checks that the types cannot express, naming the field.
+    /// Range checks that the types cannot express, naming the field
+    /// (this builds the model once to check panels, material and pins).
     pub fn validate(&self) -> Result<(), SceneErrorKind> {
+        self.build().map(|_| ())
+    }
+
+    fn check_run_fields(&self) -> Result<(), SceneErrorKind> {
         let invalid = |field: &str, message: String| SceneErrorKind::Invalid { field: field.into(), message };
         let s = &self.simulation;
         if !(s.dt_s.is_finite() && s.dt_s > 0.0) {
@@ -233,12 +244,7 @@ impl Scene {
         if v.max_iter == 0 {
             return Err(invalid("solver.max_iter", "must be >= 1".into()));
         }
-        // Panels, material, pins and gravity are checked by the model builder.
-        ClothModel::build(&self.model_spec()).map(|_| ()).map_err(|e| {
-            let text = e.to_string();
-            let (field, message) = text.split_once(": ").unwrap_or(("scene", &text));
-            invalid(field, message.to_string())
-        })
+        Ok(())
     }
 
     /// Whether the scene lists `effect`.
@@ -260,11 +266,16 @@ impl Scene {
         }
     }
 
-    /// Builds the model and the run configuration.
+    /// Checks every field and builds the model and the run configuration.
+    /// Panels, material, pins and gravity are checked by the model builder,
+    /// whose error paths (`panels[0].particles`) match the scene's keys.
     pub fn build(&self) -> Result<(ClothModel, RunConfig), SceneErrorKind> {
-        self.validate()?;
-        let model = ClothModel::build(&self.model_spec())
-            .map_err(|e| SceneErrorKind::Invalid { field: "scene".into(), message: e.to_string() })?;
+        self.check_run_fields()?;
+        let model = ClothModel::build(&self.model_spec()).map_err(|e| {
+            let text = e.to_string();
+            let (field, message) = text.split_once(": ").unwrap_or(("scene", &text));
+            SceneErrorKind::Invalid { field: field.to_string(), message: message.to_string() }
+        })?;
         let s = &self.simulation;
         let config = RunConfig {
             integrator: s.integrator,

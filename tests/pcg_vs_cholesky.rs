@@ -5,27 +5,10 @@ use cloth_linalg::{
     BlockPattern, BlockSparseMatrix, Constraint, ConstraintFilter, Mat3, Pcg, PcgError, PcgParams, PreconditionerKind,
     Vec3,
 };
+use cloth_tests::Rng;
 use faer::linalg::solvers::Solve;
 use faer::sparse::{SparseColMat, Triplet};
 use faer::{Mat, Side};
-
-/// xorshift64*: a tiny deterministic generator, uniform in [-1, 1).
-struct Rng(u64);
-impl Rng {
-    fn uniform(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        let bits = self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11;
-        bits as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-    }
-    fn vec3(&mut self) -> Vec3 {
-        Vec3::new(self.uniform(), self.uniform(), self.uniform())
-    }
-    fn index(&mut self, n: usize) -> usize {
-        (((self.uniform() + 1.0) * 0.5 * n as f64) as usize).min(n - 1)
-    }
-}
 
 /// A = diag(m_i I) + sum_e L_e (x) B_e with random PSD B_e: the structure of
 /// the cloth system matrix. Returns A and the pair list.
@@ -34,7 +17,7 @@ fn random_system(rng: &mut Rng, n: usize, pairs_per_node: usize, mass: f64) -> B
     for i in 0..n {
         pairs.push((i, (i + 1) % n)); // a ring keeps it connected
         for _ in 1..pairs_per_node {
-            let j = rng.index(n);
+            let j = (((rng.uniform() + 1.0) * 0.5 * n as f64) as usize).min(n - 1);
             if j != i {
                 pairs.push((i, j));
             }
