@@ -205,40 +205,7 @@ impl Integrator for BackwardEuler {
         solver: &SolverParams,
     ) -> Result<StepReport, StepError> {
         check_step(model, state, h)?;
-        let v = &state.v;
-        let t = assemble(
-            model,
-            &state.x,
-            &SystemTerms {
-                c_x: h * h,
-                c_v: h,
-                force: h,
-                k_times: Some((h * h, v)),
-                d_times: Some((h, v)),
-                mass_times: None,
-            },
-            &mut ws.system,
-        );
-        let t_pins = Instant::now();
-        // Pins: dv = (p(t + h) - x) / h - v.
-        constrain_pins(model, state, h, &mut ws.filter, |target, i| (target - state.x[i]) / h - state.v[i]);
-        // Warm start: the previous change of velocity.
-        for i in 0..state.len() {
-            ws.unknown[i] = if state.has_history { state.v[i] - state.v_prev[i] } else { Vec3::zeros() };
-        }
-        let assembly_extra = t_pins.elapsed().as_secs_f64();
-        let (mut report, t_solve) = solve(ws, state, solver)?;
-        let t_update = Instant::now();
-        for i in 0..state.len() {
-            ws.new_v[i] = state.v[i] + ws.unknown[i];
-            ws.new_x[i] = state.x[i] + ws.new_v[i] * h;
-        }
-        commit(state, ws, h)?;
-        report.stages.forces_s = t.links_s;
-        report.stages.assembly_s = t.gather_s + assembly_extra;
-        report.stages.solve_s = t_solve;
-        report.stages.update_s = t_update.elapsed().as_secs_f64();
-        Ok(report)
+        linearised_step(self, model, state, h, ws, solver)
     }
 }
 
@@ -259,46 +226,120 @@ impl Integrator for Bdf2 {
         // BDF2 needs one previous step of the same size; otherwise start
         // (or restart) with backward Euler.
         if !state.has_history || state.last_dt_s != h {
-            return BackwardEuler.step(model, state, h, ws, solver);
+            return linearised_step(&BackwardEuler, model, state, h, ws, solver);
         }
-        // aux = delta = x - x_prev; aux2 = y = delta/3 + h (8 v - 2 v_prev)/9.
+        linearised_step(self, model, state, h, ws, solver)
+    }
+}
+
+/// What distinguishes one single-Newton-iteration implicit scheme from
+/// another: its linear system, its unknown, and how the unknown updates
+/// the state. [`linearised_step`] does the rest.
+trait Linearised {
+    /// Fills the scheme's auxiliary vectors from the state.
+    fn prepare(&self, state: &ClothState, h: f64, aux: &mut [Vec3], aux2: &mut [Vec3]);
+    /// The system's coefficients and right-hand-side terms.
+    fn terms<'a>(&self, state: &'a ClothState, aux: &'a [Vec3], aux2: &'a [Vec3], h: f64) -> SystemTerms<'a>;
+    /// The unknown of particle `i` when its position at `t + h` is `target`.
+    fn pinned(&self, state: &ClothState, h: f64, target: Vec3, i: usize) -> Vec3;
+    /// Initial PCG guess for particle `i` (from the state only, so a
+    /// restored snapshot solves from the same guess).
+    fn guess(&self, state: &ClothState, aux: &[Vec3], i: usize) -> Vec3;
+    /// New `(x, v)` of particle `i` from the solved unknown.
+    fn advance(&self, state: &ClothState, aux: &[Vec3], h: f64, i: usize, unknown: Vec3) -> (Vec3, Vec3);
+}
+
+impl Linearised for BackwardEuler {
+    fn prepare(&self, _: &ClothState, _: f64, _: &mut [Vec3], _: &mut [Vec3]) {}
+
+    fn terms<'a>(&self, state: &'a ClothState, _: &'a [Vec3], _: &'a [Vec3], h: f64) -> SystemTerms<'a> {
+        let v = &state.v;
+        SystemTerms { c_x: h * h, c_v: h, force: h, k_times: Some((h * h, v)), d_times: Some((h, v)), mass_times: None }
+    }
+
+    /// `dv = (p(t + h) - x) / h - v`.
+    fn pinned(&self, state: &ClothState, h: f64, target: Vec3, i: usize) -> Vec3 {
+        (target - state.x[i]) / h - state.v[i]
+    }
+
+    /// The previous change of velocity.
+    fn guess(&self, state: &ClothState, _: &[Vec3], i: usize) -> Vec3 {
+        if state.has_history { state.v[i] - state.v_prev[i] } else { Vec3::zeros() }
+    }
+
+    fn advance(&self, state: &ClothState, _: &[Vec3], h: f64, i: usize, dv: Vec3) -> (Vec3, Vec3) {
+        let v = state.v[i] + dv;
+        (state.x[i] + v * h, v)
+    }
+}
+
+impl Linearised for Bdf2 {
+    /// `aux = delta = x - x_prev`; `aux2 = delta/3 + h (8 v - 2 v_prev)/9`.
+    fn prepare(&self, state: &ClothState, h: f64, aux: &mut [Vec3], aux2: &mut [Vec3]) {
         for i in 0..state.len() {
             let delta = state.x[i] - state.x_prev[i];
-            ws.aux[i] = delta;
-            ws.aux2[i] = delta / 3.0 + (state.v[i] * 8.0 - state.v_prev[i] * 2.0) * (h / 9.0);
+            aux[i] = delta;
+            aux2[i] = delta / 3.0 + (state.v[i] * 8.0 - state.v_prev[i] * 2.0) * (h / 9.0);
         }
-        let t = assemble(
-            model,
-            &state.x,
-            &SystemTerms {
-                c_x: 4.0 * h * h / 9.0,
-                c_v: 2.0 * h / 3.0,
-                force: 4.0 * h * h / 9.0,
-                k_times: None,
-                d_times: Some((-2.0 * h / 9.0, &ws.aux)),
-                mass_times: Some(&ws.aux2),
-            },
-            &mut ws.system,
-        );
-        let t_pins = Instant::now();
-        // Pins: dx = p(t + h) - x.
-        constrain_pins(model, state, h, &mut ws.filter, |target, i| target - state.x[i]);
-        // Warm start: the previous displacement.
-        ws.unknown.copy_from_slice(&ws.aux);
-        let assembly_extra = t_pins.elapsed().as_secs_f64();
-        let (mut report, t_solve) = solve(ws, state, solver)?;
-        let t_update = Instant::now();
-        for i in 0..state.len() {
-            ws.new_x[i] = state.x[i] + ws.unknown[i];
-            ws.new_v[i] = (ws.unknown[i] * 3.0 - ws.aux[i]) / (2.0 * h);
-        }
-        commit(state, ws, h)?;
-        report.stages.forces_s = t.links_s;
-        report.stages.assembly_s = t.gather_s + assembly_extra;
-        report.stages.solve_s = t_solve;
-        report.stages.update_s = t_update.elapsed().as_secs_f64();
-        Ok(report)
     }
+
+    fn terms<'a>(&self, _: &'a ClothState, aux: &'a [Vec3], aux2: &'a [Vec3], h: f64) -> SystemTerms<'a> {
+        SystemTerms {
+            c_x: 4.0 * h * h / 9.0,
+            c_v: 2.0 * h / 3.0,
+            force: 4.0 * h * h / 9.0,
+            k_times: None,
+            d_times: Some((-2.0 * h / 9.0, aux)),
+            mass_times: Some(aux2),
+        }
+    }
+
+    /// `dx = p(t + h) - x`.
+    fn pinned(&self, state: &ClothState, _: f64, target: Vec3, i: usize) -> Vec3 {
+        target - state.x[i]
+    }
+
+    /// The previous displacement.
+    fn guess(&self, _: &ClothState, aux: &[Vec3], i: usize) -> Vec3 {
+        aux[i]
+    }
+
+    fn advance(&self, state: &ClothState, aux: &[Vec3], h: f64, i: usize, dx: Vec3) -> (Vec3, Vec3) {
+        (state.x[i] + dx, (dx * 3.0 - aux[i]) / (2.0 * h))
+    }
+}
+
+/// One step of a [`Linearised`] scheme: assemble, constrain pins, solve
+/// with filtered PCG, advance, check, commit.
+fn linearised_step<S: Linearised>(
+    scheme: &S,
+    model: &ClothModel,
+    state: &mut ClothState,
+    h: f64,
+    ws: &mut Workspace,
+    solver: &SolverParams,
+) -> Result<StepReport, StepError> {
+    scheme.prepare(state, h, &mut ws.aux, &mut ws.aux2);
+    let timing = assemble(model, &state.x, &scheme.terms(state, &ws.aux, &ws.aux2, h), &mut ws.system);
+    let t_pins = Instant::now();
+    constrain_pins(model, state, h, &mut ws.filter, |target, i| scheme.pinned(state, h, target, i));
+    for i in 0..state.len() {
+        ws.unknown[i] = scheme.guess(state, &ws.aux, i);
+    }
+    let pins_s = t_pins.elapsed().as_secs_f64();
+    let (mut report, solve_s) = solve(ws, state, solver)?;
+    let t_update = Instant::now();
+    for i in 0..state.len() {
+        (ws.new_x[i], ws.new_v[i]) = scheme.advance(state, &ws.aux, h, i, ws.unknown[i]);
+    }
+    commit(state, ws, h)?;
+    report.stages = StageTimes {
+        forces_s: timing.links_s,
+        assembly_s: timing.gather_s + pins_s,
+        solve_s,
+        update_s: t_update.elapsed().as_secs_f64(),
+    };
+    Ok(report)
 }
 
 fn check_step(model: &ClothModel, state: &ClothState, h: f64) -> Result<(), StepError> {
