@@ -13,13 +13,15 @@ pub fn pool() -> rayon::ThreadPool {
     rayon::ThreadPoolBuilder::new().num_threads(THREADS).build().expect("thread pool")
 }
 
-/// `hang.toml` with an `n x n` grid, advanced by `steps` steps so the
-/// cloth is moving and its links are stretched and buckled.
-pub fn hanging_cloth(n: usize, steps: usize) -> (Simulation, RunConfig, ClothState) {
+/// `hang.toml` with an `n x n` grid and the named preconditioner, advanced
+/// by `steps` steps so the cloth is moving and its links are stretched and
+/// buckled.
+pub fn hanging_cloth(n: usize, steps: usize, preconditioner: &str) -> (Simulation, RunConfig, ClothState) {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenes/hang.toml");
     let overrides = vec![
         format!("panels.0.particles=[{n}, {n}]"),
         format!("pins.0.nodes=[[0, {last}], [{last}, {last}]]", last = n - 1),
+        format!("solver.preconditioner={preconditioner}"),
     ];
     let scene = Scene::parse_file(&path, &overrides).expect("fixture parses");
     let (model, cfg) = scene.build().expect("fixture builds");

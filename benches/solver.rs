@@ -9,7 +9,7 @@
 use cloth_benches::{hanging_cloth, pool};
 use cloth_core::forces::{SystemBuffers, SystemTerms, assemble};
 use cloth_core::{PcgParams, PreconditionerKind, Vec3};
-use cloth_linalg::{Constraint, ConstraintFilter, Pcg};
+use cloth_linalg::{Constraint, ConstraintFilter, Multigrid, Pcg};
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
 use std::time::{Duration, Instant};
@@ -28,8 +28,8 @@ fn timed_in_pool(pool: &rayon::ThreadPool, iters: u64, mut f: impl FnMut() + Sen
 }
 
 /// The BDF2 matrix and right-hand side at the benchmark state.
-fn system() -> (SystemBuffers, ConstraintFilter) {
-    let (sim, cfg, state) = hanging_cloth(N, 45);
+fn system() -> (SystemBuffers, ConstraintFilter, Multigrid) {
+    let (sim, cfg, state) = hanging_cloth(N, 45, "multigrid");
     let model = sim.model();
     let h = cfg.dt_s;
     let delta: Vec<Vec3> = state.x.iter().zip(&state.x_prev).map(|(a, b)| a - b).collect();
@@ -47,12 +47,12 @@ fn system() -> (SystemBuffers, ConstraintFilter) {
     for pin in model.pins() {
         filter.set(pin.particle, Constraint::Fixed, Vec3::zeros()).expect("valid pin");
     }
-    (bufs, filter)
+    (bufs, filter, model.multigrid())
 }
 
 fn spmv(c: &mut Criterion) {
     let pool = pool();
-    let (bufs, _) = system();
+    let (bufs, _, _) = system();
     let x: Vec<Vec3> = (0..bufs.rhs.len()).map(|i| Vec3::new(1.0, i as f64 * 1e-3, -0.5)).collect();
     let mut y = vec![Vec3::zeros(); x.len()];
     c.bench_function("spmv_75x75", |b| {
@@ -62,15 +62,17 @@ fn spmv(c: &mut Criterion) {
 
 fn pcg(c: &mut Criterion) {
     let pool = pool();
-    let (bufs, filter) = system();
+    let (bufs, filter, multigrid) = system();
     let mut group = c.benchmark_group("pcg_75x75_rel_tol_1e-3");
     for (name, kind) in [
+        ("multigrid", PreconditionerKind::Multigrid),
         ("block_jacobi", PreconditionerKind::BlockJacobi),
         ("diagonal", PreconditionerKind::Diagonal),
         ("none", PreconditionerKind::None),
     ] {
         let params = PcgParams { rel_tol: 1e-3, max_iter: 5000, preconditioner: kind };
         let mut solver = Pcg::new(bufs.rhs.len());
+        solver.set_multigrid(multigrid.clone());
         let mut x = vec![Vec3::zeros(); bufs.rhs.len()];
         group.bench_function(name, |b| {
             b.iter_custom(|iters| {
@@ -86,15 +88,19 @@ fn pcg(c: &mut Criterion) {
 
 fn bdf2_step(c: &mut Criterion) {
     let pool = pool();
-    let (mut sim, cfg, state) = hanging_cloth(N, 45);
-    c.bench_function("bdf2_step_75x75", |b| {
-        b.iter_custom(|iters| {
-            timed_in_pool(&pool, iters, || {
-                sim.restore(&state).expect("same model");
-                sim.step(cfg.dt_s).expect("step");
+    let mut group = c.benchmark_group("bdf2_step_75x75");
+    for name in ["multigrid", "block-jacobi"] {
+        let (mut sim, cfg, state) = hanging_cloth(N, 45, name);
+        group.bench_function(name, |b| {
+            b.iter_custom(|iters| {
+                timed_in_pool(&pool, iters, || {
+                    sim.restore(&state).expect("same model");
+                    sim.step(cfg.dt_s).expect("step");
+                })
             })
-        })
-    });
+        });
+    }
+    group.finish();
 }
 
 criterion_group! {

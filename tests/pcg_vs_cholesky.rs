@@ -2,8 +2,8 @@
 //! without Baraff-Witkin filters.
 
 use cloth_linalg::{
-    BlockPattern, BlockSparseMatrix, Constraint, ConstraintFilter, Mat3, Pcg, PcgError, PcgParams, PreconditionerKind,
-    Vec3,
+    Aggregation, BlockPattern, BlockSparseMatrix, Constraint, ConstraintFilter, Mat3, Multigrid, Pcg, PcgError,
+    PcgParams, PreconditionerKind, Vec3,
 };
 use cloth_tests::Rng;
 use faer::linalg::solvers::Solve;
@@ -211,4 +211,86 @@ fn solve_is_bit_identical_across_thread_counts() {
         && p.y.to_bits() == q.y.to_bits()
         && p.z.to_bits() == q.z.to_bits()));
     assert_eq!(two, four);
+}
+
+/// Aggregates of `size` consecutive nodes per level, down to at most 40 nodes.
+fn chunk_aggregations(n: usize, size: usize) -> Vec<Aggregation> {
+    let mut levels = Vec::new();
+    let mut n = n;
+    while n > 40 {
+        let n_coarse = n.div_ceil(size);
+        levels.push(Aggregation { coarse_of: (0..n).map(|i| (i / size) as u32).collect(), n_coarse });
+        n = n_coarse;
+    }
+    levels
+}
+
+#[test]
+fn multigrid_pcg_matches_cholesky_with_and_without_filters() {
+    let mut rng = Rng(0x5eed);
+    let a = random_system(&mut rng, 900, 3, 0.02);
+    let n = a.n();
+    let b: Vec<Vec3> = (0..n).map(|_| rng.vec3()).collect();
+    let mut filter = ConstraintFilter::new(n);
+    for i in (0..n).step_by(11) {
+        filter
+            .set(
+                i,
+                if i % 2 == 0 { Constraint::Fixed } else { Constraint::OneDirection { normal: rng.vec3() } },
+                rng.vec3(),
+            )
+            .unwrap();
+    }
+    for f in [ConstraintFilter::new(n), filter] {
+        let reference = cholesky_reference(&a, &b, &f);
+        let mut pcg = Pcg::new(n);
+        pcg.set_multigrid(Multigrid::new(a.pattern(), &chunk_aggregations(n, 4)).unwrap());
+        let params = PcgParams { rel_tol: 1e-12, max_iter: 5000, preconditioner: PreconditionerKind::Multigrid };
+        let mut x = vec![Vec3::zeros(); n];
+        let info = pcg.solve(&a, &b, &f, &params, &mut x).expect("multigrid PCG converges");
+        let err = max_rel_diff(&x, &reference);
+        assert!(err < 1e-9, "relative difference {err:e}");
+        let (_, block_jacobi_iters) = solve(&a, &b, &f, PreconditionerKind::BlockJacobi);
+        assert!(
+            info.iterations < block_jacobi_iters,
+            "multigrid {} vs block-Jacobi {block_jacobi_iters}",
+            info.iterations
+        );
+    }
+}
+
+/// PCG needs a symmetric positive definite preconditioner: check the
+/// V-cycle operator is symmetric and positive on random vectors.
+#[test]
+fn multigrid_cycle_is_symmetric_positive_definite() {
+    let mut rng = Rng(99);
+    let a = random_system(&mut rng, 700, 4, 0.01);
+    let n = a.n();
+    let mut mg = Multigrid::new(a.pattern(), &chunk_aggregations(n, 3)).unwrap();
+    assert!(mg.depth() >= 3);
+    mg.update(&a);
+    for _ in 0..5 {
+        let u: Vec<Vec3> = (0..n).map(|_| rng.vec3()).collect();
+        let v: Vec<Vec3> = (0..n).map(|_| rng.vec3()).collect();
+        let (mut mu, mut mv) = (vec![Vec3::zeros(); n], vec![Vec3::zeros(); n]);
+        mg.apply(&a, &u, &mut mu);
+        mg.apply(&a, &v, &mut mv);
+        let dot = |p: &[Vec3], q: &[Vec3]| p.iter().zip(q).map(|(x, y)| x.dot(y)).sum::<f64>();
+        let (vmu, umv) = (dot(&v, &mu), dot(&u, &mv));
+        assert!((vmu - umv).abs() <= 1e-12 * vmu.abs().max(umv.abs()), "{vmu} vs {umv}");
+        assert!(dot(&u, &mu) > 0.0);
+    }
+}
+
+#[test]
+fn multigrid_without_a_hierarchy_is_an_error() {
+    let mut rng = Rng(5);
+    let a = random_system(&mut rng, 50, 2, 0.1);
+    let b = vec![Vec3::x(); a.n()];
+    let params = PcgParams { preconditioner: PreconditionerKind::Multigrid, ..PcgParams::default() };
+    let mut x = vec![Vec3::zeros(); a.n()];
+    let r = Pcg::new(a.n()).solve(&a, &b, &ConstraintFilter::new(a.n()), &params, &mut x);
+    assert_eq!(r, Err(PcgError::NoMultigridHierarchy));
+    let bad = Aggregation { coarse_of: vec![0; 7], n_coarse: 1 };
+    assert!(Multigrid::new(a.pattern(), &[bad]).is_err());
 }

@@ -5,7 +5,7 @@ use crate::{
     ClothModel, ClothState, Vec3,
     forces::{SystemBuffers, SystemTerms, assemble},
 };
-use cloth_linalg::{Constraint, ConstraintFilter, Pcg, PcgError, PcgParams};
+use cloth_linalg::{Constraint, ConstraintFilter, Pcg, PcgError, PcgParams, PreconditionerKind};
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
@@ -49,8 +49,14 @@ pub struct SolverParams {
 }
 
 impl Default for SolverParams {
+    /// Relative tolerance 1e-4, at most 1000 iterations, the multigrid
+    /// preconditioner (built from the model's grids), unconverged solves
+    /// accepted and counted.
     fn default() -> Self {
-        Self { pcg: PcgParams::default(), accept_unconverged: true }
+        Self {
+            pcg: PcgParams { preconditioner: PreconditionerKind::Multigrid, ..PcgParams::default() },
+            accept_unconverged: true,
+        }
     }
 }
 
@@ -144,12 +150,16 @@ pub struct Workspace {
 }
 
 impl Workspace {
-    /// Buffers for `model`.
-    pub fn new(model: &ClothModel) -> Self {
+    /// Buffers for `model`, and the multigrid hierarchy when `solver` asks for it.
+    pub fn new(model: &ClothModel, solver: &SolverParams) -> Self {
         let n = model.particle_count();
+        let mut pcg = Pcg::new(n);
+        if solver.pcg.preconditioner == PreconditionerKind::Multigrid {
+            pcg.set_multigrid(model.multigrid());
+        }
         Self {
             system: SystemBuffers::new(model),
-            pcg: Pcg::new(n),
+            pcg,
             filter: ConstraintFilter::new(n),
             unknown: vec![Vec3::zeros(); n],
             aux: vec![Vec3::zeros(); n],

@@ -2,7 +2,7 @@
 //! effects a scene asked for, and the system matrix's sparsity pattern.
 
 use crate::{GridPanel, LinkType, Material, Pin, PinMotion, Vec3, laws::BucklingLaw};
-use cloth_linalg::BlockPattern;
+use cloth_linalg::{Aggregation, BlockPattern, Multigrid};
 use serde::{Deserialize, Serialize};
 
 /// Effects computed by a model. An effect that is off costs nothing: no
@@ -334,6 +334,45 @@ impl ClothModel {
     pub fn pattern(&self) -> &BlockPattern {
         &self.pattern
     }
+    /// The multigrid preconditioner's hierarchy for this model's system
+    /// matrix: 2 x 2 grid nodes per aggregate and level (fewer CG
+    /// iterations than 3 x 3 for the same work on the 75 x 75 hanging
+    /// cloth: 22 vs 28), down to at most 40 nodes solved densely.
+    pub fn multigrid(&self) -> Multigrid {
+        Multigrid::new(&self.pattern, &self.grid_aggregations(2, 40)).expect("grid aggregates fit the model")
+    }
+
+    /// A multigrid hierarchy of grid aggregates: each level groups
+    /// `factor x factor` nodes of every panel (of the previous level's
+    /// grid), until at most `max_coarse` nodes remain or a level stops
+    /// shrinking. Aggregates never span two panels.
+    pub fn grid_aggregations(&self, factor: usize, max_coarse: usize) -> Vec<Aggregation> {
+        let factor = factor.max(2);
+        let mut dims: Vec<(usize, usize)> = self.panels.iter().map(|p| (p.nx, p.ny)).collect();
+        let mut levels = Vec::new();
+        loop {
+            let n: usize = dims.iter().map(|(a, b)| a * b).sum();
+            let coarse_dims: Vec<(usize, usize)> =
+                dims.iter().map(|&(nx, ny)| (nx.div_ceil(factor), ny.div_ceil(factor))).collect();
+            let n_coarse: usize = coarse_dims.iter().map(|(a, b)| a * b).sum();
+            if n <= max_coarse || n_coarse == n {
+                return levels;
+            }
+            let mut coarse_of = Vec::with_capacity(n);
+            let mut offset = 0u32;
+            for (&(nx, ny), &(cnx, cny)) in dims.iter().zip(&coarse_dims) {
+                for j in 0..ny {
+                    for i in 0..nx {
+                        coarse_of.push(offset + ((j / factor) * cnx + i / factor) as u32);
+                    }
+                }
+                offset += (cnx * cny) as u32;
+            }
+            levels.push(Aggregation { coarse_of, n_coarse });
+            dims = coarse_dims;
+        }
+    }
+
     /// Offset of the diagonal block within row `i`.
     pub fn diag_local(&self, i: usize) -> usize {
         self.diag_local[i] as usize

@@ -17,7 +17,7 @@
 //! [solver]                     # optional, these are the defaults
 //! rel_tol = 1e-4
 //! max_iter = 1000
-//! preconditioner = "block-jacobi"   # or "diagonal", "none"
+//! preconditioner = "multigrid"   # or "block-jacobi" (Choi & Ko), "diagonal", "none"
 //! accept_unconverged = true
 //!
 //! [material]
@@ -115,7 +115,7 @@ impl Default for SolverSection {
         Self {
             rel_tol: p.pcg.rel_tol,
             max_iter: p.pcg.max_iter,
-            preconditioner: PreconditionerName::BlockJacobi,
+            preconditioner: PreconditionerName::Multigrid,
             accept_unconverged: p.accept_unconverged,
         }
     }
@@ -131,6 +131,8 @@ pub enum PreconditionerName {
     Diagonal,
     /// 3x3 block diagonal (Choi & Ko).
     BlockJacobi,
+    /// Aggregation multigrid V-cycle on the panel grids.
+    Multigrid,
 }
 
 /// How to run a scene: everything but the model.
@@ -289,6 +291,7 @@ impl Scene {
                         PreconditionerName::None => PreconditionerKind::None,
                         PreconditionerName::Diagonal => PreconditionerKind::Diagonal,
                         PreconditionerName::BlockJacobi => PreconditionerKind::BlockJacobi,
+                        PreconditionerName::Multigrid => PreconditionerKind::Multigrid,
                     },
                 },
                 accept_unconverged: self.solver.accept_unconverged,

@@ -20,7 +20,7 @@ impl Simulation {
         let model = model.into();
         Self {
             state: ClothState::at_rest(&model),
-            workspace: Workspace::new(&model),
+            workspace: Workspace::new(&model, &solver),
             integrator: integrator.build(),
             solver,
             model,

@@ -172,6 +172,17 @@ impl BlockSparseMatrix {
         });
     }
 
+    /// `r = b - A x`, parallel over rows.
+    pub fn residual(&self, b: &[Vec3], x: &[Vec3], r: &mut [Vec3]) {
+        let n = self.n();
+        assert!(x.len() == n && b.len() == n && r.len() == n, "residual: dimension mismatch");
+        r.par_chunks_mut(ROW_CHUNK).zip(b.par_chunks(ROW_CHUNK)).enumerate().for_each(|(chunk, (rs, bs))| {
+            for (k, (ri, bi)) in rs.iter_mut().zip(bs).enumerate() {
+                *ri = bi - self.row_times(chunk * ROW_CHUNK + k, x);
+            }
+        });
+    }
+
     /// `y = A x` and returns `x . y` (the curvature CG needs) in the same
     /// pass, summed in chunk order. `partials` needs one slot per
     /// [`ROW_CHUNK`] rows.

@@ -9,12 +9,14 @@
 
 mod block_sparse;
 mod filter;
+mod multigrid;
 mod par;
 mod pcg;
 mod precond;
 
 pub use block_sparse::{BlockPattern, BlockSparseMatrix, PatternError};
 pub use filter::{Constraint, ConstraintFilter, FilterError};
+pub use multigrid::{Aggregation, Multigrid, MultigridError};
 pub use par::{ROW_CHUNK, axpy, dot};
 pub use pcg::{Pcg, PcgError, PcgInfo, PcgParams};
 pub use precond::{Preconditioner, PreconditionerKind};

@@ -67,6 +67,16 @@ pub enum PcgError {
         /// State at the last iteration.
         info: PcgInfo,
     },
+    /// [`PreconditionerKind::Multigrid`] was asked for but no hierarchy was
+    /// set with [`Pcg::set_multigrid`].
+    #[error("multigrid preconditioner requested but no hierarchy was set")]
+    NoMultigridHierarchy,
+    /// `r . P^-1 r <= 0`: the preconditioner is not positive definite.
+    #[error("preconditioner not positive definite at iteration {iteration}")]
+    PreconditionerNotPositive {
+        /// Iteration at which it was detected.
+        iteration: usize,
+    },
     /// The right-hand side, the matrix or an iterate is not finite.
     #[error("non-finite value in PCG at iteration {iteration}")]
     NonFinite {
@@ -124,7 +134,9 @@ impl Pcg {
             filter.n()
         );
         self.resize(n);
-        self.precond.update(params.preconditioner, a);
+        if !self.precond.update(params.preconditioner, a) {
+            return Err(PcgError::NoMultigridHierarchy);
+        }
 
         // Reference residual S (b - A z), z = the prescribed part alone (kept in s).
         let z_only = &mut self.c;
@@ -156,7 +168,7 @@ impl Pcg {
             self.r.copy_from_slice(&self.s);
             r_sq = ref_sq;
         }
-        self.precond.apply(&self.r, &mut self.s);
+        self.precond.apply(a, &self.r, &mut self.s);
         self.c.copy_from_slice(&self.s);
         filter.project(&mut self.c);
         let mut rho = dot_with(&self.r, &self.c, &mut self.partials);
@@ -179,9 +191,13 @@ impl Pcg {
             }
             let alpha = rho / curvature;
             let rho_old = rho;
-            (r_sq, rho) = self.step_fused(alpha, x);
+            (r_sq, rho) =
+                if self.precond.is_pointwise() { self.step_fused(alpha, x) } else { self.step_unfused(alpha, a, x) };
             if !r_sq.is_finite() || !rho.is_finite() {
                 return Err(PcgError::NonFinite { iteration: iterations });
+            }
+            if rho <= 0.0 && r_sq > 0.0 {
+                return Err(PcgError::PreconditionerNotPositive { iteration: iterations });
             }
             let beta = rho / rho_old;
             self.c
@@ -191,6 +207,28 @@ impl Pcg {
             filter.project(&mut self.c);
         }
         Ok(PcgInfo { iterations, rel_residual: r_sq.sqrt() / ref_norm })
+    }
+
+    /// Sets the hierarchy for [`PreconditionerKind::Multigrid`].
+    pub fn set_multigrid(&mut self, mg: crate::Multigrid) {
+        self.precond.set_multigrid(mg);
+    }
+
+    /// As [`Pcg::step_fused`] for a preconditioner that is not row-local.
+    fn step_unfused(&mut self, alpha: f64, a: &BlockSparseMatrix, x: &mut [Vec3]) -> (f64, f64) {
+        x.par_chunks_mut(ROW_CHUNK)
+            .zip(self.r.par_chunks_mut(ROW_CHUNK))
+            .zip(self.c.par_chunks(ROW_CHUNK).zip(self.q.par_chunks(ROW_CHUNK)))
+            .for_each(|((cx, cr), (cc, cq))| {
+                for k in 0..cx.len() {
+                    cx[k] += alpha * cc[k];
+                    cr[k] -= alpha * cq[k];
+                }
+            });
+        self.precond.apply(a, &self.r, &mut self.s);
+        let r_sq = dot_with(&self.r, &self.r, &mut self.partials);
+        let rho = dot_with(&self.r, &self.s, &mut self.partials);
+        (r_sq, rho)
     }
 
     /// `x += alpha c; r -= alpha q; s = P^-1 r`, returning `(r.r, r.s)` summed

@@ -1,6 +1,6 @@
 //! Preconditioners for [`crate::Pcg`].
 
-use crate::{BlockSparseMatrix, Mat3, Vec3, par::ROW_CHUNK};
+use crate::{BlockSparseMatrix, Mat3, Multigrid, Vec3, par::ROW_CHUNK};
 use rayon::prelude::*;
 
 /// Which preconditioner PCG uses.
@@ -14,6 +14,9 @@ pub enum PreconditionerKind {
     /// §4) report it about 20% faster than the scalar diagonal.
     #[default]
     BlockJacobi,
+    /// One aggregation multigrid V-cycle ([`Multigrid`]); the hierarchy must
+    /// be given with [`crate::Pcg::set_multigrid`].
+    Multigrid,
 }
 
 /// A preconditioner `P^-1` built from a matrix, stored as one 3x3 block per
@@ -22,17 +25,29 @@ pub enum PreconditionerKind {
 pub struct Preconditioner {
     kind: PreconditionerKind,
     inv: Vec<Mat3>,
+    multigrid: Option<Multigrid>,
 }
 
 impl Preconditioner {
     /// Rebuilds `P^-1` from the diagonal blocks of `a`, reusing storage.
     /// A block that cannot be inverted (not positive) falls back to the
     /// identity for that row, which keeps `P^-1` symmetric positive definite.
-    pub fn update(&mut self, kind: PreconditionerKind, a: &BlockSparseMatrix) {
+    /// Returns false when `kind` is [`PreconditionerKind::Multigrid`] and no
+    /// hierarchy was set.
+    pub fn update(&mut self, kind: PreconditionerKind, a: &BlockSparseMatrix) -> bool {
         self.kind = kind;
-        if kind == PreconditionerKind::None {
-            self.inv.clear();
-            return;
+        match kind {
+            PreconditionerKind::None => return true,
+            PreconditionerKind::Multigrid => {
+                return match &mut self.multigrid {
+                    Some(mg) => {
+                        mg.update(a);
+                        true
+                    }
+                    None => false,
+                };
+            }
+            PreconditionerKind::Diagonal | PreconditionerKind::BlockJacobi => {}
         }
         self.inv.resize(a.n(), Mat3::identity());
         self.inv.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(c, chunk)| {
@@ -49,6 +64,17 @@ impl Preconditioner {
                 };
             }
         });
+        true
+    }
+
+    /// Sets the multigrid hierarchy used by [`PreconditionerKind::Multigrid`].
+    pub fn set_multigrid(&mut self, mg: Multigrid) {
+        self.multigrid = Some(mg);
+    }
+
+    /// Whether `P^-1` acts row by row (so PCG can fuse it into its update).
+    pub fn is_pointwise(&self) -> bool {
+        self.kind != PreconditionerKind::Multigrid
     }
 
     /// The kind last built.
@@ -58,6 +84,7 @@ impl Preconditioner {
 
     /// `P^-1 r` for row `i` alone.
     #[inline]
+    /// Only for pointwise kinds (see [`Preconditioner::is_pointwise`]).
     pub fn apply_one(&self, i: usize, r: &Vec3) -> Vec3 {
         match self.kind {
             PreconditionerKind::None => *r,
@@ -65,10 +92,14 @@ impl Preconditioner {
         }
     }
 
-    /// `s = P^-1 r`.
-    pub fn apply(&self, r: &[Vec3], s: &mut [Vec3]) {
+    /// `s = P^-1 r` for the matrix `a` last passed to [`Preconditioner::update`].
+    pub fn apply(&mut self, a: &BlockSparseMatrix, r: &[Vec3], s: &mut [Vec3]) {
         if self.kind == PreconditionerKind::None {
             s.copy_from_slice(r);
+            return;
+        }
+        if self.kind == PreconditionerKind::Multigrid {
+            self.multigrid.as_mut().expect("update() checked the hierarchy").apply(a, r, s);
             return;
         }
         s.par_chunks_mut(ROW_CHUNK).zip(r.par_chunks(ROW_CHUNK)).zip(self.inv.par_chunks(ROW_CHUNK)).for_each(
