@@ -227,11 +227,18 @@ impl Multigrid {
             let (level, rest) = after.split_first_mut().expect("level l exists");
             let op = if l == 0 { a } else { &before[l - 1].coarse };
             let correction = rest.first().map_or(&self.coarsest_x, |next| &next.x);
-            level.x.par_iter_mut().zip(level.coarse_of.par_iter()).for_each(|(xi, &c)| *xi += correction[c as usize]);
-            op.residual(&level.b, &level.x, &mut level.r);
-            level.x.par_iter_mut().zip(level.r.par_iter().zip(level.inv_diag.par_iter())).for_each(|(xi, (ri, di))| {
-                *xi += di * ri;
+            level.x.par_iter_mut().zip(level.coarse_of.par_iter()).with_min_len(ROW_CHUNK).for_each(|(xi, &c)| {
+                *xi += correction[c as usize];
             });
+            op.residual(&level.b, &level.x, &mut level.r);
+            level
+                .x
+                .par_iter_mut()
+                .zip(level.r.par_iter().zip(level.inv_diag.par_iter()))
+                .with_min_len(ROW_CHUNK)
+                .for_each(|(xi, (ri, di))| {
+                    *xi += di * ri;
+                });
         }
         z.copy_from_slice(&self.levels[0].x);
     }
@@ -300,18 +307,21 @@ fn cholesky_solve_in_place(l: &DMatrix<f64>, b: &mut DVector<f64>) {
 
 /// `inv[i] = omega * A_ii^-1` (identity where a block is not positive definite).
 fn inverse_diagonal(a: &BlockSparseMatrix, omega: f64, inv: &mut [Mat3]) {
-    inv.par_iter_mut().enumerate().for_each(|(i, p)| {
+    inv.par_iter_mut().enumerate().with_min_len(ROW_CHUNK).for_each(|(i, p)| {
         *p = a.diag(i).cholesky().map_or_else(Mat3::identity, |c| c.inverse()) * omega;
     });
 }
 
 fn jacobi_from_zero(inv_diag: &[Mat3], b: &[Vec3], x: &mut [Vec3]) {
-    x.par_iter_mut().zip(b.par_iter().zip(inv_diag.par_iter())).for_each(|(xi, (bi, di))| *xi = di * bi);
+    x.par_iter_mut()
+        .zip(b.par_iter().zip(inv_diag.par_iter()))
+        .with_min_len(ROW_CHUNK)
+        .for_each(|(xi, (bi, di))| *xi = di * bi);
 }
 
 /// `target[c] = sum of src over aggregate c`, in member order.
 fn restrict(members: &Gather, src: &[Vec3], target: &mut [Vec3]) {
-    target.par_iter_mut().enumerate().for_each(|(c, t)| {
+    target.par_iter_mut().enumerate().with_min_len(ROW_CHUNK / 4).for_each(|(c, t)| {
         *t = members.sources(c).iter().map(|&i| src[i as usize]).sum();
     });
 }
