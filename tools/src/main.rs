@@ -36,6 +36,21 @@ enum Command {
         #[arg(long)]
         quiet: bool,
     },
+    /// Run a scene several times and print a Markdown row of median timings
+    /// (Choi & Ko Table-1 style: ms per step, CG iterations, stage split).
+    Time {
+        /// Scene file (TOML).
+        scene: PathBuf,
+        /// Overrides, as for `run`.
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        overrides: Vec<String>,
+        /// Worker threads.
+        #[arg(long, default_value_t = 2)]
+        threads: usize,
+        /// Runs to take the median over.
+        #[arg(long, default_value_t = 5)]
+        repeat: usize,
+    },
     /// Check a scene without running it.
     Validate {
         /// Scene file (TOML).
@@ -53,6 +68,7 @@ fn main() -> ExitCode {
             run::run(&run::RunArgs { scene, out, overrides, frames, threads, quiet })
         }
         Command::Validate { scene, overrides } => run::validate(&scene, &overrides),
+        Command::Time { scene, overrides, threads, repeat } => run::time(&scene, &overrides, threads, repeat),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,4 +1,4 @@
-//! `cloth run` and `cloth validate`.
+//! `cloth run`, `cloth validate` and `cloth time`.
 
 use crate::output::{StageWall, Summary, max_stretch_ratio, write_obj};
 use anyhow::{Context, Result, bail};
@@ -40,23 +40,26 @@ pub fn validate(path: &Path, overrides: &[String]) -> Result<()> {
     Ok(())
 }
 
-pub fn run(args: &RunArgs) -> Result<()> {
-    if args.threads == 0 {
+/// Runs a scene to its end (or its first error), writing OBJ frames every
+/// `frames.0` steps into `frames.1`; returns the summary (with `error` set
+/// when a step failed).
+fn simulate(
+    scene_path: &Path,
+    overrides: &[String],
+    threads: usize,
+    frames: Option<(u64, PathBuf)>,
+    progress: bool,
+) -> Result<Summary> {
+    if threads == 0 {
         bail!("--threads must be at least 1");
     }
-    if args.frames == Some(0) {
-        bail!("--frames must be at least 1");
+    let (scene, model, cfg) = load(scene_path, overrides)?;
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
+    if let Some((_, dir)) = &frames {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
-    let (scene, model, cfg) = load(&args.scene, &args.overrides)?;
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(args.threads).build()?;
-    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
-    let frames_dir = args.out.join("frames");
-    if args.frames.is_some() {
-        std::fs::create_dir_all(&frames_dir).with_context(|| format!("creating {}", frames_dir.display()))?;
-    }
-
     let mut sim = Simulation::new(model, cfg.integrator, cfg.solver);
-    let bar = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(cfg.steps) };
+    let bar = if progress { ProgressBar::new(cfg.steps) } else { ProgressBar::hidden() };
     bar.set_style(
         ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} steps  {msg}")
             .expect("static template")
@@ -68,11 +71,11 @@ pub fn run(args: &RunArgs) -> Result<()> {
     let mut error = None;
     let wall = Instant::now();
     let write_frame = |sim: &Simulation, stages: &mut StageWall| -> Result<()> {
-        if let Some(every) = args.frames
-            && sim.state().steps.is_multiple_of(every)
+        if let Some((every, dir)) = &frames
+            && sim.state().steps.is_multiple_of(*every)
         {
             let t = Instant::now();
-            let path = frames_dir.join(format!("frame_{:05}.obj", sim.state().steps));
+            let path = dir.join(format!("frame_{:05}.obj", sim.state().steps));
             write_obj(&path, sim.model(), &sim.state().x).with_context(|| format!("writing {}", path.display()))?;
             stages.output += t.elapsed().as_secs_f64();
         }
@@ -109,7 +112,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
     let steps = state.steps;
     step_walls.sort_by(f64::total_cmp);
     let summary = Summary {
-        scene: args.scene.display().to_string(),
+        scene: scene_path.display().to_string(),
         particles: model.particle_count(),
         stretch_links: model.stretch_links().len(),
         bend_links: model.bend_links().len(),
@@ -119,7 +122,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
             .map(|e| format!("{e:?}").to_lowercase())
             .collect(),
         integrator: cfg.integrator.name().to_string(),
-        threads: args.threads,
+        threads,
         steps,
         dt_s: cfg.dt_s,
         sim_time_s: state.time_s,
@@ -133,28 +136,79 @@ pub fn run(args: &RunArgs) -> Result<()> {
         min_z_m: state.x.iter().map(|p| p.z).fold(f64::INFINITY, f64::min),
         max_speed_m_s: state.v.iter().map(|v| v.norm()).fold(0.0, f64::max),
         finite: error.is_none() && state.first_non_finite().is_none(),
-        error: error.clone(),
+        error,
         stage_wall_s: stages,
     };
+    Ok(summary)
+}
+
+pub fn run(args: &RunArgs) -> Result<()> {
+    if args.frames == Some(0) {
+        bail!("--frames must be at least 1");
+    }
+    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    let frames = args.frames.map(|every| (every, args.out.join("frames")));
+    let summary = simulate(&args.scene, &args.overrides, args.threads, frames, !args.quiet)?;
     let path = args.out.join("summary.json");
     std::fs::write(&path, serde_json::to_string_pretty(&summary)? + "\n")
         .with_context(|| format!("writing {}", path.display()))?;
-    if let Some(e) = error {
+    if let Some(e) = &summary.error {
         bail!("{}: {e}", args.scene.display());
     }
     if !args.quiet {
         println!(
             "{}: {} steps of {} s in {:.2} s wall ({:.2} ms/step median), CG {:.1}/step (max {}), max stretch {:.4}; wrote {}",
             args.scene.display(),
-            steps,
-            cfg.dt_s,
-            wall_s,
+            summary.steps,
+            summary.dt_s,
+            summary.wall_s,
             summary.step_wall_s_median * 1e3,
             summary.cg_iterations_mean,
-            cg_max,
+            summary.cg_iterations_max,
             summary.max_stretch_ratio,
             path.display()
         );
     }
+    Ok(())
+}
+
+/// `cloth time`: runs a scene `repeat` times and prints one Markdown table
+/// row of medians (the machine is noisy: quote medians, not single runs).
+pub fn time(scene: &Path, overrides: &[String], threads: usize, repeat: usize) -> Result<()> {
+    if repeat == 0 {
+        bail!("--repeat must be at least 1");
+    }
+    let mut runs = Vec::with_capacity(repeat);
+    for _ in 0..repeat {
+        let s = simulate(scene, overrides, threads, None, false)?;
+        if let Some(e) = &s.error {
+            bail!("{}: {e}", scene.display());
+        }
+        runs.push(s);
+    }
+    let median = |f: &dyn Fn(&Summary) -> f64| {
+        let mut v: Vec<f64> = runs.iter().map(f).collect();
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let s = &runs[0];
+    let per_step = |stage: f64| stage / s.steps.max(1) as f64 * 1e3;
+    println!(
+        "| scene | particles | threads | steps | CG/step | ms/step (median of {repeat}) | forces | assembly | solve |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
+    println!(
+        "| {} {} | {} | {} | {} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} |",
+        scene.file_name().map_or_else(|| scene.display().to_string(), |n| n.to_string_lossy().into_owned()),
+        overrides.join(" "),
+        s.particles,
+        threads,
+        s.steps,
+        s.cg_iterations_mean,
+        median(&|r| r.step_wall_s_median) * 1e3,
+        per_step(median(&|r| r.stage_wall_s.forces)),
+        per_step(median(&|r| r.stage_wall_s.assembly)),
+        per_step(median(&|r| r.stage_wall_s.solve)),
+    );
     Ok(())
 }

@@ -92,3 +92,28 @@ fn a_run_that_goes_non_finite_says_where_and_when() {
     assert_eq!(s["finite"], false);
     assert!(s["error"].as_str().unwrap().contains("particle"));
 }
+
+#[test]
+fn time_prints_a_table_row_of_medians() {
+    let out = cloth()
+        .args(["time", scene("hang.toml").to_str().unwrap(), "--repeat", "1"])
+        .args([
+            "--set",
+            "panels.0.particles=[7, 7]",
+            "--set",
+            "pins.0.nodes=[[0, 6]]",
+            "--set",
+            "simulation.duration_s=0.05",
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8_lossy(&out.stdout);
+    let row = text.lines().last().unwrap();
+    let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+    // | scene | particles | threads | steps | CG/step | ms/step | forces | assembly | solve |
+    assert_eq!(cells[2], "49", "{row}");
+    assert_eq!(cells[3], "2", "{row}");
+    assert_eq!(cells[4], "9", "{row}");
+    assert!(cells[6].parse::<f64>().unwrap() > 0.0, "{row}");
+}
