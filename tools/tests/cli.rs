@@ -103,7 +103,7 @@ fn time_prints_a_table_row_of_medians() {
             "--set",
             "pins.0.nodes=[[0, 6]]",
             "--set",
-            "simulation.duration_s=0.05",
+            "simulation.duration_s=0.1",
         ])
         .output()
         .unwrap();
