@@ -291,6 +291,9 @@ fn multigrid_without_a_hierarchy_is_an_error() {
     let mut x = vec![Vec3::zeros(); a.n()];
     let r = Pcg::new(a.n()).solve(&a, &b, &ConstraintFilter::new(a.n()), &params, &mut x);
     assert_eq!(r, Err(PcgError::NoMultigridHierarchy));
+    let nan_tol = PcgParams { rel_tol: f64::NAN, ..PcgParams::default() };
+    let r = Pcg::new(a.n()).solve(&a, &b, &ConstraintFilter::new(a.n()), &nan_tol, &mut x);
+    assert!(matches!(r, Err(PcgError::InvalidTolerance { .. })), "{r:?}");
     let bad = Aggregation { coarse_of: vec![0; 7], n_coarse: 1 };
     assert!(Multigrid::new(a.pattern(), &[bad]).is_err());
 }

@@ -67,6 +67,12 @@ pub enum PcgError {
         /// State at the last iteration.
         info: PcgInfo,
     },
+    /// `rel_tol` is negative or not finite.
+    #[error("PCG relative tolerance must be finite and >= 0, got {rel_tol}")]
+    InvalidTolerance {
+        /// The offending tolerance.
+        rel_tol: f64,
+    },
     /// [`PreconditionerKind::Multigrid`] was asked for but no hierarchy was
     /// set with [`Pcg::set_multigrid`].
     #[error("multigrid preconditioner requested but no hierarchy was set")]
@@ -133,6 +139,9 @@ impl Pcg {
             x.len(),
             filter.n()
         );
+        if !(params.rel_tol.is_finite() && params.rel_tol >= 0.0) {
+            return Err(PcgError::InvalidTolerance { rel_tol: params.rel_tol });
+        }
         self.resize(n);
         if !self.precond.update(params.preconditioner, a) {
             return Err(PcgError::NoMultigridHierarchy);
