@@ -200,9 +200,21 @@ impl ClothModel {
             let offset = mass.len();
             let at = |k: u32| offset as u32 + k;
             let rest_of = |[a, b]: [u32; 2]| (mesh.positions[b as usize] - mesh.positions[a as usize]).norm();
+            let degenerate = |rest: f64, c: &crate::LinkConstants| {
+                let values = [rest, c.k_s, c.k_d, c.k_b, c.c_b];
+                !(rest > 0.0 && values.iter().all(|v| v.is_finite()))
+            };
+            let degenerate_err = || ModelError::Panel {
+                panel: p,
+                field: "size_m",
+                message: format!("{:?} m gives links of zero or non-finite length or stiffness", panel.size_m),
+            };
             for link in &mesh.sequential {
                 let rest = rest_of(*link);
                 let c = spec.material.link_constants(rest, mesh.cell_area);
+                if degenerate(rest, &c) {
+                    return Err(degenerate_err());
+                }
                 stretch.push(StretchLink {
                     i: at(link[0]),
                     j: at(link[1]),
@@ -215,6 +227,9 @@ impl ClothModel {
                 for link in &mesh.interlaced {
                     let rest = rest_of(*link);
                     let c = spec.material.link_constants(rest, mesh.cell_area);
+                    if degenerate(rest, &c) {
+                        return Err(degenerate_err());
+                    }
                     bend.push(BendLink { i: at(link[0]), j: at(link[1]), law: BucklingLaw::new(rest, c.k_b, c.c_b) });
                 }
             }

@@ -420,6 +420,7 @@ nodes = [[0, 3]]
             ("solver.rel_tol=2.0", "solver.rel_tol"),
             ("panels.0.particles=[1, 4]", "panels[0].particles"),
             ("panels.0.size_m=[1.0, inf]", "panels[0].size_m"),
+            ("panels.0.size_m=[1e-200, 1e-200]", "panels[0].size_m"),
             ("pins.0.nodes=[[5, 0]]", "pins[0].nodes"),
             ("pins.0.panel=2", "pins[0].panel"),
             ("simulation.gravity_m_s2=[0.0, nan, 0.0]", "simulation.gravity_m_s2"),
