@@ -210,6 +210,7 @@ fn tight_solver() -> SolverParams {
     SolverParams {
         pcg: PcgParams { rel_tol: 1e-12, max_iter: 5000, ..PcgParams::default() },
         accept_unconverged: false,
+        ..SolverParams::default()
     }
 }
 
@@ -356,7 +357,11 @@ fn sag_is_resolution_independent() {
             })
             .unwrap(),
             IntegratorKind::BackwardEuler,
-            SolverParams { pcg: PcgParams { rel_tol: 1e-8, ..PcgParams::default() }, accept_unconverged: false },
+            SolverParams {
+                pcg: PcgParams { rel_tol: 1e-8, ..PcgParams::default() },
+                accept_unconverged: false,
+                ..SolverParams::default()
+            },
         );
         for _ in 0..60 {
             sim.step(0.05).unwrap();

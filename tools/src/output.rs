@@ -48,6 +48,12 @@ pub struct Summary {
     pub wall_s: f64,
     /// Median wall time of one step, s.
     pub step_wall_s_median: f64,
+    /// Force evaluations (implicit methods: one force and Jacobian evaluation per step).
+    pub force_evaluations_total: u64,
+    /// Accepted substeps (adaptive integrator; otherwise equal to `steps`).
+    pub substeps_total: u64,
+    /// Rejected substeps of the adaptive integrator.
+    pub rejected_steps_total: u64,
     pub cg_iterations_total: u64,
     pub cg_iterations_max: usize,
     pub cg_iterations_mean: f64,

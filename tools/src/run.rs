@@ -68,6 +68,7 @@ fn simulate(
     let mut stages = StageWall::default();
     let mut step_walls = Vec::with_capacity(cfg.steps as usize);
     let (mut cg_total, mut cg_max, mut unconverged) = (0u64, 0usize, 0u64);
+    let (mut evaluations, mut substeps, mut rejected) = (0u64, 0u64, 0u64);
     let mut error = None;
     let wall = Instant::now();
     let write_frame = |sim: &Simulation, stages: &mut StageWall| -> Result<()> {
@@ -91,6 +92,9 @@ fn simulate(
                 cg_total += r.cg_iterations as u64;
                 cg_max = cg_max.max(r.cg_iterations);
                 unconverged += u64::from(!r.converged);
+                evaluations += r.force_evaluations as u64;
+                substeps += r.substeps as u64;
+                rejected += r.rejected_steps as u64;
                 stages.forces += r.stages.forces_s;
                 stages.assembly += r.stages.assembly_s;
                 stages.solve += r.stages.solve_s;
@@ -128,6 +132,9 @@ fn simulate(
         sim_time_s: state.time_s,
         wall_s,
         step_wall_s_median: step_walls.get(step_walls.len() / 2).copied().unwrap_or(0.0),
+        force_evaluations_total: evaluations,
+        substeps_total: substeps,
+        rejected_steps_total: rejected,
         cg_iterations_total: cg_total,
         cg_iterations_max: cg_max,
         cg_iterations_mean: if steps > 0 { cg_total as f64 / steps as f64 } else { 0.0 },

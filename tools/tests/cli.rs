@@ -39,6 +39,9 @@ fn run_writes_summary_and_frames() {
         assert!(s[key].as_f64().is_some_and(f64::is_finite), "{key}");
     }
     assert!(s["cg_iterations_total"].as_u64().unwrap() >= s["cg_iterations_max"].as_u64().unwrap());
+    assert_eq!(s["force_evaluations_total"], 9);
+    assert_eq!(s["substeps_total"], 9);
+    assert_eq!(s["rejected_steps_total"], 0);
     for stage in ["forces", "assembly", "solve", "update"] {
         assert!(s["stage_wall_s"][stage].as_f64().unwrap() >= 0.0, "{stage}");
     }

@@ -69,21 +69,70 @@ pub fn potential_energy(model: &ClothModel, x: &[Vec3]) -> f64 {
     links + gravity
 }
 
+/// Force on link `k`'s first particle at `(x, v)`: elastic plus directional
+/// damping `k_d P (v_j - v_i)`, N (the second particle gets the opposite).
+#[inline]
+pub fn link_force(model: &ClothModel, k: usize, x: &[Vec3], v: &[Vec3]) -> Vec3 {
+    let ns = model.stretch_links().len();
+    if k < ns {
+        let l = &model.stretch_links()[k];
+        let (i, j) = (l.i as usize, l.j as usize);
+        let (u, d) = unit_and_length(x[j] - x[i]);
+        let elastic = u * tension_spring(d, l.rest, l.k_s).phi;
+        if l.k_d > 0.0 { elastic + u * (l.k_d * u.dot(&(v[j] - v[i]))) } else { elastic }
+    } else {
+        let l = &model.bend_links()[k - ns];
+        let (u, d) = unit_and_length(x[l.j as usize] - x[l.i as usize]);
+        u * l.law.eval(d).phi
+    }
+}
+
+/// Scratch for [`forces_into`], sized once per model.
+#[derive(Debug, Clone)]
+pub struct ForceBuffers {
+    link: Vec<Vec3>,
+}
+
+impl ForceBuffers {
+    /// Buffers for `model`.
+    pub fn new(model: &ClothModel) -> Self {
+        Self { link: vec![Vec3::zeros(); model.link_count()] }
+    }
+}
+
+/// Total force on every particle at `(x, v)` (elastic, damping, gravity,
+/// N) into `out`, without allocating: links in parallel, then a fixed-order
+/// gather per particle.
+pub fn forces_into(model: &ClothModel, x: &[Vec3], v: &[Vec3], bufs: &mut ForceBuffers, out: &mut [Vec3]) {
+    bufs.link.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(chunk, fs)| {
+        for (k, f) in fs.iter_mut().enumerate() {
+            *f = link_force(model, chunk * ROW_CHUNK + k, x, v);
+        }
+    });
+    let link = &bufs.link;
+    let gravity = model.effects().gravity;
+    out.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(chunk, fs)| {
+        for (k, f) in fs.iter_mut().enumerate() {
+            let i = chunk * ROW_CHUNK + k;
+            let mut acc = gravity.map_or(Vec3::zeros(), |g| g * model.masses()[i]);
+            for inc in model.incidence(i) {
+                let fl = &link[inc.link as usize];
+                if inc.first {
+                    acc += fl;
+                } else {
+                    acc -= fl;
+                }
+            }
+            *f = acc;
+        }
+    });
+}
+
 /// Total force on every particle at `(x, v)`: elastic, damping and gravity, N.
 pub fn total_forces(model: &ClothModel, x: &[Vec3], v: &[Vec3]) -> Vec<Vec3> {
-    let evals: Vec<LinkEval> = (0..model.link_count()).into_par_iter().map(|k| eval_link(model, k, x)).collect();
-    (0..model.particle_count())
-        .map(|i| {
-            let mut f = model.effects().gravity.map_or(Vec3::zeros(), |g| g * model.masses()[i]);
-            for inc in model.incidence(i) {
-                let e = &evals[inc.link as usize];
-                let rel_v = v[inc.other as usize] - v[i];
-                let sign = if inc.first { 1.0 } else { -1.0 };
-                f += e.force * sign + e.damping * rel_v;
-            }
-            f
-        })
-        .collect()
+    let mut out = vec![Vec3::zeros(); model.particle_count()];
+    forces_into(model, x, v, &mut ForceBuffers::new(model), &mut out);
+    out
 }
 
 /// The coefficients of one implicit step's linear system

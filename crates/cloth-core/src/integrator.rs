@@ -1,6 +1,7 @@
 //! Implicit integrators behind one trait: each takes one linearised
 //! (single Newton iteration) step solved by the filtered PCG.
 
+use crate::explicit::ExplicitBuffers;
 use crate::{
     ClothModel, ClothState, Vec3,
     forces::{SystemBuffers, SystemTerms, assemble},
@@ -9,53 +10,95 @@ use cloth_linalg::{Constraint, ConstraintFilter, Pcg, PcgError, PcgParams, Preco
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
-/// Which integrator a simulation uses.
+/// Which integrator a simulation uses (scene name in brackets).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum IntegratorKind {
-    /// Backward Euler, Baraff & Witkin (1998): first order, strongly damping.
+    /// Forward Euler (`forward-euler`): order 1, one force evaluation.
+    ForwardEuler,
+    /// Symplectic (semi-implicit) Euler (`symplectic-euler`): order 1.
+    SymplecticEuler,
+    /// Explicit midpoint (`midpoint`): order 2, two force evaluations.
+    Midpoint,
+    /// Classic Runge-Kutta (`rk4`): order 4, four force evaluations.
+    Rk4,
+    /// Dormand-Prince 5(4) with adaptive substeps (`dopri5`): order 5,
+    /// error controlled by [`SolverParams::error_tolerance`].
+    Dopri5,
+    /// Backward Euler, Baraff & Witkin (1998) (`backward-euler`): first
+    /// order, strongly damping; PCG to a tolerance.
     BackwardEuler,
-    /// Second-order BDF, Choi & Ko (2002) Eq. 20; starts with one
-    /// backward-Euler step.
+    /// Bdf2 (`bdf2`): second-order BDF, Choi & Ko (2002) Eq. 20; starts with
+    /// one backward-Euler step.
     Bdf2,
 }
 
 impl IntegratorKind {
+    /// Every kind, in the order above.
+    pub const ALL: [IntegratorKind; 7] = [
+        IntegratorKind::ForwardEuler,
+        IntegratorKind::SymplecticEuler,
+        IntegratorKind::Midpoint,
+        IntegratorKind::Rk4,
+        IntegratorKind::Dopri5,
+        IntegratorKind::BackwardEuler,
+        IntegratorKind::Bdf2,
+    ];
+
     /// The integrator.
     pub fn build(self) -> Box<dyn Integrator> {
         match self {
             IntegratorKind::BackwardEuler => Box::new(BackwardEuler),
             IntegratorKind::Bdf2 => Box::new(Bdf2),
+            explicit => Box::new(crate::explicit::Explicit(explicit)),
         }
     }
 
     /// Name as written in scene files.
     pub fn name(self) -> &'static str {
         match self {
+            IntegratorKind::ForwardEuler => "forward-euler",
+            IntegratorKind::SymplecticEuler => "symplectic-euler",
+            IntegratorKind::Midpoint => "midpoint",
+            IntegratorKind::Rk4 => "rk4",
+            IntegratorKind::Dopri5 => "dopri5",
             IntegratorKind::BackwardEuler => "backward-euler",
             IntegratorKind::Bdf2 => "bdf2",
         }
     }
+
+    /// Whether the integrator solves a linear system each step.
+    pub fn is_implicit(self) -> bool {
+        matches!(self, IntegratorKind::BackwardEuler | IntegratorKind::Bdf2)
+    }
 }
 
-/// Linear-solver settings of a simulation.
+/// Every solver setting of a simulation, in one place.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SolverParams {
-    /// PCG tolerance, iteration cap and preconditioner.
+    /// PCG tolerance, iteration cap and preconditioner (implicit integrators).
     pub pcg: PcgParams,
     /// Accept the last PCG iterate when `max_iter` is reached (the step is
     /// then reported as unconverged) instead of failing the step.
     pub accept_unconverged: bool,
+    /// Local error tolerance of the adaptive integrator (relative, and
+    /// absolute in m and m/s). Default 1e-4.
+    pub error_tolerance: f64,
+    /// Most substeps (accepted plus rejected) the adaptive integrator may
+    /// take within one step before giving up. Default 100000.
+    pub max_substeps: usize,
 }
 
 impl Default for SolverParams {
     /// Relative tolerance 1e-4, at most 1000 iterations, the multigrid
     /// preconditioner (built from the model's grids), unconverged solves
-    /// accepted and counted.
+    /// accepted and counted; adaptive error tolerance 1e-4.
     fn default() -> Self {
         Self {
             pcg: PcgParams { preconditioner: PreconditionerKind::Multigrid, ..PcgParams::default() },
             accept_unconverged: true,
+            error_tolerance: 1e-4,
+            max_substeps: 100_000,
         }
     }
 }
@@ -85,6 +128,12 @@ impl std::ops::AddAssign for StageTimes {
 /// What one step did.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct StepReport {
+    /// Force (and, for implicit methods, Jacobian) evaluations.
+    pub force_evaluations: usize,
+    /// Accepted substeps (1 except for the adaptive integrator).
+    pub substeps: usize,
+    /// Rejected substeps of the adaptive integrator.
+    pub rejected_steps: usize,
     /// PCG iterations.
     pub cg_iterations: usize,
     /// Final relative residual of PCG.
@@ -126,6 +175,19 @@ pub enum StepError {
         /// "position" or "velocity".
         quantity: &'static str,
     },
+    /// The adaptive integrator's step size collapsed (the error could not
+    /// be met), or it needed more substeps than allowed.
+    #[error("step {step} (t = {time_s} s): adaptive step size fell to {h} s after {attempts} substeps")]
+    StepSizeUnderflow {
+        /// Index of the failed step (1-based).
+        step: u64,
+        /// Time reached, s.
+        time_s: f64,
+        /// Last step size tried, s.
+        h: f64,
+        /// Substeps attempted (accepted and rejected).
+        attempts: usize,
+    },
     /// A state does not fit the model.
     #[error("state has {got} particles but the model has {expected}")]
     StateMismatch {
@@ -145,8 +207,10 @@ pub struct Workspace {
     unknown: Vec<Vec3>,
     aux: Vec<Vec3>,
     aux2: Vec<Vec3>,
-    new_x: Vec<Vec3>,
-    new_v: Vec<Vec3>,
+    pub(crate) new_x: Vec<Vec3>,
+    pub(crate) new_v: Vec<Vec3>,
+    /// Stage storage of the explicit integrators (allocated on first use).
+    pub(crate) explicit: Option<ExplicitBuffers>,
 }
 
 impl Workspace {
@@ -166,6 +230,7 @@ impl Workspace {
             aux2: vec![Vec3::zeros(); n],
             new_x: vec![Vec3::zeros(); n],
             new_v: vec![Vec3::zeros(); n],
+            explicit: None,
         }
     }
 }
@@ -338,6 +403,7 @@ fn linearised_step<S: Linearised>(
     }
     let pins_s = t_pins.elapsed().as_secs_f64();
     let (mut report, solve_s) = solve(ws, state, solver)?;
+    (report.force_evaluations, report.substeps) = (1, 1);
     let t_update = Instant::now();
     for i in 0..state.len() {
         (ws.new_x[i], ws.new_v[i]) = scheme.advance(state, &ws.aux, h, i, ws.unknown[i]);
@@ -352,7 +418,7 @@ fn linearised_step<S: Linearised>(
     Ok(report)
 }
 
-fn check_step(model: &ClothModel, state: &ClothState, h: f64) -> Result<(), StepError> {
+pub(crate) fn check_step(model: &ClothModel, state: &ClothState, h: f64) -> Result<(), StepError> {
     if !(h.is_finite() && h > 0.0) {
         return Err(StepError::InvalidTimeStep { h });
     }
@@ -425,7 +491,7 @@ fn locate_non_finite(ws: &Workspace, state: &ClothState) -> StepError {
 }
 
 /// Checks the new state in `ws.new_x`/`new_v` and, if finite, makes it current.
-fn commit(state: &mut ClothState, ws: &mut Workspace, h: f64) -> Result<(), StepError> {
+pub(crate) fn commit(state: &mut ClothState, ws: &mut Workspace, h: f64) -> Result<(), StepError> {
     let bad = |v: &Vec3| !v.iter().all(|c| c.is_finite());
     for i in 0..state.len() {
         let quantity = if bad(&ws.new_x[i]) {

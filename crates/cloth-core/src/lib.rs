@@ -7,6 +7,7 @@
 //! with a pattern built once -> PCG with pins as Baraff-Witkin constraints ->
 //! new state. Units are SI throughout.
 
+mod explicit;
 pub mod forces;
 mod integrator;
 pub mod laws;

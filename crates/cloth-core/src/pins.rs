@@ -58,6 +58,26 @@ impl PinMotion {
         }
     }
 
+    /// Velocity along the path at time `t` (s), m/s (for keyframes, the
+    /// slope of the segment containing `t`; zero outside the keyframes).
+    pub fn velocity(&self, t: f64) -> Vec3 {
+        match self {
+            PinMotion::Fixed => Vec3::zeros(),
+            PinMotion::Linear { velocity_m_s } => Vec3::from(*velocity_m_s),
+            PinMotion::Oscillate { amplitude_m, frequency_hz } => {
+                let w = 2.0 * std::f64::consts::PI * frequency_hz;
+                Vec3::from(*amplitude_m) * (w * (w * t).cos())
+            }
+            PinMotion::Keyframes { times_s, offsets_m } => {
+                let k = times_s.partition_point(|&tk| tk <= t);
+                if k == 0 || k == times_s.len() {
+                    return Vec3::zeros();
+                }
+                (Vec3::from(offsets_m[k]) - Vec3::from(offsets_m[k - 1])) / (times_s[k] - times_s[k - 1])
+            }
+        }
+    }
+
     /// Checks the motion's numbers; names the first bad field.
     pub fn validate(&self) -> Result<(), (&'static str, String)> {
         let finite3 = |name: &'static str, v: &[f64; 3]| {
@@ -110,6 +130,11 @@ impl Pin {
     pub fn position(&self, t: f64) -> Vec3 {
         self.anchor + self.motion.offset(t)
     }
+
+    /// Prescribed velocity at time `t`, m/s.
+    pub fn velocity(&self, t: f64) -> Vec3 {
+        self.motion.velocity(t)
+    }
 }
 
 #[cfg(test)]
@@ -124,5 +149,24 @@ mod tests {
         assert_eq!(m.offset(5.0), Vec3::new(0.0, 0.0, 1.0));
         let bad = PinMotion::Keyframes { times_s: vec![1.0, 1.0], offsets_m: vec![[0.0; 3]; 2] };
         assert_eq!(bad.validate().unwrap_err().0, "times_s");
+    }
+
+    #[test]
+    fn velocities_are_derivatives_of_offsets() {
+        let motions = [
+            PinMotion::Linear { velocity_m_s: [0.1, -0.2, 0.3] },
+            PinMotion::Oscillate { amplitude_m: [0.0, 0.05, 0.01], frequency_hz: 1.5 },
+            PinMotion::Keyframes {
+                times_s: vec![0.0, 1.0, 3.0],
+                offsets_m: vec![[0.0; 3], [1.0, 0.0, 0.0], [1.0, 2.0, 0.0]],
+            },
+        ];
+        for m in motions {
+            for t in [0.3, 0.71, 2.2] {
+                let h = 1e-6;
+                let fd = (m.offset(t + h) - m.offset(t - h)) / (2.0 * h);
+                assert!((fd - m.velocity(t)).norm() < 1e-6, "{m:?} at {t}");
+            }
+        }
     }
 }

@@ -8,7 +8,7 @@
 //!
 //! ```toml
 //! [simulation]
-//! integrator = "bdf2"          # or "backward-euler"
+//! integrator = "bdf2"          # backward-euler, forward-euler, symplectic-euler, midpoint, rk4, dopri5
 //! dt_s = 0.011111111111111112  # s
 //! duration_s = 2.0             # s
 //! effects = ["gravity", "bending", "damping"]
@@ -19,6 +19,8 @@
 //! max_iter = 1000
 //! preconditioner = "multigrid"   # or "block-jacobi" (Choi & Ko), "diagonal", "none"
 //! accept_unconverged = true
+//! error_tolerance = 1e-4       # dopri5 only
+//! max_substeps = 100000        # dopri5 only
 //!
 //! [material]
 //! areal_density_kg_m2 = 0.1
@@ -107,6 +109,10 @@ pub struct SolverSection {
     pub preconditioner: PreconditionerName,
     /// Accept PCG's last iterate at `max_iter` instead of failing.
     pub accept_unconverged: bool,
+    /// Local error tolerance of `dopri5` (relative, and absolute in m, m/s).
+    pub error_tolerance: f64,
+    /// Most substeps `dopri5` may take within one step.
+    pub max_substeps: usize,
 }
 
 impl Default for SolverSection {
@@ -117,6 +123,8 @@ impl Default for SolverSection {
             max_iter: p.pcg.max_iter,
             preconditioner: PreconditionerName::Multigrid,
             accept_unconverged: p.accept_unconverged,
+            error_tolerance: p.error_tolerance,
+            max_substeps: p.max_substeps,
         }
     }
 }
@@ -246,6 +254,15 @@ impl Scene {
         if v.max_iter == 0 {
             return Err(invalid("solver.max_iter", "must be >= 1".into()));
         }
+        if !(v.error_tolerance.is_finite() && v.error_tolerance > 0.0) {
+            return Err(invalid(
+                "solver.error_tolerance",
+                format!("must be finite and > 0, got {}", v.error_tolerance),
+            ));
+        }
+        if v.max_substeps == 0 {
+            return Err(invalid("solver.max_substeps", "must be >= 1".into()));
+        }
         Ok(())
     }
 
@@ -295,6 +312,8 @@ impl Scene {
                     },
                 },
                 accept_unconverged: self.solver.accept_unconverged,
+                error_tolerance: self.solver.error_tolerance,
+                max_substeps: self.solver.max_substeps,
             },
         };
         Ok((model, config))
@@ -418,6 +437,8 @@ nodes = [[0, 3]]
             ("material.areal_density_kg_m2=-1.0", "material.areal_density_kg_m2"),
             ("material.tensile_stiffness_n_m=nan", "material.tensile_stiffness_n_m"),
             ("solver.rel_tol=2.0", "solver.rel_tol"),
+            ("solver.error_tolerance=0.0", "solver.error_tolerance"),
+            ("solver.max_substeps=0", "solver.max_substeps"),
             ("panels.0.particles=[1, 4]", "panels[0].particles"),
             ("panels.0.size_m=[1.0, inf]", "panels[0].size_m"),
             ("panels.0.size_m=[1e-200, 1e-200]", "panels[0].size_m"),

@@ -23,6 +23,9 @@ pub struct ClothState {
     pub has_history: bool,
     /// The step size that produced the current state, s (0 before the first step).
     pub last_dt_s: f64,
+    /// The adaptive integrator's suggested substep, s (0: none yet). Part of
+    /// the state so that a restored snapshot steps to the same bits.
+    pub next_dt_s: f64,
 }
 
 impl ClothState {
@@ -38,6 +41,7 @@ impl ClothState {
             v_prev: vec![Vec3::zeros(); n],
             has_history: false,
             last_dt_s: 0.0,
+            next_dt_s: 0.0,
         }
     }
 

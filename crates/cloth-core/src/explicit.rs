@@ -1,0 +1,323 @@
+//! Explicit integrators: forward Euler, symplectic Euler, explicit midpoint,
+//! classic RK4 and the embedded Dormand-Prince 5(4) pair with adaptive step
+//! size (Volino & Magnenat-Thalmann 2001 compare midpoint and an embedded
+//! fifth-order Runge-Kutta against implicit Euler).
+//!
+//! The state `y = (x, v)` obeys `x' = v`, `v' = M^-1 f(x, v)`. Pinned
+//! particles are prescribed: at every stage and at the end of a step their
+//! position and velocity are set from their path, so pins stay exact.
+
+use crate::{
+    ClothModel, ClothState, SolverParams, Vec3, Workspace,
+    forces::{ForceBuffers, forces_into},
+    integrator::{StageTimes, StepError, StepReport},
+};
+use cloth_linalg::ROW_CHUNK;
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// A Butcher tableau `(c, A, b)` with optional embedded error weights
+/// `e = b - b_hat` (the difference to a lower-order solution).
+#[derive(Debug)]
+pub(crate) struct Tableau {
+    pub c: &'static [f64],
+    pub a: &'static [&'static [f64]],
+    pub b: &'static [f64],
+    pub e: Option<&'static [f64]>,
+}
+
+/// Forward (explicit) Euler, order 1.
+pub(crate) const FORWARD_EULER: Tableau = Tableau { c: &[0.0], a: &[&[]], b: &[1.0], e: None };
+
+/// Explicit midpoint, order 2, two force evaluations (Volino's "midpoint").
+pub(crate) const MIDPOINT: Tableau = Tableau { c: &[0.0, 0.5], a: &[&[], &[0.5]], b: &[0.0, 1.0], e: None };
+
+/// Classic fourth-order Runge-Kutta.
+pub(crate) const RK4: Tableau = Tableau {
+    c: &[0.0, 0.5, 0.5, 1.0],
+    a: &[&[], &[0.5], &[0.0, 0.5], &[0.0, 0.0, 1.0]],
+    b: &[1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0],
+    e: None,
+};
+
+/// Dormand & Prince (1980) 5(4): fifth-order solution with a fourth-order
+/// embedded estimate; seven stages, the last at the new point.
+pub(crate) const DOPRI5: Tableau = Tableau {
+    c: &[0.0, 1.0 / 5.0, 3.0 / 10.0, 4.0 / 5.0, 8.0 / 9.0, 1.0, 1.0],
+    a: &[
+        &[],
+        &[1.0 / 5.0],
+        &[3.0 / 40.0, 9.0 / 40.0],
+        &[44.0 / 45.0, -56.0 / 15.0, 32.0 / 9.0],
+        &[19372.0 / 6561.0, -25360.0 / 2187.0, 64448.0 / 6561.0, -212.0 / 729.0],
+        &[9017.0 / 3168.0, -355.0 / 33.0, 46732.0 / 5247.0, 49.0 / 176.0, -5103.0 / 18656.0],
+        &[35.0 / 384.0, 0.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0],
+    ],
+    b: &[35.0 / 384.0, 0.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0, 0.0],
+    e: Some(&[
+        35.0 / 384.0 - 5179.0 / 57600.0,
+        0.0,
+        500.0 / 1113.0 - 7571.0 / 16695.0,
+        125.0 / 192.0 - 393.0 / 640.0,
+        -2187.0 / 6784.0 + 92097.0 / 339200.0,
+        11.0 / 84.0 - 187.0 / 2100.0,
+        -1.0 / 40.0,
+    ]),
+};
+
+/// Scratch space of the explicit integrators.
+#[derive(Debug, Clone)]
+pub struct ExplicitBuffers {
+    kx: Vec<Vec<Vec3>>,
+    kv: Vec<Vec<Vec3>>,
+    xs: Vec<Vec3>,
+    vs: Vec<Vec3>,
+    force: Vec<Vec3>,
+    forces: ForceBuffers,
+    /// Result of the last attempted step.
+    pub(crate) x_new: Vec<Vec3>,
+    pub(crate) v_new: Vec<Vec3>,
+}
+
+impl ExplicitBuffers {
+    /// Buffers for up to `stages` stages.
+    pub fn new(model: &ClothModel, stages: usize) -> Self {
+        let n = model.particle_count();
+        let zeros = || vec![Vec3::zeros(); n];
+        Self {
+            kx: (0..stages).map(|_| zeros()).collect(),
+            kv: (0..stages).map(|_| zeros()).collect(),
+            xs: zeros(),
+            vs: zeros(),
+            force: zeros(),
+            forces: ForceBuffers::new(model),
+            x_new: zeros(),
+            v_new: zeros(),
+        }
+    }
+}
+
+/// Sets pinned particles to their path at time `t`.
+fn impose_pins(model: &ClothModel, t: f64, x: &mut [Vec3], v: &mut [Vec3]) {
+    for pin in model.pins() {
+        x[pin.particle] = pin.position(t);
+        v[pin.particle] = pin.velocity(t);
+    }
+}
+
+/// `out = base + h sum_j coef_j k_j`, parallel per particle.
+fn combine(base: &[Vec3], h: f64, coef: &[f64], k: &[Vec<Vec3>], out: &mut [Vec3]) {
+    out.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(chunk, o)| {
+        for (m, oi) in o.iter_mut().enumerate() {
+            let i = chunk * ROW_CHUNK + m;
+            let mut acc = Vec3::zeros();
+            for (c, kj) in coef.iter().zip(k) {
+                if *c != 0.0 {
+                    acc += kj[i] * *c;
+                }
+            }
+            *oi = base[i] + acc * h;
+        }
+    });
+}
+
+/// Where a step starts: positions, velocities, time.
+#[derive(Clone, Copy)]
+pub(crate) struct Start<'a> {
+    pub x: &'a [Vec3],
+    pub v: &'a [Vec3],
+    pub t: f64,
+}
+
+/// One Runge-Kutta step of size `h` from `start` into `bufs.x_new`,
+/// `bufs.v_new`. Returns the force evaluations used and, for an embedded
+/// pair, the scaled RMS error estimate (<= 1 is acceptable at `tolerance`).
+pub(crate) fn rk_step(
+    model: &ClothModel,
+    tab: &Tableau,
+    start: Start<'_>,
+    h: f64,
+    tolerance: f64,
+    bufs: &mut ExplicitBuffers,
+    stages_time: &mut StageTimes,
+) -> (usize, f64) {
+    let Start { x, v, t } = start;
+    let masses = model.masses();
+    for s in 0..tab.c.len() {
+        let t_update = Instant::now();
+        let (ts, coef) = (t + tab.c[s] * h, tab.a[s]);
+        combine(x, h, coef, &bufs.kx, &mut bufs.xs);
+        combine(v, h, coef, &bufs.kv, &mut bufs.vs);
+        impose_pins(model, ts, &mut bufs.xs, &mut bufs.vs);
+        stages_time.update_s += t_update.elapsed().as_secs_f64();
+        let t_force = Instant::now();
+        forces_into(model, &bufs.xs, &bufs.vs, &mut bufs.forces, &mut bufs.force);
+        stages_time.forces_s += t_force.elapsed().as_secs_f64();
+        let (kx, kv) = (&mut bufs.kx[s], &mut bufs.kv[s]);
+        kx.copy_from_slice(&bufs.vs);
+        kv.iter_mut().zip(&bufs.force).zip(masses).for_each(|((a, f), m)| *a = f / *m);
+        for pin in model.pins() {
+            kv[pin.particle] = Vec3::zeros();
+        }
+    }
+    let t_update = Instant::now();
+    combine(x, h, tab.b, &bufs.kx, &mut bufs.x_new);
+    combine(v, h, tab.b, &bufs.kv, &mut bufs.v_new);
+    impose_pins(model, t + h, &mut bufs.x_new, &mut bufs.v_new);
+    let error = tab.e.map_or(0.0, |e| {
+        // RMS over all components of e / (tol + tol |y|), Hairer-style; pins carry no error.
+        let mut sum = 0.0;
+        for i in 0..x.len() {
+            if model.is_pinned(i) {
+                continue;
+            }
+            let (mut ex, mut ev) = (Vec3::zeros(), Vec3::zeros());
+            for (c, (kx, kv)) in e.iter().zip(bufs.kx.iter().zip(&bufs.kv)) {
+                ex += kx[i] * (h * c);
+                ev += kv[i] * (h * c);
+            }
+            for d in 0..3 {
+                let sx = tolerance * (1.0 + x[i][d].abs().max(bufs.x_new[i][d].abs()));
+                let sv = tolerance * (1.0 + v[i][d].abs().max(bufs.v_new[i][d].abs()));
+                sum += (ex[d] / sx).powi(2) + (ev[d] / sv).powi(2);
+            }
+        }
+        (sum / (6 * x.len()).max(1) as f64).sqrt()
+    });
+    stages_time.update_s += t_update.elapsed().as_secs_f64();
+    (tab.c.len(), error)
+}
+
+/// Symplectic (semi-implicit) Euler: `v' = v + h M^-1 f(x, v)`, `x' = x + h v'`.
+pub(crate) fn symplectic_euler_step(
+    model: &ClothModel,
+    x: &[Vec3],
+    v: &[Vec3],
+    t: f64,
+    h: f64,
+    bufs: &mut ExplicitBuffers,
+    stages_time: &mut StageTimes,
+) {
+    let t_force = Instant::now();
+    forces_into(model, x, v, &mut bufs.forces, &mut bufs.force);
+    stages_time.forces_s += t_force.elapsed().as_secs_f64();
+    let t_update = Instant::now();
+    let masses = model.masses();
+    for i in 0..x.len() {
+        bufs.v_new[i] = v[i] + bufs.force[i] * (h / masses[i]);
+        bufs.x_new[i] = x[i] + bufs.v_new[i] * h;
+    }
+    impose_pins(model, t + h, &mut bufs.x_new, &mut bufs.v_new);
+    stages_time.update_s += t_update.elapsed().as_secs_f64();
+}
+
+/// Advances `state` by `h_total` with adaptive Dormand-Prince substeps,
+/// starting from the step size the state suggests. The accepted result is
+/// left in `bufs.x_new`, `bufs.v_new`; returns the report and the next
+/// suggested step size.
+pub(crate) fn adaptive_dopri5(
+    model: &ClothModel,
+    state: &ClothState,
+    h_total: f64,
+    solver: &SolverParams,
+    ws: &mut Workspace,
+) -> Result<(StepReport, f64), StepError> {
+    let (tolerance, max_substeps) = (solver.error_tolerance, solver.max_substeps);
+    let bufs = ws.explicit.get_or_insert_with(|| ExplicitBuffers::new(model, DOPRI5.c.len()));
+    let (x_work, v_work) = (&mut ws.new_x, &mut ws.new_v);
+    let mut report = StepReport { converged: true, ..Default::default() };
+    x_work.copy_from_slice(&state.x);
+    v_work.copy_from_slice(&state.v);
+    let mut done = 0.0;
+    let mut h = if state.next_dt_s > 0.0 { state.next_dt_s.min(h_total) } else { h_total };
+    let mut suggestion = h;
+    while done < h_total {
+        let remaining = h_total - done;
+        let last = h >= remaining * (1.0 - 1e-12);
+        let h_try = if last { remaining } else { h };
+        let start = Start { x: x_work, v: v_work, t: state.time_s + done };
+        let (evals, err) = rk_step(model, &DOPRI5, start, h_try, tolerance, bufs, &mut report.stages);
+        report.force_evaluations += evals;
+        // Step-size controller (order 5 error estimate of the order-4 solution).
+        let factor = if err == 0.0 {
+            5.0
+        } else if err.is_finite() {
+            (0.9 * err.powf(-0.2)).clamp(0.2, 5.0)
+        } else {
+            0.2
+        };
+        if err <= 1.0 {
+            std::mem::swap(x_work, &mut bufs.x_new);
+            std::mem::swap(v_work, &mut bufs.v_new);
+            done = if last { h_total } else { done + h_try };
+            report.substeps += 1;
+            // A last step shortened to land on h_total says little about
+            // the step size the dynamics allow: keep the larger proposal.
+            suggestion = if last { (h_try * factor).max(h) } else { h_try * factor };
+            h = suggestion;
+        } else {
+            report.rejected_steps += 1;
+            h = h_try * factor;
+        }
+        if report.substeps + report.rejected_steps > max_substeps || h < 1e-14 * h_total {
+            return Err(StepError::StepSizeUnderflow {
+                step: state.steps + 1,
+                time_s: state.time_s + done,
+                h,
+                attempts: report.substeps + report.rejected_steps,
+            });
+        }
+    }
+    std::mem::swap(x_work, &mut bufs.x_new);
+    std::mem::swap(v_work, &mut bufs.v_new);
+    Ok((report, suggestion))
+}
+
+/// The explicit integrators behind [`crate::Integrator`].
+#[derive(Debug, Clone, Copy)]
+pub struct Explicit(pub crate::IntegratorKind);
+
+impl crate::Integrator for Explicit {
+    fn kind(&self) -> crate::IntegratorKind {
+        self.0
+    }
+
+    fn step(
+        &self,
+        model: &ClothModel,
+        state: &mut ClothState,
+        h: f64,
+        ws: &mut crate::Workspace,
+        solver: &crate::SolverParams,
+    ) -> Result<StepReport, StepError> {
+        use crate::IntegratorKind as K;
+        crate::integrator::check_step(model, state, h)?;
+        let mut report = StepReport { converged: true, substeps: 1, ..Default::default() };
+        let mut next_dt = 0.0;
+        let bufs = ws.explicit.get_or_insert_with(|| ExplicitBuffers::new(model, DOPRI5.c.len()));
+        match self.0 {
+            K::SymplecticEuler => {
+                symplectic_euler_step(model, &state.x, &state.v, state.time_s, h, bufs, &mut report.stages);
+                report.force_evaluations = 1;
+            }
+            K::ForwardEuler | K::Midpoint | K::Rk4 => {
+                let tab = match self.0 {
+                    K::ForwardEuler => &FORWARD_EULER,
+                    K::Midpoint => &MIDPOINT,
+                    _ => &RK4,
+                };
+                let start = Start { x: &state.x, v: &state.v, t: state.time_s };
+                let (evals, _) = rk_step(model, tab, start, h, 0.0, bufs, &mut report.stages);
+                report.force_evaluations = evals;
+            }
+            K::Dopri5 => (report, next_dt) = adaptive_dopri5(model, state, h, solver, ws)?,
+            K::BackwardEuler | K::Bdf2 => unreachable!("implicit kinds are built as their own integrators"),
+        }
+        let bufs = ws.explicit.as_mut().expect("allocated above");
+        std::mem::swap(&mut ws.new_x, &mut bufs.x_new);
+        std::mem::swap(&mut ws.new_v, &mut bufs.v_new);
+        crate::integrator::commit(state, ws, h)?;
+        state.next_dt_s = next_dt;
+        Ok(report)
+    }
+}
