@@ -311,7 +311,9 @@ impl crate::Integrator for Explicit {
                 report.force_evaluations = evals;
             }
             K::Dopri5 => (report, next_dt) = adaptive_dopri5(model, state, h, solver, ws)?,
-            K::BackwardEuler | K::Bdf2 => unreachable!("implicit kinds are built as their own integrators"),
+            K::BackwardEuler | K::BackwardEulerFixedCg | K::Bdf2 => {
+                unreachable!("implicit kinds are built as their own integrators")
+            }
         }
         let bufs = ws.explicit.as_mut().expect("allocated above");
         std::mem::swap(&mut ws.new_x, &mut bufs.x_new);

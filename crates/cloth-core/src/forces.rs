@@ -190,6 +190,32 @@ pub struct AssemblyTiming {
 /// Builds `A` and `b` (see [`SystemTerms`]) at positions `x` without
 /// allocating: a parallel pass over links, then a parallel pass over rows.
 pub fn assemble(model: &ClothModel, x: &[Vec3], terms: &SystemTerms<'_>, bufs: &mut SystemBuffers) -> AssemblyTiming {
+    let mut timing = assemble_matrix_free(model, x, terms, bufs);
+    let t0 = std::time::Instant::now();
+    let link_block = &bufs.link_block;
+    bufs.matrix.fill_rows(|i, row| {
+        row.iter_mut().for_each(|b| *b = Mat3::zeros());
+        let mut diag = Mat3::identity() * model.masses()[i];
+        for inc in model.incidence(i) {
+            let b = &link_block[inc.link as usize];
+            diag += b;
+            row[inc.slot as usize] -= b;
+        }
+        row[model.diag_local(i)] = diag;
+    });
+    timing.gather_s += t0.elapsed().as_secs_f64();
+    timing
+}
+
+/// Like [`assemble`] but leaves the matrix unassembled: only the per-link
+/// blocks `B_e = c_x J_e + c_v D_e` (for [`apply_scaled_operator`]) and the
+/// right-hand side are computed.
+pub fn assemble_matrix_free(
+    model: &ClothModel,
+    x: &[Vec3],
+    terms: &SystemTerms<'_>,
+    bufs: &mut SystemBuffers,
+) -> AssemblyTiming {
     let t0 = std::time::Instant::now();
     bufs.link_rhs.par_chunks_mut(ROW_CHUNK).zip(bufs.link_block.par_chunks_mut(ROW_CHUNK)).enumerate().for_each(
         |(chunk, (rhs, blocks))| {
@@ -210,18 +236,7 @@ pub fn assemble(model: &ClothModel, x: &[Vec3], terms: &SystemTerms<'_>, bufs: &
         },
     );
     let t1 = std::time::Instant::now();
-    let link_block = &bufs.link_block;
     let link_rhs = &bufs.link_rhs;
-    bufs.matrix.fill_rows(|i, row| {
-        row.iter_mut().for_each(|b| *b = Mat3::zeros());
-        let mut diag = Mat3::identity() * model.masses()[i];
-        for inc in model.incidence(i) {
-            let b = &link_block[inc.link as usize];
-            diag += b;
-            row[inc.slot as usize] -= b;
-        }
-        row[model.diag_local(i)] = diag;
-    });
     let gravity = model.effects().gravity;
     bufs.rhs.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(chunk, out)| {
         for (k, bi) in out.iter_mut().enumerate() {
@@ -243,4 +258,32 @@ pub fn assemble(model: &ClothModel, x: &[Vec3], terms: &SystemTerms<'_>, bufs: &
         }
     });
     AssemblyTiming { links_s: (t1 - t0).as_secs_f64(), gather_s: t1.elapsed().as_secs_f64() }
+}
+
+/// The mass-scaled system operator applied on the fly, without an
+/// assembled matrix (Volino & Magnenat-Thalmann 2001):
+/// `y = M^-1/2 A M^-1/2 w`, i.e.
+/// `y_i = w_i + m_i^-1/2 sum_e B_e (w_i m_i^-1/2 - w_o m_o^-1/2)`,
+/// with the link blocks of the last [`assemble_matrix_free`].
+/// `inv_sqrt_mass[i] = m_i^-1/2`.
+pub fn apply_scaled_operator(
+    model: &ClothModel,
+    bufs: &SystemBuffers,
+    inv_sqrt_mass: &[f64],
+    w: &[Vec3],
+    y: &mut [Vec3],
+) {
+    let blocks = &bufs.link_block;
+    y.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(chunk, ys)| {
+        for (k, yi) in ys.iter_mut().enumerate() {
+            let i = chunk * ROW_CHUNK + k;
+            let wi = w[i] * inv_sqrt_mass[i];
+            let mut acc = Vec3::zeros();
+            for inc in model.incidence(i) {
+                let o = inc.other as usize;
+                acc += blocks[inc.link as usize] * (wi - w[o] * inv_sqrt_mass[o]);
+            }
+            *yi = w[i] + acc * inv_sqrt_mass[i];
+        }
+    });
 }

@@ -28,6 +28,10 @@ pub enum IntegratorKind {
     /// Backward Euler, Baraff & Witkin (1998) (`backward-euler`): first
     /// order, strongly damping; PCG to a tolerance.
     BackwardEuler,
+    /// Backward Euler with a fixed number of matrix-free, mass-scaled CG
+    /// iterations (`backward-euler-fixed-cg`), Volino & Magnenat-Thalmann
+    /// (2001); the count is [`SolverParams::fixed_cg_iterations`].
+    BackwardEulerFixedCg,
     /// Bdf2 (`bdf2`): second-order BDF, Choi & Ko (2002) Eq. 20; starts with
     /// one backward-Euler step.
     Bdf2,
@@ -35,13 +39,14 @@ pub enum IntegratorKind {
 
 impl IntegratorKind {
     /// Every kind, in the order above.
-    pub const ALL: [IntegratorKind; 7] = [
+    pub const ALL: [IntegratorKind; 8] = [
         IntegratorKind::ForwardEuler,
         IntegratorKind::SymplecticEuler,
         IntegratorKind::Midpoint,
         IntegratorKind::Rk4,
         IntegratorKind::Dopri5,
         IntegratorKind::BackwardEuler,
+        IntegratorKind::BackwardEulerFixedCg,
         IntegratorKind::Bdf2,
     ];
 
@@ -50,6 +55,7 @@ impl IntegratorKind {
         match self {
             IntegratorKind::BackwardEuler => Box::new(BackwardEuler),
             IntegratorKind::Bdf2 => Box::new(Bdf2),
+            IntegratorKind::BackwardEulerFixedCg => Box::new(crate::matrix_free::BackwardEulerFixedCg),
             explicit => Box::new(crate::explicit::Explicit(explicit)),
         }
     }
@@ -63,13 +69,14 @@ impl IntegratorKind {
             IntegratorKind::Rk4 => "rk4",
             IntegratorKind::Dopri5 => "dopri5",
             IntegratorKind::BackwardEuler => "backward-euler",
+            IntegratorKind::BackwardEulerFixedCg => "backward-euler-fixed-cg",
             IntegratorKind::Bdf2 => "bdf2",
         }
     }
 
     /// Whether the integrator solves a linear system each step.
     pub fn is_implicit(self) -> bool {
-        matches!(self, IntegratorKind::BackwardEuler | IntegratorKind::Bdf2)
+        matches!(self, IntegratorKind::BackwardEuler | IntegratorKind::BackwardEulerFixedCg | IntegratorKind::Bdf2)
     }
 }
 
@@ -87,6 +94,8 @@ pub struct SolverParams {
     /// Most substeps (accepted plus rejected) the adaptive integrator may
     /// take within one step before giving up. Default 100000.
     pub max_substeps: usize,
+    /// CG iterations per step of `backward-euler-fixed-cg`. Default 4.
+    pub fixed_cg_iterations: usize,
 }
 
 impl Default for SolverParams {
@@ -99,6 +108,7 @@ impl Default for SolverParams {
             accept_unconverged: true,
             error_tolerance: 1e-4,
             max_substeps: 100_000,
+            fixed_cg_iterations: 4,
         }
     }
 }
@@ -201,16 +211,18 @@ pub enum StepError {
 /// Scratch space of the integrators, sized once per model.
 #[derive(Debug, Clone)]
 pub struct Workspace {
-    system: SystemBuffers,
+    pub(crate) system: SystemBuffers,
     pcg: Pcg,
-    filter: ConstraintFilter,
-    unknown: Vec<Vec3>,
-    aux: Vec<Vec3>,
-    aux2: Vec<Vec3>,
+    pub(crate) filter: ConstraintFilter,
+    pub(crate) unknown: Vec<Vec3>,
+    pub(crate) aux: Vec<Vec3>,
+    pub(crate) aux2: Vec<Vec3>,
     pub(crate) new_x: Vec<Vec3>,
     pub(crate) new_v: Vec<Vec3>,
     /// Stage storage of the explicit integrators (allocated on first use).
     pub(crate) explicit: Option<ExplicitBuffers>,
+    /// Buffers of the matrix-free solver (allocated on first use).
+    pub(crate) matrix_free: Option<crate::matrix_free::MatrixFreeBuffers>,
 }
 
 impl Workspace {
@@ -231,6 +243,7 @@ impl Workspace {
             new_x: vec![Vec3::zeros(); n],
             new_v: vec![Vec3::zeros(); n],
             explicit: None,
+            matrix_free: None,
         }
     }
 }
@@ -310,7 +323,7 @@ impl Integrator for Bdf2 {
 /// What distinguishes one single-Newton-iteration implicit scheme from
 /// another: its linear system, its unknown, and how the unknown updates
 /// the state. [`linearised_step`] does the rest.
-trait Linearised {
+pub(crate) trait Linearised {
     /// Fills the scheme's auxiliary vectors from the state.
     fn prepare(&self, state: &ClothState, h: f64, aux: &mut [Vec3], aux2: &mut [Vec3]);
     /// The system's coefficients and right-hand-side terms.

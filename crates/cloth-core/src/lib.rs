@@ -12,6 +12,7 @@ pub mod forces;
 mod integrator;
 pub mod laws;
 mod material;
+mod matrix_free;
 mod model;
 mod pins;
 pub mod scene;

@@ -8,7 +8,8 @@
 //!
 //! ```toml
 //! [simulation]
-//! integrator = "bdf2"          # backward-euler, forward-euler, symplectic-euler, midpoint, rk4, dopri5
+//! integrator = "bdf2"          # backward-euler, backward-euler-fixed-cg, forward-euler,
+//!                              # symplectic-euler, midpoint, rk4, dopri5
 //! dt_s = 0.011111111111111112  # s
 //! duration_s = 2.0             # s
 //! effects = ["gravity", "bending", "damping"]
@@ -21,6 +22,7 @@
 //! accept_unconverged = true
 //! error_tolerance = 1e-4       # dopri5 only
 //! max_substeps = 100000        # dopri5 only
+//! fixed_cg_iterations = 4      # backward-euler-fixed-cg only
 //!
 //! [material]
 //! areal_density_kg_m2 = 0.1
@@ -113,6 +115,8 @@ pub struct SolverSection {
     pub error_tolerance: f64,
     /// Most substeps `dopri5` may take within one step.
     pub max_substeps: usize,
+    /// CG iterations per step of `backward-euler-fixed-cg`.
+    pub fixed_cg_iterations: usize,
 }
 
 impl Default for SolverSection {
@@ -125,6 +129,7 @@ impl Default for SolverSection {
             accept_unconverged: p.accept_unconverged,
             error_tolerance: p.error_tolerance,
             max_substeps: p.max_substeps,
+            fixed_cg_iterations: p.fixed_cg_iterations,
         }
     }
 }
@@ -314,6 +319,7 @@ impl Scene {
                 accept_unconverged: self.solver.accept_unconverged,
                 error_tolerance: self.solver.error_tolerance,
                 max_substeps: self.solver.max_substeps,
+                fixed_cg_iterations: self.solver.fixed_cg_iterations,
             },
         };
         Ok((model, config))

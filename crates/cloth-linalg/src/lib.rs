@@ -8,6 +8,7 @@
 //! number of threads.
 
 mod block_sparse;
+mod cg;
 mod filter;
 mod multigrid;
 mod par;
@@ -15,6 +16,7 @@ mod pcg;
 mod precond;
 
 pub use block_sparse::{BlockPattern, BlockSparseMatrix, PatternError};
+pub use cg::{CgScratch, cg_fixed_iterations};
 pub use filter::{Constraint, ConstraintFilter, FilterError};
 pub use multigrid::{Aggregation, Multigrid, MultigridError};
 pub use par::{ROW_CHUNK, axpy, dot};
