@@ -41,6 +41,7 @@ fn model() -> ClothModel {
             .map(|(i, j)| border(i, j))
             .collect(),
         effects: Effects { gravity: Some(Vec3::new(0.0, 0.0, -0.5)), damping: true, bending: false },
+        ..ModelSpec::default()
     })
     .unwrap()
 }

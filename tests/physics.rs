@@ -4,13 +4,18 @@
 
 use cloth_core::forces::{SystemBuffers, SystemTerms, assemble, eval_link, potential_energy, total_forces};
 use cloth_core::{
-    ClothModel, Effects, GridPanel, IntegratorKind, LinkType, Mat3, Material, ModelSpec, PcgParams, Simulation,
-    SolverParams, Vec3,
+    ClothModel, Effects, GridPanel, IntegratorKind, LinkType, Mat3, Material, ModelKind, ModelSpec, PcgParams,
+    Simulation, SolverParams, Vec3,
 };
 use cloth_tests::{Rng, max_stretch, same_bits, simulation};
 
 fn small_model(bending: bool, damping: bool, gravity: bool) -> ClothModel {
+    small_model_of(ModelKind::ChoiKo, bending, damping, gravity)
+}
+
+fn small_model_of(kind: ModelKind, bending: bool, damping: bool, gravity: bool) -> ClothModel {
     ClothModel::build(&ModelSpec {
+        kind,
         panels: vec![GridPanel {
             particles: [6, 5],
             size_m: [0.1, 0.08],
@@ -22,6 +27,7 @@ fn small_model(bending: bool, damping: bool, gravity: bool) -> ClothModel {
         material: Material { damping_n_s_m: 0.5, ..Material::default() },
         pins: vec![],
         effects: Effects { gravity: gravity.then(|| Vec3::new(0.0, 0.0, -9.81)), damping, bending },
+        ..ModelSpec::default()
     })
     .unwrap()
 }
@@ -144,15 +150,20 @@ fn jacobian_error(model: &ClothModel, x: &[Vec3], v: &[Vec3], wrt_velocity: bool
 
 type Mat3Sum = Vec<(usize, usize, Mat3)>;
 
-/// The orthogonal term `(phi/d)(I - P)` of every type-2 link, as blocks of df/dx.
+/// The orthogonal term `(phi/d)(I - P)` of every compressed link (every
+/// type-2 link, and Provot's compressed springs), as blocks of df/dx: the
+/// system matrix drops it to stay positive definite.
 fn dropped_type2_terms(model: &ClothModel, x: &[Vec3]) -> Mat3Sum {
     let mut out = Vec::new();
-    for k in model.stretch_links().len()..model.link_count() {
+    for k in 0..model.link_count() {
         let (i, j, _) = model.link_ends(k);
         let xij = x[j] - x[i];
         let d = xij.norm();
         let u = xij / d;
         let phi = eval_link(model, k, x).force.dot(&u);
+        if phi >= 0.0 {
+            continue;
+        }
         let ortho = (Mat3::identity() - u * u.transpose()) * (phi / d);
         out.extend([(i, j, ortho), (j, i, ortho), (i, i, -ortho), (j, j, -ortho)]);
     }
@@ -354,6 +365,7 @@ fn sag_is_resolution_independent() {
                     motion: cloth_core::PinMotion::Fixed,
                 }],
                 effects: Effects { gravity: Some(Vec3::new(0.0, 0.0, -9.81)), damping: true, bending: true },
+                ..ModelSpec::default()
             })
             .unwrap(),
             IntegratorKind::BackwardEuler,
@@ -461,4 +473,63 @@ fn fixed_cg_backward_euler_converges_to_backward_euler() {
         last = diff;
     }
     assert!(last < 1e-8, "400 iterations still {last} m from backward Euler");
+}
+
+/// Provot's linear springs pass the same energy and Jacobian checks
+/// (compressed springs lose only their orthogonal term in the matrix).
+#[test]
+fn provot_forces_and_jacobians_match_finite_differences() {
+    let model = small_model_of(ModelKind::Provot, true, false, true);
+    assert!(model.stretch_links().iter().all(|l| !l.tension_only));
+    let mut rng = Rng(21);
+    let x = perturbed(&model, &mut rng, 2e-3);
+    let zero = vec![Vec3::zeros(); x.len()];
+    let f = total_forces(&model, &x, &zero);
+    let scale = f.iter().map(|v| v.norm()).fold(0.0, f64::max);
+    let h = 1e-7;
+    for i in 0..x.len() {
+        for c in 0..3 {
+            let (mut xp, mut xm) = (x.clone(), x.clone());
+            xp[i][c] += h;
+            xm[i][c] -= h;
+            let grad = (potential_energy(&model, &xp) - potential_energy(&model, &xm)) / (2.0 * h);
+            assert!((f[i][c] + grad).abs() <= 1e-5 * scale, "particle {i} component {c}");
+        }
+    }
+    let dropped = dropped_type2_terms(&model, &x);
+    assert!(!dropped.is_empty(), "some Provot springs are compressed");
+    let err = jacobian_error(&model, &x, &zero, false, &dropped);
+    assert!(err < 1e-6, "Provot Jacobian error {err:e}");
+}
+
+/// Provot's deformation constraints: with them no structural or shear link
+/// ends a step longer than (1 + tau_c) L, pins never move, and without them
+/// the soft cloth does overstretch at its pinned corners.
+#[test]
+fn deformation_constraints_bound_the_stretch() {
+    let base = ["simulation.model=provot", "material.tensile_stiffness_n_m=5.0", "panels.0.particles=[15, 15]"];
+    let pins = "pins.0.nodes=[[0, 14], [14, 14]]";
+    let run = |extra: &[&str]| {
+        let mut o: Vec<&str> = base.to_vec();
+        o.push(pins);
+        o.extend_from_slice(extra);
+        let (mut sim, cfg) = simulation("hang.toml", &o);
+        let mut worst: f64 = 0.0;
+        for _ in 0..60 {
+            sim.step(cfg.dt_s).unwrap();
+            worst = worst.max(max_stretch(sim.model(), &sim.state().x));
+            for pin in sim.model().pins() {
+                assert_eq!(sim.state().x[pin.particle], pin.anchor);
+            }
+        }
+        worst
+    };
+    let free = run(&[]);
+    assert!(free > 1.2, "without constraints the soft cloth should overstretch, got {free}");
+    let limited = run(&[
+        "simulation.effects=[\"gravity\", \"bending\", \"damping\", \"strain-limit\"]",
+        "constraints.max_strain=0.1",
+        "constraints.passes=5000",
+    ]);
+    assert!(limited <= 1.1 * (1.0 + 1e-9), "max stretch {limited} with tau_c = 0.1");
 }

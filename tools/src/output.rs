@@ -40,6 +40,8 @@ pub struct Summary {
     pub stretch_links: usize,
     pub bend_links: usize,
     pub effects: Vec<String>,
+    /// The discretisation (`choiko` or `provot`).
+    pub model: String,
     pub integrator: String,
     pub threads: usize,
     pub steps: u64,

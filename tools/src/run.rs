@@ -120,11 +120,8 @@ fn simulate(
         particles: model.particle_count(),
         stretch_links: model.stretch_links().len(),
         bend_links: model.bend_links().len(),
-        effects: [EffectName::Gravity, EffectName::Damping, EffectName::Bending]
-            .into_iter()
-            .filter(|e| scene.has_effect(*e))
-            .map(|e| format!("{e:?}").to_lowercase())
-            .collect(),
+        effects: EffectName::ALL.into_iter().filter(|e| scene.has_effect(*e)).map(|e| e.name().to_string()).collect(),
+        model: format!("{:?}", scene.simulation.model).to_lowercase(),
         integrator: cfg.integrator.name().to_string(),
         threads,
         steps,

@@ -12,7 +12,7 @@
 
 use crate::{
     ClothModel, Mat3, Vec3,
-    laws::{ScalarLaw, directional_damping, pair_stiffness, tension_spring},
+    laws::{ScalarLaw, directional_damping, pair_stiffness},
 };
 use cloth_linalg::{BlockSparseMatrix, ROW_CHUNK};
 use rayon::prelude::*;
@@ -35,10 +35,14 @@ fn unit_and_length(xij: Vec3) -> (Vec3, f64) {
     if d > 0.0 { (xij / d, d) } else { (Vec3::zeros(), 0.0) }
 }
 
-fn eval_with(law: ScalarLaw, u: Vec3, d: f64, keep_orthogonal: bool, k_d: f64) -> LinkEval {
+/// A link's evaluation. The orthogonal stiffness `(phi/d)(I - P)` is kept
+/// only in tension: in compression it is negative and would make the
+/// system indefinite, so it is dropped from the matrix (Choi & Ko's
+/// treatment of type-2 links, applied to every compressed link).
+fn eval_with(law: ScalarLaw, u: Vec3, d: f64, k_d: f64) -> LinkEval {
     LinkEval {
         force: u * law.phi,
-        stiffness: pair_stiffness(&u, d, &law, keep_orthogonal),
+        stiffness: pair_stiffness(&u, d, &law, law.phi > 0.0),
         damping: if k_d > 0.0 { directional_damping(&u, k_d) } else { Mat3::zeros() },
         energy: law.energy,
     }
@@ -51,11 +55,11 @@ pub fn eval_link(model: &ClothModel, k: usize, x: &[Vec3]) -> LinkEval {
     if k < ns {
         let l = &model.stretch_links()[k];
         let (u, d) = unit_and_length(x[l.j as usize] - x[l.i as usize]);
-        eval_with(tension_spring(d, l.rest, l.k_s), u, d, true, l.k_d)
+        eval_with(l.eval(d), u, d, l.k_d)
     } else {
         let l = &model.bend_links()[k - ns];
         let (u, d) = unit_and_length(x[l.j as usize] - x[l.i as usize]);
-        eval_with(l.law.eval(d), u, d, false, 0.0)
+        eval_with(l.law.eval(d), u, d, 0.0)
     }
 }
 
@@ -78,7 +82,7 @@ pub fn link_force(model: &ClothModel, k: usize, x: &[Vec3], v: &[Vec3]) -> Vec3 
         let l = &model.stretch_links()[k];
         let (i, j) = (l.i as usize, l.j as usize);
         let (u, d) = unit_and_length(x[j] - x[i]);
-        let elastic = u * tension_spring(d, l.rest, l.k_s).phi;
+        let elastic = u * l.eval(d).phi;
         if l.k_d > 0.0 { elastic + u * (l.k_d * u.dot(&(v[j] - v[i]))) } else { elastic }
     } else {
         let l = &model.bend_links()[k - ns];

@@ -144,6 +144,8 @@ pub struct StepReport {
     pub substeps: usize,
     /// Rejected substeps of the adaptive integrator.
     pub rejected_steps: usize,
+    /// Links shortened by the deformation constraints after the step.
+    pub strain_corrections: usize,
     /// PCG iterations.
     pub cg_iterations: usize,
     /// Final relative residual of PCG.

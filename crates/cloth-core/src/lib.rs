@@ -7,6 +7,7 @@
 //! with a pattern built once -> PCG with pins as Baraff-Witkin constraints ->
 //! new state. Units are SI throughout.
 
+mod constraints;
 mod explicit;
 pub mod forces;
 mod integrator;
@@ -21,12 +22,14 @@ mod state;
 mod topology;
 
 pub use cloth_linalg::{PcgParams, PreconditionerKind};
+pub use constraints::{StrainLimitReport, apply_strain_limit};
 pub use integrator::{
     BackwardEuler, Bdf2, Integrator, IntegratorKind, SolverParams, StageTimes, StepError, StepReport, Workspace,
 };
 pub use material::{LinkConstants, Material};
 pub use model::{
-    BendLink, ClothModel, Edge, Effects, Incidence, ModelError, ModelSpec, PanelRange, PinSpec, StretchLink,
+    BendLaw, BendLink, ClothModel, Edge, Effects, Incidence, ModelError, ModelKind, ModelSpec, PanelRange, PinSpec,
+    StrainLimit, StretchLink,
 };
 pub use pins::{Pin, PinMotion};
 pub use sim::Simulation;

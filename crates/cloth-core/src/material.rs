@@ -17,11 +17,18 @@
 //! | `areal_density` rho | kg/m^2 | mass of particle = rho x its share of cell area |
 //! | `tensile_stiffness` E | N/m | type-1 `k_s = (2/3) E A / L^2` (N/m) |
 //! | `flexural_rigidity` B | N m | type-2 `k_b = (2/3) B A / L` (N m^2) |
-//! | `buckling_stiffness` C_b | N/m | type-2 ramp `c_b = (2/3) C_b A / L^2` (N/m) |
+//! | `buckling_stiffness` C_b | N/m | type-2 ramp `c_b = (2/3) C_b A / L^2` (N/m); Provot flexion spring `k_f = C_b A / L^2` |
 //! | `damping` D | N s/m | type-1 `k_d = (2/3) D A / L^2` (N s/m) |
 //!
 //! With type-1 links only in tension, the in-plane shear modulus that
 //! results is about `E / 6` (one diagonal per cell carries shear).
+//!
+//! Provot's linear structural and shear springs use the same `k_s`. His
+//! flexion springs (`i+2`, `j+2` only: two families, hence no 2/3) resist
+//! bending only through the change of their chord, which is second order
+//! in the deflection: no spring constant reproduces a flexural rigidity, so
+//! they take the membrane's compressive stiffness `C_b` and the model has
+//! no term in `B`. That difference is part of what the models compare.
 
 use serde::{Deserialize, Serialize};
 
@@ -57,6 +64,8 @@ pub struct LinkConstants {
     pub k_b: f64,
     /// Type-2 ramp slope `c_b`, N/m.
     pub c_b: f64,
+    /// Provot flexion spring stiffness `k_f`, N/m (axis-aligned links only).
+    pub k_flexion: f64,
 }
 
 impl Material {
@@ -69,6 +78,7 @@ impl Material {
             k_d: w * self.damping_n_s_m / (rest * rest),
             k_b: w * self.flexural_rigidity_n_m / rest,
             c_b: w * self.buckling_stiffness_n_m / (rest * rest),
+            k_flexion: cell_area * self.buckling_stiffness_n_m / (rest * rest),
         }
     }
 

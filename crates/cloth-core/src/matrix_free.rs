@@ -96,6 +96,7 @@ impl crate::Integrator for BackwardEulerFixedCg {
             force_evaluations: 1,
             substeps: 1,
             rejected_steps: 0,
+            strain_corrections: 0,
             cg_iterations: info.iterations,
             rel_residual: info.rel_residual,
             converged: true,

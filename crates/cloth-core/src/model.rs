@@ -1,7 +1,10 @@
 //! The immutable cloth model: particles, links grouped by law, pins, the
 //! effects a scene asked for, and the system matrix's sparsity pattern.
 
-use crate::{GridPanel, LinkType, Material, Pin, PinMotion, Vec3, laws::BucklingLaw};
+use crate::{
+    GridPanel, LinkType, Material, Pin, PinMotion, Vec3,
+    laws::{BucklingLaw, ScalarLaw, linear_spring, tension_spring},
+};
 use cloth_linalg::{Aggregation, BlockPattern, Multigrid};
 use serde::{Deserialize, Serialize};
 
@@ -54,7 +57,7 @@ fn fixed() -> PinMotion {
 }
 
 /// Everything needed to build a [`ClothModel`].
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct ModelSpec {
     /// The cloth panels (particles are numbered panel after panel, `j * nx + i` within one).
     pub panels: Vec<GridPanel>,
@@ -64,6 +67,10 @@ pub struct ModelSpec {
     pub pins: Vec<PinSpec>,
     /// Effects to compute.
     pub effects: Effects,
+    /// The discretisation.
+    pub kind: ModelKind,
+    /// Deformation constraints, if any.
+    pub strain_limit: Option<StrainLimit>,
 }
 
 /// Why a model could not be built. Field paths match the scene file's keys.
@@ -100,9 +107,52 @@ pub enum ModelError {
         /// What is wrong.
         message: String,
     },
+    /// The deformation constraints are invalid.
+    #[error("constraints.{field}: {message}")]
+    StrainLimit {
+        /// Offending field.
+        field: &'static str,
+        /// What is wrong.
+        message: String,
+    },
     /// Gravity is not finite.
     #[error("simulation.gravity_m_s2: must be finite, got {0:?}")]
     Gravity([f64; 3]),
+}
+
+/// Which discretisation of the fabric a model uses. Both take the same
+/// [`Material`]; see [`Material`]'s docs for the constants.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ModelKind {
+    /// Choi & Ko (2002): tension-only type-1 springs, type-2 buckling links
+    /// (circular-arc law with the `c_b` ramp) on `i+2`, `j+2` and both
+    /// skip-one diagonals.
+    #[default]
+    ChoiKo,
+    /// Provot (1995): linear structural and shear springs (tension and
+    /// compression) and linear flexion springs on `i+2`, `j+2`.
+    Provot,
+}
+
+/// Provot's (1995) deformation constraints: after each step, every
+/// structural and shear (type-1) link longer than `(1 + max_strain) L` is
+/// shortened back to that length by moving its free ends (split equally
+/// when both are free, never moving pinned ones), in link order, for up to
+/// `passes` passes or until none is too long.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct StrainLimit {
+    /// Largest allowed strain `tau_c` (dimensionless; Provot: 0.1).
+    pub max_strain: f64,
+    /// Most passes over the links per step.
+    pub passes: usize,
+}
+
+impl Default for StrainLimit {
+    fn default() -> Self {
+        Self { max_strain: 0.1, passes: 10 }
+    }
 }
 
 /// A type-1 link: tension-only spring with directional damping.
@@ -118,17 +168,60 @@ pub struct StretchLink {
     pub k_s: f64,
     /// Damping, N s/m (0 when the damping effect is off).
     pub k_d: f64,
+    /// Choi-Ko's tension-only spring (true) or Provot's linear spring.
+    pub tension_only: bool,
 }
 
-/// A type-2 link: Choi-Ko buckling law with its ramp.
+impl StretchLink {
+    /// The spring law at chord `d` (m).
+    #[inline]
+    pub fn eval(&self, d: f64) -> ScalarLaw {
+        if self.tension_only { tension_spring(d, self.rest, self.k_s) } else { linear_spring(d, self.rest, self.k_s) }
+    }
+}
+
+/// The law of a bending link.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum BendLaw {
+    /// Choi & Ko's buckling law.
+    Buckling(BucklingLaw),
+    /// Provot's linear flexion spring.
+    Flexion {
+        /// Rest length, m.
+        rest: f64,
+        /// Stiffness, N/m.
+        k: f64,
+    },
+}
+
+impl BendLaw {
+    /// The law at chord `d` (m).
+    #[inline]
+    pub fn eval(&self, d: f64) -> ScalarLaw {
+        match self {
+            BendLaw::Buckling(b) => b.eval(d),
+            BendLaw::Flexion { rest, k } => linear_spring(d, *rest, *k),
+        }
+    }
+
+    /// Rest length, m.
+    pub fn rest(&self) -> f64 {
+        match self {
+            BendLaw::Buckling(b) => b.rest,
+            BendLaw::Flexion { rest, .. } => *rest,
+        }
+    }
+}
+
+/// A bending link: Choi-Ko type-2 (buckling law) or Provot flexion spring.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BendLink {
     /// First particle.
     pub i: u32,
     /// Second particle.
     pub j: u32,
-    /// The law with its constants (rest length = arc length of the buckled beam).
-    pub law: BucklingLaw,
+    /// The law with its constants.
+    pub law: BendLaw,
 }
 
 /// One link incident to a particle, as seen from that particle's matrix row.
@@ -166,6 +259,8 @@ pub struct ClothModel {
     pinned: Vec<bool>,
     effects: Effects,
     material: Material,
+    kind: ModelKind,
+    strain_limit: Option<StrainLimit>,
     panels: Vec<PanelRange>,
     triangles: Vec<[u32; 3]>,
     inc_ptr: Vec<usize>,
@@ -221,16 +316,22 @@ impl ClothModel {
                     rest,
                     k_s: c.k_s,
                     k_d: if damping { c.k_d } else { 0.0 },
+                    tension_only: spec.kind == ModelKind::ChoiKo,
                 });
             }
             if spec.effects.bending {
-                for link in &mesh.interlaced {
+                let links = if spec.kind == ModelKind::Provot { &mesh.flexion } else { &mesh.interlaced };
+                for link in links {
                     let rest = rest_of(*link);
                     let c = spec.material.link_constants(rest, mesh.cell_area);
                     if degenerate(rest, &c) {
                         return Err(degenerate_err());
                     }
-                    bend.push(BendLink { i: at(link[0]), j: at(link[1]), law: BucklingLaw::new(rest, c.k_b, c.c_b) });
+                    let law = match spec.kind {
+                        ModelKind::ChoiKo => BendLaw::Buckling(BucklingLaw::new(rest, c.k_b, c.c_b)),
+                        ModelKind::Provot => BendLaw::Flexion { rest, k: c.k_flexion },
+                    };
+                    bend.push(BendLink { i: at(link[0]), j: at(link[1]), law });
                 }
             }
             triangles.extend(mesh.triangles.iter().map(|t| t.map(at)));
@@ -240,6 +341,17 @@ impl ClothModel {
         }
         let n = mass.len();
         let (pins, pinned) = build_pins(spec, &panels, &rest_positions)?;
+        if let Some(limit) = spec.strain_limit {
+            if !(limit.max_strain.is_finite() && limit.max_strain >= 0.0) {
+                return Err(ModelError::StrainLimit {
+                    field: "max_strain",
+                    message: format!("must be finite and >= 0, got {}", limit.max_strain),
+                });
+            }
+            if limit.passes == 0 {
+                return Err(ModelError::StrainLimit { field: "passes", message: "must be >= 1".into() });
+            }
+        }
 
         // Sparsity pattern and per-row incidence, in a fixed (link) order.
         let pairs = stretch
@@ -275,6 +387,8 @@ impl ClothModel {
             pinned,
             effects: spec.effects,
             material: spec.material,
+            kind: spec.kind,
+            strain_limit: spec.strain_limit,
             panels,
             triangles,
             inc_ptr,
@@ -332,6 +446,14 @@ impl ClothModel {
     /// The material.
     pub fn material(&self) -> &Material {
         &self.material
+    }
+    /// The discretisation.
+    pub fn kind(&self) -> ModelKind {
+        self.kind
+    }
+    /// Deformation constraints, if the model has them.
+    pub fn strain_limit(&self) -> Option<StrainLimit> {
+        self.strain_limit
     }
     /// Panels, in particle order.
     pub fn panels(&self) -> &[PanelRange] {

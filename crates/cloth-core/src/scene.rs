@@ -8,11 +8,12 @@
 //!
 //! ```toml
 //! [simulation]
+//! model = "choi-ko"           # or "provot"
 //! integrator = "bdf2"          # backward-euler, backward-euler-fixed-cg, forward-euler,
 //!                              # symplectic-euler, midpoint, rk4, dopri5
 //! dt_s = 0.011111111111111112  # s
 //! duration_s = 2.0             # s
-//! effects = ["gravity", "bending", "damping"]
+//! effects = ["gravity", "bending", "damping"]   # also "strain-limit"
 //! gravity_m_s2 = [0.0, 0.0, -9.81]
 //!
 //! [solver]                     # optional, these are the defaults
@@ -39,11 +40,15 @@
 //! [[pins]]
 //! nodes = [[0, 40], [40, 40]]
 //! motion = { kind = "fixed" }
+//!
+//! [constraints]                # optional; used with the "strain-limit" effect
+//! max_strain = 0.1
+//! passes = 10
 //! ```
 
 use crate::{
-    ClothModel, Effects, GridPanel, IntegratorKind, Material, ModelSpec, PcgParams, PinSpec, PreconditionerKind,
-    SolverParams, Vec3,
+    ClothModel, Effects, GridPanel, IntegratorKind, Material, ModelKind, ModelSpec, PcgParams, PinSpec,
+    PreconditionerKind, SolverParams, StrainLimit, Vec3,
 };
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -64,6 +69,9 @@ pub struct Scene {
     /// Pinned nodes.
     #[serde(default)]
     pub pins: Vec<PinSpec>,
+    /// Provot's deformation constraints (used when `strain-limit` is listed).
+    #[serde(default)]
+    pub constraints: StrainLimit,
 }
 
 /// An effect a scene can ask for.
@@ -74,8 +82,11 @@ pub enum EffectName {
     Gravity,
     /// Directional damping along type-1 links (`material.damping_n_s_m`).
     Damping,
-    /// Type-2 buckling links (`material.flexural_rigidity_n_m`, `buckling_stiffness_n_m`).
+    /// Bending links: Choi-Ko type-2 buckling links, or Provot's flexion
+    /// springs (`material.flexural_rigidity_n_m`, `buckling_stiffness_n_m`).
     Bending,
+    /// Provot's deformation constraints (`[constraints]`).
+    StrainLimit,
 }
 
 /// `[simulation]`.
@@ -84,6 +95,9 @@ pub enum EffectName {
 pub struct SimulationSection {
     /// Integrator.
     pub integrator: IntegratorKind,
+    /// Discretisation of the fabric (default `choi-ko`).
+    #[serde(default)]
+    pub model: ModelKind,
     /// Time step, s.
     pub dt_s: f64,
     /// Simulated duration, s.
@@ -198,6 +212,22 @@ pub enum SceneErrorKind {
     },
 }
 
+impl EffectName {
+    /// Every effect.
+    pub const ALL: [EffectName; 4] =
+        [EffectName::Gravity, EffectName::Damping, EffectName::Bending, EffectName::StrainLimit];
+
+    /// Name as written in scene files.
+    pub fn name(self) -> &'static str {
+        match self {
+            EffectName::Gravity => "gravity",
+            EffectName::Damping => "damping",
+            EffectName::Bending => "bending",
+            EffectName::StrainLimit => "strain-limit",
+        }
+    }
+}
+
 impl Scene {
     /// Reads `path`, applies `overrides` (`a.b=value`, array elements by
     /// index: `panels.0.particles=[75, 75]`), parses and validates.
@@ -268,6 +298,14 @@ impl Scene {
         if v.max_substeps == 0 {
             return Err(invalid("solver.max_substeps", "must be >= 1".into()));
         }
+        // Checked even when the effect is not listed: a bad value is never silently kept.
+        let c = &self.constraints;
+        if !(c.max_strain.is_finite() && c.max_strain >= 0.0) {
+            return Err(invalid("constraints.max_strain", format!("must be finite and >= 0, got {}", c.max_strain)));
+        }
+        if c.passes == 0 {
+            return Err(invalid("constraints.passes", "must be >= 1".into()));
+        }
         Ok(())
     }
 
@@ -287,6 +325,8 @@ impl Scene {
                 damping: self.has_effect(EffectName::Damping),
                 bending: self.has_effect(EffectName::Bending),
             },
+            kind: self.simulation.model,
+            strain_limit: self.has_effect(EffectName::StrainLimit).then_some(self.constraints),
         }
     }
 
@@ -445,6 +485,7 @@ nodes = [[0, 3]]
             ("solver.rel_tol=2.0", "solver.rel_tol"),
             ("solver.error_tolerance=0.0", "solver.error_tolerance"),
             ("solver.max_substeps=0", "solver.max_substeps"),
+            ("constraints.max_strain=-0.1", "constraints.max_strain"),
             ("panels.0.particles=[1, 4]", "panels[0].particles"),
             ("panels.0.size_m=[1.0, inf]", "panels[0].size_m"),
             ("panels.0.size_m=[1e-200, 1e-200]", "panels[0].size_m"),

@@ -1,6 +1,7 @@
 //! A simulation: an immutable model, the explicit state, an integrator and
 //! its scratch space.
 
+use crate::apply_strain_limit;
 use crate::{ClothModel, ClothState, Integrator, IntegratorKind, SolverParams, StepError, StepReport, Workspace};
 use std::sync::Arc;
 
@@ -27,9 +28,17 @@ impl Simulation {
         }
     }
 
-    /// Advances by `h` seconds. On error the state is unchanged.
+    /// Advances by `h` seconds, then applies the model's deformation
+    /// constraints if it has them. On error the state is unchanged.
     pub fn step(&mut self, h: f64) -> Result<StepReport, StepError> {
-        self.integrator.step(&self.model, &mut self.state, h, &mut self.workspace, &self.solver)
+        let mut report = self.integrator.step(&self.model, &mut self.state, h, &mut self.workspace, &self.solver)?;
+        if let Some(limit) = self.model.strain_limit() {
+            let t = std::time::Instant::now();
+            let ClothState { x, v, .. } = &mut self.state;
+            report.strain_corrections = apply_strain_limit(&self.model, &limit, x, v, h).corrections;
+            report.stages.update_s += t.elapsed().as_secs_f64();
+        }
+        Ok(report)
     }
 
     /// Simulated time, s.

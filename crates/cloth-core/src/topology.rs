@@ -62,6 +62,8 @@ pub struct PanelMesh {
     pub sequential: Vec<[u32; 2]>,
     /// Type-2 links.
     pub interlaced: Vec<[u32; 2]>,
+    /// Provot's flexion links: type-2 links along the axes only (`i+2`, `j+2`).
+    pub flexion: Vec<[u32; 2]>,
     /// Two triangles per cell, counter-clockwise seen from `u x v`.
     pub triangles: Vec<[u32; 3]>,
 }
@@ -168,14 +170,16 @@ impl GridPanel {
             };
             Some(self.index(ii, jj) as u32)
         };
-        let links = |step: usize| -> Vec<[u32; 2]> {
+        let links = |step: usize, diagonals: bool| -> Vec<[u32; 2]> {
             let s = step as isize;
+            let offsets = [(s, 0), (0, step), (s, step), (-s, step)];
+            let offsets = if diagonals { &offsets[..] } else { &offsets[..2] };
             let mut out = Vec::with_capacity(4 * nx * ny);
             let mut seen = std::collections::HashSet::new();
             for j in 0..ny {
                 for i in 0..nx {
                     let a = self.index(i, j) as u32;
-                    for (di, dj) in [(s, 0), (0, step), (s, step), (-s, step)] {
+                    for &(di, dj) in offsets {
                         if let Some(b) = neighbour(i, j, di, dj)
                             && a != b
                             && seen.insert((a.min(b), a.max(b)))
@@ -204,7 +208,15 @@ impl GridPanel {
                 triangles.push([a, c, d]);
             }
         }
-        Ok(PanelMesh { positions, area_share, cell_area, sequential: links(1), interlaced: links(2), triangles })
+        Ok(PanelMesh {
+            positions,
+            area_share,
+            cell_area,
+            sequential: links(1, true),
+            interlaced: links(2, true),
+            flexion: links(2, false),
+            triangles,
+        })
     }
 }
 
@@ -231,6 +243,7 @@ mod tests {
         assert_eq!(m.sequential.len(), (nx - 1) * ny + nx * (ny - 1) + 2 * (nx - 1) * (ny - 1));
         assert_eq!(m.interlaced.len(), (nx - 2) * ny + nx * (ny - 2) + 2 * (nx - 2) * (ny - 2));
         assert_eq!(m.triangles.len(), 2 * (nx - 1) * (ny - 1));
+        assert_eq!(m.flexion.len(), (nx - 2) * ny + nx * (ny - 2));
         let area: f64 = m.area_share.iter().sum();
         assert!((area - 0.5).abs() < 1e-15);
         assert!((m.positions[m.positions.len() - 1] - Vec3::new(1.0, 0.5, 0.0)).norm() < 1e-15);
