@@ -19,7 +19,7 @@ pub fn load(name: &str, overrides: &[&str]) -> (ClothModel, RunConfig) {
 /// A simulation of a fixture scene.
 pub fn simulation(name: &str, overrides: &[&str]) -> (Simulation, RunConfig) {
     let (model, cfg) = load(name, overrides);
-    (Simulation::new(model, cfg.integrator, cfg.solver), cfg)
+    (cfg.simulation(model), cfg)
 }
 
 /// Largest type-1 length / rest length.

@@ -2,6 +2,8 @@
 
 mod output;
 mod run;
+mod study;
+mod svg;
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
@@ -51,6 +53,20 @@ enum Command {
         #[arg(long, default_value_t = 5)]
         repeat: usize,
     },
+    /// Reproduce Volino & Magnenat-Thalmann's (2001) comparison of integrators.
+    Study {
+        #[command(subcommand)]
+        study: StudyKind,
+        /// Output directory for CSV, Markdown and SVG.
+        #[arg(long, global = true, default_value = "docs/results")]
+        out: PathBuf,
+        /// Worker threads.
+        #[arg(long, global = true, default_value_t = 2)]
+        threads: usize,
+        /// A small sweep (for tests and a quick look).
+        #[arg(long, global = true)]
+        quick: bool,
+    },
     /// Check a scene without running it.
     Validate {
         /// Scene file (TOML).
@@ -61,6 +77,12 @@ enum Command {
     },
 }
 
+#[derive(Subcommand)]
+enum StudyKind {
+    /// Fall time against the condition coefficient K, per method and model.
+    Freefall,
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
@@ -69,6 +91,12 @@ fn main() -> ExitCode {
         }
         Command::Validate { scene, overrides } => run::validate(&scene, &overrides),
         Command::Time { scene, overrides, threads, repeat } => run::time(&scene, &overrides, threads, repeat),
+        Command::Study { study, out, threads, quick } => {
+            let args = study::StudyArgs { out, threads, quick };
+            match study {
+                StudyKind::Freefall => study::freefall(&args),
+            }
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -58,7 +58,7 @@ fn simulate(
     if let Some((_, dir)) = &frames {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
-    let mut sim = Simulation::new(model, cfg.integrator, cfg.solver);
+    let mut sim = cfg.simulation(model);
     let bar = if progress { ProgressBar::new(cfg.steps) } else { ProgressBar::hidden() };
     bar.set_style(
         ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} steps  {msg}")

@@ -120,3 +120,28 @@ fn time_prints_a_table_row_of_medians() {
     assert_eq!(cells[4], "9", "{row}");
     assert!(cells[6].parse::<f64>().unwrap() > 0.0, "{row}");
 }
+
+#[test]
+fn study_freefall_writes_csv_markdown_and_svg() {
+    let out = out_dir("study");
+    let status = cloth()
+        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+        .args(["study", "freefall", "--quick", "--out"])
+        .arg(&out)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let csv = std::fs::read_to_string(out.join("freefall.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().collect();
+    assert!(rows[0].starts_with("model,method,K,"));
+    assert_eq!(rows.len(), 1 + 3 * 2, "3 methods x 2 K values");
+    // BDF2 with a converged solve falls exactly like the analytic body at any K.
+    for row in rows.iter().filter(|r| r.contains("BDF2")) {
+        let fall: f64 = row.split(',').nth(5).unwrap().parse().unwrap();
+        assert!((fall - 0.4472).abs() < 0.002, "{row}");
+    }
+    let md = std::fs::read_to_string(out.join("freefall.md")).unwrap();
+    assert!(md.contains("Machine:") && md.contains("study freefall"));
+    let svg = std::fs::read_to_string(out.join("freefall_provot.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("<path"));
+}

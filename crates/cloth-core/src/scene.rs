@@ -107,6 +107,12 @@ pub struct SimulationSection {
     /// Gravitational acceleration, m/s^2 (used when `gravity` is listed).
     #[serde(default = "default_gravity")]
     pub gravity_m_s2: [f64; 3],
+    /// Random displacement of each free particle at the start, up to this
+    /// many metres per component (deterministic; default 0). Perfect
+    /// symmetry hides instabilities: a perfectly flat cloth in free fall
+    /// has no internal force to go unstable.
+    #[serde(default)]
+    pub initial_jitter_m: f64,
 }
 
 fn default_gravity() -> [f64; 3] {
@@ -173,6 +179,20 @@ pub struct RunConfig {
     pub steps: u64,
     /// Solver settings.
     pub solver: SolverParams,
+    /// Amplitude of the initial position jitter, m (0: start exactly at rest).
+    pub initial_jitter_m: f64,
+}
+
+impl RunConfig {
+    /// The simulation a scene describes, in its initial state.
+    pub fn simulation(&self, model: ClothModel) -> crate::Simulation {
+        let mut sim = crate::Simulation::new(model, self.integrator, self.solver);
+        if self.initial_jitter_m > 0.0 {
+            let state = crate::ClothState::jittered(sim.model(), self.initial_jitter_m);
+            sim.restore(&state).expect("a state built for this model");
+        }
+        sim
+    }
 }
 
 /// A scene error: the file and what is wrong with it.
@@ -274,6 +294,12 @@ impl Scene {
         if !(s.duration_s.is_finite() && s.duration_s >= 0.0) {
             return Err(invalid("simulation.duration_s", format!("must be finite and >= 0, got {}", s.duration_s)));
         }
+        if !(s.initial_jitter_m.is_finite() && s.initial_jitter_m >= 0.0) {
+            return Err(invalid(
+                "simulation.initial_jitter_m",
+                format!("must be finite and >= 0, got {}", s.initial_jitter_m),
+            ));
+        }
         if s.duration_s / s.dt_s > 1e9 {
             return Err(invalid("simulation.duration_s", "more than 1e9 steps".into()));
         }
@@ -345,6 +371,7 @@ impl Scene {
             integrator: s.integrator,
             dt_s: s.dt_s,
             steps: (s.duration_s / s.dt_s).round() as u64,
+            initial_jitter_m: s.initial_jitter_m,
             solver: SolverParams {
                 pcg: PcgParams {
                     rel_tol: self.solver.rel_tol,

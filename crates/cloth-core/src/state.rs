@@ -45,6 +45,18 @@ impl ClothState {
         }
     }
 
+    /// The rest shape with every free particle displaced by a deterministic
+    /// pseudo-random offset of at most `amplitude` m per component.
+    pub fn jittered(model: &ClothModel, amplitude: f64) -> Self {
+        let mut s = Self::at_rest(model);
+        for (i, x) in s.x.iter_mut().enumerate() {
+            if !model.is_pinned(i) {
+                *x += Vec3::new(unit_noise(3 * i), unit_noise(3 * i + 1), unit_noise(3 * i + 2)) * amplitude;
+            }
+        }
+        s
+    }
+
     /// Number of particles.
     pub fn len(&self) -> usize {
         self.x.len()
@@ -68,4 +80,13 @@ impl ClothState {
             }
         })
     }
+}
+
+/// A hash of `k` mapped to [-1, 1) (splitmix64): reproducible noise.
+fn unit_noise(k: usize) -> f64 {
+    let mut z = (k as u64).wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^= z >> 31;
+    (z >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
 }
