@@ -81,6 +81,12 @@ enum Command {
 enum StudyKind {
     /// Fall time against the condition coefficient K, per method and model.
     Freefall,
+    /// Steps, CG iterations and wall time to drape to the vertical, against h.
+    Drape,
+    /// Time per polygon per step, per method and model, across grid sizes.
+    Cost,
+    /// Error against a converged reference versus wall time (work-precision).
+    Precision,
 }
 
 fn main() -> ExitCode {
@@ -95,6 +101,9 @@ fn main() -> ExitCode {
             let args = study::StudyArgs { out, threads, quick };
             match study {
                 StudyKind::Freefall => study::freefall(&args),
+                StudyKind::Drape => study::drape(&args),
+                StudyKind::Cost => study::cost(&args),
+                StudyKind::Precision => study::precision(&args),
             }
         }
     };

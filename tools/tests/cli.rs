@@ -145,3 +145,24 @@ fn study_freefall_writes_csv_markdown_and_svg() {
     let svg = std::fs::read_to_string(out.join("freefall_provot.svg")).unwrap();
     assert!(svg.starts_with("<svg") && svg.contains("<path"));
 }
+
+#[test]
+fn study_cost_reports_every_method_and_model() {
+    let out = out_dir("cost");
+    let status = cloth()
+        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+        .args(["study", "cost", "--quick", "--out"])
+        .arg(&out)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let csv = std::fs::read_to_string(out.join("cost.csv")).unwrap();
+    // 2 models x 11 methods (10 + BE 0 CG) x 2 sizes.
+    assert_eq!(csv.lines().count(), 1 + 2 * 11 * 2);
+    for row in csv.lines().skip(1) {
+        let us: f64 = row.split(',').nth(6).unwrap().parse().unwrap();
+        assert!(us > 0.0 && us.is_finite(), "{row}");
+    }
+    let md = std::fs::read_to_string(out.join("cost.md")).unwrap();
+    assert!(md.contains("BE per CG iteration"));
+}
