@@ -96,6 +96,9 @@ pub struct SolverParams {
     pub max_substeps: usize,
     /// CG iterations per step of `backward-euler-fixed-cg`. Default 4.
     pub fixed_cg_iterations: usize,
+    /// Newton iterations per step of `backward-euler` and `bdf2` (1: Choi &
+    /// Ko's and Baraff & Witkin's single linearised step). Default 1.
+    pub newton_iterations: usize,
 }
 
 impl Default for SolverParams {
@@ -109,6 +112,7 @@ impl Default for SolverParams {
             error_tolerance: 1e-4,
             max_substeps: 100_000,
             fixed_cg_iterations: 4,
+            newton_iterations: 1,
         }
     }
 }
@@ -221,6 +225,8 @@ pub struct Workspace {
     pub(crate) aux2: Vec<Vec3>,
     pub(crate) new_x: Vec<Vec3>,
     pub(crate) new_v: Vec<Vec3>,
+    newton_u: Vec<Vec3>,
+    newton_y: Vec<Vec3>,
     /// Stage storage of the explicit integrators (allocated on first use).
     pub(crate) explicit: Option<ExplicitBuffers>,
     /// Buffers of the matrix-free solver (allocated on first use).
@@ -244,6 +250,8 @@ impl Workspace {
             aux2: vec![Vec3::zeros(); n],
             new_x: vec![Vec3::zeros(); n],
             new_v: vec![Vec3::zeros(); n],
+            newton_u: vec![Vec3::zeros(); n],
+            newton_y: vec![Vec3::zeros(); n],
             explicit: None,
             matrix_free: None,
         }
@@ -337,6 +345,13 @@ pub(crate) trait Linearised {
     fn guess(&self, state: &ClothState, aux: &[Vec3], i: usize) -> Vec3;
     /// New `(x, v)` of particle `i` from the solved unknown.
     fn advance(&self, state: &ClothState, aux: &[Vec3], h: f64, i: usize, unknown: Vec3) -> (Vec3, Vec3);
+    /// For a Newton correction at iterate `u`: the `y` of the `M y` term of
+    /// the negative residual, particle `i`.
+    fn newton_mass_term(&self, aux2: &[Vec3], i: usize, u: Vec3) -> Vec3;
+    /// The system of a Newton correction at an iterate with velocities `v_k`
+    /// (positions are passed to the assembly): same matrix, right-hand side
+    /// the negative residual `c_f f(x_k, v_k) + M y`.
+    fn newton_terms<'a>(&self, h: f64, v_k: &'a [Vec3], y: &'a [Vec3]) -> SystemTerms<'a>;
 }
 
 impl Linearised for BackwardEuler {
@@ -360,6 +375,15 @@ impl Linearised for BackwardEuler {
     fn advance(&self, state: &ClothState, _: &[Vec3], h: f64, i: usize, dv: Vec3) -> (Vec3, Vec3) {
         let v = state.v[i] + dv;
         (state.x[i] + v * h, v)
+    }
+
+    /// Residual `M dv - h f(x + h (v + dv), v + dv)`: `y = -dv`.
+    fn newton_mass_term(&self, _: &[Vec3], _: usize, dv: Vec3) -> Vec3 {
+        -dv
+    }
+
+    fn newton_terms<'a>(&self, h: f64, v_k: &'a [Vec3], y: &'a [Vec3]) -> SystemTerms<'a> {
+        SystemTerms { c_x: h * h, c_v: h, force: h, k_times: None, d_times: Some((h, v_k)), mass_times: Some(y) }
     }
 }
 
@@ -397,6 +421,23 @@ impl Linearised for Bdf2 {
     fn advance(&self, state: &ClothState, aux: &[Vec3], h: f64, i: usize, dx: Vec3) -> (Vec3, Vec3) {
         (state.x[i] + dx, (dx * 3.0 - aux[i]) / (2.0 * h))
     }
+
+    /// Residual `M (dx - y0) - (4h^2/9) f(x + dx, v'(dx))` with `y0 = aux2`: `y = y0 - dx`.
+    fn newton_mass_term(&self, aux2: &[Vec3], i: usize, dx: Vec3) -> Vec3 {
+        aux2[i] - dx
+    }
+
+    fn newton_terms<'a>(&self, h: f64, v_k: &'a [Vec3], y: &'a [Vec3]) -> SystemTerms<'a> {
+        let c = 4.0 * h * h / 9.0;
+        SystemTerms {
+            c_x: c,
+            c_v: 2.0 * h / 3.0,
+            force: c,
+            k_times: None,
+            d_times: Some((c, v_k)),
+            mass_times: Some(y),
+        }
+    }
 }
 
 /// One step of a [`Linearised`] scheme: assemble, constrain pins, solve
@@ -417,19 +458,37 @@ fn linearised_step<S: Linearised>(
         ws.unknown[i] = scheme.guess(state, &ws.aux, i);
     }
     let pins_s = t_pins.elapsed().as_secs_f64();
-    let (mut report, solve_s) = solve(ws, state, solver)?;
+    let (mut report, mut solve_s) = solve(ws, state, solver)?;
     (report.force_evaluations, report.substeps) = (1, 1);
+    let (mut forces_s, mut assembly_s) = (timing.links_s, timing.gather_s + pins_s);
+    // Further Newton iterations on the nonlinear step equation: linearise
+    // at the current iterate, solve for the correction (pins: zero).
+    for _ in 1..solver.newton_iterations {
+        for i in 0..state.len() {
+            (ws.new_x[i], ws.new_v[i]) = scheme.advance(state, &ws.aux, h, i, ws.unknown[i]);
+            ws.newton_y[i] = scheme.newton_mass_term(&ws.aux2, i, ws.unknown[i]);
+        }
+        ws.newton_u.copy_from_slice(&ws.unknown);
+        let terms = scheme.newton_terms(h, &ws.new_v, &ws.newton_y);
+        let t = assemble(model, &ws.new_x, &terms, &mut ws.system);
+        constrain_pins(model, state, h, &mut ws.filter, |_, _| Vec3::zeros());
+        ws.unknown.iter_mut().for_each(|u| *u = Vec3::zeros());
+        let (r, s) = solve(ws, state, solver)?;
+        for (u, base) in ws.unknown.iter_mut().zip(&ws.newton_u) {
+            *u += base;
+        }
+        report.force_evaluations += 1;
+        report.cg_iterations += r.cg_iterations;
+        report.rel_residual = r.rel_residual;
+        report.converged &= r.converged;
+        (forces_s, assembly_s, solve_s) = (forces_s + t.links_s, assembly_s + t.gather_s, solve_s + s);
+    }
     let t_update = Instant::now();
     for i in 0..state.len() {
         (ws.new_x[i], ws.new_v[i]) = scheme.advance(state, &ws.aux, h, i, ws.unknown[i]);
     }
     commit(state, ws, h)?;
-    report.stages = StageTimes {
-        forces_s: timing.links_s,
-        assembly_s: timing.gather_s + pins_s,
-        solve_s,
-        update_s: t_update.elapsed().as_secs_f64(),
-    };
+    report.stages = StageTimes { forces_s, assembly_s, solve_s, update_s: t_update.elapsed().as_secs_f64() };
     Ok(report)
 }
 

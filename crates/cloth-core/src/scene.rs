@@ -24,6 +24,7 @@
 //! error_tolerance = 1e-4       # dopri5 only
 //! max_substeps = 100000        # dopri5 only
 //! fixed_cg_iterations = 4      # backward-euler-fixed-cg only
+//! newton_iterations = 1        # backward-euler and bdf2
 //!
 //! [material]
 //! areal_density_kg_m2 = 0.1
@@ -137,6 +138,8 @@ pub struct SolverSection {
     pub max_substeps: usize,
     /// CG iterations per step of `backward-euler-fixed-cg`.
     pub fixed_cg_iterations: usize,
+    /// Newton iterations per step of `backward-euler` and `bdf2` (>= 1).
+    pub newton_iterations: usize,
 }
 
 impl Default for SolverSection {
@@ -150,6 +153,7 @@ impl Default for SolverSection {
             error_tolerance: p.error_tolerance,
             max_substeps: p.max_substeps,
             fixed_cg_iterations: p.fixed_cg_iterations,
+            newton_iterations: p.newton_iterations,
         }
     }
 }
@@ -324,6 +328,9 @@ impl Scene {
         if v.max_substeps == 0 {
             return Err(invalid("solver.max_substeps", "must be >= 1".into()));
         }
+        if v.newton_iterations == 0 {
+            return Err(invalid("solver.newton_iterations", "must be >= 1".into()));
+        }
         // Checked even when the effect is not listed: a bad value is never silently kept.
         let c = &self.constraints;
         if !(c.max_strain.is_finite() && c.max_strain >= 0.0) {
@@ -387,6 +394,7 @@ impl Scene {
                 error_tolerance: self.solver.error_tolerance,
                 max_substeps: self.solver.max_substeps,
                 fixed_cg_iterations: self.solver.fixed_cg_iterations,
+                newton_iterations: self.solver.newton_iterations,
             },
         };
         Ok((model, config))
@@ -512,6 +520,7 @@ nodes = [[0, 3]]
             ("solver.rel_tol=2.0", "solver.rel_tol"),
             ("solver.error_tolerance=0.0", "solver.error_tolerance"),
             ("solver.max_substeps=0", "solver.max_substeps"),
+            ("solver.newton_iterations=0", "solver.newton_iterations"),
             ("constraints.max_strain=-0.1", "constraints.max_strain"),
             ("panels.0.particles=[1, 4]", "panels[0].particles"),
             ("panels.0.size_m=[1.0, inf]", "panels[0].size_m"),
