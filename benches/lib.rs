@@ -17,15 +17,20 @@ pub fn pool() -> rayon::ThreadPool {
 /// by `steps` steps so the cloth is moving and its links are stretched and
 /// buckled.
 pub fn hanging_cloth(n: usize, steps: usize, preconditioner: &str) -> (Simulation, RunConfig, ClothState) {
+    hanging_cloth_with(n, steps, &[format!("solver.preconditioner={preconditioner}")])
+}
+
+/// As [`hanging_cloth`], with any scene overrides.
+pub fn hanging_cloth_with(n: usize, steps: usize, extra: &[String]) -> (Simulation, RunConfig, ClothState) {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenes/hang.toml");
-    let overrides = vec![
+    let mut overrides = vec![
         format!("panels.0.particles=[{n}, {n}]"),
         format!("pins.0.nodes=[[0, {last}], [{last}, {last}]]", last = n - 1),
-        format!("solver.preconditioner={preconditioner}"),
     ];
+    overrides.extend_from_slice(extra);
     let scene = Scene::parse_file(&path, &overrides).expect("fixture parses");
     let (model, cfg) = scene.build().expect("fixture builds");
-    let mut sim = Simulation::new(model, cfg.integrator, cfg.solver);
+    let mut sim = cfg.simulation(model);
     for _ in 0..steps {
         sim.step(cfg.dt_s).expect("fixture steps");
     }
