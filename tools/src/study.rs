@@ -140,8 +140,7 @@ fn free_fall(scene: &Path, overrides: &[String], pool: &rayon::ThreadPool) -> Re
 /// `K = E d^-1 l^-2 h^2`, per method and model.
 pub fn freefall(args: &StudyArgs) -> Result<()> {
     let scene = PathBuf::from("fixtures/scenes/freefall.toml");
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(args.threads).build()?;
-    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    let pool = setup(args)?;
     let ks: Vec<f64> = if args.quick {
         vec![0.5, 64.0]
     } else {
@@ -248,6 +247,12 @@ pub fn freefall(args: &StudyArgs) -> Result<()> {
     Ok(())
 }
 
+/// The thread pool of a study, after creating its output directory.
+fn setup(args: &StudyArgs) -> Result<rayon::ThreadPool> {
+    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    Ok(rayon::ThreadPoolBuilder::new().num_threads(args.threads).build()?)
+}
+
 /// Title, machine, threads and the command that produced a result file.
 fn header(title: &str, study: &str, args: &StudyArgs) -> String {
     let cpu = std::fs::read_to_string("/proc/cpuinfo")
@@ -298,8 +303,7 @@ fn write_outputs(out: &Path, name: &str, csv: &str, md: &str, plots: &[(String, 
 /// against the step size, per method.
 pub fn drape(args: &StudyArgs) -> Result<()> {
     let scene = PathBuf::from("fixtures/scenes/drape-edge.toml");
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(args.threads).build()?;
-    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    let pool = setup(args)?;
     let n = if args.quick { 26 } else { 101 };
     let implicit_h = [0.0005, 0.001, 0.002, 0.005, 0.01, 0.02, 0.05];
     let explicit_h = [0.0001, 0.0002, 0.0005, 0.001];
@@ -378,8 +382,7 @@ pub fn drape(args: &StudyArgs) -> Result<()> {
 /// (Volino's Fig. 1 table); backward Euler also per CG iteration.
 pub fn cost(args: &StudyArgs) -> Result<()> {
     let scene = PathBuf::from("fixtures/scenes/hang.toml");
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(args.threads).build()?;
-    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    let pool = setup(args)?;
     let sizes: &[usize] = if args.quick { &[11, 21] } else { &[21, 41, 61, 81] };
     let models: &[&str] = &["choi-ko", "provot"];
     let steps = 20;
@@ -466,8 +469,7 @@ pub fn cost(args: &StudyArgs) -> Result<()> {
 /// cloth against a converged reference, versus wall time, per method.
 pub fn precision(args: &StudyArgs) -> Result<()> {
     let scene = PathBuf::from("fixtures/scenes/hang.toml");
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(args.threads).build()?;
-    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    let pool = setup(args)?;
     let n = if args.quick { 11 } else { 21 };
     let base = |extra: &[String]| -> Vec<String> {
         let mut o = grid(n, "corners");

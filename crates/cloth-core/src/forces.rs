@@ -91,6 +91,23 @@ pub fn link_force(model: &ClothModel, k: usize, x: &[Vec3], v: &[Vec3]) -> Vec3 
     }
 }
 
+/// `start` plus the per-link vectors of particle `i`'s links (stored for
+/// the link's first particle), added in link order: `+v` where `i` is
+/// first, `-v` where it is second.
+#[inline]
+fn gather_links(model: &ClothModel, i: usize, per_link: &[Vec3], start: Vec3) -> Vec3 {
+    let mut acc = start;
+    for inc in model.incidence(i) {
+        let v = &per_link[inc.link as usize];
+        if inc.first {
+            acc += v;
+        } else {
+            acc -= v;
+        }
+    }
+    acc
+}
+
 /// Scratch for [`forces_into`], sized once per model.
 #[derive(Debug, Clone)]
 pub struct ForceBuffers {
@@ -118,16 +135,7 @@ pub fn forces_into(model: &ClothModel, x: &[Vec3], v: &[Vec3], bufs: &mut ForceB
     out.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(chunk, fs)| {
         for (k, f) in fs.iter_mut().enumerate() {
             let i = chunk * ROW_CHUNK + k;
-            let mut acc = gravity.map_or(Vec3::zeros(), |g| g * model.masses()[i]);
-            for inc in model.incidence(i) {
-                let fl = &link[inc.link as usize];
-                if inc.first {
-                    acc += fl;
-                } else {
-                    acc -= fl;
-                }
-            }
-            *f = acc;
+            *f = gather_links(model, i, link, gravity.map_or(Vec3::zeros(), |g| g * model.masses()[i]));
         }
     });
 }
@@ -250,15 +258,7 @@ pub fn assemble_matrix_free(
             if let Some(y) = terms.mass_times {
                 acc += y[i] * m;
             }
-            for inc in model.incidence(i) {
-                let r = &link_rhs[inc.link as usize];
-                if inc.first {
-                    acc += r;
-                } else {
-                    acc -= r;
-                }
-            }
-            *bi = acc;
+            *bi = gather_links(model, i, link_rhs, acc);
         }
     });
     AssemblyTiming { links_s: (t1 - t0).as_secs_f64(), gather_s: t1.elapsed().as_secs_f64() }
