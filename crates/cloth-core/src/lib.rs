@@ -8,6 +8,7 @@
 //! new state. Units are SI throughout.
 
 mod constraints;
+pub mod element_laws;
 mod explicit;
 pub mod forces;
 mod integrator;

@@ -1,0 +1,242 @@
+//! Element laws of Volino & Magnenat-Thalmann's (2001) "accurate" model:
+//! a linear orthotropic membrane on triangles and a dihedral-angle bending
+//! element on pairs of triangles. Pure functions: positions in, energy,
+//! forces and a positive semi-definite stiffness out.
+
+use crate::{Mat3, Vec3};
+use nalgebra::{Matrix2, Vector2, Vector3};
+
+/// Rest data of a membrane triangle, from its rest-shape parameterisation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TriangleRest {
+    /// Gradient operator: `F = sum_k x_k g_k^T` (3x2) is the deformation
+    /// gradient from the (u, v) parameter plane; `g_0 = -g_1 - g_2`.
+    pub g: [Vector2<f64>; 3],
+    /// Rest area, m^2.
+    pub area: f64,
+    /// Plane-stress stiffness in Voigt form `(e_uu, e_vv, gamma_uv)`, N/m.
+    pub c: Matrix3Voigt,
+}
+
+/// A symmetric 3x3 Voigt stiffness `[[c11, c12, 0], [c12, c22, 0], [0, 0, g]]`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Matrix3Voigt {
+    /// Warp stiffness term, N/m.
+    pub c11: f64,
+    /// Coupling (Poisson) term, N/m.
+    pub c12: f64,
+    /// Weft stiffness term, N/m.
+    pub c22: f64,
+    /// Shear modulus, N/m.
+    pub g: f64,
+}
+
+impl Matrix3Voigt {
+    /// Orthotropic plane stress from warp (u) and weft (v) Young's moduli
+    /// `e_u`, `e_v` (N/m, i.e. modulus times thickness), shear modulus `g`
+    /// (N/m) and Poisson ratio `nu_uv` (`nu_vu = nu_uv e_v / e_u`).
+    pub fn orthotropic(e_u: f64, e_v: f64, g: f64, nu_uv: f64) -> Self {
+        let nu_vu = nu_uv * e_v / e_u;
+        let d = 1.0 - nu_uv * nu_vu;
+        Self { c11: e_u / d, c12: nu_uv * e_v / d, c22: e_v / d, g }
+    }
+
+    fn mul(&self, e: &Vector3<f64>) -> Vector3<f64> {
+        Vector3::new(self.c11 * e.x + self.c12 * e.y, self.c12 * e.x + self.c22 * e.y, self.g * e.z)
+    }
+}
+
+impl TriangleRest {
+    /// Rest data from the parameter-plane coordinates `uv` (m) of the three
+    /// corners; None if the triangle is degenerate.
+    pub fn new(uv: [Vector2<f64>; 3], c: Matrix3Voigt) -> Option<Self> {
+        let dm = Matrix2::from_columns(&[uv[1] - uv[0], uv[2] - uv[0]]);
+        let area = 0.5 * dm.determinant().abs();
+        let inv = dm.try_inverse()?;
+        if !(area > 0.0 && area.is_finite()) {
+            return None;
+        }
+        let g1 = Vector2::new(inv[(0, 0)], inv[(0, 1)]);
+        let g2 = Vector2::new(inv[(1, 0)], inv[(1, 1)]);
+        Some(Self { g: [-g1 - g2, g1, g2], area, c })
+    }
+}
+
+/// What an element law returns for `K` corners.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ElementResponse<const K: usize> {
+    /// Energy, J.
+    pub energy: f64,
+    /// Force on each corner, N.
+    pub forces: [Vec3; K],
+    /// `H_ab`, a positive semi-definite approximation of `d^2 E / dx_a dx_b`
+    /// (so `df_a/dx_b ~ -H_ab`), N/m.
+    pub hessian: [[Mat3; K]; K],
+}
+
+/// Linear orthotropic membrane (St Venant-Kirchhoff) on one triangle:
+/// Green strain `E = (F^T F - I)/2`, Voigt `e = (E_uu, E_vv, 2 E_uv)`,
+/// energy `A (e^T C e) / 2`, forces `f_k = -A B_k^T C e` with
+/// `B_k = d e / d x_k`. The Hessian keeps the material term
+/// `A B_a^T C B_b` and the geometric term `A (g_a^T S+ g_b) I` with the
+/// stress `S` projected to its positive part, so it is PSD (and exact
+/// whenever the stress is tensile).
+pub fn membrane_triangle(x: [Vec3; 3], rest: &TriangleRest) -> ElementResponse<3> {
+    let g = &rest.g;
+    let f0 = x[0] * g[0].x + x[1] * g[1].x + x[2] * g[2].x; // F column u
+    let f1 = x[0] * g[0].y + x[1] * g[1].y + x[2] * g[2].y; // F column v
+    let strain = Vector3::new(0.5 * (f0.dot(&f0) - 1.0), 0.5 * (f1.dot(&f1) - 1.0), f0.dot(&f1));
+    let stress = rest.c.mul(&strain);
+    let a = rest.area;
+    // B_k rows: d e_uu/dx_k, d e_vv/dx_k, d gamma/dx_k.
+    let b: [[Vec3; 3]; 3] = std::array::from_fn(|k| [f0 * g[k].x, f1 * g[k].y, f1 * g[k].x + f0 * g[k].y]);
+    let forces = std::array::from_fn(|k| -(b[k][0] * stress.x + b[k][1] * stress.y + b[k][2] * stress.z) * a);
+    // Positive part of the 2x2 stress tensor [[s_uu, s_uv], [s_uv, s_vv]].
+    let s = Matrix2::new(stress.x, stress.z, stress.z, stress.y);
+    let eig = s.symmetric_eigen();
+    let mut s_pos = Matrix2::zeros();
+    for i in 0..2 {
+        let lambda = eig.eigenvalues[i].max(0.0);
+        let v = eig.eigenvectors.column(i);
+        s_pos += v * v.transpose() * lambda;
+    }
+    let c = &rest.c;
+    let hessian = std::array::from_fn(|p| {
+        std::array::from_fn(|q| {
+            let (bp, bq) = (&b[p], &b[q]);
+            // sum_ij C_ij bp_i bq_j^T with the Voigt C.
+            let material = bp[0] * (bq[0] * c.c11 + bq[1] * c.c12).transpose()
+                + bp[1] * (bq[0] * c.c12 + bq[1] * c.c22).transpose()
+                + bp[2] * (bq[2] * c.g).transpose();
+            let geometric = (g[p].transpose() * s_pos * g[q])[(0, 0)];
+            (material + Mat3::identity() * geometric) * a
+        })
+    });
+    ElementResponse { energy: 0.5 * a * strain.dot(&stress), forces, hessian }
+}
+
+/// Signed dihedral angle of a hinge (radians, 0 when flat): corners 0 and 1
+/// span the shared edge, 2 and 3 are the opposite corners of the two
+/// triangles `(0, 1, 2)` and `(1, 0, 3)`.
+pub fn dihedral_angle(x: &[Vec3; 4]) -> f64 {
+    let e = x[1] - x[0];
+    let n1 = e.cross(&(x[2] - x[0]));
+    let n2 = (x[3] - x[0]).cross(&e);
+    let sin = n1.cross(&n2).dot(&e) / e.norm();
+    sin.atan2(n1.dot(&n2))
+}
+
+/// Gradient of [`dihedral_angle`] with respect to the four corners
+/// (Bridson, Marino & Fedkiw 2003).
+pub fn dihedral_gradient(x: &[Vec3; 4]) -> [Vec3; 4] {
+    let e = x[1] - x[0];
+    let len = e.norm();
+    let n1 = e.cross(&(x[2] - x[0]));
+    let n2 = (x[3] - x[0]).cross(&e);
+    let (q1, q2) = (n1 / n1.norm_squared(), n2 / n2.norm_squared());
+    let d2 = q1 * len;
+    let d3 = q2 * len;
+    let d0 = q1 * ((x[2] - x[1]).dot(&e) / len) + q2 * ((x[3] - x[1]).dot(&e) / len);
+    let d1 = -q1 * ((x[2] - x[0]).dot(&e) / len) - q2 * ((x[3] - x[0]).dot(&e) / len);
+    // The normals' orientation above makes theta grow against these directions.
+    [-d0, -d1, -d2, -d3]
+}
+
+/// Dihedral bending: `E = k (theta - theta_0)^2 / 2` with the hinge
+/// stiffness `k` (N m), forces `-k (theta - theta_0) grad theta`, and the
+/// Gauss-Newton Hessian `k grad theta grad theta^T` (PSD; the curvature
+/// term of theta is dropped, as for Choi & Ko's type-2 links).
+pub fn hinge_bending(x: [Vec3; 4], rest_angle: f64, k: f64) -> ElementResponse<4> {
+    let theta = dihedral_angle(&x);
+    let grad = dihedral_gradient(&x);
+    let dt = theta - rest_angle;
+    ElementResponse {
+        energy: 0.5 * k * dt * dt,
+        forces: std::array::from_fn(|a| -grad[a] * (k * dt)),
+        hessian: std::array::from_fn(|a| std::array::from_fn(|b| grad[a] * grad[b].transpose() * k)),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rest() -> TriangleRest {
+        let uv = [Vector2::new(0.0, 0.0), Vector2::new(0.02, 0.0), Vector2::new(0.0, 0.015)];
+        TriangleRest::new(uv, Matrix3Voigt::orthotropic(50.0, 30.0, 8.0, 0.3)).unwrap()
+    }
+
+    fn deformed() -> [Vec3; 3] {
+        [Vec3::new(0.001, -0.002, 0.0005), Vec3::new(0.0235, 0.001, 0.002), Vec3::new(-0.001, 0.017, -0.001)]
+    }
+
+    #[test]
+    fn membrane_is_zero_at_rest_and_invariant_to_rotation() {
+        let r = rest();
+        let at_rest = [Vec3::zeros(), Vec3::new(0.02, 0.0, 0.0), Vec3::new(0.0, 0.015, 0.0)];
+        let e = membrane_triangle(at_rest, &r);
+        assert!(e.energy.abs() < 1e-18 && e.forces.iter().all(|f| f.norm() < 1e-15));
+        let rot = nalgebra::Rotation3::from_euler_angles(0.3, -1.1, 2.0);
+        let x = deformed();
+        let a = membrane_triangle(x, &r);
+        let b = membrane_triangle(x.map(|p| rot * p + Vec3::new(1.0, 2.0, 3.0)), &r);
+        assert!((a.energy - b.energy).abs() < 1e-9 * a.energy);
+        let net: Vec3 = a.forces.iter().sum();
+        assert!(net.norm() < 1e-15);
+    }
+
+    #[test]
+    fn membrane_forces_and_hessian_match_finite_differences() {
+        let r = rest();
+        let x = deformed();
+        let e = membrane_triangle(x, &r);
+        let h = 1e-8;
+        for k in 0..3 {
+            for c in 0..3 {
+                let (mut xp, mut xm) = (x, x);
+                xp[k][c] += h;
+                xm[k][c] -= h;
+                let (ep, em) = (membrane_triangle(xp, &r), membrane_triangle(xm, &r));
+                let grad = (ep.energy - em.energy) / (2.0 * h);
+                assert!((e.forces[k][c] + grad).abs() < 1e-6 * e.forces[k].norm().max(1e-9), "force {k},{c}");
+                // Stretched in both directions here, so the stress is tensile
+                // and the PSD Hessian is the exact one.
+                for a in 0..3 {
+                    let col = -(ep.forces[a] - em.forces[a]) / (2.0 * h);
+                    let analytic = e.hessian[a][k].column(c);
+                    assert!((col - analytic).norm() < 1e-5 * e.hessian[a][a].norm(), "H[{a}][{k}] col {c}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn hinge_gradient_matches_finite_differences() {
+        let x = [
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(0.0, 0.02, 0.001),
+            Vec3::new(0.015, 0.01, 0.004),
+            Vec3::new(-0.02, 0.012, 0.003),
+        ];
+        let grad = dihedral_gradient(&x);
+        let h = 1e-8;
+        for k in 0..4 {
+            for c in 0..3 {
+                let (mut xp, mut xm) = (x, x);
+                xp[k][c] += h;
+                xm[k][c] -= h;
+                let fd = (dihedral_angle(&xp) - dihedral_angle(&xm)) / (2.0 * h);
+                assert!(
+                    (fd - grad[k][c]).abs() < 1e-6 * grad[k].norm().max(1.0),
+                    "corner {k} comp {c}: {fd} vs {}",
+                    grad[k][c]
+                );
+            }
+        }
+        let flat = [Vec3::zeros(), Vec3::new(0.0, 1.0, 0.0), Vec3::new(1.0, 0.5, 0.0), Vec3::new(-1.0, 0.5, 0.0)];
+        assert!(dihedral_angle(&flat).abs() < 1e-15);
+        let e = hinge_bending(x, 0.0, 2e-5);
+        let net: Vec3 = e.forces.iter().sum();
+        assert!(net.norm() < 1e-12 * e.forces[2].norm().max(1e-30));
+    }
+}
