@@ -10,6 +10,7 @@
 //! whose order depends on scheduling, so results are bit-identical for any
 //! thread count.
 
+use crate::elements::{self, ElementBuffers};
 use crate::{
     ClothModel, Mat3, Vec3,
     laws::{ScalarLaw, directional_damping, pair_stiffness},
@@ -66,6 +67,9 @@ pub fn eval_link(model: &ClothModel, k: usize, x: &[Vec3]) -> LinkEval {
 /// Total potential energy at `x`: link energies plus gravity `-sum m g.x`, J.
 pub fn potential_energy(model: &ClothModel, x: &[Vec3]) -> f64 {
     let links: f64 = (0..model.link_count()).map(|k| eval_link(model, k, x).energy).sum();
+    let mut element_bufs = ElementBuffers::new(model.elements());
+    elements::evaluate(model.elements(), x, 0.0, 1.0, None, &mut element_bufs);
+    let links = links + elements::energy(&element_bufs);
     let gravity = model
         .effects()
         .gravity
@@ -112,12 +116,13 @@ fn gather_links(model: &ClothModel, i: usize, per_link: &[Vec3], start: Vec3) ->
 #[derive(Debug, Clone)]
 pub struct ForceBuffers {
     link: Vec<Vec3>,
+    elements: ElementBuffers,
 }
 
 impl ForceBuffers {
     /// Buffers for `model`.
     pub fn new(model: &ClothModel) -> Self {
-        Self { link: vec![Vec3::zeros(); model.link_count()] }
+        Self { link: vec![Vec3::zeros(); model.link_count()], elements: ElementBuffers::new(model.elements()) }
     }
 }
 
@@ -130,12 +135,18 @@ pub fn forces_into(model: &ClothModel, x: &[Vec3], v: &[Vec3], bufs: &mut ForceB
             *f = link_force(model, chunk * ROW_CHUNK + k, x, v);
         }
     });
-    let link = &bufs.link;
+    let set = model.elements();
+    if !set.is_empty() {
+        elements::evaluate(set, x, 0.0, 1.0, None, &mut bufs.elements);
+    }
+    let (link, element_bufs) = (&bufs.link, &bufs.elements);
     let gravity = model.effects().gravity;
     out.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(chunk, fs)| {
         for (k, f) in fs.iter_mut().enumerate() {
             let i = chunk * ROW_CHUNK + k;
-            *f = gather_links(model, i, link, gravity.map_or(Vec3::zeros(), |g| g * model.masses()[i]));
+            let start = gravity.map_or(Vec3::zeros(), |g| g * model.masses()[i]);
+            let start = if set.is_empty() { start } else { start + elements::rhs_at(set, element_bufs, i) };
+            *f = gather_links(model, i, link, start);
         }
     });
 }
@@ -172,6 +183,7 @@ pub struct SystemTerms<'a> {
 pub struct SystemBuffers {
     link_rhs: Vec<Vec3>,
     link_block: Vec<Mat3>,
+    elements: ElementBuffers,
     /// The assembled matrix `A`.
     pub matrix: BlockSparseMatrix,
     /// The assembled right-hand side `b`.
@@ -184,6 +196,7 @@ impl SystemBuffers {
         Self {
             link_rhs: vec![Vec3::zeros(); model.link_count()],
             link_block: vec![Mat3::zeros(); model.link_count()],
+            elements: ElementBuffers::new(model.elements()),
             matrix: BlockSparseMatrix::new(model.pattern().clone()),
             rhs: vec![Vec3::zeros(); model.particle_count()],
         }
@@ -204,7 +217,7 @@ pub struct AssemblyTiming {
 pub fn assemble(model: &ClothModel, x: &[Vec3], terms: &SystemTerms<'_>, bufs: &mut SystemBuffers) -> AssemblyTiming {
     let mut timing = assemble_matrix_free(model, x, terms, bufs);
     let t0 = std::time::Instant::now();
-    let link_block = &bufs.link_block;
+    let (link_block, element_bufs, set) = (&bufs.link_block, &bufs.elements, model.elements());
     bufs.matrix.fill_rows(|i, row| {
         row.iter_mut().for_each(|b| *b = Mat3::zeros());
         let mut diag = Mat3::identity() * model.masses()[i];
@@ -214,6 +227,9 @@ pub fn assemble(model: &ClothModel, x: &[Vec3], terms: &SystemTerms<'_>, bufs: &
             row[inc.slot as usize] -= b;
         }
         row[model.diag_local(i)] = diag;
+        if !set.is_empty() {
+            elements::add_row(set, element_bufs, i, row);
+        }
     });
     timing.gather_s += t0.elapsed().as_secs_f64();
     timing
@@ -247,8 +263,12 @@ pub fn assemble_matrix_free(
             }
         },
     );
+    let set = model.elements();
+    if !set.is_empty() {
+        elements::evaluate(set, x, terms.c_x, terms.force, terms.k_times, &mut bufs.elements);
+    }
     let t1 = std::time::Instant::now();
-    let link_rhs = &bufs.link_rhs;
+    let (link_rhs, element_bufs) = (&bufs.link_rhs, &bufs.elements);
     let gravity = model.effects().gravity;
     bufs.rhs.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(chunk, out)| {
         for (k, bi) in out.iter_mut().enumerate() {
@@ -258,6 +278,7 @@ pub fn assemble_matrix_free(
             if let Some(y) = terms.mass_times {
                 acc += y[i] * m;
             }
+            let acc = if set.is_empty() { acc } else { acc + elements::rhs_at(set, element_bufs, i) };
             *bi = gather_links(model, i, link_rhs, acc);
         }
     });
@@ -277,12 +298,13 @@ pub fn apply_scaled_operator(
     w: &[Vec3],
     y: &mut [Vec3],
 ) {
-    let blocks = &bufs.link_block;
+    let (blocks, set, element_bufs) = (&bufs.link_block, model.elements(), &bufs.elements);
     y.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(chunk, ys)| {
         for (k, yi) in ys.iter_mut().enumerate() {
             let i = chunk * ROW_CHUNK + k;
             let wi = w[i] * inv_sqrt_mass[i];
-            let mut acc = Vec3::zeros();
+            let mut acc =
+                if set.is_empty() { Vec3::zeros() } else { elements::apply_at(set, element_bufs, i, w, inv_sqrt_mass) };
             for inc in model.incidence(i) {
                 let o = inc.other as usize;
                 acc += blocks[inc.link as usize] * (wi - w[o] * inv_sqrt_mass[o]);

@@ -9,6 +9,7 @@
 
 mod constraints;
 pub mod element_laws;
+pub mod elements;
 mod explicit;
 pub mod forces;
 mod integrator;

@@ -51,6 +51,21 @@ pub struct Material {
     /// when the scene lists the `damping` effect.
     #[serde(default)]
     pub damping_n_s_m: f64,
+    /// Volino model: Young's modulus along the warp (panel u), N/m
+    /// (default: `tensile_stiffness_n_m`).
+    #[serde(default)]
+    pub warp_stiffness_n_m: Option<f64>,
+    /// Volino model: Young's modulus along the weft (panel v), N/m
+    /// (default: `tensile_stiffness_n_m`).
+    #[serde(default)]
+    pub weft_stiffness_n_m: Option<f64>,
+    /// Volino model: in-plane shear modulus, N/m (default `E / (2 (1 + nu))`
+    /// with the warp modulus).
+    #[serde(default)]
+    pub shear_modulus_n_m: Option<f64>,
+    /// Volino model: Poisson ratio `nu_uv` (default 0.3).
+    #[serde(default)]
+    pub poisson_ratio: Option<f64>,
 }
 
 /// Per-link constants derived from a [`Material`] for one link.
@@ -69,6 +84,15 @@ pub struct LinkConstants {
 }
 
 impl Material {
+    /// The orthotropic plane-stress stiffness of Volino's membrane.
+    pub fn membrane_stiffness(&self) -> crate::element_laws::Matrix3Voigt {
+        let e_u = self.warp_stiffness_n_m.unwrap_or(self.tensile_stiffness_n_m);
+        let e_v = self.weft_stiffness_n_m.unwrap_or(self.tensile_stiffness_n_m);
+        let nu = self.poisson_ratio.unwrap_or(0.3);
+        let g = self.shear_modulus_n_m.unwrap_or(e_u / (2.0 * (1.0 + nu)));
+        crate::element_laws::Matrix3Voigt::orthotropic(e_u, e_v, g, nu)
+    }
+
     /// Constants for a link of rest length `rest` (m) in a grid whose cells
     /// have area `cell_area` (m^2).
     pub fn link_constants(&self, rest: f64, cell_area: f64) -> LinkConstants {
@@ -91,6 +115,26 @@ impl Material {
             ("buckling_stiffness_n_m", self.buckling_stiffness_n_m, true),
             ("damping_n_s_m", self.damping_n_s_m, true),
         ];
+        let optional = [
+            ("warp_stiffness_n_m", self.warp_stiffness_n_m),
+            ("weft_stiffness_n_m", self.weft_stiffness_n_m),
+            ("shear_modulus_n_m", self.shear_modulus_n_m),
+        ];
+        for (name, value) in optional {
+            if let Some(v) = value
+                && !(v.is_finite() && v > 0.0)
+            {
+                return Err((name, format!("must be finite and > 0, got {v}")));
+            }
+        }
+        if let Some(nu) = self.poisson_ratio {
+            let e_u = self.warp_stiffness_n_m.unwrap_or(self.tensile_stiffness_n_m);
+            let e_v = self.weft_stiffness_n_m.unwrap_or(self.tensile_stiffness_n_m);
+            // Plane stress needs nu_uv nu_vu < 1.
+            if !(nu.is_finite() && nu >= 0.0 && nu * nu * e_v / e_u < 1.0) {
+                return Err(("poisson_ratio", format!("must be >= 0 with nu^2 E_v / E_u < 1, got {nu}")));
+            }
+        }
         for (name, value, zero_ok) in fields {
             if !value.is_finite() {
                 return Err((name, format!("must be finite, got {value}")));
@@ -114,6 +158,10 @@ impl Default for Material {
             flexural_rigidity_n_m: 1e-5,
             buckling_stiffness_n_m: 200.0,
             damping_n_s_m: 0.02,
+            warp_stiffness_n_m: None,
+            weft_stiffness_n_m: None,
+            shear_modulus_n_m: None,
+            poisson_ratio: None,
         }
     }
 }

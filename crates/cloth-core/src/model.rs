@@ -1,6 +1,8 @@
 //! The immutable cloth model: particles, links grouped by law, pins, the
 //! effects a scene asked for, and the system matrix's sparsity pattern.
 
+use crate::element_laws::{TriangleRest, dihedral_angle};
+use crate::elements::{ElementSet, HingeElement, MembraneElement};
 use crate::{
     GridPanel, LinkType, Material, Pin, PinMotion, Vec3,
     laws::{BucklingLaw, ScalarLaw, linear_spring, tension_spring},
@@ -133,6 +135,10 @@ pub enum ModelKind {
     /// Provot (1995): linear structural and shear springs (tension and
     /// compression) and linear flexion springs on `i+2`, `j+2`.
     Provot,
+    /// Volino & Magnenat-Thalmann (2001), "accurate" model: a linear
+    /// orthotropic membrane on the triangles and dihedral bending hinges;
+    /// the `damping` effect acts along the type-1 links.
+    Volino,
 }
 
 /// Provot's (1995) deformation constraints: after each step, every
@@ -263,6 +269,7 @@ pub struct ClothModel {
     strain_limit: Option<StrainLimit>,
     panels: Vec<PanelRange>,
     triangles: Vec<[u32; 3]>,
+    elements: ElementSet,
     inc_ptr: Vec<usize>,
     inc: Vec<Incidence>,
     pattern: BlockPattern,
@@ -289,6 +296,7 @@ impl ClothModel {
         let mut bend = Vec::new();
         let mut panels = Vec::new();
         let mut triangles = Vec::new();
+        let mut elements = ElementSet::default();
         let damping = spec.effects.damping;
         for (p, panel) in spec.panels.iter().enumerate() {
             let mesh = panel.mesh().map_err(|(field, message)| ModelError::Panel { panel: p, field, message })?;
@@ -314,12 +322,20 @@ impl ClothModel {
                     i: at(link[0]),
                     j: at(link[1]),
                     rest,
-                    k_s: c.k_s,
+                    // Volino's membrane replaces the springs; the links stay for damping and limits.
+                    k_s: if spec.kind == ModelKind::Volino { 0.0 } else { c.k_s },
                     k_d: if damping { c.k_d } else { 0.0 },
                     tension_only: spec.kind == ModelKind::ChoiKo,
                 });
             }
-            if spec.effects.bending {
+            if spec.kind == ModelKind::Volino {
+                let (_, v_axis, _) =
+                    panel.frame().map_err(|(field, message)| ModelError::Panel { panel: p, field, message })?;
+                let elems = volino_elements(&mesh, &spec.material, v_axis, spec.effects.bending, offset as u32)
+                    .ok_or_else(degenerate_err)?;
+                elements.membranes.extend(elems.membranes);
+                elements.hinges.extend(elems.hinges);
+            } else if spec.effects.bending {
                 let links = if spec.kind == ModelKind::Provot { &mesh.flexion } else { &mesh.interlaced };
                 for link in links {
                     let rest = rest_of(*link);
@@ -328,8 +344,8 @@ impl ClothModel {
                         return Err(degenerate_err());
                     }
                     let law = match spec.kind {
-                        ModelKind::ChoiKo => BendLaw::Buckling(BucklingLaw::new(rest, c.k_b, c.c_b)),
                         ModelKind::Provot => BendLaw::Flexion { rest, k: c.k_flexion },
+                        _ => BendLaw::Buckling(BucklingLaw::new(rest, c.k_b, c.c_b)),
                     };
                     bend.push(BendLink { i: at(link[0]), j: at(link[1]), law });
                 }
@@ -358,7 +374,9 @@ impl ClothModel {
             .iter()
             .map(|l| (l.i as usize, l.j as usize))
             .chain(bend.iter().map(|l| (l.i as usize, l.j as usize)));
-        let pattern = BlockPattern::from_pairs(n, pairs.clone()).expect("links index existing particles");
+        let pattern =
+            BlockPattern::from_pairs(n, pairs.clone().chain(elements.pairs())).expect("links index existing particles");
+        elements.index(n, &pattern);
         let mut counts = vec![0usize; n + 1];
         for (i, j) in pairs.clone() {
             counts[i + 1] += 1;
@@ -391,6 +409,7 @@ impl ClothModel {
             strain_limit: spec.strain_limit,
             panels,
             triangles,
+            elements,
             inc_ptr,
             inc,
             pattern,
@@ -458,6 +477,10 @@ impl ClothModel {
     /// Panels, in particle order.
     pub fn panels(&self) -> &[PanelRange] {
         &self.panels
+    }
+    /// Membrane triangles and hinges (Volino model; empty otherwise).
+    pub fn elements(&self) -> &ElementSet {
+        &self.elements
     }
     /// Surface triangles (two per grid cell), for output.
     pub fn triangles(&self) -> &[[u32; 3]] {
@@ -551,4 +574,52 @@ fn build_pins(spec: &ModelSpec, panels: &[PanelRange], rest: &[Vec3]) -> Result<
         }
     }
     Ok((pins, pinned))
+}
+
+/// Volino's elements for one panel mesh (local indices shifted by `offset`):
+/// a membrane per triangle, with rest (u, v) coordinates in the triangle's
+/// plane along the panel's weft axis `v_axis` (so warp and weft keep their
+/// directions on curved rest shapes), and, with `bending`, a hinge per
+/// interior edge with stiffness `k = B 3 |e|^2 / (4 (A_1 + A_2))` (the arc
+/// between the two triangles' centroids, spread over a third of their area).
+/// None if a triangle is degenerate.
+fn volino_elements(
+    mesh: &crate::PanelMesh,
+    material: &Material,
+    v_axis: Vec3,
+    bending: bool,
+    offset: u32,
+) -> Option<ElementSet> {
+    use nalgebra::Vector2;
+    let c = material.membrane_stiffness();
+    let p = &mesh.positions;
+    let mut set = ElementSet::default();
+    for t in &mesh.triangles {
+        let x = t.map(|k| p[k as usize]);
+        let normal = (x[1] - x[0]).cross(&(x[2] - x[0]));
+        let e2 = (v_axis - normal * (normal.dot(&v_axis) / normal.norm_squared())).try_normalize(1e-12)?;
+        let e1 = e2.cross(&normal).try_normalize(1e-12)?;
+        let uv = x.map(|q| Vector2::new((q - x[0]).dot(&e1), (q - x[0]).dot(&e2)));
+        set.membranes.push(MembraneElement { nodes: t.map(|k| k + offset), rest: TriangleRest::new(uv, c)? });
+    }
+    if bending {
+        // Each interior edge appears as (a, b) in one triangle and (b, a) in its neighbour.
+        let mut by_edge = std::collections::HashMap::new();
+        for (ti, t) in mesh.triangles.iter().enumerate() {
+            for k in 0..3 {
+                by_edge.insert((t[k], t[(k + 1) % 3]), (ti, t[(k + 2) % 3]));
+            }
+        }
+        let mut edges: Vec<_> = by_edge.iter().filter(|((a, b), _)| a < b).collect();
+        edges.sort_unstable_by_key(|(e, _)| **e);
+        for (&(a, b), &(t1, o1)) in edges {
+            let Some(&(t2, o2)) = by_edge.get(&(b, a)) else { continue };
+            let nodes = [a, b, o1, o2];
+            let x = nodes.map(|k| p[k as usize]);
+            let area = |t: usize| set.membranes[t].rest.area;
+            let k = material.flexural_rigidity_n_m * 3.0 * (x[1] - x[0]).norm_squared() / (4.0 * (area(t1) + area(t2)));
+            set.hinges.push(HingeElement { nodes: nodes.map(|q| q + offset), rest_angle: dihedral_angle(&x), k });
+        }
+    }
+    Some(set)
 }

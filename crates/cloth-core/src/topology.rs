@@ -111,7 +111,7 @@ impl GridPanel {
     }
 
     /// Orthonormal (u, v, n = u x v).
-    fn frame(&self) -> Result<(Vec3, Vec3, Vec3), PanelError> {
+    pub fn frame(&self) -> Result<(Vec3, Vec3, Vec3), PanelError> {
         let u = Vec3::from(self.u_axis);
         let v = Vec3::from(self.v_axis);
         if u.norm() < 1e-12 {
