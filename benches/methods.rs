@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 fn methods(c: &mut Criterion) {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(THREADS).build().expect("thread pool");
-    for model in ["choi-ko", "provot"] {
+    for model in ["choi-ko", "provot", "volino"] {
         let mut group = c.benchmark_group(format!("step_64x64_{model}"));
         for kind in IntegratorKind::ALL {
             let h = if kind.is_implicit() { 1.0 / 90.0 } else { 1e-4 };

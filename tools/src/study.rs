@@ -148,7 +148,7 @@ pub fn freefall(args: &StudyArgs) -> Result<()> {
     };
     let methods: Vec<&Method> =
         if args.quick { METHODS.iter().skip(1).step_by(4).collect() } else { METHODS.iter().collect() };
-    let models: &[&str] = if args.quick { &["provot"] } else { &["provot", "choi-ko"] };
+    let models: &[&str] = if args.quick { &["provot"] } else { &["provot", "choi-ko", "volino"] };
     // d = 0.1 kg/m^2, l = 0.05 m, h = 0.01 s (the fixture): E = K d l^2 / h^2.
     let (d, l, h) = (0.1, 0.05, 0.01);
     let mut csv = String::from(
@@ -384,7 +384,7 @@ pub fn cost(args: &StudyArgs) -> Result<()> {
     let scene = PathBuf::from("fixtures/scenes/hang.toml");
     let pool = setup(args)?;
     let sizes: &[usize] = if args.quick { &[11, 21] } else { &[21, 41, 61, 81] };
-    let models: &[&str] = &["choi-ko", "provot"];
+    let models: &[&str] = &["choi-ko", "provot", "volino"];
     let steps = 20;
     let mut csv = String::from("model,method,n,polygons,steps,step_wall_s,us_per_polygon_step,cg_iterations\n");
     let mut md = header("Cost per polygon per step", "cost", args);

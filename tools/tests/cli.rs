@@ -157,8 +157,8 @@ fn study_cost_reports_every_method_and_model() {
         .unwrap();
     assert!(status.success());
     let csv = std::fs::read_to_string(out.join("cost.csv")).unwrap();
-    // 2 models x 11 methods (10 + BE 0 CG) x 2 sizes.
-    assert_eq!(csv.lines().count(), 1 + 2 * 11 * 2);
+    // 3 models x 11 methods (10 + BE 0 CG) x 2 sizes.
+    assert_eq!(csv.lines().count(), 1 + 3 * 11 * 2);
     for row in csv.lines().skip(1) {
         let us: f64 = row.split(',').nth(6).unwrap().parse().unwrap();
         assert!(us > 0.0 && us.is_finite(), "{row}");

@@ -29,6 +29,12 @@
 //! in the deflection: no spring constant reproduces a flexural rigidity, so
 //! they take the membrane's compressive stiffness `C_b` and the model has
 //! no term in `B`. That difference is part of what the models compare.
+//!
+//! Volino's accurate model uses the continuum constants directly: the
+//! membrane's orthotropic plane-stress stiffness from the warp and weft
+//! moduli (default `E`), shear modulus (default `E / (2 (1 + nu))`) and
+//! Poisson ratio (default 0.3), and hinges of stiffness
+//! `k = B |e|^2 / (A_1 + A_2)` on the interior edges.
 
 use serde::{Deserialize, Serialize};
 

@@ -8,7 +8,7 @@
 //!
 //! ```toml
 //! [simulation]
-//! model = "choi-ko"           # or "provot"
+//! model = "choi-ko"           # or "provot", "volino"
 //! integrator = "bdf2"          # backward-euler, backward-euler-fixed-cg, forward-euler,
 //!                              # symplectic-euler, midpoint, rk4, dopri5
 //! dt_s = 0.011111111111111112  # s
