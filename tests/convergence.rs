@@ -34,13 +34,18 @@ fn model() -> ClothModel {
             v_axis: [0.0, 1.0, 0.0],
             wrap_u: false,
         }],
-        material: Material { tensile_stiffness_n_m: 0.1, damping_n_s_m: 1e-4, ..Material::default() },
+        material: Material {
+            tensile_stiffness_n_m: 0.1,
+            damping_n_s_m: 1e-4,
+            drag_n_s_m3: 0.01,
+            ..Material::default()
+        },
         pins: (0..n)
             .flat_map(|i| (0..n).map(move |j| (i, j)))
             .filter(|&(i, j)| i == 0 || j == 0 || i == n - 1 || j == n - 1)
             .map(|(i, j)| border(i, j))
             .collect(),
-        effects: Effects { gravity: Some(Vec3::new(0.0, 0.0, -0.5)), damping: true, bending: false },
+        effects: Effects { gravity: Some(Vec3::new(0.0, 0.0, -0.5)), damping: true, bending: false, drag: true },
         ..ModelSpec::default()
     })
     .unwrap()

@@ -144,7 +144,7 @@ pub fn forces_into(model: &ClothModel, x: &[Vec3], v: &[Vec3], bufs: &mut ForceB
     out.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(chunk, fs)| {
         for (k, f) in fs.iter_mut().enumerate() {
             let i = chunk * ROW_CHUNK + k;
-            let start = gravity.map_or(Vec3::zeros(), |g| g * model.masses()[i]);
+            let start = gravity.map_or(Vec3::zeros(), |g| g * model.masses()[i]) - v[i] * model.drag(i);
             let start = if set.is_empty() { start } else { start + elements::rhs_at(set, element_bufs, i) };
             *f = gather_links(model, i, link, start);
         }
@@ -181,6 +181,8 @@ pub struct SystemTerms<'a> {
 /// Scratch buffers for [`assemble`], sized once per model.
 #[derive(Debug, Clone)]
 pub struct SystemBuffers {
+    /// `c_v` of the last assembly (the drag diagonal of the matrix-free operator needs it).
+    c_v: f64,
     link_rhs: Vec<Vec3>,
     link_block: Vec<Mat3>,
     elements: ElementBuffers,
@@ -194,6 +196,7 @@ impl SystemBuffers {
     /// Buffers for `model`.
     pub fn new(model: &ClothModel) -> Self {
         Self {
+            c_v: 0.0,
             link_rhs: vec![Vec3::zeros(); model.link_count()],
             link_block: vec![Mat3::zeros(); model.link_count()],
             elements: ElementBuffers::new(model.elements()),
@@ -217,10 +220,10 @@ pub struct AssemblyTiming {
 pub fn assemble(model: &ClothModel, x: &[Vec3], terms: &SystemTerms<'_>, bufs: &mut SystemBuffers) -> AssemblyTiming {
     let mut timing = assemble_matrix_free(model, x, terms, bufs);
     let t0 = std::time::Instant::now();
-    let (link_block, element_bufs, set) = (&bufs.link_block, &bufs.elements, model.elements());
+    let (link_block, element_bufs, set, c_v) = (&bufs.link_block, &bufs.elements, model.elements(), terms.c_v);
     bufs.matrix.fill_rows(|i, row| {
         row.iter_mut().for_each(|b| *b = Mat3::zeros());
-        let mut diag = Mat3::identity() * model.masses()[i];
+        let mut diag = Mat3::identity() * (model.masses()[i] + c_v * model.drag(i));
         for inc in model.incidence(i) {
             let b = &link_block[inc.link as usize];
             diag += b;
@@ -263,6 +266,7 @@ pub fn assemble_matrix_free(
             }
         },
     );
+    bufs.c_v = terms.c_v;
     let set = model.elements();
     if !set.is_empty() {
         elements::evaluate(set, x, terms.c_x, terms.force, terms.k_times, &mut bufs.elements);
@@ -277,6 +281,10 @@ pub fn assemble_matrix_free(
             let mut acc = gravity.map_or(Vec3::zeros(), |g| g * (m * terms.force));
             if let Some(y) = terms.mass_times {
                 acc += y[i] * m;
+            }
+            if let Some((a, w)) = terms.d_times {
+                // Drag is a diagonal D = -c_i I.
+                acc -= w[i] * (a * model.drag(i));
             }
             let acc = if set.is_empty() { acc } else { acc + elements::rhs_at(set, element_bufs, i) };
             *bi = gather_links(model, i, link_rhs, acc);
@@ -309,7 +317,9 @@ pub fn apply_scaled_operator(
                 let o = inc.other as usize;
                 acc += blocks[inc.link as usize] * (wi - w[o] * inv_sqrt_mass[o]);
             }
-            *yi = w[i] + acc * inv_sqrt_mass[i];
+            // Drag adds c_v c_i / m_i on the scaled diagonal.
+            let drag = bufs.c_v * model.drag(i) * inv_sqrt_mass[i] * inv_sqrt_mass[i];
+            *yi = w[i] * (1.0 + drag) + acc * inv_sqrt_mass[i];
         }
     });
 }

@@ -57,6 +57,10 @@ pub struct Material {
     /// when the scene lists the `damping` effect.
     #[serde(default)]
     pub damping_n_s_m: f64,
+    /// Viscous drag per unit area, N s/m^3: `f = -drag x area x v` (Provot's
+    /// viscous damping). Used only with the `drag` effect.
+    #[serde(default)]
+    pub drag_n_s_m3: f64,
     /// Volino model: Young's modulus along the warp (panel u), N/m
     /// (default: `tensile_stiffness_n_m`).
     #[serde(default)]
@@ -120,6 +124,7 @@ impl Material {
             ("flexural_rigidity_n_m", self.flexural_rigidity_n_m, true),
             ("buckling_stiffness_n_m", self.buckling_stiffness_n_m, true),
             ("damping_n_s_m", self.damping_n_s_m, true),
+            ("drag_n_s_m3", self.drag_n_s_m3, true),
         ];
         let optional = [
             ("warp_stiffness_n_m", self.warp_stiffness_n_m),
@@ -164,6 +169,7 @@ impl Default for Material {
             flexural_rigidity_n_m: 1e-5,
             buckling_stiffness_n_m: 200.0,
             damping_n_s_m: 0.02,
+            drag_n_s_m3: 0.0,
             warp_stiffness_n_m: None,
             weft_stiffness_n_m: None,
             shear_modulus_n_m: None,

@@ -20,6 +20,10 @@ pub struct Effects {
     pub damping: bool,
     /// Type-2 interlaced buckling links (bending and compression resistance).
     pub bending: bool,
+    /// Viscous drag on every particle, `f_i = -c_i v_i` with
+    /// `c_i = material.drag_n_s_m3 x` the particle's area (Provot's
+    /// "viscous damping" `-C_dis v`).
+    pub drag: bool,
 }
 
 /// An edge of a grid panel.
@@ -270,6 +274,7 @@ pub struct ClothModel {
     panels: Vec<PanelRange>,
     triangles: Vec<[u32; 3]>,
     elements: ElementSet,
+    drag: Vec<f64>,
     inc_ptr: Vec<usize>,
     inc: Vec<Incidence>,
     pattern: BlockPattern,
@@ -297,6 +302,7 @@ impl ClothModel {
         let mut panels = Vec::new();
         let mut triangles = Vec::new();
         let mut elements = ElementSet::default();
+        let mut drag = Vec::new();
         let damping = spec.effects.damping;
         for (p, panel) in spec.panels.iter().enumerate() {
             let mesh = panel.mesh().map_err(|(field, message)| ModelError::Panel { panel: p, field, message })?;
@@ -352,6 +358,9 @@ impl ClothModel {
             }
             triangles.extend(mesh.triangles.iter().map(|t| t.map(at)));
             mass.extend(mesh.area_share.iter().map(|a| a * spec.material.areal_density_kg_m2));
+            if spec.effects.drag {
+                drag.extend(mesh.area_share.iter().map(|a| a * spec.material.drag_n_s_m3));
+            }
             rest_positions.extend_from_slice(&mesh.positions);
             panels.push(PanelRange { offset, nx: panel.particles[0], ny: panel.particles[1] });
         }
@@ -410,6 +419,7 @@ impl ClothModel {
             panels,
             triangles,
             elements,
+            drag,
             inc_ptr,
             inc,
             pattern,
@@ -477,6 +487,15 @@ impl ClothModel {
     /// Panels, in particle order.
     pub fn panels(&self) -> &[PanelRange] {
         &self.panels
+    }
+    /// Drag coefficient `c_i` of particle `i`, N s/m (0 without the drag effect).
+    #[inline]
+    pub fn drag(&self, i: usize) -> f64 {
+        self.drag.get(i).copied().unwrap_or(0.0)
+    }
+    /// Whether the model has drag.
+    pub fn has_drag(&self) -> bool {
+        !self.drag.is_empty()
     }
     /// Membrane triangles and hinges (Volino model; empty otherwise).
     pub fn elements(&self) -> &ElementSet {

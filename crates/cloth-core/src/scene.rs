@@ -13,7 +13,7 @@
 //!                              # symplectic-euler, midpoint, rk4, dopri5
 //! dt_s = 0.011111111111111112  # s
 //! duration_s = 2.0             # s
-//! effects = ["gravity", "bending", "damping"]   # also "strain-limit"
+//! effects = ["gravity", "bending", "damping"]   # also "strain-limit", "drag"
 //! gravity_m_s2 = [0.0, 0.0, -9.81]
 //!
 //! [solver]                     # optional, these are the defaults
@@ -88,6 +88,8 @@ pub enum EffectName {
     Bending,
     /// Provot's deformation constraints (`[constraints]`).
     StrainLimit,
+    /// Viscous drag on every particle (`material.drag_n_s_m3`).
+    Drag,
 }
 
 /// `[simulation]`.
@@ -248,6 +250,7 @@ impl EffectName {
             EffectName::Damping => "damping",
             EffectName::Bending => "bending",
             EffectName::StrainLimit => "strain-limit",
+            EffectName::Drag => "drag",
         }
     }
 }
@@ -357,6 +360,7 @@ impl Scene {
                 gravity: self.has_effect(EffectName::Gravity).then(|| Vec3::from(self.simulation.gravity_m_s2)),
                 damping: self.has_effect(EffectName::Damping),
                 bending: self.has_effect(EffectName::Bending),
+                drag: self.has_effect(EffectName::Drag),
             },
             kind: self.simulation.model,
             strain_limit: self.has_effect(EffectName::StrainLimit).then_some(self.constraints),
