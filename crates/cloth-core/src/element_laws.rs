@@ -82,6 +82,12 @@ pub struct ElementResponse<const K: usize> {
 /// stress `S` projected to its positive part, so it is PSD (and exact
 /// whenever the stress is tensile).
 pub fn membrane_triangle(x: [Vec3; 3], rest: &TriangleRest) -> ElementResponse<3> {
+    membrane_triangle_with(x, rest, true)
+}
+
+/// [`membrane_triangle`], with the Hessian left zero when `hessian` is
+/// false (explicit integrators need forces only).
+pub fn membrane_triangle_with(x: [Vec3; 3], rest: &TriangleRest, hessian: bool) -> ElementResponse<3> {
     let g = &rest.g;
     let f0 = x[0] * g[0].x + x[1] * g[1].x + x[2] * g[2].x; // F column u
     let f1 = x[0] * g[0].y + x[1] * g[1].y + x[2] * g[2].y; // F column v
@@ -91,6 +97,10 @@ pub fn membrane_triangle(x: [Vec3; 3], rest: &TriangleRest) -> ElementResponse<3
     // B_k rows: d e_uu/dx_k, d e_vv/dx_k, d gamma/dx_k.
     let b: [[Vec3; 3]; 3] = std::array::from_fn(|k| [f0 * g[k].x, f1 * g[k].y, f1 * g[k].x + f0 * g[k].y]);
     let forces = std::array::from_fn(|k| -(b[k][0] * stress.x + b[k][1] * stress.y + b[k][2] * stress.z) * a);
+    let energy = 0.5 * a * strain.dot(&stress);
+    if !hessian {
+        return ElementResponse { energy, forces, hessian: [[Mat3::zeros(); 3]; 3] };
+    }
     // Positive part of the 2x2 stress tensor [[s_uu, s_uv], [s_uv, s_vv]].
     let s = Matrix2::new(stress.x, stress.z, stress.z, stress.y);
     let eig = s.symmetric_eigen();
@@ -112,7 +122,7 @@ pub fn membrane_triangle(x: [Vec3; 3], rest: &TriangleRest) -> ElementResponse<3
             (material + Mat3::identity() * geometric) * a
         })
     });
-    ElementResponse { energy: 0.5 * a * strain.dot(&stress), forces, hessian }
+    ElementResponse { energy, forces, hessian }
 }
 
 /// Signed dihedral angle of a hinge (radians, 0 when flat): corners 0 and 1
@@ -147,13 +157,22 @@ pub fn dihedral_gradient(x: &[Vec3; 4]) -> [Vec3; 4] {
 /// Gauss-Newton Hessian `k grad theta grad theta^T` (PSD; the curvature
 /// term of theta is dropped, as for Choi & Ko's type-2 links).
 pub fn hinge_bending(x: [Vec3; 4], rest_angle: f64, k: f64) -> ElementResponse<4> {
+    hinge_bending_with(x, rest_angle, k, true)
+}
+
+/// [`hinge_bending`], with the Hessian left zero when `hessian` is false.
+pub fn hinge_bending_with(x: [Vec3; 4], rest_angle: f64, k: f64, hessian: bool) -> ElementResponse<4> {
     let theta = dihedral_angle(&x);
     let grad = dihedral_gradient(&x);
     let dt = theta - rest_angle;
     ElementResponse {
         energy: 0.5 * k * dt * dt,
         forces: std::array::from_fn(|a| -grad[a] * (k * dt)),
-        hessian: std::array::from_fn(|a| std::array::from_fn(|b| grad[a] * grad[b].transpose() * k)),
+        hessian: if hessian {
+            std::array::from_fn(|a| std::array::from_fn(|b| grad[a] * grad[b].transpose() * k))
+        } else {
+            [[Mat3::zeros(); 4]; 4]
+        },
     }
 }
 

@@ -7,7 +7,7 @@
 //! evaluated in parallel into per-element buffers; each particle then adds
 //! its elements in a fixed order, as for links.
 
-use crate::element_laws::{ElementResponse, TriangleRest, hinge_bending, membrane_triangle};
+use crate::element_laws::{ElementResponse, TriangleRest, hinge_bending_with, membrane_triangle_with};
 use crate::{Mat3, Vec3};
 use cloth_linalg::{BlockPattern, ROW_CHUNK};
 use rayon::prelude::*;
@@ -116,44 +116,48 @@ impl ElementSet {
     }
 }
 
-/// One element's contribution to a linear system.
+/// One element's energy and right-hand-side terms.
 #[derive(Debug, Clone, Copy)]
-pub struct ElementSystem<const K: usize> {
+struct ElementRhs<const K: usize> {
     energy: f64,
     rhs: [Vec3; K],
-    blocks: [[Mat3; K]; K],
 }
 
-impl<const K: usize> Default for ElementSystem<K> {
+impl<const K: usize> Default for ElementRhs<K> {
     fn default() -> Self {
-        Self { energy: 0.0, rhs: [Vec3::zeros(); K], blocks: [[Mat3::zeros(); K]; K] }
+        Self { energy: 0.0, rhs: [Vec3::zeros(); K] }
     }
 }
 
-/// Per-element scratch, sized once per model.
+/// Per-element scratch, sized once per model. Blocks live apart from the
+/// right-hand sides so that a forces-only evaluation writes no blocks.
 #[derive(Debug, Clone, Default)]
 pub struct ElementBuffers {
-    membranes: Vec<ElementSystem<3>>,
-    hinges: Vec<ElementSystem<4>>,
+    membranes: Vec<ElementRhs<3>>,
+    membrane_blocks: Vec<[[Mat3; 3]; 3]>,
+    hinges: Vec<ElementRhs<4>>,
+    hinge_blocks: Vec<[[Mat3; 4]; 4]>,
 }
 
 impl ElementBuffers {
     /// Buffers for `set`.
     pub fn new(set: &ElementSet) -> Self {
         Self {
-            membranes: vec![ElementSystem::default(); set.membranes.len()],
-            hinges: vec![ElementSystem::default(); set.hinges.len()],
+            membranes: vec![ElementRhs::default(); set.membranes.len()],
+            membrane_blocks: vec![[[Mat3::zeros(); 3]; 3]; set.membranes.len()],
+            hinges: vec![ElementRhs::default(); set.hinges.len()],
+            hinge_blocks: vec![[[Mat3::zeros(); 4]; 4]; set.hinges.len()],
         }
     }
 }
 
+/// Folds a law's response into right-hand-side terms.
 fn fold<const K: usize>(
-    r: ElementResponse<K>,
+    r: &ElementResponse<K>,
     nodes: &[u32; K],
-    c_x: f64,
     force: f64,
     k_times: Option<(f64, &[Vec3])>,
-) -> ElementSystem<K> {
+) -> ElementRhs<K> {
     let rhs = std::array::from_fn(|a| {
         let mut v = r.forces[a] * force;
         if let Some((coef, w)) = k_times {
@@ -163,11 +167,13 @@ fn fold<const K: usize>(
         }
         v
     });
-    ElementSystem { energy: r.energy, rhs, blocks: r.hessian.map(|row| row.map(|h| h * c_x)) }
+    ElementRhs { energy: r.energy, rhs }
 }
 
 /// Evaluates every element at `x`: right-hand-side terms
-/// `force f_a - a_k (H w)_a` and blocks `c_x H_ab`.
+/// `force f_a - a_k (H w)_a` and blocks `c_x H_ab` (no Hessian work and no
+/// block writes when `c_x = 0` and there is no `k_times`, as for explicit
+/// integrators).
 pub fn evaluate(
     set: &ElementSet,
     x: &[Vec3],
@@ -176,14 +182,38 @@ pub fn evaluate(
     k_times: Option<(f64, &[Vec3])>,
     bufs: &mut ElementBuffers,
 ) {
-    bufs.membranes.par_iter_mut().zip(set.membranes.par_iter()).with_min_len(ROW_CHUNK).for_each(|(out, m)| {
-        let corners = m.nodes.map(|p| x[p as usize]);
-        *out = fold(membrane_triangle(corners, &m.rest), &m.nodes, c_x, force, k_times);
-    });
-    bufs.hinges.par_iter_mut().zip(set.hinges.par_iter()).with_min_len(ROW_CHUNK).for_each(|(out, h)| {
-        let corners = h.nodes.map(|p| x[p as usize]);
-        *out = fold(hinge_bending(corners, h.rest_angle, h.k), &h.nodes, c_x, force, k_times);
-    });
+    let hessian = c_x != 0.0 || k_times.is_some();
+    let scale = |h: &Mat3| h * c_x;
+    if hessian {
+        bufs.membranes
+            .par_iter_mut()
+            .zip(bufs.membrane_blocks.par_iter_mut())
+            .zip(set.membranes.par_iter())
+            .with_min_len(ROW_CHUNK)
+            .for_each(|((out, blocks), m)| {
+                let r = membrane_triangle_with(m.nodes.map(|p| x[p as usize]), &m.rest, true);
+                *out = fold(&r, &m.nodes, force, k_times);
+                *blocks = r.hessian.map(|row| row.map(|h| scale(&h)));
+            });
+        bufs.hinges
+            .par_iter_mut()
+            .zip(bufs.hinge_blocks.par_iter_mut())
+            .zip(set.hinges.par_iter())
+            .with_min_len(ROW_CHUNK)
+            .for_each(|((out, blocks), h)| {
+                let r = hinge_bending_with(h.nodes.map(|p| x[p as usize]), h.rest_angle, h.k, true);
+                *out = fold(&r, &h.nodes, force, k_times);
+                *blocks = r.hessian.map(|row| row.map(|b| scale(&b)));
+            });
+    } else {
+        bufs.membranes.par_iter_mut().zip(set.membranes.par_iter()).with_min_len(ROW_CHUNK).for_each(|(out, m)| {
+            *out = fold(&membrane_triangle_with(m.nodes.map(|p| x[p as usize]), &m.rest, false), &m.nodes, force, None);
+        });
+        bufs.hinges.par_iter_mut().zip(set.hinges.par_iter()).with_min_len(ROW_CHUNK).for_each(|(out, h)| {
+            let r = hinge_bending_with(h.nodes.map(|p| x[p as usize]), h.rest_angle, h.k, false);
+            *out = fold(&r, &h.nodes, force, None);
+        });
+    }
 }
 
 /// Sum of the element right-hand-side terms at particle `i`.
@@ -205,11 +235,11 @@ pub fn add_row(set: &ElementSet, bufs: &ElementBuffers, i: usize, row: &mut [Mat
         let (e, a) = (c.elem as usize, c.corner as usize);
         if c.hinge {
             for (b, s) in set.hinge_slots[e][a].iter().enumerate() {
-                row[*s as usize] += bufs.hinges[e].blocks[a][b];
+                row[*s as usize] += bufs.hinge_blocks[e][a][b];
             }
         } else {
             for (b, s) in set.membrane_slots[e][a].iter().enumerate() {
-                row[*s as usize] += bufs.membranes[e].blocks[a][b];
+                row[*s as usize] += bufs.membrane_blocks[e][a][b];
             }
         }
     }
@@ -223,11 +253,11 @@ pub fn apply_at(set: &ElementSet, bufs: &ElementBuffers, i: usize, w: &[Vec3], s
         let (e, a) = (c.elem as usize, c.corner as usize);
         if c.hinge {
             for (b, &p) in set.hinges[e].nodes.iter().enumerate() {
-                acc += bufs.hinges[e].blocks[a][b] * (w[p as usize] * s[p as usize]);
+                acc += bufs.hinge_blocks[e][a][b] * (w[p as usize] * s[p as usize]);
             }
         } else {
             for (b, &p) in set.membranes[e].nodes.iter().enumerate() {
-                acc += bufs.membranes[e].blocks[a][b] * (w[p as usize] * s[p as usize]);
+                acc += bufs.membrane_blocks[e][a][b] * (w[p as usize] * s[p as usize]);
             }
         }
     }
