@@ -65,13 +65,35 @@ fn dense(bufs: &SystemBuffers, n: usize) -> Vec<f64> {
     a
 }
 
+/// Asserts `f = -grad E` at `x` (zero velocity) by central differences,
+/// to `1e-5` of the largest force.
+fn assert_forces_are_energy_gradient(model: &ClothModel, x: &[Vec3]) {
+    let zero = vec![Vec3::zeros(); x.len()];
+    let f = total_forces(model, x, &zero);
+    let scale = f.iter().map(|v| v.norm()).fold(0.0, f64::max);
+    assert!(scale > 0.0);
+    let h = 1e-7;
+    for i in 0..x.len() {
+        for c in 0..3 {
+            let (mut xp, mut xm) = (x.to_vec(), x.to_vec());
+            xp[i][c] += h;
+            xm[i][c] -= h;
+            let grad = (potential_energy(model, &xp) - potential_energy(model, &xm)) / (2.0 * h);
+            assert!(
+                (f[i][c] + grad).abs() <= 1e-5 * scale,
+                "particle {i} component {c}: f = {}, -dE/dx = {}",
+                f[i][c],
+                -grad
+            );
+        }
+    }
+}
+
 #[test]
 fn forces_are_minus_the_energy_gradient() {
     let model = small_model(true, false, true);
     let mut rng = Rng(1);
     let x = perturbed(&model, &mut rng, 2e-3);
-    let zero = vec![Vec3::zeros(); x.len()];
-    let f = total_forces(&model, &x, &zero);
     // Both branches of the type-2 law and both states of type-1 links occur.
     let kinds: Vec<(bool, bool)> = (0..model.link_count())
         .map(|k| {
@@ -82,23 +104,7 @@ fn forces_are_minus_the_energy_gradient() {
         })
         .collect();
     assert!(kinds.contains(&(true, true)) && kinds.contains(&(false, false)) && kinds.contains(&(false, true)));
-    let scale = f.iter().map(|v| v.norm()).fold(0.0, f64::max);
-    let h = 1e-7;
-    for i in 0..x.len() {
-        for c in 0..3 {
-            let mut xp = x.clone();
-            let mut xm = x.clone();
-            xp[i][c] += h;
-            xm[i][c] -= h;
-            let grad = (potential_energy(&model, &xp) - potential_energy(&model, &xm)) / (2.0 * h);
-            assert!(
-                (f[i][c] + grad).abs() <= 1e-5 * scale,
-                "particle {i} component {c}: f = {}, -dE/dx = {}",
-                f[i][c],
-                -grad
-            );
-        }
-    }
+    assert_forces_are_energy_gradient(&model, &x);
 }
 
 /// Finite-difference Jacobian of the total force with respect to x (or v),
@@ -498,18 +504,7 @@ fn provot_forces_and_jacobians_match_finite_differences() {
     let mut rng = Rng(21);
     let x = perturbed(&model, &mut rng, 2e-3);
     let zero = vec![Vec3::zeros(); x.len()];
-    let f = total_forces(&model, &x, &zero);
-    let scale = f.iter().map(|v| v.norm()).fold(0.0, f64::max);
-    let h = 1e-7;
-    for i in 0..x.len() {
-        for c in 0..3 {
-            let (mut xp, mut xm) = (x.clone(), x.clone());
-            xp[i][c] += h;
-            xm[i][c] -= h;
-            let grad = (potential_energy(&model, &xp) - potential_energy(&model, &xm)) / (2.0 * h);
-            assert!((f[i][c] + grad).abs() <= 1e-5 * scale, "particle {i} component {c}");
-        }
-    }
+    assert_forces_are_energy_gradient(&model, &x);
     let dropped = dropped_type2_terms(&model, &x);
     assert!(!dropped.is_empty(), "some Provot springs are compressed");
     let err = jacobian_error(&model, &x, &zero, false, &dropped);
@@ -603,19 +598,7 @@ fn volino_forces_and_jacobians_match_finite_differences() {
     let mut rng = Rng(31);
     let x = perturbed(&model, &mut rng, 2e-3);
     let zero = vec![Vec3::zeros(); x.len()];
-    let f = total_forces(&model, &x, &zero);
-    let scale = f.iter().map(|v| v.norm()).fold(0.0, f64::max);
-    assert!(scale > 0.0);
-    let h = 1e-7;
-    for i in 0..x.len() {
-        for c in 0..3 {
-            let (mut xp, mut xm) = (x.clone(), x.clone());
-            xp[i][c] += h;
-            xm[i][c] -= h;
-            let grad = (potential_energy(&model, &xp) - potential_energy(&model, &xm)) / (2.0 * h);
-            assert!((f[i][c] + grad).abs() <= 1e-5 * scale, "particle {i} component {c}: {} vs {}", f[i][c], -grad);
-        }
-    }
+    assert_forces_are_energy_gradient(&model, &x);
     // Membrane only, uniformly stretched by 20% plus jitter: tensile stress everywhere.
     let model = small_model_of(ModelKind::Volino, false, false, true);
     let mut x: Vec<Vec3> = model.rest_positions().iter().map(|p| p * 1.2).collect();
