@@ -1,0 +1,185 @@
+//! The voxel spatial hash.
+
+use crate::Vec3;
+
+/// Why a broad-phase query cannot run.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum BroadPhaseError {
+    /// The voxel size is not a finite positive length.
+    #[error("voxel size must be finite and > 0, got {0} m")]
+    InvalidVoxelSize(f64),
+    /// A point or triangle corner is not finite.
+    #[error("{what} {index} has a non-finite coordinate")]
+    NonFinite {
+        /// "point" or "triangle".
+        what: &'static str,
+        /// Its index.
+        index: usize,
+    },
+}
+
+/// A voxel grid of cubic cells of edge `voxel` (m), hashed into a table of
+/// buckets. Rebuilding reuses every allocation: call
+/// [`VoxelHash::insert_points`] each step.
+#[derive(Debug, Clone)]
+pub struct VoxelHash {
+    voxel: f64,
+    /// Bucket of each inserted point.
+    point_bucket: Vec<u32>,
+    /// Integer cell of each inserted point.
+    point_cell: Vec<[i64; 3]>,
+    /// CSR: points of bucket b are `sorted[start[b]..start[b + 1]]`.
+    start: Vec<u32>,
+    sorted: Vec<u32>,
+    /// Counting-sort cursor, kept to avoid allocating on rebuild.
+    fill: Vec<u32>,
+}
+
+/// Prime multipliers of the classic spatial hash (Teschner et al. 2003).
+const P1: i64 = 73_856_093;
+const P2: i64 = 19_349_663;
+const P3: i64 = 83_492_791;
+
+impl VoxelHash {
+    /// An empty hash with cells of edge `voxel` (m). Choose it near the
+    /// interaction distance: pairs closer than `voxel` always share or
+    /// neighbour a cell.
+    pub fn new(voxel: f64) -> Result<Self, BroadPhaseError> {
+        if !(voxel.is_finite() && voxel > 0.0) {
+            return Err(BroadPhaseError::InvalidVoxelSize(voxel));
+        }
+        Ok(Self {
+            voxel,
+            point_bucket: Vec::new(),
+            point_cell: Vec::new(),
+            start: Vec::new(),
+            sorted: Vec::new(),
+            fill: Vec::new(),
+        })
+    }
+
+    /// Cell edge, m.
+    pub fn voxel(&self) -> f64 {
+        self.voxel
+    }
+
+    fn cell_of(&self, p: &Vec3) -> [i64; 3] {
+        [(p.x / self.voxel).floor() as i64, (p.y / self.voxel).floor() as i64, (p.z / self.voxel).floor() as i64]
+    }
+
+    fn bucket(&self, c: [i64; 3]) -> u32 {
+        let h = (c[0].wrapping_mul(P1)) ^ (c[1].wrapping_mul(P2)) ^ (c[2].wrapping_mul(P3));
+        (h.rem_euclid(self.table_len() as i64)) as u32
+    }
+
+    fn table_len(&self) -> usize {
+        self.start.len().saturating_sub(1).max(1)
+    }
+
+    /// Registers `points` (replacing any earlier set): a counting sort into
+    /// `2 n` buckets, O(n).
+    pub fn insert_points(&mut self, points: &[Vec3]) -> Result<(), BroadPhaseError> {
+        if let Some(index) = points.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+            return Err(BroadPhaseError::NonFinite { what: "point", index });
+        }
+        let table = (2 * points.len()).max(1);
+        self.start.clear();
+        self.start.resize(table + 1, 0);
+        self.point_cell.clear();
+        self.point_bucket.clear();
+        for p in points {
+            let c = self.cell_of(p);
+            self.point_cell.push(c);
+        }
+        for k in 0..points.len() {
+            let b = self.bucket(self.point_cell[k]);
+            self.point_bucket.push(b);
+            self.start[b as usize + 1] += 1;
+        }
+        for b in 0..table {
+            self.start[b + 1] += self.start[b];
+        }
+        self.sorted.clear();
+        self.sorted.resize(points.len(), 0);
+        self.fill.clear();
+        self.fill.extend_from_slice(&self.start[..table]);
+        for (k, &b) in self.point_bucket.iter().enumerate() {
+            self.sorted[self.fill[b as usize] as usize] = k as u32;
+            self.fill[b as usize] += 1;
+        }
+        Ok(())
+    }
+
+    /// Points registered in the cell `c` (and any cell hashing to the same
+    /// bucket: callers filter by distance).
+    fn bucket_points(&self, c: [i64; 3]) -> &[u32] {
+        let b = self.bucket(c) as usize;
+        &self.sorted[self.start[b] as usize..self.start[b + 1] as usize]
+    }
+
+    /// Every pair `(i, j)`, `i < j`, of the inserted `points` closer than
+    /// `radius` (<= the voxel size), sorted. `skip(i, j)` drops pairs that
+    /// should not collide (neighbours in the mesh).
+    pub fn pairs_within(&self, points: &[Vec3], radius: f64, skip: impl Fn(u32, u32) -> bool) -> Vec<(u32, u32)> {
+        assert!(radius <= self.voxel, "pairs_within: radius {radius} exceeds the voxel size {}", self.voxel);
+        assert_eq!(points.len(), self.point_cell.len(), "pairs_within: points differ from the inserted set");
+        let r2 = radius * radius;
+        let mut out = Vec::new();
+        for (i, c) in self.point_cell.iter().enumerate() {
+            for dx in -1..=1 {
+                for dy in -1..=1 {
+                    for dz in -1..=1 {
+                        let n = [c[0] + dx, c[1] + dy, c[2] + dz];
+                        let me = i as u32;
+                        for &j in self.bucket_points(n) {
+                            // Each pair once, from its lower index, and only from
+                            // the cell j really is in (buckets may collide).
+                            if j <= me || self.point_cell[j as usize] != n || skip(me, j) {
+                                continue;
+                            }
+                            if (points[j as usize] - points[i]).norm_squared() < r2 {
+                                out.push((me, j));
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        out.sort_unstable();
+        out
+    }
+
+    /// Candidate `(point, triangle)` pairs: every inserted point in a voxel
+    /// touched by a triangle's bounding box grown by `margin` (m), sorted
+    /// and without duplicates. A superset of the pairs closer than `margin`.
+    pub fn point_triangle_candidates(
+        &self,
+        triangles: &[[Vec3; 3]],
+        margin: f64,
+    ) -> Result<Vec<(u32, u32)>, BroadPhaseError> {
+        let mut out = Vec::new();
+        for (t, tri) in triangles.iter().enumerate() {
+            if !tri.iter().all(|p| p.iter().all(|c| c.is_finite())) {
+                return Err(BroadPhaseError::NonFinite { what: "triangle", index: t });
+            }
+            let lo = tri[0].inf(&tri[1]).inf(&tri[2]).add_scalar(-margin);
+            let hi = tri[0].sup(&tri[1]).sup(&tri[2]).add_scalar(margin);
+            let (a, b) = (self.cell_of(&lo), self.cell_of(&hi));
+            for x in a[0]..=b[0] {
+                for y in a[1]..=b[1] {
+                    for z in a[2]..=b[2] {
+                        let c = [x, y, z];
+                        for &p in self.bucket_points(c) {
+                            if self.point_cell[p as usize] == c {
+                                out.push((p, t as u32));
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        out.sort_unstable();
+        out.dedup();
+        Ok(out)
+    }
+}
