@@ -41,6 +41,7 @@ fn system() -> (SystemBuffers, ConstraintFilter, Multigrid) {
         k_times: None,
         d_times: Some((-2.0 * h / 9.0, &delta)),
         mass_times: Some(&delta),
+        external: None,
     };
     assemble(model, &state.x, &terms, &mut bufs);
     let mut filter = ConstraintFilter::new(model.particle_count());

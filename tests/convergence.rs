@@ -45,7 +45,13 @@ fn model() -> ClothModel {
             .filter(|&(i, j)| i == 0 || j == 0 || i == n - 1 || j == n - 1)
             .map(|(i, j)| border(i, j))
             .collect(),
-        effects: Effects { gravity: Some(Vec3::new(0.0, 0.0, -0.5)), damping: true, bending: false, drag: true },
+        effects: Effects {
+            gravity: Some(Vec3::new(0.0, 0.0, -0.5)),
+            damping: true,
+            bending: false,
+            drag: true,
+            ..Effects::default()
+        },
         ..ModelSpec::default()
     })
     .unwrap()

@@ -16,7 +16,13 @@ fn small_model(bending: bool, damping: bool, gravity: bool) -> ClothModel {
 fn small_model_of(kind: ModelKind, bending: bool, damping: bool, gravity: bool) -> ClothModel {
     small_model_with(
         kind,
-        Effects { gravity: gravity.then(|| Vec3::new(0.0, 0.0, -9.81)), damping, bending, drag: false },
+        Effects {
+            gravity: gravity.then(|| Vec3::new(0.0, 0.0, -9.81)),
+            damping,
+            bending,
+            drag: false,
+            ..Effects::default()
+        },
     )
 }
 
@@ -119,6 +125,7 @@ fn jacobian_error(model: &ClothModel, x: &[Vec3], v: &[Vec3], wrt_velocity: bool
         k_times: None,
         d_times: None,
         mass_times: None,
+        external: None,
     };
     assemble(model, x, &terms, &mut bufs);
     let mut a = dense(&bufs, n);
@@ -208,8 +215,10 @@ fn stiffness_matrix_matches_finite_differences_of_forces() {
 #[test]
 fn damping_matrix_matches_finite_differences_of_forces() {
     // Link damping and particle drag together.
-    let model =
-        small_model_with(ModelKind::ChoiKo, Effects { gravity: None, damping: true, bending: true, drag: true });
+    let model = small_model_with(
+        ModelKind::ChoiKo,
+        Effects { gravity: None, damping: true, bending: true, drag: true, ..Effects::default() },
+    );
     let mut rng = Rng(3);
     let x = perturbed(&model, &mut rng, 2e-3);
     let v: Vec<Vec3> = (0..x.len()).map(|_| rng.vec3()).collect();
@@ -383,7 +392,7 @@ fn sag_is_resolution_independent() {
                     gravity: Some(Vec3::new(0.0, 0.0, -9.81)),
                     damping: true,
                     bending: true,
-                    drag: false,
+                    ..Effects::default()
                 },
                 ..ModelSpec::default()
             })
@@ -644,7 +653,7 @@ fn volino_hinges_give_the_plate_bending_energy() {
             wrap_u: false,
         }],
         material: Material { flexural_rigidity_n_m: b, ..Material::default() },
-        effects: Effects { gravity: None, damping: false, bending: true, drag: false },
+        effects: Effects { gravity: None, damping: false, bending: true, drag: false, ..Effects::default() },
         ..ModelSpec::default()
     })
     .unwrap();
@@ -691,7 +700,7 @@ fn drag_decays_velocity_like_the_discrete_exponential() {
                 wrap_u: false,
             }],
             material: Material { areal_density_kg_m2: rho, drag_n_s_m3: drag, ..Material::default() },
-            effects: Effects { gravity: None, damping: true, bending: true, drag: true },
+            effects: Effects { gravity: None, damping: true, bending: true, drag: true, ..Effects::default() },
             ..ModelSpec::default()
         })
         .unwrap();

@@ -51,3 +51,36 @@ fn scene_errors_name_the_file_and_the_field() {
     let msg = e.to_string();
     assert!(msg.contains("hang.toml") && msg.contains("pins[0].nodes") && msg.contains("outside"), "{msg}");
 }
+
+/// The flag fixture: the net wind force on the flag grows with the wind
+/// speed (roughly with its square: drag and lift are quadratic, Provot's
+/// fluid force linear).
+#[test]
+fn flag_wind_force_grows_with_wind_speed() {
+    let mut last = 0.0;
+    for speed in [2.0, 5.0, 10.0] {
+        let profile = format!("wind.profile={{ kind = \"constant\", velocity_m_s = [{speed}, 0.3, 0.0] }}");
+        let (mut sim, cfg) = simulation("flag.toml", &["panels.0.particles=[16, 11]", &profile]);
+        let model = sim.model().clone();
+        let mut normals = Vec::new();
+        let mut total = 0.0;
+        let steps = 45;
+        for _ in 0..steps {
+            sim.step(cfg.dt_s).unwrap();
+            let s = sim.state();
+            let mut f = vec![cloth_core::Vec3::zeros(); s.len()];
+            cloth_core::wind::add_wind_forces(&model, &s.x, &s.v, s.time_s, &mut normals, &mut f);
+            total += f.iter().sum::<cloth_core::Vec3>().norm();
+        }
+        let mean = total / steps as f64;
+        assert!(mean > 1.5 * last, "wind {speed} m/s: mean net force {mean} N (previous {last} N)");
+        last = mean;
+    }
+}
+
+#[test]
+fn wind_effects_need_a_wind_section() {
+    let e = Scene::load(&fixture("hang.toml"), &["simulation.effects=[\"gravity\", \"wind\"]".into()]).unwrap_err();
+    let msg = e.to_string();
+    assert!(msg.contains("hang.toml") && msg.contains("wind.profile"), "{msg}");
+}

@@ -40,7 +40,7 @@ pub struct Summary {
     pub stretch_links: usize,
     pub bend_links: usize,
     pub effects: Vec<String>,
-    /// The discretisation (`choiko` or `provot`).
+    /// The discretisation (`choi-ko`, `provot` or `volino`).
     pub model: String,
     pub integrator: String,
     pub threads: usize,

@@ -121,7 +121,7 @@ fn simulate(
         stretch_links: model.stretch_links().len(),
         bend_links: model.bend_links().len(),
         effects: EffectName::ALL.into_iter().filter(|e| scene.has_effect(*e)).map(|e| e.name().to_string()).collect(),
-        model: format!("{:?}", scene.simulation.model).to_lowercase(),
+        model: scene.simulation.model.name().to_string(),
         integrator: cfg.integrator.name().to_string(),
         threads,
         steps,

@@ -34,6 +34,8 @@ fn run_writes_summary_and_frames() {
     assert_eq!(s["particles"], 121);
     assert_eq!(s["steps"], 9);
     assert_eq!(s["integrator"], "bdf2");
+    assert_eq!(s["model"], "choi-ko");
+    assert_eq!(s["effects"], serde_json::json!(["gravity", "damping", "bending"]));
     assert_eq!(s["finite"], true);
     for key in ["dt_s", "sim_time_s", "wall_s", "max_stretch_ratio", "min_z_m", "max_speed_m_s"] {
         assert!(s[key].as_f64().is_some_and(f64::is_finite), "{key}");

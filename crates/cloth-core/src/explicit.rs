@@ -11,6 +11,7 @@ use crate::{
     ClothModel, ClothState, SolverParams, Vec3, Workspace,
     forces::{ForceBuffers, forces_into},
     integrator::{StageTimes, StepError, StepReport},
+    wind::add_wind_forces,
 };
 use cloth_linalg::ROW_CHUNK;
 use rayon::prelude::*;
@@ -74,6 +75,7 @@ pub struct ExplicitBuffers {
     vs: Vec<Vec3>,
     force: Vec<Vec3>,
     forces: ForceBuffers,
+    normals: Vec<Vec3>,
     /// Result of the last attempted step.
     pub(crate) x_new: Vec<Vec3>,
     pub(crate) v_new: Vec<Vec3>,
@@ -91,6 +93,7 @@ impl ExplicitBuffers {
             vs: zeros(),
             force: zeros(),
             forces: ForceBuffers::new(model),
+            normals: Vec::with_capacity(n),
             x_new: zeros(),
             v_new: zeros(),
         }
@@ -152,6 +155,7 @@ pub(crate) fn rk_step(
         stages_time.update_s += t_update.elapsed().as_secs_f64();
         let t_force = Instant::now();
         forces_into(model, &bufs.xs, &bufs.vs, &mut bufs.forces, &mut bufs.force);
+        add_wind_forces(model, &bufs.xs, &bufs.vs, ts, &mut bufs.normals, &mut bufs.force);
         stages_time.forces_s += t_force.elapsed().as_secs_f64();
         let (kx, kv) = (&mut bufs.kx[s], &mut bufs.kv[s]);
         kx.copy_from_slice(&bufs.vs);
@@ -200,6 +204,7 @@ pub(crate) fn symplectic_euler_step(
 ) {
     let t_force = Instant::now();
     forces_into(model, x, v, &mut bufs.forces, &mut bufs.force);
+    add_wind_forces(model, x, v, t, &mut bufs.normals, &mut bufs.force);
     stages_time.forces_s += t_force.elapsed().as_secs_f64();
     let t_update = Instant::now();
     let masses = model.masses();

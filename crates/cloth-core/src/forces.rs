@@ -176,6 +176,9 @@ pub struct SystemTerms<'a> {
     pub d_times: Option<(f64, &'a [Vec3])>,
     /// Optional `y`: adds `M y`.
     pub mass_times: Option<&'a [Vec3]>,
+    /// Optional external forces (wind) taken at the start of the step, N:
+    /// adds `force * f_ext`.
+    pub external: Option<&'a [Vec3]>,
 }
 
 /// Scratch buffers for [`assemble`], sized once per model.
@@ -281,6 +284,9 @@ pub fn assemble_matrix_free(
             let mut acc = gravity.map_or(Vec3::zeros(), |g| g * (m * terms.force));
             if let Some(y) = terms.mass_times {
                 acc += y[i] * m;
+            }
+            if let Some(f) = terms.external {
+                acc += f[i] * terms.force;
             }
             if let Some((a, w)) = terms.d_times {
                 // Drag is a diagonal D = -c_i I.

@@ -227,6 +227,9 @@ pub struct Workspace {
     pub(crate) new_v: Vec<Vec3>,
     newton_u: Vec<Vec3>,
     newton_y: Vec<Vec3>,
+    /// External (wind) forces at the start of the step, and normals scratch.
+    pub(crate) external: Vec<Vec3>,
+    pub(crate) normals: Vec<Vec3>,
     /// Stage storage of the explicit integrators (allocated on first use).
     pub(crate) explicit: Option<ExplicitBuffers>,
     /// Buffers of the matrix-free solver (allocated on first use).
@@ -252,6 +255,8 @@ impl Workspace {
             new_v: vec![Vec3::zeros(); n],
             newton_u: vec![Vec3::zeros(); n],
             newton_y: vec![Vec3::zeros(); n],
+            external: vec![Vec3::zeros(); n],
+            normals: Vec::with_capacity(n),
             explicit: None,
             matrix_free: None,
         }
@@ -359,7 +364,15 @@ impl Linearised for BackwardEuler {
 
     fn terms<'a>(&self, state: &'a ClothState, _: &'a [Vec3], _: &'a [Vec3], h: f64) -> SystemTerms<'a> {
         let v = &state.v;
-        SystemTerms { c_x: h * h, c_v: h, force: h, k_times: Some((h * h, v)), d_times: Some((h, v)), mass_times: None }
+        SystemTerms {
+            c_x: h * h,
+            c_v: h,
+            force: h,
+            k_times: Some((h * h, v)),
+            d_times: Some((h, v)),
+            mass_times: None,
+            external: None,
+        }
     }
 
     /// `dv = (p(t + h) - x) / h - v`.
@@ -383,7 +396,15 @@ impl Linearised for BackwardEuler {
     }
 
     fn newton_terms<'a>(&self, h: f64, v_k: &'a [Vec3], y: &'a [Vec3]) -> SystemTerms<'a> {
-        SystemTerms { c_x: h * h, c_v: h, force: h, k_times: None, d_times: Some((h, v_k)), mass_times: Some(y) }
+        SystemTerms {
+            c_x: h * h,
+            c_v: h,
+            force: h,
+            k_times: None,
+            d_times: Some((h, v_k)),
+            mass_times: Some(y),
+            external: None,
+        }
     }
 }
 
@@ -405,6 +426,7 @@ impl Linearised for Bdf2 {
             k_times: None,
             d_times: Some((-2.0 * h / 9.0, aux)),
             mass_times: Some(aux2),
+            external: None,
         }
     }
 
@@ -436,6 +458,7 @@ impl Linearised for Bdf2 {
             k_times: None,
             d_times: Some((c, v_k)),
             mass_times: Some(y),
+            external: None,
         }
     }
 }
@@ -451,7 +474,10 @@ fn linearised_step<S: Linearised>(
     solver: &SolverParams,
 ) -> Result<StepReport, StepError> {
     scheme.prepare(state, h, &mut ws.aux, &mut ws.aux2);
-    let timing = assemble(model, &state.x, &scheme.terms(state, &ws.aux, &ws.aux2, h), &mut ws.system);
+    let has_wind = external_forces(model, state, ws);
+    let mut terms = scheme.terms(state, &ws.aux, &ws.aux2, h);
+    terms.external = has_wind.then_some(&ws.external[..]);
+    let timing = assemble(model, &state.x, &terms, &mut ws.system);
     let t_pins = Instant::now();
     constrain_pins(model, state, h, &mut ws.filter, |target, i| scheme.pinned(state, h, target, i));
     for i in 0..state.len() {
@@ -469,7 +495,8 @@ fn linearised_step<S: Linearised>(
             ws.newton_y[i] = scheme.newton_mass_term(&ws.aux2, i, ws.unknown[i]);
         }
         ws.newton_u.copy_from_slice(&ws.unknown);
-        let terms = scheme.newton_terms(h, &ws.new_v, &ws.newton_y);
+        let mut terms = scheme.newton_terms(h, &ws.new_v, &ws.newton_y);
+        terms.external = has_wind.then_some(&ws.external[..]);
         let t = assemble(model, &ws.new_x, &terms, &mut ws.system);
         constrain_pins(model, state, h, &mut ws.filter, |_, _| Vec3::zeros());
         ws.unknown.iter_mut().for_each(|u| *u = Vec3::zeros());
@@ -490,6 +517,17 @@ fn linearised_step<S: Linearised>(
     commit(state, ws, h)?;
     report.stages = StageTimes { forces_s, assembly_s, solve_s, update_s: t_update.elapsed().as_secs_f64() };
     Ok(report)
+}
+
+/// Wind forces at the start of the step into `ws.external`; false (and
+/// nothing computed) when the model has no wind effect.
+pub(crate) fn external_forces(model: &ClothModel, state: &ClothState, ws: &mut Workspace) -> bool {
+    if model.wind().is_none() {
+        return false;
+    }
+    ws.external.iter_mut().for_each(|f| *f = Vec3::zeros());
+    crate::wind::add_wind_forces(model, &state.x, &state.v, state.time_s, &mut ws.normals, &mut ws.external);
+    true
 }
 
 pub(crate) fn check_step(model: &ClothModel, state: &ClothState, h: f64) -> Result<(), StepError> {

@@ -22,6 +22,7 @@ pub mod scene;
 mod sim;
 mod state;
 mod topology;
+pub mod wind;
 
 pub use cloth_linalg::{PcgParams, PreconditionerKind};
 pub use constraints::{StrainLimitReport, apply_strain_limit};
@@ -37,6 +38,7 @@ pub use pins::{Pin, PinMotion};
 pub use sim::Simulation;
 pub use state::ClothState;
 pub use topology::{GridPanel, LinkType, PanelError, PanelMesh};
+pub use wind::{Wind, WindProfile};
 
 /// A 3-vector of `f64`.
 pub type Vec3 = nalgebra::Vector3<f64>;

@@ -9,7 +9,7 @@
 use crate::{
     ClothModel, ClothState, SolverParams, Vec3, Workspace,
     forces::{apply_scaled_operator, assemble_matrix_free},
-    integrator::{BackwardEuler, Linearised, StageTimes, StepError, StepReport, check_step, commit},
+    integrator::{BackwardEuler, Linearised, StageTimes, StepError, StepReport, check_step, commit, external_forces},
 };
 use cloth_linalg::{CgScratch, Constraint, PcgError, cg_fixed_iterations};
 use std::time::Instant;
@@ -52,7 +52,10 @@ impl crate::Integrator for BackwardEulerFixedCg {
     ) -> Result<StepReport, StepError> {
         check_step(model, state, h)?;
         let scheme = BackwardEuler;
-        let timing = assemble_matrix_free(model, &state.x, &scheme.terms(state, &ws.aux, &ws.aux2, h), &mut ws.system);
+        let has_wind = external_forces(model, state, ws);
+        let mut terms = scheme.terms(state, &ws.aux, &ws.aux2, h);
+        terms.external = has_wind.then_some(&ws.external[..]);
+        let timing = assemble_matrix_free(model, &state.x, &terms, &mut ws.system);
         let t_solve = Instant::now();
         let mf = ws.matrix_free.get_or_insert_with(|| MatrixFreeBuffers::new(model));
         // Scale: b^ = M^-1/2 b; unknown y = M^1/2 dv; pins prescribe y too.

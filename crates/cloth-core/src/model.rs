@@ -4,7 +4,7 @@
 use crate::element_laws::{TriangleRest, dihedral_angle};
 use crate::elements::{ElementSet, HingeElement, MembraneElement};
 use crate::{
-    GridPanel, LinkType, Material, Pin, PinMotion, Vec3,
+    GridPanel, LinkType, Material, Pin, PinMotion, Vec3, Wind,
     laws::{BucklingLaw, ScalarLaw, linear_spring, tension_spring},
 };
 use cloth_linalg::{Aggregation, BlockPattern, Multigrid};
@@ -24,6 +24,10 @@ pub struct Effects {
     /// `c_i = material.drag_n_s_m3 x` the particle's area (Provot's
     /// "viscous damping" `-C_dis v`).
     pub drag: bool,
+    /// Provot's viscous fluid (wind) force on particles; needs [`ModelSpec::wind`].
+    pub wind: bool,
+    /// Aerodynamic drag and lift on triangles; needs [`ModelSpec::wind`].
+    pub aerodynamics: bool,
 }
 
 /// An edge of a grid panel.
@@ -77,6 +81,8 @@ pub struct ModelSpec {
     pub kind: ModelKind,
     /// Deformation constraints, if any.
     pub strain_limit: Option<StrainLimit>,
+    /// The air's motion and coefficients, for the wind effects.
+    pub wind: Option<Wind>,
 }
 
 /// Why a model could not be built. Field paths match the scene file's keys.
@@ -113,6 +119,14 @@ pub enum ModelError {
         /// What is wrong.
         message: String,
     },
+    /// The wind is missing or invalid.
+    #[error("wind.{field}: {message}")]
+    Wind {
+        /// Offending field.
+        field: &'static str,
+        /// What is wrong.
+        message: String,
+    },
     /// The deformation constraints are invalid.
     #[error("constraints.{field}: {message}")]
     StrainLimit {
@@ -143,6 +157,17 @@ pub enum ModelKind {
     /// orthotropic membrane on the triangles and dihedral bending hinges;
     /// the `damping` effect acts along the type-1 links.
     Volino,
+}
+
+impl ModelKind {
+    /// Name as written in scene files.
+    pub fn name(self) -> &'static str {
+        match self {
+            ModelKind::ChoiKo => "choi-ko",
+            ModelKind::Provot => "provot",
+            ModelKind::Volino => "volino",
+        }
+    }
 }
 
 /// Provot's (1995) deformation constraints: after each step, every
@@ -271,6 +296,7 @@ pub struct ClothModel {
     material: Material,
     kind: ModelKind,
     strain_limit: Option<StrainLimit>,
+    wind: Option<Wind>,
     panels: Vec<PanelRange>,
     triangles: Vec<[u32; 3]>,
     elements: ElementSet,
@@ -366,6 +392,13 @@ impl ClothModel {
         }
         let n = mass.len();
         let (pins, pinned) = build_pins(spec, &panels, &rest_positions)?;
+        if spec.effects.wind || spec.effects.aerodynamics {
+            let wind = spec.wind.as_ref().ok_or(ModelError::Wind {
+                field: "profile",
+                message: "the wind and aerodynamics effects need a [wind] section".into(),
+            })?;
+            wind.validate().map_err(|(field, message)| ModelError::Wind { field, message })?;
+        }
         if let Some(limit) = spec.strain_limit {
             if !(limit.max_strain.is_finite() && limit.max_strain >= 0.0) {
                 return Err(ModelError::StrainLimit {
@@ -416,6 +449,7 @@ impl ClothModel {
             material: spec.material,
             kind: spec.kind,
             strain_limit: spec.strain_limit,
+            wind: spec.wind.clone(),
             panels,
             triangles,
             elements,
@@ -479,6 +513,10 @@ impl ClothModel {
     /// The discretisation.
     pub fn kind(&self) -> ModelKind {
         self.kind
+    }
+    /// The wind, if the model has a wind effect.
+    pub fn wind(&self) -> Option<&Wind> {
+        self.wind.as_ref().filter(|_| self.effects.wind || self.effects.aerodynamics)
     }
     /// Deformation constraints, if the model has them.
     pub fn strain_limit(&self) -> Option<StrainLimit> {

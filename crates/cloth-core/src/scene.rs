@@ -13,7 +13,7 @@
 //!                              # symplectic-euler, midpoint, rk4, dopri5
 //! dt_s = 0.011111111111111112  # s
 //! duration_s = 2.0             # s
-//! effects = ["gravity", "bending", "damping"]   # also "strain-limit", "drag"
+//! effects = ["gravity", "bending", "damping"]   # also "strain-limit", "drag", "wind", "aerodynamics"
 //! gravity_m_s2 = [0.0, 0.0, -9.81]
 //!
 //! [solver]                     # optional, these are the defaults
@@ -42,6 +42,13 @@
 //! nodes = [[0, 40], [40, 40]]
 //! motion = { kind = "fixed" }
 //!
+//! [wind]                       # needed by "wind" and "aerodynamics"
+//! profile = { kind = "gust", mean_m_s = [5.0, 0.0, 0.0], amplitude_m_s = [2.0, 0.0, 0.0], frequency_hz = 0.5 }
+//! fluid_coefficient_n_s_m3 = 0.5   # Provot's C_v
+//! air_density_kg_m3 = 1.2
+//! drag_coefficient = 1.0
+//! lift_coefficient = 0.5
+//!
 //! [constraints]                # optional; used with the "strain-limit" effect
 //! max_strain = 0.1
 //! passes = 10
@@ -49,7 +56,7 @@
 
 use crate::{
     ClothModel, Effects, GridPanel, IntegratorKind, Material, ModelKind, ModelSpec, PcgParams, PinSpec,
-    PreconditionerKind, SolverParams, StrainLimit, Vec3,
+    PreconditionerKind, SolverParams, StrainLimit, Vec3, Wind,
 };
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -73,6 +80,9 @@ pub struct Scene {
     /// Provot's deformation constraints (used when `strain-limit` is listed).
     #[serde(default)]
     pub constraints: StrainLimit,
+    /// The air (used by the `wind` and `aerodynamics` effects).
+    #[serde(default)]
+    pub wind: Option<Wind>,
 }
 
 /// An effect a scene can ask for.
@@ -90,6 +100,10 @@ pub enum EffectName {
     StrainLimit,
     /// Viscous drag on every particle (`material.drag_n_s_m3`).
     Drag,
+    /// Provot's viscous fluid force along particle normals (`[wind]`).
+    Wind,
+    /// Aerodynamic drag and lift on triangles (`[wind]`).
+    Aerodynamics,
 }
 
 /// `[simulation]`.
@@ -240,8 +254,15 @@ pub enum SceneErrorKind {
 
 impl EffectName {
     /// Every effect.
-    pub const ALL: [EffectName; 4] =
-        [EffectName::Gravity, EffectName::Damping, EffectName::Bending, EffectName::StrainLimit];
+    pub const ALL: [EffectName; 7] = [
+        EffectName::Gravity,
+        EffectName::Damping,
+        EffectName::Bending,
+        EffectName::StrainLimit,
+        EffectName::Drag,
+        EffectName::Wind,
+        EffectName::Aerodynamics,
+    ];
 
     /// Name as written in scene files.
     pub fn name(self) -> &'static str {
@@ -251,6 +272,8 @@ impl EffectName {
             EffectName::Bending => "bending",
             EffectName::StrainLimit => "strain-limit",
             EffectName::Drag => "drag",
+            EffectName::Wind => "wind",
+            EffectName::Aerodynamics => "aerodynamics",
         }
     }
 }
@@ -361,7 +384,10 @@ impl Scene {
                 damping: self.has_effect(EffectName::Damping),
                 bending: self.has_effect(EffectName::Bending),
                 drag: self.has_effect(EffectName::Drag),
+                wind: self.has_effect(EffectName::Wind),
+                aerodynamics: self.has_effect(EffectName::Aerodynamics),
             },
+            wind: self.wind.clone(),
             kind: self.simulation.model,
             strain_limit: self.has_effect(EffectName::StrainLimit).then_some(self.constraints),
         }
@@ -547,6 +573,27 @@ nodes = [[0, 3]]
         assert!(matches!(&e, SceneErrorKind::Parse(m) if m.contains("gravty")), "{e}");
         let e = check(&format!("{BASE}\n[extra]\nx = 1\n"), &[]).unwrap_err();
         assert!(matches!(&e, SceneErrorKind::Parse(m) if m.contains("extra")), "{e}");
+    }
+
+    #[test]
+    fn every_effect_is_listed_and_named_as_in_scene_files() {
+        let in_all = |e: EffectName| match e {
+            // Exhaustive: a new effect must be added here and to ALL.
+            EffectName::Gravity
+            | EffectName::Damping
+            | EffectName::Bending
+            | EffectName::StrainLimit
+            | EffectName::Drag
+            | EffectName::Wind
+            | EffectName::Aerodynamics => EffectName::ALL.contains(&e),
+        };
+        for e in EffectName::ALL {
+            assert!(in_all(e));
+            let parsed: toml::Table = toml::from_str(&format!("e = \"{}\"", e.name())).unwrap();
+            let back: EffectName = parsed["e"].clone().try_into().unwrap();
+            assert_eq!(back, e);
+        }
+        assert_eq!(EffectName::ALL.len(), 7);
     }
 
     #[test]

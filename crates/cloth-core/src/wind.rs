@@ -1,0 +1,259 @@
+//! Wind: a time-varying air velocity and two force models, each a scene
+//! effect of its own: Provot's (1995) viscous fluid force on particles
+//! (`wind`) and aerodynamic drag and lift on triangles (`aerodynamics`).
+//!
+//! In implicit steps the wind force is taken at the start of the step
+//! (explicitly); its velocity dependence is mild next to the cloth's
+//! stiffness.
+
+use crate::{ClothModel, Vec3};
+use serde::{Deserialize, Serialize};
+
+/// How the wind velocity varies in time.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum WindProfile {
+    /// A steady wind, m/s.
+    Constant {
+        /// Velocity, m/s.
+        velocity_m_s: [f64; 3],
+    },
+    /// Gusts: `mean + amplitude sin(2 pi f t)`, m/s.
+    Gust {
+        /// Mean velocity, m/s.
+        mean_m_s: [f64; 3],
+        /// Gust amplitude, m/s.
+        amplitude_m_s: [f64; 3],
+        /// Gust frequency, Hz.
+        frequency_hz: f64,
+    },
+    /// Piecewise-linear velocities through keyframes, held outside them.
+    Keyframes {
+        /// Strictly increasing times, s.
+        times_s: Vec<f64>,
+        /// Velocity at each time, m/s.
+        velocities_m_s: Vec<[f64; 3]>,
+    },
+}
+
+impl WindProfile {
+    /// Air velocity at time `t` (s), m/s.
+    pub fn velocity(&self, t: f64) -> Vec3 {
+        match self {
+            WindProfile::Constant { velocity_m_s } => Vec3::from(*velocity_m_s),
+            WindProfile::Gust { mean_m_s, amplitude_m_s, frequency_hz } => {
+                Vec3::from(*mean_m_s)
+                    + Vec3::from(*amplitude_m_s) * (2.0 * std::f64::consts::PI * frequency_hz * t).sin()
+            }
+            WindProfile::Keyframes { times_s, velocities_m_s } => {
+                let k = times_s.partition_point(|&tk| tk <= t);
+                if k == 0 {
+                    return Vec3::from(velocities_m_s[0]);
+                }
+                if k == times_s.len() {
+                    return Vec3::from(velocities_m_s[k - 1]);
+                }
+                let a = (t - times_s[k - 1]) / (times_s[k] - times_s[k - 1]);
+                Vec3::from(velocities_m_s[k - 1]) * (1.0 - a) + Vec3::from(velocities_m_s[k]) * a
+            }
+        }
+    }
+
+    /// Checks the numbers; names the first bad field.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        let finite = |name: &'static str, v: &[f64; 3]| {
+            if v.iter().all(|c| c.is_finite()) { Ok(()) } else { Err((name, format!("must be finite, got {v:?}"))) }
+        };
+        match self {
+            WindProfile::Constant { velocity_m_s } => finite("velocity_m_s", velocity_m_s),
+            WindProfile::Gust { mean_m_s, amplitude_m_s, frequency_hz } => {
+                finite("mean_m_s", mean_m_s)?;
+                finite("amplitude_m_s", amplitude_m_s)?;
+                if frequency_hz.is_finite() && *frequency_hz >= 0.0 {
+                    Ok(())
+                } else {
+                    Err(("frequency_hz", format!("must be finite and >= 0, got {frequency_hz}")))
+                }
+            }
+            WindProfile::Keyframes { times_s, velocities_m_s } => {
+                if times_s.is_empty() || times_s.len() != velocities_m_s.len() {
+                    return Err(("velocities_m_s", "needs one velocity per time, and at least one".into()));
+                }
+                if times_s.iter().any(|t| !t.is_finite()) || times_s.windows(2).any(|w| w[1] <= w[0]) {
+                    return Err(("times_s", "must be finite and strictly increasing".into()));
+                }
+                velocities_m_s.iter().try_for_each(|v| finite("velocities_m_s", v))
+            }
+        }
+    }
+}
+
+/// The `[wind]` section: the air's motion and the force coefficients.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Wind {
+    /// Air velocity over time.
+    pub profile: WindProfile,
+    /// Provot's viscous fluid coefficient per unit area, N s/m^3 (`wind` effect).
+    #[serde(default = "default_fluid")]
+    pub fluid_coefficient_n_s_m3: f64,
+    /// Air density, kg/m^3 (`aerodynamics` effect). Default 1.2.
+    #[serde(default = "default_air")]
+    pub air_density_kg_m3: f64,
+    /// Drag coefficient of a triangle (`aerodynamics`). Default 1.0.
+    #[serde(default = "default_drag")]
+    pub drag_coefficient: f64,
+    /// Lift coefficient of a triangle (`aerodynamics`). Default 0.5.
+    #[serde(default = "default_lift")]
+    pub lift_coefficient: f64,
+}
+
+fn default_fluid() -> f64 {
+    0.5
+}
+fn default_air() -> f64 {
+    1.2
+}
+fn default_drag() -> f64 {
+    1.0
+}
+fn default_lift() -> f64 {
+    0.5
+}
+
+impl Wind {
+    /// Checks the numbers; names the first bad field.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        self.profile.validate()?;
+        for (name, v) in [
+            ("fluid_coefficient_n_s_m3", self.fluid_coefficient_n_s_m3),
+            ("air_density_kg_m3", self.air_density_kg_m3),
+            ("drag_coefficient", self.drag_coefficient),
+            ("lift_coefficient", self.lift_coefficient),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err((name, format!("must be finite and >= 0, got {v}")));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Provot's (1995) viscous fluid force on a particle of area `area` (m^2)
+/// with unit surface normal `n`: `F = C_v area [n . (u - v)] n`, N.
+pub fn provot_fluid_force(n: &Vec3, area: f64, c_v: f64, wind: &Vec3, v: &Vec3) -> Vec3 {
+    n * (c_v * area * n.dot(&(wind - v)))
+}
+
+/// Aerodynamic force on a flat triangle of area `area` and unit normal
+/// `n` moving at `v` in air of velocity `wind`, with `w = wind - v` and
+/// `cos = w.n / |w|`: drag `rho C_d area |cos| |w| w / 2` along the flow
+/// and lift `rho C_l area cos (|w|^2 n - (w.n) w) / 2` across it (zero
+/// edge-on and face-on, largest at 45 degrees). N.
+pub fn triangle_aero_force(n: &Vec3, area: f64, wind: &Vec3, v: &Vec3, rho: f64, c_d: f64, c_l: f64) -> Vec3 {
+    let w = wind - v;
+    let speed = w.norm();
+    if speed == 0.0 {
+        return Vec3::zeros();
+    }
+    let wn = w.dot(n);
+    let cos = wn / speed;
+    let drag = w * (0.5 * rho * c_d * area * cos.abs() * speed);
+    let lift = (n * (speed * speed) - w * wn) * (0.5 * rho * c_l * area * cos);
+    drag + lift
+}
+
+/// Adds the wind forces of `model` at `(x, v)` and time `t` to `out`, using
+/// `normals` (one per particle) as scratch. Deterministic: triangles are
+/// visited in order.
+pub fn add_wind_forces(model: &ClothModel, x: &[Vec3], v: &[Vec3], t: f64, normals: &mut Vec<Vec3>, out: &mut [Vec3]) {
+    let Some(wind) = model.wind() else { return };
+    let (fluid, aero) = (model.effects().wind, model.effects().aerodynamics);
+    if !fluid && !aero {
+        return;
+    }
+    let air = wind.profile.velocity(t);
+    normals.clear();
+    normals.resize(x.len(), Vec3::zeros());
+    for tri in model.triangles() {
+        let [a, b, c] = tri.map(|k| k as usize);
+        let cross = (x[b] - x[a]).cross(&(x[c] - x[a]));
+        let area = 0.5 * cross.norm();
+        if area == 0.0 {
+            continue;
+        }
+        if fluid {
+            // Area-weighted vertex normals (|cross| = 2 area).
+            for k in [a, b, c] {
+                normals[k] += cross;
+            }
+        }
+        if aero {
+            let n = cross / (2.0 * area);
+            let vel = (v[a] + v[b] + v[c]) / 3.0;
+            let f = triangle_aero_force(
+                &n,
+                area,
+                &air,
+                &vel,
+                wind.air_density_kg_m3,
+                wind.drag_coefficient,
+                wind.lift_coefficient,
+            ) / 3.0;
+            for k in [a, b, c] {
+                out[k] += f;
+            }
+        }
+    }
+    if fluid {
+        for (i, n) in normals.iter().enumerate() {
+            let len = n.norm();
+            if len > 0.0 {
+                // A particle's area: a third of its triangles' areas.
+                let area = len / 6.0;
+                out[i] += provot_fluid_force(&(n / len), area, wind.fluid_coefficient_n_s_m3, &air, &v[i]);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn provot_force_acts_along_the_normal_only() {
+        let n = Vec3::z();
+        let f = provot_fluid_force(&n, 0.01, 2.0, &Vec3::new(5.0, 0.0, 3.0), &Vec3::new(0.0, 0.0, 1.0));
+        assert_eq!(f, Vec3::new(0.0, 0.0, 2.0 * 0.01 * 2.0));
+    }
+
+    #[test]
+    fn plate_drag_and_lift_have_their_textbook_values() {
+        let (rho, cd, cl, area) = (1.2, 1.0, 0.5, 0.5);
+        let wind = Vec3::new(10.0, 0.0, 0.0);
+        // Face-on: pure drag, rho Cd A U^2 / 2 = 30 N.
+        let f = triangle_aero_force(&Vec3::x(), area, &wind, &Vec3::zeros(), rho, cd, cl);
+        assert!((f - Vec3::new(30.0, 0.0, 0.0)).norm() < 1e-12);
+        // Edge-on: nothing.
+        assert_eq!(triangle_aero_force(&Vec3::y(), area, &wind, &Vec3::zeros(), rho, cd, cl), Vec3::zeros());
+        // 45 degrees: drag 30 cos45 along x, lift 30 Cl/Cd cos45 sin45 across the flow.
+        let n = Vec3::new(1.0, 1.0, 0.0).normalize();
+        let f = triangle_aero_force(&n, area, &wind, &Vec3::zeros(), rho, cd, cl);
+        let c = std::f64::consts::FRAC_1_SQRT_2;
+        assert!((f.x - 30.0 * c).abs() < 1e-12 && (f.y - 15.0 * c * c).abs() < 1e-12 && f.z == 0.0, "{f:?}");
+        // Moving with the air: no force.
+        assert_eq!(triangle_aero_force(&n, area, &wind, &wind, rho, cd, cl), Vec3::zeros());
+    }
+
+    #[test]
+    fn profiles_vary_as_declared() {
+        let g = WindProfile::Gust { mean_m_s: [5.0, 0.0, 0.0], amplitude_m_s: [2.0, 0.0, 0.0], frequency_hz: 0.5 };
+        assert!((g.velocity(0.5).x - 7.0).abs() < 1e-12);
+        let k = WindProfile::Keyframes { times_s: vec![0.0, 2.0], velocities_m_s: vec![[0.0; 3], [4.0, 0.0, 0.0]] };
+        assert_eq!(k.velocity(1.0), Vec3::new(2.0, 0.0, 0.0));
+        assert_eq!(k.velocity(9.0), Vec3::new(4.0, 0.0, 0.0));
+        let bad = WindProfile::Keyframes { times_s: vec![1.0, 0.0], velocities_m_s: vec![[0.0; 3]; 2] };
+        assert_eq!(bad.validate().unwrap_err().0, "times_s");
+    }
+}
