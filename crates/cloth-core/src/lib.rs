@@ -13,6 +13,7 @@ pub mod elements;
 mod explicit;
 pub mod forces;
 mod integrator;
+mod keyframes;
 pub mod laws;
 mod material;
 mod matrix_free;

@@ -5,6 +5,7 @@
 //! so pinned particles move exactly along their path.
 
 use crate::Vec3;
+use crate::keyframes::{self, finite3};
 use serde::{Deserialize, Serialize};
 
 /// The path a pinned particle follows, as an offset from its initial position.
@@ -43,18 +44,7 @@ impl PinMotion {
             PinMotion::Oscillate { amplitude_m, frequency_hz } => {
                 Vec3::from(*amplitude_m) * (2.0 * std::f64::consts::PI * frequency_hz * t).sin()
             }
-            PinMotion::Keyframes { times_s, offsets_m } => {
-                let k = times_s.partition_point(|&tk| tk <= t);
-                if k == 0 {
-                    return Vec3::from(offsets_m[0]);
-                }
-                if k == times_s.len() {
-                    return Vec3::from(offsets_m[k - 1]);
-                }
-                let (t0, t1) = (times_s[k - 1], times_s[k]);
-                let a = (t - t0) / (t1 - t0);
-                Vec3::from(offsets_m[k - 1]) * (1.0 - a) + Vec3::from(offsets_m[k]) * a
-            }
+            PinMotion::Keyframes { times_s, offsets_m } => keyframes::interpolate(times_s, offsets_m, t),
         }
     }
 
@@ -68,21 +58,12 @@ impl PinMotion {
                 let w = 2.0 * std::f64::consts::PI * frequency_hz;
                 Vec3::from(*amplitude_m) * (w * (w * t).cos())
             }
-            PinMotion::Keyframes { times_s, offsets_m } => {
-                let k = times_s.partition_point(|&tk| tk <= t);
-                if k == 0 || k == times_s.len() {
-                    return Vec3::zeros();
-                }
-                (Vec3::from(offsets_m[k]) - Vec3::from(offsets_m[k - 1])) / (times_s[k] - times_s[k - 1])
-            }
+            PinMotion::Keyframes { times_s, offsets_m } => keyframes::slope(times_s, offsets_m, t),
         }
     }
 
     /// Checks the motion's numbers; names the first bad field.
     pub fn validate(&self) -> Result<(), (&'static str, String)> {
-        let finite3 = |name: &'static str, v: &[f64; 3]| {
-            if v.iter().all(|c| c.is_finite()) { Ok(()) } else { Err((name, format!("must be finite, got {v:?}"))) }
-        };
         match self {
             PinMotion::Fixed => Ok(()),
             PinMotion::Linear { velocity_m_s } => finite3("velocity_m_s", velocity_m_s),
@@ -94,22 +75,7 @@ impl PinMotion {
                     Err(("frequency_hz", format!("must be finite and >= 0, got {frequency_hz}")))
                 }
             }
-            PinMotion::Keyframes { times_s, offsets_m } => {
-                if times_s.is_empty() || times_s.len() != offsets_m.len() {
-                    return Err((
-                        "offsets_m",
-                        format!(
-                            "needs one offset per time and at least one ({} times, {} offsets)",
-                            times_s.len(),
-                            offsets_m.len()
-                        ),
-                    ));
-                }
-                if times_s.iter().any(|t| !t.is_finite()) || times_s.windows(2).any(|w| w[1] <= w[0]) {
-                    return Err(("times_s", "must be finite and strictly increasing".into()));
-                }
-                offsets_m.iter().try_for_each(|o| finite3("offsets_m", o))
-            }
+            PinMotion::Keyframes { times_s, offsets_m } => keyframes::validate(times_s, offsets_m, "offsets_m"),
         }
     }
 }

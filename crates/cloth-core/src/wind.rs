@@ -6,6 +6,7 @@
 //! (explicitly); its velocity dependence is mild next to the cloth's
 //! stiffness.
 
+use crate::keyframes::{self, finite3};
 use crate::{ClothModel, Vec3};
 use serde::{Deserialize, Serialize};
 
@@ -45,30 +46,17 @@ impl WindProfile {
                 Vec3::from(*mean_m_s)
                     + Vec3::from(*amplitude_m_s) * (2.0 * std::f64::consts::PI * frequency_hz * t).sin()
             }
-            WindProfile::Keyframes { times_s, velocities_m_s } => {
-                let k = times_s.partition_point(|&tk| tk <= t);
-                if k == 0 {
-                    return Vec3::from(velocities_m_s[0]);
-                }
-                if k == times_s.len() {
-                    return Vec3::from(velocities_m_s[k - 1]);
-                }
-                let a = (t - times_s[k - 1]) / (times_s[k] - times_s[k - 1]);
-                Vec3::from(velocities_m_s[k - 1]) * (1.0 - a) + Vec3::from(velocities_m_s[k]) * a
-            }
+            WindProfile::Keyframes { times_s, velocities_m_s } => keyframes::interpolate(times_s, velocities_m_s, t),
         }
     }
 
     /// Checks the numbers; names the first bad field.
     pub fn validate(&self) -> Result<(), (&'static str, String)> {
-        let finite = |name: &'static str, v: &[f64; 3]| {
-            if v.iter().all(|c| c.is_finite()) { Ok(()) } else { Err((name, format!("must be finite, got {v:?}"))) }
-        };
         match self {
-            WindProfile::Constant { velocity_m_s } => finite("velocity_m_s", velocity_m_s),
+            WindProfile::Constant { velocity_m_s } => finite3("velocity_m_s", velocity_m_s),
             WindProfile::Gust { mean_m_s, amplitude_m_s, frequency_hz } => {
-                finite("mean_m_s", mean_m_s)?;
-                finite("amplitude_m_s", amplitude_m_s)?;
+                finite3("mean_m_s", mean_m_s)?;
+                finite3("amplitude_m_s", amplitude_m_s)?;
                 if frequency_hz.is_finite() && *frequency_hz >= 0.0 {
                     Ok(())
                 } else {
@@ -76,13 +64,7 @@ impl WindProfile {
                 }
             }
             WindProfile::Keyframes { times_s, velocities_m_s } => {
-                if times_s.is_empty() || times_s.len() != velocities_m_s.len() {
-                    return Err(("velocities_m_s", "needs one velocity per time, and at least one".into()));
-                }
-                if times_s.iter().any(|t| !t.is_finite()) || times_s.windows(2).any(|w| w[1] <= w[0]) {
-                    return Err(("times_s", "must be finite and strictly increasing".into()));
-                }
-                velocities_m_s.iter().try_for_each(|v| finite("velocities_m_s", v))
+                keyframes::validate(times_s, velocities_m_s, "velocities_m_s")
             }
         }
     }
