@@ -22,11 +22,6 @@ pub fn simulation(name: &str, overrides: &[&str]) -> (Simulation, RunConfig) {
     (cfg.simulation(model), cfg)
 }
 
-/// Largest type-1 length / rest length.
-pub fn max_stretch(model: &ClothModel, x: &[Vec3]) -> f64 {
-    model.stretch_links().iter().map(|l| (x[l.j as usize] - x[l.i as usize]).norm() / l.rest).fold(0.0, f64::max)
-}
-
 /// Bitwise equality of two position or velocity arrays.
 pub fn same_bits(a: &[Vec3], b: &[Vec3]) -> bool {
     a.len() == b.len() && a.iter().zip(b).all(|(p, q)| p.iter().zip(q.iter()).all(|(x, y)| x.to_bits() == y.to_bits()))

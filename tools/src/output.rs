@@ -69,8 +69,3 @@ pub struct Summary {
     pub error: Option<String>,
     pub stage_wall_s: StageWall,
 }
-
-/// Largest `|x_j - x_i| / rest` over type-1 links.
-pub fn max_stretch_ratio(model: &ClothModel, x: &[Vec3]) -> f64 {
-    model.stretch_links().iter().map(|l| (x[l.j as usize] - x[l.i as usize]).norm() / l.rest).fold(0.0, f64::max)
-}

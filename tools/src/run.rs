@@ -1,6 +1,6 @@
 //! `cloth run`, `cloth validate` and `cloth time`.
 
-use crate::output::{StageWall, Summary, max_stretch_ratio, write_obj};
+use crate::output::{StageWall, Summary, write_obj};
 use anyhow::{Context, Result, bail};
 use cloth_core::scene::{EffectName, RunConfig, Scene, SceneError};
 use cloth_core::{ClothModel, Simulation};
@@ -136,7 +136,7 @@ fn simulate(
         cg_iterations_max: cg_max,
         cg_iterations_mean: if steps > 0 { cg_total as f64 / steps as f64 } else { 0.0 },
         unconverged_steps: unconverged,
-        max_stretch_ratio: max_stretch_ratio(model, &state.x),
+        max_stretch_ratio: model.max_stretch_ratio(&state.x),
         min_z_m: state.x.iter().map(|p| p.z).fold(f64::INFINITY, f64::min),
         max_speed_m_s: state.v.iter().map(|v| v.norm()).fold(0.0, f64::max),
         finite: error.is_none() && state.first_non_finite().is_none(),

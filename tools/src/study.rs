@@ -96,12 +96,7 @@ fn monitored_run(
         run.force_evaluations += report.force_evaluations as u64;
         run.cg_iterations += report.cg_iterations as u64;
         let x = &sim.state().x;
-        let stretch = sim
-            .model()
-            .stretch_links()
-            .iter()
-            .map(|l| (x[l.j as usize] - x[l.i as usize]).norm() / l.rest)
-            .fold(1.0, f64::max);
+        let stretch = sim.model().max_stretch_ratio(x);
         run.max_stretch = run.max_stretch.max(stretch);
         if stretch.is_nan() || stretch >= BLOWN_UP_STRETCH {
             run.stable = false;

@@ -542,7 +542,7 @@ pub(crate) fn check_step(model: &ClothModel, state: &ClothState, h: f64) -> Resu
 
 /// Fully constrains every pinned particle; `value(target, i)` maps the pin's
 /// position at `t + h` to the integrator's unknown.
-fn constrain_pins(
+pub(crate) fn constrain_pins(
     model: &ClothModel,
     state: &ClothState,
     h: f64,

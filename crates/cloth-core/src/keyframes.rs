@@ -41,6 +41,11 @@ pub fn validate(times: &[f64], values: &[[f64; 3]], values_field: &'static str) 
     values.iter().try_for_each(|v| finite3(values_field, v))
 }
 
+/// Checks a frequency is finite and non-negative (Hz).
+pub fn frequency(f: f64) -> Result<(), (&'static str, String)> {
+    if f.is_finite() && f >= 0.0 { Ok(()) } else { Err(("frequency_hz", format!("must be finite and >= 0, got {f}"))) }
+}
+
 /// Checks every component of `v` is finite.
 pub fn finite3(name: &'static str, v: &[f64; 3]) -> Result<(), (&'static str, String)> {
     if v.iter().all(|c| c.is_finite()) { Ok(()) } else { Err((name, format!("must be finite, got {v:?}"))) }

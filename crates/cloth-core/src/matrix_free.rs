@@ -9,9 +9,12 @@
 use crate::{
     ClothModel, ClothState, SolverParams, Vec3, Workspace,
     forces::{apply_scaled_operator, assemble_matrix_free},
-    integrator::{BackwardEuler, Linearised, StageTimes, StepError, StepReport, check_step, commit, external_forces},
+    integrator::{
+        BackwardEuler, Linearised, StageTimes, StepError, StepReport, check_step, commit, constrain_pins,
+        external_forces,
+    },
 };
-use cloth_linalg::{CgScratch, Constraint, PcgError, cg_fixed_iterations};
+use cloth_linalg::{CgScratch, PcgError, cg_fixed_iterations};
 use std::time::Instant;
 
 /// Buffers of the matrix-free solver, allocated on first use.
@@ -62,17 +65,14 @@ impl crate::Integrator for BackwardEulerFixedCg {
         for ((bs, b), s) in mf.scaled_rhs.iter_mut().zip(&ws.system.rhs).zip(&mf.inv_sqrt_mass) {
             *bs = b * *s;
         }
-        ws.filter.clear();
-        for pin in model.pins() {
-            let dv = scheme.pinned(state, h, pin.position(state.time_s + h), pin.particle);
-            // Finite by construction of the pin's path; a non-finite value surfaces below.
-            let _ = ws.filter.set(pin.particle, Constraint::Fixed, dv / mf.inv_sqrt_mass[pin.particle]);
-        }
-        for i in 0..state.len() {
-            ws.unknown[i] = scheme.guess(state, &ws.aux, i) / mf.inv_sqrt_mass[i];
+        let inv_sqrt_mass = &mf.inv_sqrt_mass;
+        constrain_pins(model, state, h, &mut ws.filter, |target, i| {
+            scheme.pinned(state, h, target, i) / inv_sqrt_mass[i]
+        });
+        for (i, (u, s)) in ws.unknown.iter_mut().zip(inv_sqrt_mass).enumerate() {
+            *u = scheme.guess(state, &ws.aux, i) / *s;
         }
         let system = &ws.system;
-        let inv_sqrt_mass = &mf.inv_sqrt_mass;
         let result = cg_fixed_iterations(
             |w, y| apply_scaled_operator(model, system, inv_sqrt_mass, w, y),
             &mf.scaled_rhs,

@@ -494,6 +494,11 @@ impl ClothModel {
             (l.i as usize, l.j as usize, LinkType::Interlaced)
         }
     }
+    /// Largest type-1 link length over rest length at positions `x`
+    /// (the stretch measure of `summary.json`, the studies and the tests).
+    pub fn max_stretch_ratio(&self, x: &[Vec3]) -> f64 {
+        self.stretch.iter().map(|l| (x[l.j as usize] - x[l.i as usize]).norm() / l.rest).fold(0.0, f64::max)
+    }
     /// Pins.
     pub fn pins(&self) -> &[Pin] {
         &self.pins

@@ -69,11 +69,7 @@ impl PinMotion {
             PinMotion::Linear { velocity_m_s } => finite3("velocity_m_s", velocity_m_s),
             PinMotion::Oscillate { amplitude_m, frequency_hz } => {
                 finite3("amplitude_m", amplitude_m)?;
-                if frequency_hz.is_finite() && *frequency_hz >= 0.0 {
-                    Ok(())
-                } else {
-                    Err(("frequency_hz", format!("must be finite and >= 0, got {frequency_hz}")))
-                }
+                keyframes::frequency(*frequency_hz)
             }
             PinMotion::Keyframes { times_s, offsets_m } => keyframes::validate(times_s, offsets_m, "offsets_m"),
         }

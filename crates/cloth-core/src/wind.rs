@@ -57,11 +57,7 @@ impl WindProfile {
             WindProfile::Gust { mean_m_s, amplitude_m_s, frequency_hz } => {
                 finite3("mean_m_s", mean_m_s)?;
                 finite3("amplitude_m_s", amplitude_m_s)?;
-                if frequency_hz.is_finite() && *frequency_hz >= 0.0 {
-                    Ok(())
-                } else {
-                    Err(("frequency_hz", format!("must be finite and >= 0, got {frequency_hz}")))
-                }
+                keyframes::frequency(*frequency_hz)
             }
             WindProfile::Keyframes { times_s, velocities_m_s } => {
                 keyframes::validate(times_s, velocities_m_s, "velocities_m_s")

@@ -14,13 +14,7 @@ pub const ROW_CHUNK: usize = 256;
 /// `sum_i a_i . b_i`, summed in a fixed order.
 pub fn dot(a: &[Vec3], b: &[Vec3]) -> f64 {
     assert_eq!(a.len(), b.len(), "dot: length mismatch");
-    // Chunk partials are collected in chunk order by rayon's indexed collect.
-    let partials: Vec<f64> = a
-        .par_chunks(ROW_CHUNK)
-        .zip(b.par_chunks(ROW_CHUNK))
-        .map(|(ca, cb)| ca.iter().zip(cb).map(|(x, y)| x.dot(y)).sum::<f64>())
-        .collect();
-    partials.iter().sum()
+    dot_with(a, b, &mut vec![0.0; chunk_count(a.len())])
 }
 
 /// Like [`dot`], writing the chunk partials into a caller-owned buffer so the
@@ -31,14 +25,6 @@ pub(crate) fn dot_with(a: &[Vec3], b: &[Vec3], partials: &mut [f64]) -> f64 {
         .zip(partials.par_iter_mut())
         .for_each(|((ca, cb), p)| *p = ca.iter().zip(cb).map(|(x, y)| x.dot(y)).sum());
     partials.iter().sum()
-}
-
-/// `y += alpha * x`.
-pub fn axpy(alpha: f64, x: &[Vec3], y: &mut [Vec3]) {
-    assert_eq!(x.len(), y.len(), "axpy: length mismatch");
-    y.par_chunks_mut(ROW_CHUNK)
-        .zip(x.par_chunks(ROW_CHUNK))
-        .for_each(|(cy, cx)| cy.iter_mut().zip(cx).for_each(|(yi, xi)| *yi += alpha * xi));
 }
 
 /// Number of chunk partials for a vector of `n` particles.
