@@ -42,6 +42,7 @@ fn system() -> (SystemBuffers, ConstraintFilter, Multigrid) {
         d_times: Some((-2.0 * h / 9.0, &delta)),
         mass_times: Some(&delta),
         external: None,
+        diag_stiffness: None,
     };
     assemble(model, &state.x, &terms, &mut bufs);
     let mut filter = ConstraintFilter::new(model.particle_count());

@@ -126,6 +126,7 @@ fn jacobian_error(model: &ClothModel, x: &[Vec3], v: &[Vec3], wrt_velocity: bool
         d_times: None,
         mass_times: None,
         external: None,
+        diag_stiffness: None,
     };
     assemble(model, x, &terms, &mut bufs);
     let mut a = dense(&bufs, n);
@@ -345,20 +346,25 @@ fn restore_then_step_reproduces_the_same_bits() {
 
 #[test]
 fn results_are_bit_identical_with_one_and_two_threads() {
-    let run = |threads: usize| {
-        let pool = rayon_pool(threads);
-        pool.install(|| {
-            // Large enough for several parallel chunks.
-            let (mut sim, cfg) =
-                simulation("hang.toml", &["panels.0.particles=[33, 33]", "pins.0.nodes=[[0, 32], [32, 32]]"]);
-            for _ in 0..10 {
-                sim.step(cfg.dt_s).unwrap();
-            }
-            sim.snapshot()
-        })
-    };
-    let (one, two) = (run(1), run(2));
-    assert!(same_bits(&one.x, &two.x) && same_bits(&one.v, &two.v));
+    // Large enough for several parallel chunks; the fold has solid
+    // contacts (released and added), friction and self-collision.
+    let scenes: [(&str, &[&str], usize); 2] = [
+        ("hang.toml", &["panels.0.particles=[33, 33]", "pins.0.nodes=[[0, 32], [32, 32]]"], 10),
+        ("fold.toml", &[], 120),
+    ];
+    for (scene, overrides, steps) in scenes {
+        let run = |threads: usize| {
+            rayon_pool(threads).install(|| {
+                let (mut sim, cfg) = simulation(scene, overrides);
+                for _ in 0..steps {
+                    sim.step(cfg.dt_s).unwrap();
+                }
+                sim.snapshot()
+            })
+        };
+        let (one, two) = (run(1), run(2));
+        assert!(same_bits(&one.x, &two.x) && same_bits(&one.v, &two.v), "{scene}");
+    }
 }
 
 fn rayon_pool(threads: usize) -> rayon::ThreadPool {

@@ -52,6 +52,31 @@ fn scene_errors_name_the_file_and_the_field() {
     assert!(msg.contains("hang.toml") && msg.contains("pins[0].nodes") && msg.contains("outside"), "{msg}");
 }
 
+/// Collision set-up errors name the file and the field, as every other.
+#[test]
+fn collider_errors_name_the_file_and_the_field() {
+    let path = fixture("table.toml");
+    let cases: [(&[&str], &str); 6] = [
+        (&["colliders.0.shape.radius_m=-0.5"], "colliders[0].shape.radius_m"),
+        (&["colliders.1.friction=-1"], "colliders[1].friction"),
+        (&["colliders.0.position_m=[0, nan, 0]"], "colliders[0].position_m"),
+        (&["collision.thickness_m=0"], "collision.thickness_m"),
+        (&["simulation.integrator=\"rk4\""], "simulation.integrator"),
+        (&["colliders.0.shape={ kind = \"mesh\", obj = \"missing.obj\" }"], "missing.obj"),
+    ];
+    for (overrides, field) in cases {
+        let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+        let msg = Scene::load(&path, &o).unwrap_err().to_string();
+        assert!(msg.contains("table.toml") && msg.contains(field), "{overrides:?}: {msg}");
+    }
+    let o = vec!["colliders.0.shape={ kind = \"torus\", radius_m = 1.0 }".to_string()];
+    let msg = Scene::load(&path, &o).unwrap_err().to_string();
+    assert!(msg.contains("table.toml") && msg.contains("torus"), "{msg}");
+    let o = vec!["self_collision={ thickness_m = 0.01, stiffnes_n_m = 3.0 }".to_string()];
+    let msg = Scene::load(&path, &o).unwrap_err().to_string();
+    assert!(msg.contains("stiffnes_n_m"), "{msg}");
+}
+
 /// The flag fixture: the net wind force on the flag grows with the wind
 /// speed (roughly with its square: drag and lift are quadratic, Provot's
 /// fluid force linear).

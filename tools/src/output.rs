@@ -26,8 +26,12 @@ pub struct StageWall {
     pub assembly: f64,
     /// PCG.
     pub solve: f64,
-    /// State update and finiteness checks.
+    /// State update, friction and finiteness checks.
     pub update: f64,
+    /// Cloth-solid narrow phase.
+    pub collision: f64,
+    /// Self-collision: spatial hash, pair tests, repulsion.
+    pub self_collision: f64,
     /// Frame output.
     pub output: f64,
 }
@@ -65,6 +69,18 @@ pub struct Summary {
     pub min_z_m: f64,
     pub max_speed_m_s: f64,
     pub finite: bool,
+    /// Most cloth-solid contacts held in one step.
+    pub contacts_max: usize,
+    /// Deepest any particle was inside a solid, over all steps and the final state, m.
+    pub max_penetration_m: f64,
+    /// Most self-collision pairs in one step.
+    pub self_contacts_max: usize,
+    /// Contacts released because they pulled.
+    pub released_contacts_total: u64,
+    /// Narrow-phase point queries against solids (0 without colliders).
+    pub narrow_phase_queries_total: u64,
+    /// Spatial-hash rebuilds (0 without self-collision).
+    pub hash_builds_total: u64,
     /// The error that stopped the run, if any.
     pub error: Option<String>,
     pub stage_wall_s: StageWall,

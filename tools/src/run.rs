@@ -2,8 +2,9 @@
 
 use crate::output::{StageWall, Summary, write_obj};
 use anyhow::{Context, Result, bail};
+use cloth_core::contacts::max_penetration;
 use cloth_core::scene::{EffectName, RunConfig, Scene, SceneError};
-use cloth_core::{ClothModel, Simulation};
+use cloth_core::{ClothModel, ContactStats, Simulation};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -69,6 +70,7 @@ fn simulate(
     let mut step_walls = Vec::with_capacity(cfg.steps as usize);
     let (mut cg_total, mut cg_max, mut unconverged) = (0u64, 0usize, 0u64);
     let (mut evaluations, mut substeps, mut rejected) = (0u64, 0u64, 0u64);
+    let mut contacts = ContactTotals::default();
     let mut error = None;
     let wall = Instant::now();
     let write_frame = |sim: &Simulation, stages: &mut StageWall| -> Result<()> {
@@ -99,6 +101,9 @@ fn simulate(
                 stages.assembly += r.stages.assembly_s;
                 stages.solve += r.stages.solve_s;
                 stages.update += r.stages.update_s;
+                stages.collision += r.stages.collision_s;
+                stages.self_collision += r.stages.self_collision_s;
+                contacts.add(&r.contacts);
                 bar.set_message(format!("t = {:.3} s, CG {}", sim.time(), r.cg_iterations));
             }
             Err(e) => {
@@ -140,10 +145,38 @@ fn simulate(
         min_z_m: state.x.iter().map(|p| p.z).fold(f64::INFINITY, f64::min),
         max_speed_m_s: state.v.iter().map(|v| v.norm()).fold(0.0, f64::max),
         finite: error.is_none() && state.first_non_finite().is_none(),
+        contacts_max: contacts.contacts_max,
+        max_penetration_m: contacts.max_penetration_m.max(max_penetration(model, &state.x, state.time_s)),
+        self_contacts_max: contacts.self_contacts_max,
+        released_contacts_total: contacts.released,
+        narrow_phase_queries_total: contacts.queries,
+        hash_builds_total: contacts.hash_builds,
         error,
         stage_wall_s: stages,
     };
     Ok(summary)
+}
+
+/// Collision counters over a run.
+#[derive(Default)]
+struct ContactTotals {
+    contacts_max: usize,
+    max_penetration_m: f64,
+    self_contacts_max: usize,
+    released: u64,
+    queries: u64,
+    hash_builds: u64,
+}
+
+impl ContactTotals {
+    fn add(&mut self, c: &ContactStats) {
+        self.contacts_max = self.contacts_max.max(c.contacts);
+        self.max_penetration_m = self.max_penetration_m.max(c.max_penetration_m);
+        self.self_contacts_max = self.self_contacts_max.max(c.self_contacts);
+        self.released += c.released as u64;
+        self.queries += c.narrow_phase_queries as u64;
+        self.hash_builds += c.hash_builds as u64;
+    }
 }
 
 pub fn run(args: &RunArgs) -> Result<()> {
@@ -198,11 +231,11 @@ pub fn time(scene: &Path, overrides: &[String], threads: usize, repeat: usize) -
     let s = &runs[0];
     let per_step = |stage: f64| stage / s.steps.max(1) as f64 * 1e3;
     println!(
-        "| scene | particles | threads | steps | CG/step | ms/step (median of {repeat}) | forces | assembly | solve |"
+        "| scene | particles | threads | steps | CG/step | ms/step (median of {repeat}) | forces | assembly | solve | collision | self-collision |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
     println!(
-        "| {} {} | {} | {} | {} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} |",
+        "| {} {} | {} | {} | {} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
         scene.file_name().map_or_else(|| scene.display().to_string(), |n| n.to_string_lossy().into_owned()),
         overrides.join(" "),
         s.particles,
@@ -213,6 +246,8 @@ pub fn time(scene: &Path, overrides: &[String], threads: usize, repeat: usize) -
         per_step(median(&|r| r.stage_wall_s.forces)),
         per_step(median(&|r| r.stage_wall_s.assembly)),
         per_step(median(&|r| r.stage_wall_s.solve)),
+        per_step(median(&|r| r.stage_wall_s.collision)),
+        per_step(median(&|r| r.stage_wall_s.self_collision)),
     );
     Ok(())
 }

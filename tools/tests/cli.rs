@@ -168,3 +168,44 @@ fn study_cost_reports_every_method_and_model() {
     let md = std::fs::read_to_string(out.join("cost.md")).unwrap();
     assert!(md.contains("BE per CG iteration"));
 }
+
+/// Runs a fixture with overrides and returns its summary.
+fn summary_of(name: &str, overrides: &[&str]) -> serde_json::Value {
+    let out = out_dir(name);
+    let mut cmd = cloth();
+    cmd.args(["run", scene(name).to_str().unwrap(), "--quiet", "--out"]).arg(&out);
+    for o in overrides {
+        cmd.args(["--set", o]);
+    }
+    assert!(cmd.status().unwrap().success(), "{name}");
+    let text = std::fs::read_to_string(out.join("summary.json")).unwrap();
+    std::fs::remove_dir_all(&out).ok();
+    serde_json::from_str(&text).unwrap()
+}
+
+/// Only what a scene declares is computed: without colliders no narrow-phase
+/// query runs, without `[self_collision]` no spatial hash is built, and the
+/// collision stages take no time; with them the counters and stages show
+/// the work.
+#[test]
+fn collision_work_happens_only_when_the_scene_declares_it() {
+    let plain = summary_of("hang.toml", &["simulation.duration_s=0.1"]);
+    assert_eq!(plain["narrow_phase_queries_total"], 0);
+    assert_eq!(plain["hash_builds_total"], 0);
+    assert_eq!(plain["contacts_max"], 0);
+    assert_eq!(plain["self_contacts_max"], 0);
+    assert_eq!(plain["max_penetration_m"], 0.0);
+    assert_eq!(plain["stage_wall_s"]["collision"], 0.0);
+    assert_eq!(plain["stage_wall_s"]["self_collision"], 0.0);
+
+    let solids = summary_of("drape-sphere.toml", &["simulation.duration_s=0.3"]);
+    assert!(solids["narrow_phase_queries_total"].as_u64().unwrap() > 0);
+    assert!(solids["contacts_max"].as_u64().unwrap() > 0);
+    assert_eq!(solids["hash_builds_total"], 0, "no self-collision declared");
+    assert!(solids["stage_wall_s"]["collision"].as_f64().unwrap() > 0.0);
+    assert_eq!(solids["stage_wall_s"]["self_collision"], 0.0);
+
+    let folding = summary_of("fold.toml", &["simulation.duration_s=0.05"]);
+    assert_eq!(folding["hash_builds_total"], folding["steps"], "one hash build per step");
+    assert!(folding["stage_wall_s"]["self_collision"].as_f64().unwrap() > 0.0);
+}

@@ -1,13 +1,24 @@
-//! Collision detection for cloth. This crate holds the broad phase: a
-//! voxel grid stored as a spatial hash (Zhang & Yuen 2000, as used by Choi
-//! & Ko 2002 §5). Points and triangles are registered in the cubic voxels
-//! they touch; candidate pairs come only from shared voxels, so the cost is
-//! near-linear in the number of particles for cloth-like distributions.
+//! Collision detection for cloth.
+//!
+//! - Broad phase: a voxel grid stored as a spatial hash (Zhang & Yuen
+//!   2000, as used by Choi & Ko 2002 §5). Points and triangles are
+//!   registered in the cubic voxels they touch; candidate pairs come only
+//!   from shared voxels, so the cost is near-linear in the number of
+//!   particles for cloth-like distributions. Used for self-collision.
+//! - Narrow phase against solids: [`SolidShape`] (ball, cuboid, capsule,
+//!   cylinder, convex hull, OBJ triangle mesh, half-space) gives the signed
+//!   distance, closest point and outward normal through parry (f64).
 //!
 //! Results are sorted, so they do not depend on hashing or scheduling.
 
+mod collider;
+mod obj;
+mod triangle;
 mod voxel_hash;
 
+pub use collider::{BodyPose, ShapeError, ShapeSpec, SolidShape, SurfacePoint};
+pub use obj::{ObjError, ObjMesh, parse_obj};
+pub use triangle::closest_point_on_triangle;
 pub use voxel_hash::{BroadPhaseError, VoxelHash};
 
 /// A 3-vector of `f64`.

@@ -28,6 +28,8 @@ pub struct VoxelHash {
     point_bucket: Vec<u32>,
     /// Integer cell of each inserted point.
     point_cell: Vec<[i64; 3]>,
+    /// Position of each inserted point, m.
+    point_pos: Vec<Vec3>,
     /// CSR: points of bucket b are `sorted[start[b]..start[b + 1]]`.
     start: Vec<u32>,
     sorted: Vec<u32>,
@@ -52,6 +54,7 @@ impl VoxelHash {
             voxel,
             point_bucket: Vec::new(),
             point_cell: Vec::new(),
+            point_pos: Vec::new(),
             start: Vec::new(),
             sorted: Vec::new(),
             fill: Vec::new(),
@@ -87,6 +90,8 @@ impl VoxelHash {
         self.start.resize(table + 1, 0);
         self.point_cell.clear();
         self.point_bucket.clear();
+        self.point_pos.clear();
+        self.point_pos.extend_from_slice(points);
         for p in points {
             let c = self.cell_of(p);
             self.point_cell.push(c);
@@ -121,10 +126,24 @@ impl VoxelHash {
     /// `radius` (<= the voxel size), sorted. `skip(i, j)` drops pairs that
     /// should not collide (neighbours in the mesh).
     pub fn pairs_within(&self, points: &[Vec3], radius: f64, skip: impl Fn(u32, u32) -> bool) -> Vec<(u32, u32)> {
+        let mut out = Vec::new();
+        self.pairs_within_into(points, radius, skip, &mut out);
+        out
+    }
+
+    /// [`VoxelHash::pairs_within`] into a reused buffer (cleared first), so
+    /// a simulation step does not allocate.
+    pub fn pairs_within_into(
+        &self,
+        points: &[Vec3],
+        radius: f64,
+        skip: impl Fn(u32, u32) -> bool,
+        out: &mut Vec<(u32, u32)>,
+    ) {
+        out.clear();
         assert!(radius <= self.voxel, "pairs_within: radius {radius} exceeds the voxel size {}", self.voxel);
         assert_eq!(points.len(), self.point_cell.len(), "pairs_within: points differ from the inserted set");
         let r2 = radius * radius;
-        let mut out = Vec::new();
         for (i, c) in self.point_cell.iter().enumerate() {
             for dx in -1..=1 {
                 for dy in -1..=1 {
@@ -146,18 +165,33 @@ impl VoxelHash {
             }
         }
         out.sort_unstable();
-        out
     }
 
-    /// Candidate `(point, triangle)` pairs: every inserted point in a voxel
-    /// touched by a triangle's bounding box grown by `margin` (m), sorted
-    /// and without duplicates. A superset of the pairs closer than `margin`.
+    /// Candidate `(point, triangle)` pairs: every inserted point inside a
+    /// triangle's bounding box grown by `margin` (m), found through the
+    /// voxels the box touches; in triangle order (then voxel and point
+    /// order: deterministic), without duplicates (a point lies in one voxel,
+    /// each voxel is visited once per triangle). A superset of the pairs
+    /// closer than `margin`.
     pub fn point_triangle_candidates(
         &self,
         triangles: &[[Vec3; 3]],
         margin: f64,
     ) -> Result<Vec<(u32, u32)>, BroadPhaseError> {
         let mut out = Vec::new();
+        self.point_triangle_candidates_into(triangles, margin, &mut out)?;
+        Ok(out)
+    }
+
+    /// [`VoxelHash::point_triangle_candidates`] into a reused buffer
+    /// (cleared first), so a simulation step does not allocate.
+    pub fn point_triangle_candidates_into(
+        &self,
+        triangles: &[[Vec3; 3]],
+        margin: f64,
+        out: &mut Vec<(u32, u32)>,
+    ) -> Result<(), BroadPhaseError> {
+        out.clear();
         for (t, tri) in triangles.iter().enumerate() {
             if !tri.iter().all(|p| p.iter().all(|c| c.is_finite())) {
                 return Err(BroadPhaseError::NonFinite { what: "triangle", index: t });
@@ -170,7 +204,9 @@ impl VoxelHash {
                     for z in a[2]..=b[2] {
                         let c = [x, y, z];
                         for &p in self.bucket_points(c) {
-                            if self.point_cell[p as usize] == c {
+                            let q = &self.point_pos[p as usize];
+                            let inside = (0..3).all(|k| q[k] >= lo[k] && q[k] <= hi[k]);
+                            if self.point_cell[p as usize] == c && inside {
                                 out.push((p, t as u32));
                             }
                         }
@@ -178,8 +214,6 @@ impl VoxelHash {
                 }
             }
         }
-        out.sort_unstable();
-        out.dedup();
-        Ok(out)
+        Ok(())
     }
 }

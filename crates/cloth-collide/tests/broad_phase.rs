@@ -100,7 +100,11 @@ fn triangle_candidates_contain_every_close_pair() {
     let margin = 0.005;
     let mut hash = VoxelHash::new(0.01).unwrap();
     hash.insert_points(&points).unwrap();
-    let candidates = hash.point_triangle_candidates(&triangles, margin).unwrap();
+    let mut candidates = hash.point_triangle_candidates(&triangles, margin).unwrap();
+    // Triangle order, no duplicates.
+    assert!(candidates.windows(2).all(|w| w[0].1 <= w[1].1));
+    candidates.sort_unstable();
+    assert!(candidates.windows(2).all(|w| w[0] != w[1]), "duplicate candidates");
     let mut close = 0;
     for (p, point) in points.iter().enumerate() {
         for (t, tri) in triangles.iter().enumerate() {

@@ -297,6 +297,7 @@ impl crate::Integrator for Explicit {
     ) -> Result<StepReport, StepError> {
         use crate::IntegratorKind as K;
         crate::integrator::check_step(model, state, h)?;
+        crate::integrator::reject_collisions(model, self.0)?;
         let mut report = StepReport { converged: true, substeps: 1, ..Default::default() };
         let mut next_dt = 0.0;
         let bufs = ws.explicit.get_or_insert_with(|| ExplicitBuffers::new(model, DOPRI5.c.len()));

@@ -176,9 +176,14 @@ pub struct SystemTerms<'a> {
     pub d_times: Option<(f64, &'a [Vec3])>,
     /// Optional `y`: adds `M y`.
     pub mass_times: Option<&'a [Vec3]>,
-    /// Optional external forces (wind) taken at the start of the step, N:
-    /// adds `force * f_ext`.
+    /// Optional external forces (wind, self-collision) taken at the start
+    /// of the step, N: adds `force * f_ext`.
     pub external: Option<&'a [Vec3]>,
+    /// Optional stiffness of forces outside the links, kept on the
+    /// diagonal only: blocks `S_i = -df_i/dx_i` (N/m, positive
+    /// semidefinite; self-collision). Adds `c_x S_i` to the matrix and,
+    /// with `k_times = (a_k, w_k)`, `-a_k S_i w_k` to the right-hand side.
+    pub diag_stiffness: Option<&'a [Mat3]>,
 }
 
 /// Scratch buffers for [`assemble`], sized once per model.
@@ -227,6 +232,9 @@ pub fn assemble(model: &ClothModel, x: &[Vec3], terms: &SystemTerms<'_>, bufs: &
     bufs.matrix.fill_rows(|i, row| {
         row.iter_mut().for_each(|b| *b = Mat3::zeros());
         let mut diag = Mat3::identity() * (model.masses()[i] + c_v * model.drag(i));
+        if let Some(s) = terms.diag_stiffness {
+            diag += s[i] * terms.c_x;
+        }
         for inc in model.incidence(i) {
             let b = &link_block[inc.link as usize];
             diag += b;
@@ -287,6 +295,9 @@ pub fn assemble_matrix_free(
             }
             if let Some(f) = terms.external {
                 acc += f[i] * terms.force;
+            }
+            if let (Some(s), Some((a, w))) = (terms.diag_stiffness, terms.k_times) {
+                acc -= s[i] * w[i] * a;
             }
             if let Some((a, w)) = terms.d_times {
                 // Drag is a diagonal D = -c_i I.

@@ -1,6 +1,10 @@
 //! Implicit integrators behind one trait: each takes one linearised
 //! (single Newton iteration) step solved by the filtered PCG.
 
+use crate::contacts::{
+    ContactBuffers, ContactStats, add_penetrating, apply_friction, constrain_contacts, detect_self_contacts,
+    detect_solid_contacts, release_pulling, separate_self_contacts,
+};
 use crate::explicit::ExplicitBuffers;
 use crate::{
     ClothModel, ClothState, Vec3,
@@ -128,6 +132,10 @@ pub struct StageTimes {
     pub solve_s: f64,
     /// State update and finiteness check.
     pub update_s: f64,
+    /// Cloth-solid narrow phase (0 without colliders).
+    pub collision_s: f64,
+    /// Self-collision: spatial hash, pair tests and repulsion (0 when off).
+    pub self_collision_s: f64,
 }
 
 impl std::ops::AddAssign for StageTimes {
@@ -136,6 +144,8 @@ impl std::ops::AddAssign for StageTimes {
         self.assembly_s += o.assembly_s;
         self.solve_s += o.solve_s;
         self.update_s += o.update_s;
+        self.collision_s += o.collision_s;
+        self.self_collision_s += o.self_collision_s;
     }
 }
 
@@ -158,6 +168,8 @@ pub struct StepReport {
     pub converged: bool,
     /// Time per stage.
     pub stages: StageTimes,
+    /// Collision counters.
+    pub contacts: ContactStats,
 }
 
 /// Why a step failed. The state is left as it was before the step.
@@ -204,6 +216,13 @@ pub enum StepError {
         /// Substeps attempted (accepted and rejected).
         attempts: usize,
     },
+    /// The model collides with solids or itself, which only the assembled
+    /// implicit integrators (`backward-euler`, `bdf2`) handle.
+    #[error("integrator {integrator} does not handle collisions: use backward-euler or bdf2")]
+    CollisionsNeedImplicit {
+        /// The integrator's scene name.
+        integrator: &'static str,
+    },
     /// A state does not fit the model.
     #[error("state has {got} particles but the model has {expected}")]
     StateMismatch {
@@ -234,6 +253,8 @@ pub struct Workspace {
     pub(crate) explicit: Option<ExplicitBuffers>,
     /// Buffers of the matrix-free solver (allocated on first use).
     pub(crate) matrix_free: Option<crate::matrix_free::MatrixFreeBuffers>,
+    /// Contacts and collision scratch space.
+    pub(crate) contacts: ContactBuffers,
 }
 
 impl Workspace {
@@ -259,6 +280,7 @@ impl Workspace {
             normals: Vec::with_capacity(n),
             explicit: None,
             matrix_free: None,
+            contacts: ContactBuffers::default(),
         }
     }
 }
@@ -353,6 +375,10 @@ pub(crate) trait Linearised {
     /// For a Newton correction at iterate `u`: the `y` of the `M y` term of
     /// the negative residual, particle `i`.
     fn newton_mass_term(&self, aux2: &[Vec3], i: usize, u: Vec3) -> Vec3;
+    /// The time over which a force acting during the step changes the new
+    /// velocity, s (`h` for backward Euler, `2h/3` for BDF2); also the
+    /// position change per velocity change of the new state.
+    fn response_time(&self, h: f64) -> f64;
     /// The system of a Newton correction at an iterate with velocities `v_k`
     /// (positions are passed to the assembly): same matrix, right-hand side
     /// the negative residual `c_f f(x_k, v_k) + M y`.
@@ -372,6 +398,7 @@ impl Linearised for BackwardEuler {
             d_times: Some((h, v)),
             mass_times: None,
             external: None,
+            diag_stiffness: None,
         }
     }
 
@@ -390,6 +417,10 @@ impl Linearised for BackwardEuler {
         (state.x[i] + v * h, v)
     }
 
+    fn response_time(&self, h: f64) -> f64 {
+        h
+    }
+
     /// Residual `M dv - h f(x + h (v + dv), v + dv)`: `y = -dv`.
     fn newton_mass_term(&self, _: &[Vec3], _: usize, dv: Vec3) -> Vec3 {
         -dv
@@ -404,6 +435,7 @@ impl Linearised for BackwardEuler {
             d_times: Some((h, v_k)),
             mass_times: Some(y),
             external: None,
+            diag_stiffness: None,
         }
     }
 }
@@ -427,6 +459,7 @@ impl Linearised for Bdf2 {
             d_times: Some((-2.0 * h / 9.0, aux)),
             mass_times: Some(aux2),
             external: None,
+            diag_stiffness: None,
         }
     }
 
@@ -444,6 +477,11 @@ impl Linearised for Bdf2 {
         (state.x[i] + dx, (dx * 3.0 - aux[i]) / (2.0 * h))
     }
 
+    /// `v' = (3 dx - delta) / (2h)` and `dx` moves by `(4h^2/9) f / m`.
+    fn response_time(&self, h: f64) -> f64 {
+        2.0 * h / 3.0
+    }
+
     /// Residual `M (dx - y0) - (4h^2/9) f(x + dx, v'(dx))` with `y0 = aux2`: `y = y0 - dx`.
     fn newton_mass_term(&self, aux2: &[Vec3], i: usize, dx: Vec3) -> Vec3 {
         aux2[i] - dx
@@ -459,6 +497,7 @@ impl Linearised for Bdf2 {
             d_times: Some((c, v_k)),
             mass_times: Some(y),
             external: None,
+            diag_stiffness: None,
         }
     }
 }
@@ -474,21 +513,52 @@ fn linearised_step<S: Linearised>(
     solver: &SolverParams,
 ) -> Result<StepReport, StepError> {
     scheme.prepare(state, h, &mut ws.aux, &mut ws.aux2);
-    let has_wind = external_forces(model, state, ws);
+    let loads = step_loads(model, state, h, ws)?;
     let mut terms = scheme.terms(state, &ws.aux, &ws.aux2, h);
-    terms.external = has_wind.then_some(&ws.external[..]);
+    terms.external = loads.external.then_some(&ws.external[..]);
+    terms.diag_stiffness = loads.self_collision.then_some(&ws.contacts.self_stiffness[..]);
+    let force_coefficient = terms.force;
     let timing = assemble(model, &state.x, &terms, &mut ws.system);
     let t_pins = Instant::now();
-    constrain_pins(model, state, h, &mut ws.filter, |target, i| scheme.pinned(state, h, target, i));
+    let value = |target, i| scheme.pinned(state, h, target, i);
+    constrain_pins(model, state, h, &mut ws.filter, value);
+    constrain_contacts(&ws.contacts.solid, &state.x, &mut ws.filter, value);
     for i in 0..state.len() {
         ws.unknown[i] = scheme.guess(state, &ws.aux, i);
     }
     let pins_s = t_pins.elapsed().as_secs_f64();
     let (mut report, mut solve_s) = solve(ws, state, solver)?;
     (report.force_evaluations, report.substeps) = (1, 1);
+    let mut stats = loads.stats;
+    // Active set: contacts whose constraint force pulls are released, free
+    // particles that end up inside a solid become contacts; then solve
+    // again (a few passes at most).
+    for pass in 0..=MAX_CONTACT_PASSES {
+        if model.colliders().is_empty() {
+            break;
+        }
+        let (matrix, rhs) = (&ws.system.matrix, &ws.system.rhs);
+        let (contacts, unknown) = (&mut ws.contacts.solid, &ws.unknown);
+        let released =
+            release_pulling(contacts, matrix, rhs, unknown, force_coefficient, &state.x, &mut ws.filter, value);
+        for i in 0..state.len() {
+            ws.new_x[i] = scheme.advance(state, &ws.aux, h, i, ws.unknown[i]).0;
+        }
+        let t_next = state.time_s + h;
+        let added = add_penetrating(model, &state.x, &ws.new_x, t_next, &mut ws.contacts, &mut ws.filter, value);
+        (stats.released, stats.added) = (stats.released + released, stats.added + added);
+        if released + added == 0 || pass == MAX_CONTACT_PASSES {
+            break;
+        }
+        let (r, s) = solve(ws, state, solver)?;
+        report.cg_iterations += r.cg_iterations;
+        (report.rel_residual, report.converged, solve_s) =
+            (r.rel_residual, report.converged & r.converged, solve_s + s);
+    }
     let (mut forces_s, mut assembly_s) = (timing.links_s, timing.gather_s + pins_s);
     // Further Newton iterations on the nonlinear step equation: linearise
-    // at the current iterate, solve for the correction (pins: zero).
+    // at the current iterate, solve for the correction (pins and contacts:
+    // zero). Collision forces stay those of the start of the step.
     for _ in 1..solver.newton_iterations {
         for i in 0..state.len() {
             (ws.new_x[i], ws.new_v[i]) = scheme.advance(state, &ws.aux, h, i, ws.unknown[i]);
@@ -496,9 +566,12 @@ fn linearised_step<S: Linearised>(
         }
         ws.newton_u.copy_from_slice(&ws.unknown);
         let mut terms = scheme.newton_terms(h, &ws.new_v, &ws.newton_y);
-        terms.external = has_wind.then_some(&ws.external[..]);
+        terms.external = loads.external.then_some(&ws.external[..]);
+        terms.diag_stiffness = loads.self_collision.then_some(&ws.contacts.self_stiffness[..]);
         let t = assemble(model, &ws.new_x, &terms, &mut ws.system);
-        constrain_pins(model, state, h, &mut ws.filter, |_, _| Vec3::zeros());
+        let zero = |_, _| Vec3::zeros();
+        constrain_pins(model, state, h, &mut ws.filter, zero);
+        constrain_contacts(&ws.contacts.solid, &state.x, &mut ws.filter, zero);
         ws.unknown.iter_mut().for_each(|u| *u = Vec3::zeros());
         let (r, s) = solve(ws, state, solver)?;
         for (u, base) in ws.unknown.iter_mut().zip(&ws.newton_u) {
@@ -514,9 +587,82 @@ fn linearised_step<S: Linearised>(
     for i in 0..state.len() {
         (ws.new_x[i], ws.new_v[i]) = scheme.advance(state, &ws.aux, h, i, ws.unknown[i]);
     }
+    let tau = scheme.response_time(h);
+    let solid = &ws.contacts.solid;
+    stats.sticking = apply_friction(solid, model.masses(), tau, &mut ws.new_x, &mut ws.new_v);
+    if let Some(sc) = model.self_collision() {
+        let pairs = &ws.contacts.self_pairs;
+        stats.self_separations = separate_self_contacts(model, sc, pairs, tau, &mut ws.new_x, &mut ws.new_v);
+    }
+    stats.contacts = solid.iter().filter(|c| c.active).count();
     commit(state, ws, h)?;
-    report.stages = StageTimes { forces_s, assembly_s, solve_s, update_s: t_update.elapsed().as_secs_f64() };
+    report.stages = StageTimes {
+        forces_s,
+        assembly_s,
+        solve_s,
+        update_s: t_update.elapsed().as_secs_f64(),
+        collision_s: loads.collision_s,
+        self_collision_s: loads.self_collision_s,
+    };
+    report.contacts = stats;
     Ok(report)
+}
+
+/// Most re-solves after changing the contact set within one step.
+const MAX_CONTACT_PASSES: usize = 3;
+
+/// What acts on the cloth besides its own links in one step.
+struct StepLoads {
+    /// `ws.external` holds forces (wind, self-collision).
+    external: bool,
+    /// `ws.contacts.self_stiffness` holds self-collision stiffness.
+    self_collision: bool,
+    stats: ContactStats,
+    collision_s: f64,
+    self_collision_s: f64,
+}
+
+/// Wind and self-collision forces at the start of the step into
+/// `ws.external`, and the cloth-solid contacts of the step into
+/// `ws.contacts.solid`. Only what the model has is computed.
+fn step_loads(model: &ClothModel, state: &ClothState, h: f64, ws: &mut Workspace) -> Result<StepLoads, StepError> {
+    let mut loads = StepLoads {
+        external: external_forces(model, state, ws),
+        self_collision: false,
+        stats: ContactStats::default(),
+        collision_s: 0.0,
+        self_collision_s: 0.0,
+    };
+    if let Some(sc) = model.self_collision() {
+        let t = Instant::now();
+        let stats = detect_self_contacts(model, sc, &state.x, &state.v, h, &mut ws.contacts).map_err(|particle| {
+            StepError::NonFinite { step: state.steps + 1, time_s: state.time_s, particle, quantity: "position" }
+        })?;
+        if !loads.external {
+            ws.external.iter_mut().for_each(|f| *f = Vec3::zeros());
+        }
+        for (f, s) in ws.external.iter_mut().zip(&ws.contacts.self_force) {
+            *f += s;
+        }
+        (loads.external, loads.self_collision) = (true, true);
+        loads.stats += stats;
+        loads.self_collision_s = t.elapsed().as_secs_f64();
+    }
+    ws.contacts.solid.clear();
+    if !model.colliders().is_empty() {
+        let t = Instant::now();
+        loads.stats += detect_solid_contacts(model, state, h, &mut ws.contacts);
+        loads.collision_s = t.elapsed().as_secs_f64();
+    }
+    Ok(loads)
+}
+
+/// Fails when the model needs collision handling that `integrator` lacks.
+pub(crate) fn reject_collisions(model: &ClothModel, integrator: IntegratorKind) -> Result<(), StepError> {
+    if model.has_collisions() {
+        return Err(StepError::CollisionsNeedImplicit { integrator: integrator.name() });
+    }
+    Ok(())
 }
 
 /// Wind forces at the start of the step into `ws.external`; false (and

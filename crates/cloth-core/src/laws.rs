@@ -238,6 +238,22 @@ fn ramp_switch_point(rest: f64, k_b: f64, c_b: f64) -> f64 {
     0.5 * (lo + hi)
 }
 
+/// Self-collision repulsion between two pieces of cloth closer than the
+/// thickness `h_c` (Choi & Ko 2002 §5 repel particle pairs closer than a
+/// threshold without giving the law; this penalty is ours):
+/// `E = k_r (h_c - d)^2 / 2`, `phi = -k_r (h_c - d)` (repulsive) for
+/// `d < h_c`, zero beyond. Its orthogonal stiffness `phi/d` is negative,
+/// so like type-2 links only `dphi P` goes into the matrix.
+///
+/// `d`, `thickness` in m; `k_r` in N/m.
+pub fn repulsion(d: f64, thickness: f64, k_r: f64) -> ScalarLaw {
+    if d >= thickness {
+        return ScalarLaw::default();
+    }
+    let gap = thickness - d;
+    ScalarLaw { energy: 0.5 * k_r * gap * gap, phi: -k_r * gap, dphi: k_r }
+}
+
 /// The 3x3 block `df_i/dx_j` of a central law at `x_ij = d u`:
 /// `dphi P + (phi/d)(I - P)`, or `dphi P` alone when `keep_orthogonal` is
 /// false (Choi & Ko drop the orthogonal term of type-2 links from the system
@@ -336,6 +352,13 @@ mod tests {
             assert!((fd(|x| linear_spring(x, 1.0, 50.0).energy, d, 1e-6) - l.phi).abs() < 1e-6);
         }
         assert_eq!(tension_spring(0.9, 1.0, 50.0), ScalarLaw::default());
+        for d in [0.001, 0.004, 0.0099] {
+            let r = repulsion(d, 0.01, 80.0);
+            assert!(r.phi < 0.0, "repulsive at {d}");
+            assert!((fd(|x| repulsion(x, 0.01, 80.0).energy, d, 1e-7) - r.phi).abs() < 1e-9);
+            assert!((fd(|x| repulsion(x, 0.01, 80.0).phi, d, 1e-7) - r.dphi).abs() < 1e-6);
+        }
+        assert_eq!(repulsion(0.0101, 0.01, 80.0), ScalarLaw::default());
     }
 
     #[test]

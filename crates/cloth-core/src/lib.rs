@@ -7,7 +7,9 @@
 //! with a pattern built once -> PCG with pins as Baraff-Witkin constraints ->
 //! new state. Units are SI throughout.
 
+pub mod colliders;
 mod constraints;
+pub mod contacts;
 pub mod element_laws;
 pub mod elements;
 mod explicit;
@@ -25,8 +27,11 @@ mod state;
 mod topology;
 pub mod wind;
 
+pub use cloth_collide::{ShapeSpec, VoxelHash};
 pub use cloth_linalg::{PcgParams, PreconditionerKind};
+pub use colliders::{Collider, ColliderSpec, CollisionSpec, SelfCollision, SelfCollisionSpec};
 pub use constraints::{StrainLimitReport, apply_strain_limit};
+pub use contacts::ContactStats;
 pub use integrator::{
     BackwardEuler, Bdf2, Integrator, IntegratorKind, SolverParams, StageTimes, StepError, StepReport, Workspace,
 };

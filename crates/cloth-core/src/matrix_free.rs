@@ -11,7 +11,7 @@ use crate::{
     forces::{apply_scaled_operator, assemble_matrix_free},
     integrator::{
         BackwardEuler, Linearised, StageTimes, StepError, StepReport, check_step, commit, constrain_pins,
-        external_forces,
+        external_forces, reject_collisions,
     },
 };
 use cloth_linalg::{CgScratch, PcgError, cg_fixed_iterations};
@@ -54,6 +54,7 @@ impl crate::Integrator for BackwardEulerFixedCg {
         solver: &SolverParams,
     ) -> Result<StepReport, StepError> {
         check_step(model, state, h)?;
+        reject_collisions(model, self.kind())?;
         let scheme = BackwardEuler;
         let has_wind = external_forces(model, state, ws);
         let mut terms = scheme.terms(state, &ws.aux, &ws.aux2, h);
@@ -108,7 +109,9 @@ impl crate::Integrator for BackwardEulerFixedCg {
                 assembly_s: timing.gather_s,
                 solve_s,
                 update_s: t_update.elapsed().as_secs_f64(),
+                ..StageTimes::default()
             },
+            ..StepReport::default()
         })
     }
 }

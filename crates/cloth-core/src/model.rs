@@ -1,6 +1,7 @@
 //! The immutable cloth model: particles, links grouped by law, pins, the
 //! effects a scene asked for, and the system matrix's sparsity pattern.
 
+use crate::colliders::{Collider, CollisionSpec, SelfCollision};
 use crate::element_laws::{TriangleRest, dihedral_angle};
 use crate::elements::{ElementSet, HingeElement, MembraneElement};
 use crate::{
@@ -83,6 +84,8 @@ pub struct ModelSpec {
     pub strain_limit: Option<StrainLimit>,
     /// The air's motion and coefficients, for the wind effects.
     pub wind: Option<Wind>,
+    /// Solids and self-collision (none by default).
+    pub collision: CollisionSpec,
 }
 
 /// Why a model could not be built. Field paths match the scene file's keys.
@@ -138,6 +141,14 @@ pub enum ModelError {
     /// Gravity is not finite.
     #[error("simulation.gravity_m_s2: must be finite, got {0:?}")]
     Gravity([f64; 3]),
+    /// A collider or the self-collision set-up is invalid.
+    #[error("{field}: {message}")]
+    Collision {
+        /// Dotted path of the field (`colliders[0].shape.radius_m`).
+        field: String,
+        /// What is wrong.
+        message: String,
+    },
 }
 
 /// Which discretisation of the fabric a model uses. Both take the same
@@ -286,6 +297,9 @@ pub struct PanelRange {
 /// An immutable cloth model. Build one with [`ClothModel::build`].
 #[derive(Debug, Clone)]
 pub struct ClothModel {
+    colliders: Vec<Collider>,
+    contact_thickness: f64,
+    self_collision: Option<SelfCollision>,
     mass: Vec<f64>,
     rest_positions: Vec<Vec3>,
     stretch: Vec<StretchLink>,
@@ -438,7 +452,17 @@ impl ClothModel {
             }
         }
         let diag_local = (0..n).map(|i| (pattern.diag_slot(i) - pattern.row_range(i).start) as u32).collect();
+        let collision_error = |(field, message)| ModelError::Collision { field, message };
+        let colliders = spec.collision.build_colliders().map_err(collision_error)?;
+        let mean_link = stretch.iter().map(|l| l.rest).sum::<f64>() / stretch.len().max(1) as f64;
+        let self_collision = spec
+            .collision
+            .build_self_collision(spec.material.tensile_stiffness_n_m, mean_link)
+            .map_err(collision_error)?;
         Ok(Self {
+            colliders,
+            contact_thickness: spec.collision.thickness(),
+            self_collision,
             mass,
             rest_positions,
             stretch,
@@ -522,6 +546,22 @@ impl ClothModel {
     /// The wind, if the model has a wind effect.
     pub fn wind(&self) -> Option<&Wind> {
         self.wind.as_ref().filter(|_| self.effects.wind || self.effects.aerodynamics)
+    }
+    /// Solids the cloth collides with.
+    pub fn colliders(&self) -> &[Collider] {
+        &self.colliders
+    }
+    /// Distance kept between particles and solid surfaces, m.
+    pub fn contact_thickness(&self) -> f64 {
+        self.contact_thickness
+    }
+    /// Self-collision parameters, if self-collision is on.
+    pub fn self_collision(&self) -> Option<&SelfCollision> {
+        self.self_collision.as_ref()
+    }
+    /// Whether any collision handling (solids or self) is needed.
+    pub fn has_collisions(&self) -> bool {
+        !self.colliders.is_empty() || self.self_collision.is_some()
     }
     /// Deformation constraints, if the model has them.
     pub fn strain_limit(&self) -> Option<StrainLimit> {

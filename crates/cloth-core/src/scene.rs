@@ -55,8 +55,8 @@
 //! ```
 
 use crate::{
-    ClothModel, Effects, GridPanel, IntegratorKind, Material, ModelKind, ModelSpec, PcgParams, PinSpec,
-    PreconditionerKind, SolverParams, StrainLimit, Vec3, Wind,
+    ClothModel, ColliderSpec, CollisionSpec, Effects, GridPanel, IntegratorKind, Material, ModelKind, ModelSpec,
+    PcgParams, PinSpec, PreconditionerKind, SelfCollisionSpec, SolverParams, StrainLimit, Vec3, Wind,
 };
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -83,6 +83,26 @@ pub struct Scene {
     /// The air (used by the `wind` and `aerodynamics` effects).
     #[serde(default)]
     pub wind: Option<Wind>,
+    /// Solids the cloth collides with; none means no narrow phase runs.
+    #[serde(default)]
+    pub colliders: Vec<ColliderSpec>,
+    /// Cloth-solid contact settings.
+    #[serde(default)]
+    pub collision: Option<CollisionSection>,
+    /// Self-collision; off when absent (no spatial hash is built).
+    #[serde(default)]
+    pub self_collision: Option<SelfCollisionSpec>,
+    /// Directory of the scene file: relative mesh paths start here.
+    #[serde(skip)]
+    pub base_dir: PathBuf,
+}
+
+/// `[collision]`: cloth-solid contact settings.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CollisionSection {
+    /// Distance kept between particles and solid surfaces, m (default 0.005).
+    pub thickness_m: f64,
 }
 
 /// An effect a scene can ask for.
@@ -292,7 +312,9 @@ impl Scene {
     pub fn parse_file(path: &Path, overrides: &[String]) -> Result<Self, SceneError> {
         let err = |kind| SceneError { file: path.to_path_buf(), kind };
         let text = std::fs::read_to_string(path).map_err(|e| err(SceneErrorKind::Io(e.to_string())))?;
-        Self::parse(&text, overrides).map_err(err)
+        let mut scene = Self::parse(&text, overrides).map_err(err)?;
+        scene.base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        Ok(scene)
     }
 
     /// Parses scene text with overrides (no range checks; see [`Scene::validate`]).
@@ -388,6 +410,12 @@ impl Scene {
                 aerodynamics: self.has_effect(EffectName::Aerodynamics),
             },
             wind: self.wind.clone(),
+            collision: CollisionSpec {
+                colliders: self.colliders.clone(),
+                thickness_m: self.collision.map(|c| c.thickness_m),
+                self_collision: self.self_collision,
+                base_dir: self.base_dir.clone(),
+            },
             kind: self.simulation.model,
             strain_limit: self.has_effect(EffectName::StrainLimit).then_some(self.constraints),
         }
@@ -404,6 +432,15 @@ impl Scene {
             SceneErrorKind::Invalid { field: field.to_string(), message: message.to_string() }
         })?;
         let s = &self.simulation;
+        if model.has_collisions() && !matches!(s.integrator, IntegratorKind::BackwardEuler | IntegratorKind::Bdf2) {
+            return Err(SceneErrorKind::Invalid {
+                field: "simulation.integrator".into(),
+                message: format!(
+                    "{} does not handle colliders or self-collision: use backward-euler or bdf2",
+                    s.integrator.name()
+                ),
+            });
+        }
         let config = RunConfig {
             integrator: s.integrator,
             dt_s: s.dt_s,

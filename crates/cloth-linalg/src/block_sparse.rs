@@ -146,7 +146,7 @@ impl BlockSparseMatrix {
 
     /// Row `i` of `A x`.
     #[inline]
-    fn row_times(&self, i: usize, x: &[Vec3]) -> Vec3 {
+    pub fn row_times(&self, i: usize, x: &[Vec3]) -> Vec3 {
         let range = self.pattern.row_range(i);
         let (mut a0, mut a1, mut a2) = (0.0, 0.0, 0.0);
         for (b, &c) in self.values[range.clone()].iter().zip(&self.pattern.cols[range]) {

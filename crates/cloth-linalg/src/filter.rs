@@ -95,6 +95,11 @@ impl ConstraintFilter {
         self.entries.clear();
     }
 
+    /// Whether particle `i` has no constraint.
+    pub fn is_free(&self, i: usize) -> bool {
+        self.slot.get(i).is_none_or(|&s| s == usize::MAX)
+    }
+
     /// Number of constrained particles.
     pub fn constrained_count(&self) -> usize {
         self.entries.len()

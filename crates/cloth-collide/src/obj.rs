@@ -1,0 +1,97 @@
+//! A minimal Wavefront OBJ reader: vertices (`v`) and polygonal faces
+//! (`f`, fan-triangulated). Everything else (normals, texture coordinates,
+//! groups, materials) is skipped, as a collider needs only the surface.
+
+use crate::Vec3;
+
+/// A triangle mesh read from OBJ text.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ObjMesh {
+    /// Vertex positions, in the file's units.
+    pub vertices: Vec<Vec3>,
+    /// Triangles as vertex indices (0-based), counter-clockwise as in the file.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// Why OBJ text could not be read: the 1-based line and the reason.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("line {line}: {message}")]
+pub struct ObjError {
+    /// 1-based line number (0 when the error is about the whole file).
+    pub line: usize,
+    /// What is wrong.
+    pub message: String,
+}
+
+/// Parses OBJ text. Face indices may be negative (relative to the end) and
+/// may carry `/vt/vn` suffixes; faces with more than three corners are
+/// split into a fan.
+pub fn parse_obj(text: &str) -> Result<ObjMesh, ObjError> {
+    let mut mesh = ObjMesh { vertices: Vec::new(), triangles: Vec::new() };
+    for (k, raw) in text.lines().enumerate() {
+        let line = k + 1;
+        let err = |message: String| ObjError { line, message };
+        let mut words = raw.split('#').next().unwrap_or("").split_whitespace();
+        match words.next() {
+            Some("v") => {
+                let mut c = [0.0; 3];
+                for slot in &mut c {
+                    let w = words.next().ok_or_else(|| err("vertex needs three coordinates".into()))?;
+                    *slot = w.parse::<f64>().map_err(|_| err(format!("bad coordinate {w:?}")))?;
+                    if !slot.is_finite() {
+                        return Err(err(format!("non-finite coordinate {w:?}")));
+                    }
+                }
+                mesh.vertices.push(Vec3::from(c));
+            }
+            Some("f") => {
+                let n = mesh.vertices.len();
+                let corners = words
+                    .map(|w| {
+                        let first = w.split('/').next().unwrap_or("");
+                        let i: i64 = first.parse().map_err(|_| err(format!("bad face index {w:?}")))?;
+                        let index = if i > 0 { i - 1 } else { n as i64 + i };
+                        if i == 0 || index < 0 || index >= n as i64 {
+                            return Err(err(format!("face index {i} outside the {n} vertices read so far")));
+                        }
+                        Ok(index as u32)
+                    })
+                    .collect::<Result<Vec<u32>, ObjError>>()?;
+                if corners.len() < 3 {
+                    return Err(err(format!("face has {} corners, needs at least 3", corners.len())));
+                }
+                for w in 1..corners.len() - 1 {
+                    mesh.triangles.push([corners[0], corners[w], corners[w + 1]]);
+                }
+            }
+            _ => {}
+        }
+    }
+    if mesh.triangles.is_empty() {
+        return Err(ObjError { line: 0, message: "no faces".into() });
+    }
+    Ok(mesh)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reads_vertices_and_fans_polygons() {
+        let text = "# a unit square\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//1 4//1\n";
+        let mesh = parse_obj(text).unwrap();
+        assert_eq!(mesh.vertices.len(), 4);
+        assert_eq!(mesh.triangles, vec![[0, 1, 2], [0, 2, 3]]);
+        let relative = parse_obj("v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\n").unwrap();
+        assert_eq!(relative.triangles, vec![[0, 1, 2]]);
+    }
+
+    #[test]
+    fn errors_name_the_line() {
+        assert_eq!(parse_obj("v 0 0 0\nv 1 0\n").unwrap_err().line, 2);
+        assert_eq!(parse_obj("v 0 0 0\nf 1 2 3\n").unwrap_err().line, 2);
+        assert_eq!(parse_obj("v 0 0 nan\n").unwrap_err().line, 1);
+        assert_eq!(parse_obj("v 0 0 0\n").unwrap_err().line, 0);
+    }
+}

@@ -1,0 +1,153 @@
+//! Collisions with numbers: friction on an incline against Coulomb's law,
+//! no penetration of solids, no self-intersection in a fold.
+
+use cloth_core::contacts::max_penetration;
+use cloth_core::{ClothModel, Simulation, Vec3};
+use cloth_tests::simulation;
+
+/// Overrides that tilt the incline fixture's plane (and the cloth lying 5
+/// mm above it) to `deg` degrees, with friction `mu`.
+fn incline(deg: f64, mu: f64) -> Vec<String> {
+    let (s, c) = deg.to_radians().sin_cos();
+    let th = 0.005;
+    vec![
+        format!("colliders.0.rotation_deg=[{deg}, 0.0, 0.0]"),
+        format!("colliders.0.friction={mu}"),
+        format!("panels.0.v_axis=[0.0, {c}, {s}]"),
+        format!("panels.0.origin_m=[-0.25, {}, {}]", -s * th, c * th),
+    ]
+}
+
+/// Mean displacement of the cloth down the slope after `duration` s, m.
+fn slide(deg: f64, mu: f64, duration: f64, integrator: &str) -> f64 {
+    let mut o = incline(deg, mu);
+    o.push(format!("simulation.integrator=\"{integrator}\""));
+    let o: Vec<&str> = o.iter().map(String::as_str).collect();
+    let (mut sim, cfg) = simulation("incline.toml", &o);
+    let start = mean(&sim.state().x);
+    let steps = (duration / cfg.dt_s).round() as usize;
+    for _ in 0..steps {
+        let r = sim.step(cfg.dt_s).unwrap();
+        assert!(r.contacts.max_penetration_m <= 1e-9, "particle inside the plane");
+    }
+    let (s, c) = deg.to_radians().sin_cos();
+    let downhill = Vec3::new(0.0, -c, -s);
+    (mean(&sim.state().x) - start).dot(&downhill)
+}
+
+fn mean(x: &[Vec3]) -> Vec3 {
+    x.iter().sum::<Vec3>() / x.len() as f64
+}
+
+/// Coulomb: on a plane at angle theta with friction mu the cloth stays put
+/// when tan theta < mu, and slides with a = g (sin theta - mu cos theta)
+/// when tan theta > mu (checked within 10% from the distance slid from
+/// rest in 1 s, s = a t^2 / 2).
+#[test]
+fn incline_holds_below_the_friction_angle_and_slides_at_coulombs_rate_above() {
+    let g = 9.81;
+    for integrator in ["bdf2", "backward-euler"] {
+        for (deg, mu) in [(20.0, 0.5), (25.0, 0.5), (10.0, 0.2)] {
+            let s = slide(deg, mu, 1.0, integrator);
+            assert!(s.abs() < 1e-4, "{integrator}: tan {deg} < {mu}: the cloth should hold, slid {s} m");
+        }
+        for (deg, mu) in [(35.0, 0.5), (30.0, 0.3), (45.0, 0.8), (20.0, 0.0)] {
+            let (sn, cs) = f64::to_radians(deg).sin_cos();
+            let expected = g * (sn - mu * cs);
+            let a = 2.0 * slide(deg, mu, 1.0, integrator);
+            eprintln!("{integrator}: incline {deg} deg, mu {mu}: a = {a:.4} m/s^2, Coulomb {expected:.4}");
+            assert!((a - expected).abs() <= 0.1 * expected, "{integrator} {deg} deg, mu {mu}: a = {a}, {expected}");
+        }
+    }
+}
+
+/// Closest pair of particles not sharing a link, m (brute force).
+fn min_unlinked_distance(model: &ClothModel, x: &[Vec3]) -> f64 {
+    let mut best = f64::INFINITY;
+    for i in 0..x.len() {
+        for j in i + 1..x.len() {
+            if model.incidence(i).iter().all(|inc| inc.other as usize != j) {
+                best = best.min((x[i] - x[j]).norm());
+            }
+        }
+    }
+    best
+}
+
+/// The fold fixture: the cloth lands on the ground and falls over onto
+/// itself; at no step are two particles that share no link closer than
+/// half the self-collision thickness, and the layers really do touch
+/// (self contacts are found).
+#[test]
+fn folded_cloth_never_passes_through_itself() {
+    let (mut sim, cfg) = simulation("fold.toml", &[]);
+    let thickness = sim.model().self_collision().unwrap().thickness_m;
+    let (mut closest, mut self_contacts_max) = (f64::INFINITY, 0);
+    for _ in 0..cfg.steps {
+        let r = sim.step(cfg.dt_s).unwrap();
+        self_contacts_max = self_contacts_max.max(r.contacts.self_contacts);
+        closest = closest.min(min_unlinked_distance(sim.model(), &sim.state().x));
+    }
+    eprintln!(
+        "fold: closest unlinked pair {closest:.5} m (thickness {thickness} m), {self_contacts_max} self contacts"
+    );
+    assert!(self_contacts_max > 20, "the cloth never folded onto itself");
+    assert!(closest >= 0.5 * thickness, "particles {closest} m apart, thickness {thickness} m");
+}
+
+/// Runs `steps` steps; returns the deepest penetration seen at any step
+/// (and in the final state) and the most contacts held in one step.
+fn deepest_penetration(sim: &mut Simulation, dt: f64, steps: u64) -> (f64, usize) {
+    let (mut deepest, mut contacts) = (0.0_f64, 0);
+    for _ in 0..steps {
+        let r = sim.step(dt).unwrap();
+        deepest = deepest.max(r.contacts.max_penetration_m);
+        contacts = contacts.max(r.contacts.contacts);
+    }
+    (deepest.max(max_penetration(sim.model(), &sim.state().x, sim.time())), contacts)
+}
+
+/// Drape fixtures (ball, box, table with a post and the floor): no particle
+/// is ever deeper than 0.5 mm (a tenth of the thickness) inside a solid,
+/// and the cloth really rests on it.
+#[test]
+fn drapes_stay_outside_their_solids() {
+    const TOLERANCE_M: f64 = 5e-4;
+    for (scene, overrides) in [
+        ("drape-sphere.toml", ["panels.0.particles=[31, 31]", "simulation.duration_s=1.5"]),
+        ("drape-cube.toml", ["panels.0.particles=[31, 31]", "simulation.duration_s=1.5"]),
+        ("table.toml", ["panels.0.particles=[37, 37]", "simulation.duration_s=1.5"]),
+    ] {
+        let (mut sim, cfg) = simulation(scene, &overrides);
+        let (deepest, contacts) = deepest_penetration(&mut sim, cfg.dt_s, cfg.steps);
+        let top = sim.state().x.iter().map(|p| p.z).fold(f64::NEG_INFINITY, f64::max);
+        eprintln!("{scene}: deepest {deepest:.2e} m, up to {contacts} contacts, top of the cloth at {top:.4} m");
+        assert!(deepest <= TOLERANCE_M, "{scene}: a particle was {deepest} m inside a solid");
+        assert!(contacts > 50, "{scene}: the cloth never touched the solid");
+    }
+}
+
+/// A kinematic solid drags the cloth by friction: on a floor moving at
+/// 0.5 m/s (mu = 0.5), cloth at rest catches up within mu g t and then
+/// moves with it (static friction).
+#[test]
+fn a_moving_floor_carries_the_cloth_along() {
+    let mut o = incline(0.0, 0.5);
+    o.push("colliders.0.motion={ kind = \"linear\", velocity_m_s = [0.5, 0.0, 0.0] }".into());
+    let o: Vec<&str> = o.iter().map(String::as_str).collect();
+    let (mut sim, cfg) = simulation("incline.toml", &o);
+    let mean_vx = |sim: &Simulation| sim.state().v.iter().map(|v| v.x).sum::<f64>() / sim.state().len() as f64;
+    // Sliding phase: a = mu g = 4.9 m/s^2, so after 0.05 s vx is about 0.245 m/s.
+    let steps = (0.05 / cfg.dt_s).round() as usize;
+    for _ in 0..steps {
+        sim.step(cfg.dt_s).unwrap();
+    }
+    let sliding = mean_vx(&sim);
+    let expected = 0.5 * 9.81 * steps as f64 * cfg.dt_s;
+    assert!((sliding - expected).abs() < 0.1 * expected, "sliding: vx {sliding}, Coulomb {expected}");
+    for _ in 0..60 {
+        sim.step(cfg.dt_s).unwrap();
+    }
+    let carried = mean_vx(&sim);
+    assert!((carried - 0.5).abs() < 1e-3, "carried: vx {carried}");
+}
