@@ -206,6 +206,16 @@ pub fn run(args: &RunArgs) -> Result<()> {
             path.display()
         );
     }
+    if !args.quiet && (summary.narrow_phase_queries_total > 0 || summary.hash_builds_total > 0) {
+        println!(
+            "  contacts up to {}, deepest inside a solid {:.2e} m, self contacts up to {}, collision {:.2} s, self-collision {:.2} s",
+            summary.contacts_max,
+            summary.max_penetration_m,
+            summary.self_contacts_max,
+            summary.stage_wall_s.collision,
+            summary.stage_wall_s.self_collision
+        );
+    }
     Ok(())
 }
 

@@ -58,6 +58,9 @@ pub struct SelfContact {
     pub direction: Vec3,
     /// Distance, m.
     pub distance_m: f64,
+    /// Whether it exerts a repulsion force (particle pairs, and each
+    /// particle's nearest triangle); all pairs are kept apart after the step.
+    pub repels: bool,
 }
 
 /// What collision handling did in one step.
@@ -122,7 +125,8 @@ pub struct ContactBuffers {
     pub self_force: Vec<Vec3>,
     /// Self-collision stiffness on the diagonal, `-df_i/dx_i`, N/m.
     pub self_stiffness: Vec<Mat3>,
-    nearest: Vec<Option<SelfContact>>,
+    /// Per particle, its nearest triangle's entry in `self_pairs` (or `u32::MAX`).
+    nearest: Vec<u32>,
 }
 
 /// A predicted position closer than `(1 + CONTACT_MARGIN)` times the
@@ -227,7 +231,7 @@ pub fn detect_solid_contacts(
                 // a thin solid is closest to its far face.
                 let from = if moving { Some(c.shape.closest(&next, x[i])) } else { here };
                 let surface = from.filter(|f| f.distance_m > 0.0).unwrap_or(s);
-                let travel = normal_travel(surface.normal.dot(&(x[i] - surface.point)), thickness);
+                let travel = normal_travel(surface.normal.dot(&(x[i] - surface.point)), thickness, reach);
                 nearest.offer(s.distance_m, contact(i, k, c, surface.normal, travel, t + h));
             }
         }
@@ -331,7 +335,7 @@ pub fn add_penetrating(
             let distinct = existing
                 .is_none_or(|e| e.collider as usize != k && e.normal.dot(&surface.normal).abs() <= PARALLEL_COS);
             if distinct {
-                let travel = normal_travel(surface.normal.dot(&(x[i] - surface.point)), thickness);
+                let travel = normal_travel(surface.normal.dot(&(x[i] - surface.point)), thickness, thickness);
                 nearest.offer(s.distance_m, contact(i, k, c, surface.normal, travel, t_next));
             }
         }
@@ -367,12 +371,16 @@ pub fn max_penetration(model: &ClothModel, x: &[Vec3], t: f64) -> f64 {
 }
 
 /// The normal displacement over the step of a contact particle now at
-/// distance `d` (m) from the solid's surface at `t + h`: it ends the step
-/// on the offset surface at the thickness. (Holding particles at their
-/// distance instead would let the solid push at a distance: cloth would
-/// hover above it.)
-fn normal_travel(d: f64, thickness: f64) -> f64 {
-    thickness - d
+/// distance `d` (m) from the solid's surface at `t + h`: particles closer
+/// than the thickness go to it, particles arriving from beyond `reach`
+/// land on it, and particles already within `(thickness, reach]` keep
+/// their distance. Pulling those down to the thickness would take an
+/// attractive force, so they would be released and re-solved every step;
+/// holding them lets the cloth hover by at most the margin (0.25 mm for
+/// a 5 mm thickness).
+fn normal_travel(d: f64, thickness: f64, reach: f64) -> f64 {
+    let target = if d > reach { thickness } else { d.max(thickness) };
+    target - d
 }
 
 /// Solves `[1 c; c 1] (a, b) = (p, q)` with `c = n . m`: the coefficients
@@ -591,6 +599,7 @@ pub fn detect_self_contacts(
             weights: [1.0, 0.0, 0.0],
             direction,
             distance_m: d,
+            repels: true,
         });
     }
     if sc.point_triangle {
@@ -603,7 +612,7 @@ pub fn detect_self_contacts(
     bufs.self_stiffness.resize(n, Mat3::zeros());
     bufs.self_force.iter_mut().for_each(|f| *f = Vec3::zeros());
     bufs.self_stiffness.iter_mut().for_each(|k| *k = Mat3::zeros());
-    for c in &bufs.self_pairs {
+    for c in bufs.self_pairs.iter().filter(|c| c.repels) {
         let law = laws::repulsion(c.distance_m, th, sc.stiffness_n_m);
         // phi < 0: the particle is pushed along `direction`, the other side back.
         let f = c.direction * -law.phi;
@@ -618,7 +627,7 @@ pub fn detect_self_contacts(
             }
         }
     }
-    let touching = bufs.self_pairs.iter().filter(|c| c.distance_m < th).count();
+    let touching = bufs.self_pairs.iter().filter(|c| c.repels && c.distance_m < th).count();
     Ok(ContactStats { self_contacts: touching, hash_builds: 1, ..Default::default() })
 }
 
@@ -683,8 +692,11 @@ pub fn separate_self_contacts(
     corrections
 }
 
-/// Nearest triangle within `radius` of each particle (see
-/// [`detect_self_contacts`]), kept when `keep(particle, triangle, distance)`.
+/// Particle-triangle pairs within `radius` (see [`detect_self_contacts`])
+/// kept when `keep(particle, triangle, distance)`; each particle's nearest
+/// triangle repels it (one force per particle: a particle over an edge
+/// would otherwise be pushed by both triangles), all are kept apart after
+/// the step.
 fn point_triangle_contacts(
     model: &ClothModel,
     radius: f64,
@@ -700,7 +712,7 @@ fn point_triangle_contacts(
         return;
     }
     bufs.nearest.clear();
-    bufs.nearest.resize(x.len(), None);
+    bufs.nearest.resize(x.len(), u32::MAX);
     for &(p, t) in &bufs.candidate_pairs {
         let (p, tri) = (p as usize, triangles[t as usize]);
         if tri.iter().any(|&c| c as usize == p || linked(model, p, c as usize)) {
@@ -710,8 +722,7 @@ fn point_triangle_contacts(
         let (q, w) = closest_point_on_triangle(x[p], a, b, c);
         let d = (x[p] - q).norm();
         let at_vertex = w.iter().any(|&wk| wk > 1.0 - 1e-9);
-        let closer = bufs.nearest[p].as_ref().is_none_or(|old| d < old.distance_m);
-        if d >= radius || at_vertex || !closer || !keep(p, tri, d) {
+        if d >= radius || at_vertex || !keep(p, tri, d) {
             continue;
         }
         let normal = (b - a).cross(&(c - a));
@@ -722,9 +733,17 @@ fn point_triangle_contacts(
         } else {
             continue;
         };
-        bufs.nearest[p] = Some(SelfContact { particle: p as u32, others: tri, weights: w, direction, distance_m: d });
+        let nearest = bufs.nearest[p] as usize;
+        if bufs.self_pairs.get(nearest).is_none_or(|old| d < old.distance_m) {
+            bufs.nearest[p] = bufs.self_pairs.len() as u32;
+        }
+        let contact =
+            SelfContact { particle: p as u32, others: tri, weights: w, direction, distance_m: d, repels: false };
+        bufs.self_pairs.push(contact);
     }
-    bufs.self_pairs.extend(bufs.nearest.iter().flatten());
+    for &k in bufs.nearest.iter().filter(|&&k| k != u32::MAX) {
+        bufs.self_pairs[k as usize].repels = true;
+    }
 }
 
 #[cfg(test)]
@@ -767,7 +786,8 @@ mod tests {
             let other = c.others.iter().zip(&c.weights).fold(Vec3::zeros(), |a, (&o, &w)| a + x[o as usize] * w);
             (x[c.particle as usize] - other).norm()
         };
-        bufs.self_pairs.iter().map(|c| laws::repulsion(p(c), sc.thickness_m, sc.stiffness_n_m).energy).sum()
+        let repelling = bufs.self_pairs.iter().filter(|c| c.repels);
+        repelling.map(|c| laws::repulsion(p(c), sc.thickness_m, sc.stiffness_n_m).energy).sum()
     }
 
     /// Repulsion forces are minus the gradient of the repulsion energy (pairs
@@ -800,7 +820,7 @@ mod tests {
             }
         }
         // The kept stiffness: u^T S u = k_r per unit weight^2; nothing orthogonal.
-        for c in bufs.self_pairs.iter().filter(|c| c.distance_m < sc.thickness_m && c.weights[1] == 0.0) {
+        for c in bufs.self_pairs.iter().filter(|c| c.repels && c.distance_m < sc.thickness_m && c.weights[1] == 0.0) {
             let s = bufs.self_stiffness[c.particle as usize];
             assert!((c.direction.transpose() * s * c.direction)[0] >= sc.stiffness_n_m - 1e-9);
         }

@@ -52,7 +52,29 @@
 //! [constraints]                # optional; used with the "strain-limit" effect
 //! max_strain = 0.1
 //! passes = 10
+//!
+//! [collision]                  # optional; cloth-solid contact settings
+//! thickness_m = 0.005          # distance kept from solid surfaces, m
+//!
+//! [[colliders]]                # any number; none: no narrow phase runs
+//! shape = { kind = "ball", radius_m = 0.3 }
+//! # or { kind = "cuboid", half_extents_m = [..] }, { kind = "capsule" | "cylinder",
+//! # half_length_m, radius_m } (axis: local z), { kind = "convex-hull", points_m = [[..], ..] },
+//! # { kind = "mesh", obj = "../meshes/pillow.obj", scale = 1.0 } (relative to this file),
+//! # { kind = "half-space", normal = [0, 0, 1] }
+//! position_m = [0.0, 0.0, 0.0]
+//! rotation_deg = [0.0, 0.0, 0.0]   # about x, then y, then z (fixed axes)
+//! friction = 0.3                   # Coulomb coefficient
+//! motion = { kind = "fixed" }      # or linear / oscillate / keyframes, as pins
+//!
+//! [self_collision]             # optional; absent: no spatial hash is built
+//! thickness_m = 0.01
+//! stiffness_n_m = 200.0        # default: material.tensile_stiffness_n_m
+//! point_triangle = true
 //! ```
+//!
+//! Colliders and self-collision need an implicit integrator with an
+//! assembled matrix (`bdf2` or `backward-euler`).
 
 use crate::{
     ClothModel, ColliderSpec, CollisionSpec, Effects, GridPanel, IntegratorKind, Material, ModelKind, ModelSpec,
