@@ -177,3 +177,32 @@ fn a_moving_floor_carries_the_cloth_along() {
     let carried = mean_vx(&sim);
     assert!((carried - 0.5).abs() < 1e-3, "carried: vx {carried}");
 }
+
+/// The contact forces read from the solver's residual are physical: a
+/// cloth resting on the floor is carried by normal forces that add up to
+/// its weight, all pushing (none pulls).
+#[test]
+fn resting_cloth_is_carried_by_its_weight_in_contact_forces() {
+    let o = incline(0.0, 0.5);
+    let o: Vec<&str> = o.iter().map(String::as_str).collect();
+    let (mut sim, cfg) = simulation("incline.toml", &o);
+    for _ in 0..30 {
+        sim.step(cfg.dt_s).unwrap();
+    }
+    let weight = sim.model().masses().iter().sum::<f64>() * 9.81;
+    let contacts = sim.contacts();
+    assert_eq!(contacts.len(), sim.state().len(), "every particle rests on the floor");
+    assert!(contacts.iter().all(|c| c.active && c.normal_force_n >= 0.0));
+    let carried: f64 = contacts.iter().map(|c| c.normal_force_n).sum();
+    assert!((carried - weight).abs() < 1e-3 * weight, "normal forces {carried} N, weight {weight} N");
+}
+
+/// Explicit integrators do not handle collisions: a model with colliders
+/// stepped by one is an error that says so, not a silent pass-through.
+#[test]
+fn explicit_integrators_refuse_models_with_colliders() {
+    let (model, cfg) = cloth_tests::load("incline.toml", &[]);
+    let mut sim = Simulation::new(model, cloth_core::IntegratorKind::Rk4, cfg.solver);
+    let e = sim.step(cfg.dt_s).unwrap_err();
+    assert!(e.to_string().contains("rk4") && e.to_string().contains("collisions"), "{e}");
+}

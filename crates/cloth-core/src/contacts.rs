@@ -19,7 +19,7 @@
 use crate::colliders::SelfCollision;
 use crate::laws::{self, pair_stiffness};
 use crate::{ClothModel, ClothState, Mat3, PinMotion, Vec3};
-use cloth_collide::{VoxelHash, closest_point_on_triangle};
+use cloth_collide::{SurfacePoint, VoxelHash, closest_point_on_triangle};
 use cloth_linalg::{BlockSparseMatrix, Constraint, ConstraintFilter};
 use rayon::prelude::*;
 
@@ -30,6 +30,11 @@ pub struct SolidContact {
     pub particle: u32,
     /// Index of the solid in the model's colliders.
     pub collider: u32,
+    /// Closest point of the solid's surface at `t + h`, m.
+    pub point: Vec3,
+    /// Signed distance of the particle's predicted position from the
+    /// surface, m (negative inside).
+    pub distance_m: f64,
     /// Unit outward normal of the solid at the contact.
     pub normal: Vec3,
     /// Normal displacement over the step that puts the particle on the
@@ -232,7 +237,7 @@ pub fn detect_solid_contacts(
                 let from = if moving { Some(c.shape.closest(&next, x[i])) } else { here };
                 let surface = from.filter(|f| f.distance_m > 0.0).unwrap_or(s);
                 let travel = normal_travel(surface.normal.dot(&(x[i] - surface.point)), thickness, reach);
-                nearest.offer(s.distance_m, contact(i, k, c, surface.normal, travel, t + h));
+                nearest.offer(s.distance_m, contact(i, k, c, &surface, s.distance_m, travel, t + h));
             }
         }
         *cand = nearest.pick();
@@ -248,11 +253,21 @@ pub fn detect_solid_contacts(
     stats
 }
 
-fn contact(i: usize, k: usize, c: &crate::Collider, normal: Vec3, travel: f64, t_next: f64) -> SolidContact {
+fn contact(
+    i: usize,
+    k: usize,
+    c: &crate::Collider,
+    s: &SurfacePoint,
+    distance: f64,
+    travel: f64,
+    t_next: f64,
+) -> SolidContact {
     SolidContact {
         particle: i as u32,
         collider: k as u32,
-        normal,
+        point: s.point,
+        distance_m: distance,
+        normal: s.normal,
         normal_travel_m: travel,
         solid_velocity: c.velocity(t_next),
         friction: c.friction,
@@ -336,7 +351,7 @@ pub fn add_penetrating(
                 .is_none_or(|e| e.collider as usize != k && e.normal.dot(&surface.normal).abs() <= PARALLEL_COS);
             if distinct {
                 let travel = normal_travel(surface.normal.dot(&(x[i] - surface.point)), thickness, thickness);
-                nearest.offer(s.distance_m, contact(i, k, c, surface.normal, travel, t_next));
+                nearest.offer(s.distance_m, contact(i, k, c, &surface, s.distance_m, travel, t_next));
             }
         }
         cand[0] = nearest.pick()[0];
@@ -544,8 +559,9 @@ fn linked(model: &ClothModel, a: usize, b: usize) -> bool {
 /// `bufs.self_stiffness`. Returns the particle at fault if a position is
 /// not finite.
 ///
-/// Pairs are gathered within the thickness plus twice the distance the
-/// fastest particle covers in the step `h` (up to the voxel size), so
+/// Pairs are gathered within 1.5 thicknesses plus the distance the two
+/// particles cover towards each other at their speeds in the step `h`
+/// (up to the voxel size), so
 /// [`separate_self_contacts`] can still tell which side each particle
 /// was on after the step. Particle pairs closer than the thickness repel
 /// unless linked. With
@@ -563,7 +579,7 @@ pub fn detect_self_contacts(
 ) -> Result<ContactStats, usize> {
     let n = x.len();
     let fastest = v.iter().map(|v| v.norm()).fold(0.0, f64::max);
-    let radius = (sc.thickness_m + 2.0 * h * fastest).min(sc.voxel_m);
+    let radius = (SELF_SLACK * sc.thickness_m + 2.0 * h * fastest).min(sc.voxel_m);
     // Taken out of the buffers while they are filled; put back below.
     let mut hash = match bufs.hash.take() {
         Some(hash) => hash,
@@ -576,9 +592,9 @@ pub fn detect_self_contacts(
     let th = sc.thickness_m;
     bufs.self_pairs.clear();
     // A pair is kept when it could close the gap to the thickness within
-    // the step: its distance is below the thickness plus twice what the
-    // two particles travel at their current speeds.
-    let reach = |d: f64, speed: f64| d < th + 2.0 * h * speed;
+    // the step: its distance is below the thickness (with some slack for
+    // accelerations) plus what the two particles travel at their speeds.
+    let reach = |d: f64, speed: f64| d < SELF_SLACK * th + h * speed;
     hash.pairs_within_into(x, radius, |a, b| linked(model, a as usize, b as usize), &mut bufs.candidate_pairs);
     for &(a, b) in &bufs.candidate_pairs {
         let (a, b) = (a as usize, b as usize);
@@ -630,6 +646,10 @@ pub fn detect_self_contacts(
     let touching = bufs.self_pairs.iter().filter(|c| c.repels && c.distance_m < th).count();
     Ok(ContactStats { self_contacts: touching, hash_builds: 1, ..Default::default() })
 }
+
+/// Self-collision pairs are gathered up to this many thicknesses (plus
+/// the distance the pair can close in the step).
+const SELF_SLACK: f64 = 1.5;
 
 /// Fraction of the self-collision thickness below which
 /// [`separate_self_contacts`] pushes pairs apart after a step.
@@ -833,6 +853,8 @@ mod tests {
         let contact = SolidContact {
             particle: 0,
             collider: 0,
+            point: Vec3::zeros(),
+            distance_m: 0.0,
             normal: Vec3::z(),
             normal_travel_m: 0.0,
             solid_velocity: Vec3::new(0.1, 0.0, 0.0),

@@ -61,6 +61,12 @@ impl Simulation {
         self.integrator.kind()
     }
 
+    /// The cloth-solid contacts of the last step (point, normal, solid
+    /// velocity and the normal force each exerted), sorted by particle.
+    pub fn contacts(&self) -> &[crate::contacts::SolidContact] {
+        &self.workspace.contacts.solid
+    }
+
     /// A copy of the complete state (history included), for rollback.
     pub fn snapshot(&self) -> ClothState {
         self.state.clone()
