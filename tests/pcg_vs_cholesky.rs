@@ -5,7 +5,7 @@ use cloth_linalg::{
     Aggregation, BlockPattern, BlockSparseMatrix, Constraint, ConstraintFilter, Mat3, Multigrid, Pcg, PcgError,
     PcgParams, PreconditionerKind, Vec3,
 };
-use cloth_tests::Rng;
+use cloth_tests::{Rng, same_bits};
 use faer::linalg::solvers::Solve;
 use faer::sparse::{SparseColMat, Triplet};
 use faer::{Mat, Side};
@@ -256,6 +256,13 @@ fn multigrid_pcg_matches_cholesky_with_and_without_filters() {
             "multigrid {} vs block-Jacobi {block_jacobi_iters}",
             info.iterations
         );
+        // In place: the same iterates to the last bit, and A comes back unchanged.
+        let mut a_in_place = a.clone();
+        let mut y = vec![Vec3::zeros(); n];
+        let info2 = pcg.solve_in_place(&mut a_in_place, &b, &f, &params, &mut y).unwrap();
+        assert_eq!(info2.iterations, info.iterations);
+        assert!(same_bits(&x, &y), "solve_in_place differs from solve");
+        assert_eq!(a_in_place.values(), a.values(), "the matrix was not restored");
     }
 }
 

@@ -706,7 +706,7 @@ pub(crate) fn constrain_pins(
 
 fn solve(ws: &mut Workspace, state: &ClothState, solver: &SolverParams) -> Result<(StepReport, f64), StepError> {
     let t0 = Instant::now();
-    let result = ws.pcg.solve(&ws.system.matrix, &ws.system.rhs, &ws.filter, &solver.pcg, &mut ws.unknown);
+    let result = ws.pcg.solve_in_place(&mut ws.system.matrix, &ws.system.rhs, &ws.filter, &solver.pcg, &mut ws.unknown);
     let elapsed = t0.elapsed().as_secs_f64();
     let fail = |source| StepError::Solver { step: state.steps + 1, time_s: state.time_s, source };
     let report = match result {

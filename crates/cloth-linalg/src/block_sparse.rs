@@ -127,6 +127,12 @@ impl BlockSparseMatrix {
         &mut self.values
     }
 
+    /// The pattern and the mutable values at once (to edit blocks found
+    /// through the pattern).
+    pub fn pattern_and_values_mut(&mut self) -> (&BlockPattern, &mut [Mat3]) {
+        (&self.pattern, &mut self.values)
+    }
+
     /// The diagonal block of row `i`.
     pub fn diag(&self, i: usize) -> &Mat3 {
         &self.values[self.pattern.diag[i]]

@@ -16,7 +16,7 @@
 //! as the head start it is, not as a harder problem.
 
 use crate::{
-    BlockSparseMatrix, ConstraintFilter, Preconditioner, PreconditionerKind, Vec3,
+    BlockSparseMatrix, ConstraintFilter, Mat3, Preconditioner, PreconditionerKind, Vec3,
     par::{ROW_CHUNK, chunk_count, dot_with},
 };
 use rayon::prelude::*;
@@ -102,6 +102,11 @@ pub struct Pcg {
     partials: Vec<f64>,
     partials2: Vec<f64>,
     precond: Preconditioner,
+    /// `S A S + (I - S)`, the operator the multigrid hierarchy is built
+    /// from when particles are constrained (allocated on first use).
+    filtered: Option<BlockSparseMatrix>,
+    /// Original blocks changed by [`Pcg::solve_in_place`], for restoring.
+    saved_blocks: Vec<(usize, Mat3)>,
 }
 
 impl Pcg {
@@ -123,6 +128,10 @@ impl Pcg {
     /// Solves `A x = b` under `filter`. On entry `x` is the initial guess (its
     /// constrained components are overwritten by the prescribed values); on
     /// return it is the solution, or the last iterate on error.
+    ///
+    /// With the multigrid preconditioner and constrained particles, the
+    /// hierarchy is built from a filtered copy of `A` (see
+    /// [`Pcg::solve_in_place`], which avoids the copy).
     pub fn solve(
         &mut self,
         a: &BlockSparseMatrix,
@@ -131,6 +140,62 @@ impl Pcg {
         params: &PcgParams,
         x: &mut [Vec3],
     ) -> Result<PcgInfo, PcgError> {
+        let Some(start) = self.begin(a, b, filter, params, x)? else { return Ok(PcgInfo::default()) };
+        if !needs_filtered_hierarchy(params, filter) {
+            return self.iterate(a, filter, params, x, start);
+        }
+        let mut f = match self.filtered.take() {
+            Some(f) if f.pattern() == a.pattern() => f,
+            _ => BlockSparseMatrix::new(a.pattern().clone()),
+        };
+        f.values_mut().par_chunks_mut(ROW_CHUNK).zip(a.values().par_chunks(ROW_CHUNK)).for_each(|(fv, av)| {
+            fv.copy_from_slice(av);
+        });
+        filter_in_place(&mut f, filter, None);
+        // S A S c = S (S A S + I - S) c for c = S c: iterating on the
+        // filtered copy gives the same iterates.
+        let result = self.iterate(&f, filter, params, x, start);
+        self.filtered = Some(f);
+        result
+    }
+
+    /// As [`Pcg::solve`], but with the multigrid preconditioner and
+    /// constrained particles `A` is turned into `S A S + (I - S)` in place
+    /// for the iterations and restored bit for bit before returning (only
+    /// the constrained rows and columns change): no copy of the matrix.
+    pub fn solve_in_place(
+        &mut self,
+        a: &mut BlockSparseMatrix,
+        b: &[Vec3],
+        filter: &ConstraintFilter,
+        params: &PcgParams,
+        x: &mut [Vec3],
+    ) -> Result<PcgInfo, PcgError> {
+        let Some(start) = self.begin(a, b, filter, params, x)? else { return Ok(PcgInfo::default()) };
+        if !needs_filtered_hierarchy(params, filter) {
+            return self.iterate(a, filter, params, x, start);
+        }
+        let mut saved = std::mem::take(&mut self.saved_blocks);
+        filter_in_place(a, filter, Some(&mut saved));
+        let result = self.iterate(a, filter, params, x, start);
+        for &(slot, block) in &saved {
+            a.values_mut()[slot] = block;
+        }
+        self.saved_blocks = saved;
+        result
+    }
+
+    /// Checks the inputs and computes the starting residual. Returns `None`
+    /// when the prescribed values alone solve the system (`x` then holds
+    /// them), else `(reference r.r, r.r)`.
+    fn begin(
+        &mut self,
+        a: &BlockSparseMatrix,
+        b: &[Vec3],
+        filter: &ConstraintFilter,
+        params: &PcgParams,
+        x: &mut [Vec3],
+    ) -> Result<Option<(f64, f64)>, PcgError> {
         let n = a.n();
         assert!(
             b.len() == n && x.len() == n && filter.n() == n,
@@ -143,11 +208,7 @@ impl Pcg {
             return Err(PcgError::InvalidTolerance { rel_tol: params.rel_tol });
         }
         self.resize(n);
-        if !self.precond.update(params.preconditioner, a) {
-            return Err(PcgError::NoMultigridHierarchy);
-        }
-
-        // Reference residual S (b - A z), z = the prescribed part alone (kept in s).
+        // Reference residual S (b - A z), z = the prescribed part alone (kept in c).
         let z_only = &mut self.c;
         z_only.par_chunks_mut(ROW_CHUNK).for_each(|ch| ch.fill(Vec3::zeros()));
         filter.impose(z_only);
@@ -159,13 +220,9 @@ impl Pcg {
             return Err(PcgError::NonFinite { iteration: 0 });
         }
         if ref_sq == 0.0 {
-            // The prescribed values alone solve the system.
             x.copy_from_slice(&self.c);
-            return Ok(PcgInfo::default());
+            return Ok(None);
         }
-        let ref_norm = ref_sq.sqrt();
-        let tol_sq = params.rel_tol * params.rel_tol * ref_sq;
-
         // Residual of the caller's guess; a guess worse than none is dropped.
         filter.impose(x);
         a.mul_vec(x, &mut self.q);
@@ -177,6 +234,24 @@ impl Pcg {
             self.r.copy_from_slice(&self.s);
             r_sq = ref_sq;
         }
+        Ok(Some((ref_sq, r_sq)))
+    }
+
+    /// The preconditioned iterations from the residual [`Pcg::begin`] left
+    /// in `r`, with the operator `a` (also the preconditioner's matrix).
+    fn iterate(
+        &mut self,
+        a: &BlockSparseMatrix,
+        filter: &ConstraintFilter,
+        params: &PcgParams,
+        x: &mut [Vec3],
+        (ref_sq, mut r_sq): (f64, f64),
+    ) -> Result<PcgInfo, PcgError> {
+        if !self.precond.update(params.preconditioner, a) {
+            return Err(PcgError::NoMultigridHierarchy);
+        }
+        let ref_norm = ref_sq.sqrt();
+        let tol_sq = params.rel_tol * params.rel_tol * ref_sq;
         self.precond.apply(a, &self.r, &mut self.s);
         self.c.copy_from_slice(&self.s);
         filter.project(&mut self.c);
@@ -223,8 +298,9 @@ impl Pcg {
         self.precond.set_multigrid(mg);
     }
 
-    /// As [`Pcg::step_fused`] for a preconditioner that is not row-local.
-    fn step_unfused(&mut self, alpha: f64, a: &BlockSparseMatrix, x: &mut [Vec3]) -> (f64, f64) {
+    /// As [`Pcg::step_fused`] for a preconditioner that is not row-local
+    /// (built from `p`).
+    fn step_unfused(&mut self, alpha: f64, p: &BlockSparseMatrix, x: &mut [Vec3]) -> (f64, f64) {
         x.par_chunks_mut(ROW_CHUNK)
             .zip(self.r.par_chunks_mut(ROW_CHUNK))
             .zip(self.c.par_chunks(ROW_CHUNK).zip(self.q.par_chunks(ROW_CHUNK)))
@@ -234,7 +310,7 @@ impl Pcg {
                     cr[k] -= alpha * cq[k];
                 }
             });
-        self.precond.apply(a, &self.r, &mut self.s);
+        self.precond.apply(p, &self.r, &mut self.s);
         let r_sq = dot_with(&self.r, &self.r, &mut self.partials);
         let rho = dot_with(&self.r, &self.s, &mut self.partials);
         (r_sq, rho)
@@ -266,6 +342,49 @@ impl Pcg {
     }
 }
 
+/// Whether the multigrid hierarchy must be built from the filtered operator.
+fn needs_filtered_hierarchy(params: &PcgParams, filter: &ConstraintFilter) -> bool {
+    params.preconditioner == PreconditionerKind::Multigrid && filter.constrained_count() > 0
+}
+
+/// `A <- S A S + (I - S)` blockwise, `S` the filter's projectors: the
+/// constrained rows and columns are projected and the identity is added on
+/// the constrained directions of the diagonal. When `saved` is given, the
+/// original of every block changed is pushed to it first (each once), so
+/// the caller can restore `A` exactly. Each block is touched by at most
+/// one row and one column projection, so the result does not depend on
+/// the filter's entry order.
+fn filter_in_place(a: &mut BlockSparseMatrix, filter: &ConstraintFilter, mut saved: Option<&mut Vec<(usize, Mat3)>>) {
+    if let Some(saved) = saved.as_deref_mut() {
+        saved.clear();
+    }
+    let (pattern, values) = a.pattern_and_values_mut();
+    for (i, s, _) in filter.iter() {
+        for slot in pattern.row_range(i) {
+            let block = values[slot];
+            if let Some(saved) = saved.as_deref_mut() {
+                saved.push((slot, block));
+            }
+            values[slot] = s * block;
+        }
+    }
+    for (j, s, _) in filter.iter() {
+        for &i in pattern.row_cols(j) {
+            let slot = pattern.slot(i as usize, j).expect("the pattern is structurally symmetric");
+            let block = values[slot];
+            // Blocks of constrained rows were saved in the row pass.
+            if let Some(saved) = saved.as_deref_mut().filter(|_| filter.is_free(i as usize)) {
+                saved.push((slot, block));
+            }
+            values[slot] = block * s;
+        }
+    }
+    for (i, s, _) in filter.iter() {
+        let d = pattern.diag_slot(i);
+        values[d] += Mat3::identity() - s;
+    }
+}
+
 fn sub_into(a: &[Vec3], b: &[Vec3], out: &mut [Vec3]) {
     out.par_chunks_mut(ROW_CHUNK).zip(a.par_chunks(ROW_CHUNK).zip(b.par_chunks(ROW_CHUNK))).for_each(
         |(o, (ca, cb))| {
@@ -274,4 +393,51 @@ fn sub_into(a: &[Vec3], b: &[Vec3], out: &mut [Vec3]) {
             }
         },
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{BlockPattern, Constraint};
+
+    /// `fill_filtered` equals `S A S + (I - S)` computed block by block.
+    #[test]
+    fn filtered_operator_is_s_a_s_plus_constrained_identity() {
+        let n = 5;
+        let pattern = BlockPattern::from_pairs(n, [(0, 1), (1, 2), (2, 3), (3, 4), (0, 4), (1, 3)]).unwrap();
+        let mut a = BlockSparseMatrix::new(pattern.clone());
+        let cols: Vec<Vec<u32>> = (0..n).map(|i| pattern.row_cols(i).to_vec()).collect();
+        // A symmetric matrix with distinct entries: A_ij = M(i + j) + M(i + j)^T.
+        let block = |i: usize, j: usize| {
+            let m = Mat3::from_fn(|r, c| ((i + j) * 9 + r * 3 + c) as f64 * 0.1 + 1.0);
+            m + m.transpose()
+        };
+        a.fill_rows(|i, row| {
+            for (slot, &j) in row.iter_mut().zip(&cols[i]) {
+                *slot = block(i, j as usize);
+            }
+        });
+        let mut filter = ConstraintFilter::new(n);
+        filter.set(1, Constraint::OneDirection { normal: Vec3::new(1.0, 2.0, 2.0) }, Vec3::zeros()).unwrap();
+        filter.set(3, Constraint::Fixed, Vec3::zeros()).unwrap();
+        filter.set(4, Constraint::TwoDirections { n: Vec3::x(), m: Vec3::new(0.0, 1.0, 1.0) }, Vec3::zeros()).unwrap();
+        let mut f = a.clone();
+        let mut saved = Vec::new();
+        filter_in_place(&mut f, &filter, Some(&mut saved));
+        for (i, j, got) in f.blocks() {
+            let mut expected = filter.projector(i) * block(i, j) * filter.projector(j);
+            if i == j {
+                expected += Mat3::identity() - filter.projector(i);
+            }
+            assert!((got - expected).norm() < 1e-12, "block ({i}, {j})");
+        }
+        // Restoring the saved blocks gives back A exactly.
+        let mut slots: Vec<usize> = saved.iter().map(|s| s.0).collect();
+        slots.sort_unstable();
+        assert!(slots.windows(2).all(|w| w[0] != w[1]), "a block saved twice");
+        for &(slot, block) in &saved {
+            f.values_mut()[slot] = block;
+        }
+        assert_eq!(f.values(), a.values());
+    }
 }
