@@ -126,6 +126,8 @@ pub struct ContactBuffers {
     corners: Vec<[Vec3; 3]>,
     /// Broad-phase output, reused.
     candidate_pairs: Vec<(u32, u32)>,
+    /// Per chunk of triangles: broad-phase candidates and the pairs found.
+    triangle_chunks: Vec<(Vec<(u32, u32)>, Vec<SelfContact>)>,
     /// Self-collision forces, N.
     pub self_force: Vec<Vec3>,
     /// Self-collision stiffness on the diagonal, `-df_i/dx_i`, N/m.
@@ -653,7 +655,7 @@ const SELF_SLACK: f64 = 1.5;
 
 /// Fraction of the self-collision thickness below which
 /// [`separate_self_contacts`] pushes pairs apart after a step.
-pub const MIN_SELF_GAP: f64 = 0.6;
+pub const MIN_SELF_GAP: f64 = 0.75;
 
 /// After a step: every self-collision pair found at the start whose gap,
 /// measured along its start-of-step direction (so a particle that crossed
@@ -723,48 +725,74 @@ fn point_triangle_contacts(
     x: &[Vec3],
     hash: &VoxelHash,
     bufs: &mut ContactBuffers,
-    keep: impl Fn(usize, [u32; 3], f64) -> bool,
+    keep: impl Fn(usize, [u32; 3], f64) -> bool + Sync,
 ) {
     let triangles = model.triangles();
     bufs.corners.clear();
     bufs.corners.extend(triangles.iter().map(|t| t.map(|k| x[k as usize])));
-    if hash.point_triangle_candidates_into(&bufs.corners, radius, &mut bufs.candidate_pairs).is_err() {
-        return;
-    }
+    // Triangles in fixed chunks, in parallel; each chunk keeps its own
+    // buffers (reused across steps) and the chunks are merged in order, so
+    // the result does not depend on the number of threads.
+    let chunks = triangles.len().div_ceil(TRIANGLE_CHUNK);
+    bufs.triangle_chunks.resize_with(chunks, Default::default);
+    let corners = &bufs.corners;
+    bufs.triangle_chunks.par_iter_mut().enumerate().for_each(|(k, (candidates, found))| {
+        found.clear();
+        let first = k * TRIANGLE_CHUNK;
+        let mine = &corners[first..(first + TRIANGLE_CHUNK).min(corners.len())];
+        if hash.point_triangle_candidates_into(mine, radius, candidates).is_err() {
+            return;
+        }
+        for &(p, t_local) in candidates.iter() {
+            let t = first + t_local as usize;
+            let (p, tri) = (p as usize, triangles[t]);
+            if tri.iter().any(|&c| c as usize == p || linked(model, p, c as usize)) {
+                continue;
+            }
+            let [a, b, c] = corners[t];
+            let (q, w) = closest_point_on_triangle(x[p], a, b, c);
+            let d = (x[p] - q).norm();
+            let at_vertex = w.iter().any(|&wk| wk > 1.0 - 1e-9);
+            if d >= radius || at_vertex || !keep(p, tri, d) {
+                continue;
+            }
+            let normal = (b - a).cross(&(c - a));
+            let direction = if d > 1e-12 * radius {
+                (x[p] - q) / d
+            } else if normal.norm() > 0.0 {
+                normal.normalize()
+            } else {
+                continue;
+            };
+            found.push(SelfContact {
+                particle: p as u32,
+                others: tri,
+                weights: w,
+                direction,
+                distance_m: d,
+                repels: false,
+            });
+        }
+    });
     bufs.nearest.clear();
     bufs.nearest.resize(x.len(), u32::MAX);
-    for &(p, t) in &bufs.candidate_pairs {
-        let (p, tri) = (p as usize, triangles[t as usize]);
-        if tri.iter().any(|&c| c as usize == p || linked(model, p, c as usize)) {
-            continue;
+    for (_, found) in &bufs.triangle_chunks {
+        for contact in found {
+            let p = contact.particle as usize;
+            let nearest = bufs.nearest[p] as usize;
+            if bufs.self_pairs.get(nearest).is_none_or(|old| contact.distance_m < old.distance_m) {
+                bufs.nearest[p] = bufs.self_pairs.len() as u32;
+            }
+            bufs.self_pairs.push(*contact);
         }
-        let [a, b, c] = bufs.corners[t as usize];
-        let (q, w) = closest_point_on_triangle(x[p], a, b, c);
-        let d = (x[p] - q).norm();
-        let at_vertex = w.iter().any(|&wk| wk > 1.0 - 1e-9);
-        if d >= radius || at_vertex || !keep(p, tri, d) {
-            continue;
-        }
-        let normal = (b - a).cross(&(c - a));
-        let direction = if d > 1e-12 * radius {
-            (x[p] - q) / d
-        } else if normal.norm() > 0.0 {
-            normal.normalize()
-        } else {
-            continue;
-        };
-        let nearest = bufs.nearest[p] as usize;
-        if bufs.self_pairs.get(nearest).is_none_or(|old| d < old.distance_m) {
-            bufs.nearest[p] = bufs.self_pairs.len() as u32;
-        }
-        let contact =
-            SelfContact { particle: p as u32, others: tri, weights: w, direction, distance_m: d, repels: false };
-        bufs.self_pairs.push(contact);
     }
     for &k in bufs.nearest.iter().filter(|&&k| k != u32::MAX) {
         bufs.self_pairs[k as usize].repels = true;
     }
 }
+
+/// Triangles per parallel chunk of the particle-triangle search.
+const TRIANGLE_CHUNK: usize = 256;
 
 #[cfg(test)]
 mod tests {
