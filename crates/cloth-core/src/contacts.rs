@@ -127,7 +127,7 @@ pub struct ContactBuffers {
     /// Broad-phase output, reused.
     candidate_pairs: Vec<(u32, u32)>,
     /// Per chunk of triangles: broad-phase candidates and the pairs found.
-    triangle_chunks: Vec<(Vec<(u32, u32)>, Vec<SelfContact>)>,
+    triangle_chunks: Vec<TriangleChunk>,
     /// Self-collision forces, N.
     pub self_force: Vec<Vec3>,
     /// Self-collision stiffness on the diagonal, `-df_i/dx_i`, N/m.
@@ -790,6 +790,10 @@ fn point_triangle_contacts(
         bufs.self_pairs[k as usize].repels = true;
     }
 }
+
+/// Scratch of one chunk of the particle-triangle search: broad-phase
+/// candidates `(particle, triangle within the chunk)` and the pairs found.
+type TriangleChunk = (Vec<(u32, u32)>, Vec<SelfContact>);
 
 /// Triangles per parallel chunk of the particle-triangle search.
 const TRIANGLE_CHUNK: usize = 256;
