@@ -206,3 +206,28 @@ fn explicit_integrators_refuse_models_with_colliders() {
     let e = sim.step(cfg.dt_s).unwrap_err();
     assert!(e.to_string().contains("rk4") && e.to_string().contains("collisions"), "{e}");
 }
+
+/// A spinning solid drags the cloth around: on a turntable (a floor
+/// spinning at 1 rad/s about z, mu = 0.5) every particle ends up moving
+/// with the floor's surface, `v = omega x r` (static friction holds: the
+/// centripetal acceleration omega^2 r <= 0.56 m/s^2 is below mu g).
+#[test]
+fn a_turntable_spins_the_cloth_with_it() {
+    let mut o = incline(0.0, 0.5);
+    o.push(format!("colliders.0.spin_deg_s=[0.0, 0.0, {}]", 1f64.to_degrees()));
+    let o: Vec<&str> = o.iter().map(String::as_str).collect();
+    let (mut sim, cfg) = simulation("incline.toml", &o);
+    for _ in 0..90 {
+        sim.step(cfg.dt_s).unwrap();
+    }
+    let s = sim.state();
+    let omega = Vec3::z();
+    let (mut err, mut norm) = (0.0, 0.0);
+    for (x, v) in s.x.iter().zip(&s.v) {
+        let expected = omega.cross(&Vec3::new(x.x, x.y, 0.0));
+        err += (v - expected).norm_squared();
+        norm += expected.norm_squared();
+    }
+    let rel = (err / norm).sqrt();
+    assert!(rel < 0.02, "cloth velocity differs from the turntable's by {rel} (RMS, relative)");
+}

@@ -24,10 +24,14 @@ pub struct ColliderSpec {
     /// Coulomb friction coefficient between cloth and this solid (>= 0).
     #[serde(default)]
     pub friction: f64,
-    /// Path of the solid's frame, as an offset from `position_m` (the
-    /// solid translates; default: fixed).
+    /// Path of the solid's frame, as an offset from `position_m` (default:
+    /// fixed).
     #[serde(default = "fixed")]
     pub motion: PinMotion,
+    /// Constant angular velocity about the solid's frame origin, world
+    /// axes, degrees per second (default: no spin).
+    #[serde(default)]
+    pub spin_deg_s: [f64; 3],
 }
 
 fn fixed() -> PinMotion {
@@ -80,19 +84,30 @@ pub struct Collider {
     pub anchor: BodyPose,
     /// Translation path relative to the anchor.
     pub motion: PinMotion,
+    /// Angular velocity, rad/s (world axes).
+    pub spin_rad_s: Vec3,
     /// Coulomb friction coefficient.
     pub friction: f64,
 }
 
 impl Collider {
-    /// Pose at time `t` (s).
+    /// Pose at time `t` (s): the anchor moved along the path and turned by
+    /// the spin, `R(t) = exp(omega t) R_0`.
     pub fn pose(&self, t: f64) -> BodyPose {
-        BodyPose { position: self.anchor.position + self.motion.offset(t), rotation: self.anchor.rotation }
+        let turn = UnitQuaternion::from_scaled_axis(self.spin_rad_s * t);
+        BodyPose { position: self.anchor.position + self.motion.offset(t), rotation: turn * self.anchor.rotation }
     }
 
-    /// Velocity of the solid (it translates only) at time `t`, m/s.
-    pub fn velocity(&self, t: f64) -> Vec3 {
-        self.motion.velocity(t)
+    /// Velocity of the solid's material point at `point` (m) at time `t`,
+    /// m/s: `v(t) + omega x (point - origin(t))`.
+    pub fn velocity_at(&self, t: f64, point: Vec3) -> Vec3 {
+        let origin = self.anchor.position + self.motion.offset(t);
+        self.motion.velocity(t) + self.spin_rad_s.cross(&(point - origin))
+    }
+
+    /// Whether the solid moves at all.
+    pub fn is_moving(&self) -> bool {
+        self.motion != PinMotion::Fixed || self.spin_rad_s != Vec3::zeros()
     }
 }
 
@@ -140,6 +155,7 @@ impl CollisionSpec {
             })?;
             finite3("position_m", &c.position_m).map_err(|(f, m)| (field(f), m))?;
             finite3("rotation_deg", &c.rotation_deg).map_err(|(f, m)| (field(f), m))?;
+            finite3("spin_deg_s", &c.spin_deg_s).map_err(|(f, m)| (field(f), m))?;
             c.motion.validate().map_err(|(f, m)| (field(&format!("motion.{f}")), m))?;
             let friction = non_negative(field("friction"), c.friction)?;
             let [rx, ry, rz] = c.rotation_deg.map(f64::to_radians);
@@ -147,7 +163,8 @@ impl CollisionSpec {
                 * UnitQuaternion::from_axis_angle(&Vec3::y_axis(), ry)
                 * UnitQuaternion::from_axis_angle(&Vec3::x_axis(), rx);
             let anchor = BodyPose { position: Vec3::from(c.position_m), rotation };
-            out.push(Collider { shape, anchor, motion: c.motion.clone(), friction });
+            let spin_rad_s = Vec3::from(c.spin_deg_s.map(f64::to_radians));
+            out.push(Collider { shape, anchor, motion: c.motion.clone(), spin_rad_s, friction });
         }
         Ok(out)
     }
@@ -165,5 +182,40 @@ impl CollisionSpec {
             positive("self_collision.stiffness_n_m".into(), s.stiffness_n_m.unwrap_or(default_stiffness))?;
         let voxel_m = thickness_m.max(mean_link_m);
         Ok(Some(SelfCollision { thickness_m, stiffness_n_m, point_triangle: s.point_triangle, voxel_m }))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cloth_collide::ShapeSpec;
+
+    /// The surface velocity is the time derivative of a material point of
+    /// the moving, spinning solid.
+    #[test]
+    fn surface_velocity_is_the_derivative_of_a_material_point() {
+        let spec = CollisionSpec {
+            colliders: vec![ColliderSpec {
+                shape: ShapeSpec::Ball { radius_m: 0.2 },
+                position_m: [0.1, -0.2, 0.3],
+                rotation_deg: [10.0, 20.0, 30.0],
+                friction: 0.0,
+                motion: PinMotion::Oscillate { amplitude_m: [0.05, 0.0, 0.02], frequency_hz: 1.3 },
+                spin_deg_s: [40.0, -25.0, 90.0],
+            }],
+            ..CollisionSpec::default()
+        };
+        let c = &spec.build_colliders().unwrap()[0];
+        let local = Vec3::new(0.05, 0.1, -0.15);
+        let world = |t: f64| {
+            let p = c.pose(t);
+            p.position + p.rotation * local
+        };
+        for t in [0.0, 0.37, 1.9] {
+            let eps = 1e-6;
+            let fd = (world(t + eps) - world(t - eps)) / (2.0 * eps);
+            assert!((fd - c.velocity_at(t, world(t))).norm() < 1e-7, "t = {t}");
+        }
+        assert!(c.is_moving());
     }
 }

@@ -18,7 +18,7 @@
 
 use crate::colliders::SelfCollision;
 use crate::laws::{self, pair_stiffness};
-use crate::{ClothModel, ClothState, Mat3, PinMotion, Vec3};
+use crate::{ClothModel, ClothState, Mat3, Vec3};
 use cloth_collide::{SurfacePoint, VoxelHash, closest_point_on_triangle};
 use cloth_linalg::{BlockSparseMatrix, Constraint, ConstraintFilter};
 use rayon::prelude::*;
@@ -220,7 +220,7 @@ pub fn detect_solid_contacts(
                 let (lo, hi) = c.shape.aabb(pose);
                 (0..3).all(|a| p[a] >= lo[a] - reach && p[a] <= hi[a] + reach)
             };
-            let moving = c.motion != PinMotion::Fixed;
+            let moving = c.is_moving();
             let mut here = None;
             if near(&now, &x[i]) {
                 let s = c.shape.closest(&now, x[i]);
@@ -271,7 +271,7 @@ fn contact(
         distance_m: distance,
         normal: s.normal,
         normal_travel_m: travel,
-        solid_velocity: c.velocity(t_next),
+        solid_velocity: c.velocity_at(t_next, s.point),
         friction: c.friction,
         normal_force_n: 0.0,
         active: true,
