@@ -153,10 +153,11 @@ impl VoxelHash {
                         for &j in self.bucket_points(n) {
                             // Each pair once, from its lower index, and only from
                             // the cell j really is in (buckets may collide).
-                            if j <= me || self.point_cell[j as usize] != n || skip(me, j) {
+                            if j <= me || self.point_cell[j as usize] != n {
                                 continue;
                             }
-                            if (points[j as usize] - points[i]).norm_squared() < r2 {
+                            // Distance first: `skip` may be the costlier test.
+                            if (points[j as usize] - points[i]).norm_squared() < r2 && !skip(me, j) {
                                 out.push((me, j));
                             }
                         }

@@ -128,6 +128,10 @@ pub struct ContactBuffers {
     candidate_pairs: Vec<(u32, u32)>,
     /// Per chunk of triangles: broad-phase candidates and the pairs found.
     triangle_chunks: Vec<TriangleChunk>,
+    /// CSR, built once per model: for each triangle, the sorted particles
+    /// it never repels (its corners and every particle linked to one).
+    excluded_ptr: Vec<u32>,
+    excluded: Vec<u32>,
     /// Self-collision forces, N.
     pub self_force: Vec<Vec3>,
     /// Self-collision stiffness on the diagonal, `-df_i/dx_i`, N/m.
@@ -728,8 +732,12 @@ fn point_triangle_contacts(
     keep: impl Fn(usize, [u32; 3], f64) -> bool + Sync,
 ) {
     let triangles = model.triangles();
+    if bufs.excluded_ptr.len() != triangles.len() + 1 {
+        build_exclusions(model, &mut bufs.excluded_ptr, &mut bufs.excluded);
+    }
     bufs.corners.clear();
     bufs.corners.extend(triangles.iter().map(|t| t.map(|k| x[k as usize])));
+    let (excluded_ptr, excluded) = (&bufs.excluded_ptr, &bufs.excluded);
     // Triangles in fixed chunks, in parallel; each chunk keeps its own
     // buffers (reused across steps) and the chunks are merged in order, so
     // the result does not depend on the number of threads.
@@ -746,7 +754,8 @@ fn point_triangle_contacts(
         for &(p, t_local) in candidates.iter() {
             let t = first + t_local as usize;
             let (p, tri) = (p as usize, triangles[t]);
-            if tri.iter().any(|&c| c as usize == p || linked(model, p, c as usize)) {
+            let never = &excluded[excluded_ptr[t] as usize..excluded_ptr[t + 1] as usize];
+            if never.binary_search(&(p as u32)).is_ok() {
                 continue;
             }
             let [a, b, c] = corners[t];
@@ -788,6 +797,31 @@ fn point_triangle_contacts(
     }
     for &k in bufs.nearest.iter().filter(|&&k| k != u32::MAX) {
         bufs.self_pairs[k as usize].repels = true;
+    }
+}
+
+/// For each triangle, the sorted particles it never repels: its corners
+/// and the particles linked to a corner.
+fn build_exclusions(model: &ClothModel, ptr: &mut Vec<u32>, list: &mut Vec<u32>) {
+    ptr.clear();
+    list.clear();
+    ptr.push(0);
+    for tri in model.triangles() {
+        let start = list.len();
+        for &c in tri {
+            list.push(c);
+            list.extend(model.incidence(c as usize).iter().map(|inc| inc.other));
+        }
+        list[start..].sort_unstable();
+        let mut unique = start;
+        for k in start..list.len() {
+            if k == start || list[k] != list[unique - 1] {
+                list[unique] = list[k];
+                unique += 1;
+            }
+        }
+        list.truncate(unique);
+        ptr.push(list.len() as u32);
     }
 }
 
