@@ -77,6 +77,8 @@ pub struct ContactStats {
     pub released: usize,
     /// Contacts added after a solve left a free particle inside a solid.
     pub added: usize,
+    /// Particles moved out of a solid after the step (see [`project_out`]).
+    pub projected: usize,
     /// Contacts held by static friction (no tangential slip).
     pub sticking: usize,
     /// Deepest particle inside a solid at the start of the step, m (0 when none).
@@ -98,6 +100,7 @@ impl std::ops::AddAssign for ContactStats {
         self.contacts += o.contacts;
         self.released += o.released;
         self.added += o.added;
+        self.projected += o.projected;
         self.sticking += o.sticking;
         self.max_penetration_m = self.max_penetration_m.max(o.max_penetration_m);
         self.self_contacts += o.self_contacts;
@@ -374,6 +377,64 @@ pub fn add_penetrating(
         }
     }
     added
+}
+
+/// The safety net after the active set: particles that still end closer
+/// than half the thickness to a solid at `t_next` are moved back to the
+/// thickness along the normal of the side they came from, and lose their
+/// velocity into the solid (relative to it). Only particles released this
+/// step are checked, or every particle when `all` (the active set ran out
+/// of passes with contacts still being added: large steps). Positions move
+/// without a matching velocity, so this is a projection, not a force; in
+/// ordinary steps it finds nothing. Returns the number of particles moved.
+pub fn project_out(
+    model: &ClothModel,
+    x: &[Vec3],
+    t_next: f64,
+    bufs: &ContactBuffers,
+    all: bool,
+    new_x: &mut [Vec3],
+    new_v: &mut [Vec3],
+) -> usize {
+    let thickness = model.contact_thickness();
+    let mut moved = 0;
+    let mut fix = |i: usize| {
+        let mut changed = false;
+        for c in model.colliders() {
+            let pose = c.pose(t_next);
+            let (lo, hi) = c.shape.aabb(&pose);
+            if !(0..3).all(|a| new_x[i][a] >= lo[a] - thickness && new_x[i][a] <= hi[a] + thickness) {
+                continue;
+            }
+            let s = c.shape.closest(&pose, new_x[i]);
+            if s.distance_m >= 0.5 * thickness {
+                continue;
+            }
+            let from = c.shape.closest(&pose, x[i]);
+            let surface = if from.distance_m > 0.0 { from } else { s };
+            let n = surface.normal;
+            let gap = n.dot(&(new_x[i] - surface.point));
+            if gap < thickness {
+                new_x[i] += n * (thickness - gap);
+                let inward = n.dot(&(new_v[i] - c.velocity_at(t_next, surface.point)));
+                if inward < 0.0 {
+                    new_v[i] -= n * inward;
+                }
+                changed = true;
+            }
+        }
+        changed
+    };
+    if all {
+        for i in (0..x.len()).filter(|&i| !model.is_pinned(i)) {
+            moved += usize::from(fix(i));
+        }
+    } else {
+        for c in bufs.solid.iter().filter(|c| !c.active) {
+            moved += usize::from(fix(c.particle as usize));
+        }
+    }
+    moved
 }
 
 /// Deepest any particle at positions `x` is inside a solid at time `t`, m

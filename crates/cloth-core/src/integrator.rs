@@ -3,7 +3,7 @@
 
 use crate::contacts::{
     ContactBuffers, ContactStats, add_penetrating, apply_friction, constrain_contacts, detect_self_contacts,
-    detect_solid_contacts, release_pulling, separate_self_contacts,
+    detect_solid_contacts, project_out, release_pulling, separate_self_contacts,
 };
 use crate::explicit::ExplicitBuffers;
 use crate::{
@@ -533,6 +533,7 @@ fn linearised_step<S: Linearised>(
     // Active set: contacts whose constraint force pulls are released, free
     // particles that end up inside a solid become contacts; then solve
     // again (a few passes at most).
+    let mut unresolved = false;
     for pass in 0..=MAX_CONTACT_PASSES {
         if model.colliders().is_empty() {
             break;
@@ -547,6 +548,7 @@ fn linearised_step<S: Linearised>(
         let t_next = state.time_s + h;
         let added = add_penetrating(model, &state.x, &ws.new_x, t_next, &mut ws.contacts, &mut ws.filter, value);
         (stats.released, stats.added) = (stats.released + released, stats.added + added);
+        unresolved = added > 0 && pass == MAX_CONTACT_PASSES;
         if released + added == 0 || pass == MAX_CONTACT_PASSES {
             break;
         }
@@ -590,6 +592,13 @@ fn linearised_step<S: Linearised>(
     let tau = scheme.response_time(h);
     let solid = &ws.contacts.solid;
     stats.sticking = apply_friction(solid, model.masses(), tau, &mut ws.new_x, &mut ws.new_v);
+    if !model.colliders().is_empty() {
+        let t_next = state.time_s + h;
+        // Newton corrections move free particles after the contact set was
+        // settled: check them all then.
+        let all = unresolved || solver.newton_iterations > 1;
+        stats.projected = project_out(model, &state.x, t_next, &ws.contacts, all, &mut ws.new_x, &mut ws.new_v);
+    }
     if let Some(sc) = model.self_collision() {
         let pairs = &ws.contacts.self_pairs;
         stats.self_separations = separate_self_contacts(model, sc, pairs, tau, &mut ws.new_x, &mut ws.new_v);

@@ -2,6 +2,7 @@
 //! its scratch space.
 
 use crate::apply_strain_limit;
+use crate::contacts::project_out;
 use crate::{ClothModel, ClothState, Integrator, IntegratorKind, SolverParams, StepError, StepReport, Workspace};
 use std::sync::Arc;
 
@@ -34,8 +35,13 @@ impl Simulation {
         let mut report = self.integrator.step(&self.model, &mut self.state, h, &mut self.workspace, &self.solver)?;
         if let Some(limit) = self.model.strain_limit() {
             let t = std::time::Instant::now();
-            let ClothState { x, v, .. } = &mut self.state;
+            let ClothState { x, v, x_prev, time_s, .. } = &mut self.state;
             report.strain_corrections = apply_strain_limit(&self.model, &limit, x, v, h).corrections;
+            // The corrections may move particles into solids: move them out.
+            if !self.model.colliders().is_empty() {
+                let contacts = &self.workspace.contacts;
+                report.contacts.projected += project_out(&self.model, x_prev, *time_s, contacts, true, x, v);
+            }
             report.stages.update_s += t.elapsed().as_secs_f64();
         }
         Ok(report)
