@@ -61,7 +61,7 @@ fn collider_errors_name_the_file_and_the_field() {
         (&["colliders.1.friction=-1"], "colliders[1].friction"),
         (&["colliders.0.position_m=[0, nan, 0]"], "colliders[0].position_m"),
         (&["collision.thickness_m=0"], "collision.thickness_m"),
-        (&["simulation.integrator=\"rk4\""], "simulation.integrator"),
+        (&["simulation.integrator=\"rk4\"", "self_collision={ thickness_m = 0.01 }"], "simulation.integrator"),
         (&["colliders.0.shape={ kind = \"mesh\", obj = \"missing.obj\" }"], "missing.obj"),
     ];
     for (overrides, field) in cases {

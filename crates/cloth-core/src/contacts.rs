@@ -19,8 +19,8 @@
 use crate::colliders::SelfCollision;
 use crate::laws::{self, pair_stiffness};
 use crate::{ClothModel, ClothState, Mat3, Vec3};
-use cloth_collide::{SurfacePoint, VoxelHash, closest_point_on_triangle};
-use cloth_linalg::{BlockSparseMatrix, Constraint, ConstraintFilter};
+use cloth_collide::{BodyPose, SurfacePoint, VoxelHash, closest_point_on_triangle};
+use cloth_linalg::{BlockSparseMatrix, Constraint, ConstraintFilter, ROW_CHUNK};
 use rayon::prelude::*;
 
 /// A particle held on a solid's surface during one step.
@@ -285,6 +285,33 @@ fn contact(
     }
 }
 
+/// When `to` (a particle's new position) is closer than `limit` to solid
+/// `c` at `pose`: the closest point to `to`, and the surface point to push
+/// back to, taken from the side `from` (its position at the start of the
+/// step) is on when that is outside; a thin solid is then not crossed.
+/// Point queries made are added to `queries`.
+fn near_surface(
+    c: &crate::Collider,
+    pose: &BodyPose,
+    from: Vec3,
+    to: Vec3,
+    limit: f64,
+    queries: &mut usize,
+) -> Option<(SurfacePoint, SurfacePoint)> {
+    let (lo, hi) = c.shape.aabb(pose);
+    if !(0..3).all(|a| to[a] >= lo[a] - limit && to[a] <= hi[a] + limit) {
+        return None;
+    }
+    let at = c.shape.closest(pose, to);
+    *queries += 1;
+    if at.distance_m >= limit {
+        return None;
+    }
+    let side = c.shape.closest(pose, from);
+    *queries += 1;
+    Some((at, if side.distance_m > 0.0 { side } else { at }))
+}
+
 /// The entries of `contacts` (sorted by particle) that belong to one
 /// particle each, in order.
 fn groups(contacts: &[SolidContact]) -> impl Iterator<Item = std::ops::Range<usize>> + '_ {
@@ -344,18 +371,9 @@ pub fn add_penetrating(
         };
         let mut nearest = Nearest::new();
         for (k, c) in colliders.iter().enumerate() {
-            let pose = c.pose(t_next);
-            let (lo, hi) = c.shape.aabb(&pose);
-            if !(0..3).all(|a| new_x[i][a] >= lo[a] - thickness && new_x[i][a] <= hi[a] + thickness) {
+            let Some((s, surface)) = near_surface(c, &c.pose(t_next), x[i], new_x[i], 0.5 * thickness, &mut 0) else {
                 continue;
-            }
-            let s = c.shape.closest(&pose, new_x[i]);
-            if s.distance_m >= 0.5 * thickness {
-                continue;
-            }
-            // Push back to the side the particle came from (see detection).
-            let from = c.shape.closest(&pose, x[i]);
-            let surface = if from.distance_m > 0.0 { from } else { s };
+            };
             let distinct = existing
                 .is_none_or(|e| e.collider as usize != k && e.normal.dot(&surface.normal).abs() <= PARALLEL_COS);
             if distinct {
@@ -401,17 +419,9 @@ pub fn project_out(
     let mut fix = |i: usize| {
         let mut changed = false;
         for c in model.colliders() {
-            let pose = c.pose(t_next);
-            let (lo, hi) = c.shape.aabb(&pose);
-            if !(0..3).all(|a| new_x[i][a] >= lo[a] - thickness && new_x[i][a] <= hi[a] + thickness) {
+            let Some((_, surface)) = near_surface(c, &c.pose(t_next), x[i], new_x[i], 0.5 * thickness, &mut 0) else {
                 continue;
-            }
-            let s = c.shape.closest(&pose, new_x[i]);
-            if s.distance_m >= 0.5 * thickness {
-                continue;
-            }
-            let from = c.shape.closest(&pose, x[i]);
-            let surface = if from.distance_m > 0.0 { from } else { s };
+            };
             let n = surface.normal;
             let gap = n.dot(&(new_x[i] - surface.point));
             if gap < thickness {
@@ -435,6 +445,78 @@ pub fn project_out(
         }
     }
     moved
+}
+
+/// Collision response for integrators without an assembled matrix (the
+/// explicit ones and the fixed-iteration matrix-free backward Euler), after
+/// the step, as in Provot (1995) and Bridson et al. (2002): a particle
+/// ending closer than the thickness to a solid (at `t_next`) is moved back
+/// to it along the normal of the side it came from, its velocity into the
+/// solid is removed (an inelastic impulse `dv_n`), and its tangential
+/// velocity relative to the solid loses at most `mu dv_n`, all of it when
+/// that suffices (static friction: under gravity `dv_n = h g cos(theta)`
+/// per step, so this is Coulomb's `mu m g cos(theta)`); the position moves
+/// back by `h` times the tangential velocity removed. `x` are the
+/// positions at the start of the step, at time `t`; the step is `h`. The
+/// reported penetration is that of the start positions, as for the
+/// implicit integrators.
+pub fn collide_after_step(
+    model: &ClothModel,
+    x: &[Vec3],
+    (t, h): (f64, f64),
+    new_x: &mut [Vec3],
+    new_v: &mut [Vec3],
+) -> ContactStats {
+    let thickness = model.contact_thickness();
+    let t_next = t + h;
+    // Particles are independent; the counters add and the depth is a
+    // maximum, so the parallel reduction is exact in any order.
+    new_x
+        .par_iter_mut()
+        .zip(new_v.par_iter_mut())
+        .enumerate()
+        .with_min_len(ROW_CHUNK)
+        .map(|(i, (xi, vi))| {
+            let mut stats = ContactStats::default();
+            if model.is_pinned(i) {
+                return stats;
+            }
+            for c in model.colliders() {
+                let Some((_, surface)) =
+                    near_surface(c, &c.pose(t_next), x[i], *xi, thickness, &mut stats.narrow_phase_queries)
+                else {
+                    continue;
+                };
+                let before = c.shape.closest(&c.pose(t), x[i]);
+                stats.max_penetration_m = stats.max_penetration_m.max(-before.distance_m);
+                stats.narrow_phase_queries += 1;
+                let n = surface.normal;
+                let gap = n.dot(&(*xi - surface.point));
+                if gap < thickness {
+                    *xi += n * (thickness - gap);
+                }
+                let solid_v = c.velocity_at(t_next, surface.point);
+                let rel = *vi - solid_v;
+                let inward = n.dot(&rel);
+                if inward < 0.0 {
+                    let tangential = rel - n * inward;
+                    let speed = tangential.norm();
+                    let budget = c.friction * -inward;
+                    let slip = if speed <= budget { Vec3::zeros() } else { tangential * (1.0 - budget / speed) };
+                    stats.sticking += usize::from(speed <= budget && c.friction > 0.0);
+                    *vi = solid_v + slip;
+                    // The step moved the particle with the velocity before
+                    // friction: take back that part of the slide (x' = x + h v').
+                    *xi += (slip - tangential) * h;
+                }
+                stats.contacts = 1;
+            }
+            stats
+        })
+        .reduce(ContactStats::default, |mut a, b| {
+            a += b;
+            a
+        })
 }
 
 /// Deepest any particle at positions `x` is inside a solid at time `t`, m

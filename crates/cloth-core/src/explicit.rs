@@ -297,7 +297,7 @@ impl crate::Integrator for Explicit {
     ) -> Result<StepReport, StepError> {
         use crate::IntegratorKind as K;
         crate::integrator::check_step(model, state, h)?;
-        crate::integrator::reject_collisions(model, self.0)?;
+        crate::integrator::reject_self_collision(model, self.0)?;
         let mut report = StepReport { converged: true, substeps: 1, ..Default::default() };
         let mut next_dt = 0.0;
         let bufs = ws.explicit.get_or_insert_with(|| ExplicitBuffers::new(model, DOPRI5.c.len()));
@@ -324,6 +324,12 @@ impl crate::Integrator for Explicit {
         let bufs = ws.explicit.as_mut().expect("allocated above");
         std::mem::swap(&mut ws.new_x, &mut bufs.x_new);
         std::mem::swap(&mut ws.new_v, &mut bufs.v_new);
+        if !model.colliders().is_empty() {
+            let t = std::time::Instant::now();
+            let times = (state.time_s, h);
+            report.contacts = crate::contacts::collide_after_step(model, &state.x, times, &mut ws.new_x, &mut ws.new_v);
+            report.stages.collision_s += t.elapsed().as_secs_f64();
+        }
         crate::integrator::commit(state, ws, h)?;
         state.next_dt_s = next_dt;
         Ok(report)

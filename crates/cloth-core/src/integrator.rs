@@ -216,9 +216,9 @@ pub enum StepError {
         /// Substeps attempted (accepted and rejected).
         attempts: usize,
     },
-    /// The model collides with solids or itself, which only the assembled
-    /// implicit integrators (`backward-euler`, `bdf2`) handle.
-    #[error("integrator {integrator} does not handle collisions: use backward-euler or bdf2")]
+    /// The model asks for self-collision, which only the assembled implicit
+    /// integrators (`backward-euler`, `bdf2`) handle.
+    #[error("integrator {integrator} does not handle self-collisions: use backward-euler or bdf2")]
     CollisionsNeedImplicit {
         /// The integrator's scene name.
         integrator: &'static str,
@@ -666,9 +666,11 @@ fn step_loads(model: &ClothModel, state: &ClothState, h: f64, ws: &mut Workspace
     Ok(loads)
 }
 
-/// Fails when the model needs collision handling that `integrator` lacks.
-pub(crate) fn reject_collisions(model: &ClothModel, integrator: IntegratorKind) -> Result<(), StepError> {
-    if model.has_collisions() {
+/// Fails when the model asks for self-collision, which only the assembled
+/// implicit integrators handle (solids are handled after the step by the
+/// others, see [`crate::contacts::collide_after_step`]).
+pub(crate) fn reject_self_collision(model: &ClothModel, integrator: IntegratorKind) -> Result<(), StepError> {
+    if model.self_collision().is_some() {
         return Err(StepError::CollisionsNeedImplicit { integrator: integrator.name() });
     }
     Ok(())

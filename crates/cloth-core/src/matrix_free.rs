@@ -11,7 +11,7 @@ use crate::{
     forces::{apply_scaled_operator, assemble_matrix_free},
     integrator::{
         BackwardEuler, Linearised, StageTimes, StepError, StepReport, check_step, commit, constrain_pins,
-        external_forces, reject_collisions,
+        external_forces, reject_self_collision,
     },
 };
 use cloth_linalg::{CgScratch, PcgError, cg_fixed_iterations};
@@ -54,7 +54,7 @@ impl crate::Integrator for BackwardEulerFixedCg {
         solver: &SolverParams,
     ) -> Result<StepReport, StepError> {
         check_step(model, state, h)?;
-        reject_collisions(model, self.kind())?;
+        reject_self_collision(model, self.kind())?;
         let scheme = BackwardEuler;
         let has_wind = external_forces(model, state, ws);
         let mut terms = scheme.terms(state, &ws.aux, &ws.aux2, h);
@@ -95,6 +95,11 @@ impl crate::Integrator for BackwardEulerFixedCg {
             let dv = ws.unknown[i] * mf.inv_sqrt_mass[i];
             (ws.new_x[i], ws.new_v[i]) = scheme.advance(state, &ws.aux, h, i, dv);
         }
+        let contacts = if model.colliders().is_empty() {
+            Default::default()
+        } else {
+            crate::contacts::collide_after_step(model, &state.x, (state.time_s, h), &mut ws.new_x, &mut ws.new_v)
+        };
         commit(state, ws, h)?;
         Ok(StepReport {
             force_evaluations: 1,
@@ -111,7 +116,7 @@ impl crate::Integrator for BackwardEulerFixedCg {
                 update_s: t_update.elapsed().as_secs_f64(),
                 ..StageTimes::default()
             },
-            ..StepReport::default()
+            contacts,
         })
     }
 }

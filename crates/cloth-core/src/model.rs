@@ -559,10 +559,6 @@ impl ClothModel {
     pub fn self_collision(&self) -> Option<&SelfCollision> {
         self.self_collision.as_ref()
     }
-    /// Whether any collision handling (solids or self) is needed.
-    pub fn has_collisions(&self) -> bool {
-        !self.colliders.is_empty() || self.self_collision.is_some()
-    }
     /// Deformation constraints, if the model has them.
     pub fn strain_limit(&self) -> Option<StrainLimit> {
         self.strain_limit

@@ -74,8 +74,10 @@
 //! point_triangle = true
 //! ```
 //!
-//! Colliders and self-collision need an implicit integrator with an
-//! assembled matrix (`bdf2` or `backward-euler`).
+//! Self-collision needs an implicit integrator with an assembled matrix
+//! (`bdf2` or `backward-euler`). Colliders work with every integrator: the
+//! assembled ones hold contacts as constraints in the solve, the others
+//! respond after the step (projection, inelastic impulse, Coulomb friction).
 
 use crate::{
     ClothModel, ColliderSpec, CollisionSpec, Effects, GridPanel, IntegratorKind, Material, ModelKind, ModelSpec,
@@ -455,13 +457,11 @@ impl Scene {
             SceneErrorKind::Invalid { field: field.to_string(), message: message.to_string() }
         })?;
         let s = &self.simulation;
-        if model.has_collisions() && !matches!(s.integrator, IntegratorKind::BackwardEuler | IntegratorKind::Bdf2) {
+        let assembled = matches!(s.integrator, IntegratorKind::BackwardEuler | IntegratorKind::Bdf2);
+        if model.self_collision().is_some() && !assembled {
             return Err(SceneErrorKind::Invalid {
                 field: "simulation.integrator".into(),
-                message: format!(
-                    "{} does not handle colliders or self-collision: use backward-euler or bdf2",
-                    s.integrator.name()
-                ),
+                message: format!("{} does not handle self-collision: use backward-euler or bdf2", s.integrator.name()),
             });
         }
         let config = RunConfig {
