@@ -1,20 +1,26 @@
-//! Collision detection and response inside an implicit step (Choi & Ko
-//! 2002 §5 with Baraff & Witkin's 1998 constraints):
+//! Collision detection and response (Choi & Ko 2002 §5 with Baraff &
+//! Witkin's 1998 constraints):
 //!
-//! - Cloth-solid: a particle whose predicted position `x + h v` comes
-//!   within the thickness of a solid gets the normal component of its
-//!   unknown prescribed, so it ends the step on the offset surface, moving
-//!   with the solid. After the solve, the constraint force is read from the
-//!   unfiltered residual; a contact that pulls is released and the system
-//!   solved again. Friction then removes tangential velocity relative to
-//!   the solid, at most `mu |f_n| tau / m` (Coulomb), all of it when that
-//!   suffices (the static regime).
+//! - Cloth-solid, implicit step: a particle whose predicted position
+//!   `x + h (2v - v_prev)` comes within the thickness of a solid gets the
+//!   normal component of its unknown prescribed (two components against
+//!   two solids), so it ends the step on the offset surface, moving with
+//!   the solid. After a solve, the constraint force is read from the
+//!   unfiltered residual: contacts that pull are released, free particles
+//!   that ended inside are added, and the system is solved again
+//!   ([`release_pulling`], [`add_penetrating`]); [`project_out`] is the
+//!   last safety net. Friction then removes tangential velocity relative
+//!   to the solid, at most `mu |f_n| tau / m` (Coulomb), all of it when
+//!   that suffices (the static regime) ([`apply_friction`]).
+//! - Cloth-solid without an assembled matrix (explicit, fixed-CG):
+//!   [`collide_after_step`].
 //! - Self-collision: particle-particle and particle-triangle repulsion
 //!   ([`laws::repulsion`]) found through the voxel hash at the start of the
-//!   step, applied with its Jacobian along the repelling direction only.
+//!   step, applied with its Jacobian along the repelling direction only,
+//!   and [`separate_self_contacts`] after the step.
 //!
-//! Everything is evaluated in a fixed particle order, so results do not
-//! depend on the number of threads.
+//! Everything is evaluated in a fixed particle order (or reduced exactly),
+//! so results do not depend on the number of threads.
 
 use crate::colliders::SelfCollision;
 use crate::laws::{self, pair_stiffness};

@@ -3,9 +3,10 @@
 //! PCG, and TOML scene files.
 //!
 //! Data flow of one step: [`ClothModel`] (immutable) + [`ClothState`]
-//! (explicit) -> link laws ([`laws`], looped by [`forces`]) -> system matrix
-//! with a pattern built once -> PCG with pins as Baraff-Witkin constraints ->
-//! new state. Units are SI throughout.
+//! (explicit) -> link laws ([`laws`], looped by [`forces`]) and collision
+//! detection ([`contacts`], geometry from `cloth-collide`) -> system matrix
+//! with a pattern built once -> PCG with pins and contacts as Baraff-Witkin
+//! constraints -> friction -> new state. Units are SI throughout.
 
 pub mod colliders;
 mod constraints;
