@@ -131,6 +131,9 @@ pub struct ContactBuffers {
     probe: Vec<(f64, u32)>,
     /// First entry of each particle in `solid`, or `u32::MAX`.
     first_entry: Vec<u32>,
+    /// The solids at the start and at the end of the current step.
+    now: SolidFrames,
+    next: SolidFrames,
     hash: Option<VoxelHash>,
     corners: Vec<[Vec3; 3]>,
     /// Broad-phase output, reused.
@@ -201,6 +204,46 @@ impl Nearest {
     }
 }
 
+/// A solid's pose and world bounding box at one instant.
+#[derive(Debug, Clone, Copy)]
+struct SolidPose {
+    pose: BodyPose,
+    lo: Vec3,
+    hi: Vec3,
+}
+
+impl SolidPose {
+    /// Whether `p` is within `margin` of the bounding box.
+    fn near(&self, p: &Vec3, margin: f64) -> bool {
+        (0..3).all(|a| p[a] >= self.lo[a] - margin && p[a] <= self.hi[a] + margin)
+    }
+}
+
+/// Every solid's pose and bounding box at one time, computed once per time
+/// rather than per particle (a spinning solid's pose takes a quaternion
+/// exponential, a mesh's box a transform).
+#[derive(Debug, Clone, Default)]
+struct SolidFrames {
+    time: Option<f64>,
+    solids: Vec<SolidPose>,
+}
+
+impl SolidFrames {
+    /// The solids of `model` at `time` (s), recomputed only when the time changes.
+    fn at(&mut self, model: &ClothModel, time: f64) -> &[SolidPose] {
+        if self.time != Some(time) || self.solids.len() != model.colliders().len() {
+            self.solids.clear();
+            self.solids.extend(model.colliders().iter().map(|c| {
+                let pose = c.pose(time);
+                let (lo, hi) = c.shape.aabb(&pose);
+                SolidPose { pose, lo, hi }
+            }));
+            self.time = Some(time);
+        }
+        &self.solids
+    }
+}
+
 /// Finds cloth-solid contacts for the step from `t` to `t + h` into
 /// `bufs.solid`. The end of the step is predicted with the velocity
 /// extrapolated from the last step, `x + h (2 v - v_prev)`, so
@@ -219,6 +262,7 @@ pub fn detect_solid_contacts(
     let thickness = model.contact_thickness();
     let reach = thickness * (1.0 + CONTACT_MARGIN);
     let colliders = model.colliders();
+    let (solids_now, solids_next) = (bufs.now.at(model, t), bufs.next.at(model, t + h));
     bufs.candidate.par_iter_mut().zip(bufs.probe.par_iter_mut()).enumerate().for_each(|(i, (cand, probe))| {
         *cand = [None; 2];
         *probe = (0.0, 0);
@@ -227,29 +271,23 @@ pub fn detect_solid_contacts(
         }
         let predicted = x[i] + (v[i] * 2.0 - v_prev[i]) * h;
         let mut nearest = Nearest::new();
-        for (k, c) in colliders.iter().enumerate() {
-            let (now, next) = (c.pose(t), c.pose(t + h));
-            let near = |pose, p: &Vec3| {
-                let (lo, hi) = c.shape.aabb(pose);
-                (0..3).all(|a| p[a] >= lo[a] - reach && p[a] <= hi[a] + reach)
-            };
-            let moving = c.is_moving();
+        for (k, (c, (now, next))) in colliders.iter().zip(solids_now.iter().zip(solids_next)).enumerate() {
             let mut here = None;
-            if near(&now, &x[i]) {
-                let s = c.shape.closest(&now, x[i]);
+            if now.near(&x[i], reach) {
+                let s = c.shape.closest(&now.pose, x[i]);
                 probe.0 = probe.0.max(-s.distance_m);
                 probe.1 += 1;
                 here = Some(s);
             }
-            if !near(&next, &predicted) {
+            if !next.near(&predicted, reach) {
                 continue;
             }
-            let s = c.shape.closest(&next, predicted);
+            let s = c.shape.closest(&next.pose, predicted);
             probe.1 += 1;
             if s.distance_m < reach {
                 // The side the particle comes from: a prediction deep inside
                 // a thin solid is closest to its far face.
-                let from = if moving { Some(c.shape.closest(&next, x[i])) } else { here };
+                let from = if c.is_moving() { Some(c.shape.closest(&next.pose, x[i])) } else { here };
                 let surface = from.filter(|f| f.distance_m > 0.0).unwrap_or(s);
                 let travel = normal_travel(surface.normal.dot(&(x[i] - surface.point)), thickness, reach);
                 nearest.offer(s.distance_m, contact(i, k, c, &surface, s.distance_m, travel, t + h));
@@ -292,22 +330,22 @@ fn contact(
 }
 
 /// When `to` (a particle's new position) is closer than `limit` to solid
-/// `c` at `pose`: the closest point to `to`, and the surface point to push
+/// `c` (posed as `solid`): the closest point to `to`, and the surface point to push
 /// back to, taken from the side `from` (its position at the start of the
 /// step) is on when that is outside; a thin solid is then not crossed.
 /// Point queries made are added to `queries`.
 fn near_surface(
     c: &crate::Collider,
-    pose: &BodyPose,
+    solid: &SolidPose,
     from: Vec3,
     to: Vec3,
     limit: f64,
     queries: &mut usize,
 ) -> Option<(SurfacePoint, SurfacePoint)> {
-    let (lo, hi) = c.shape.aabb(pose);
-    if !(0..3).all(|a| to[a] >= lo[a] - limit && to[a] <= hi[a] + limit) {
+    if !solid.near(&to, limit) {
         return None;
     }
+    let pose = &solid.pose;
     let at = c.shape.closest(pose, to);
     *queries += 1;
     if at.distance_m >= limit {
@@ -357,6 +395,7 @@ pub fn add_penetrating(
     for range in groups(&bufs.solid) {
         bufs.first_entry[bufs.solid[range.start].particle as usize] = range.start as u32;
     }
+    let solids_next = bufs.next.at(model, t_next);
     let (solid, first_entry) = (&bufs.solid, &bufs.first_entry);
     bufs.candidate.par_iter_mut().enumerate().for_each(|(i, cand)| {
         *cand = [None; 2];
@@ -376,8 +415,8 @@ pub fn add_penetrating(
             }
         };
         let mut nearest = Nearest::new();
-        for (k, c) in colliders.iter().enumerate() {
-            let Some((s, surface)) = near_surface(c, &c.pose(t_next), x[i], new_x[i], 0.5 * thickness, &mut 0) else {
+        for (k, (c, next)) in colliders.iter().zip(solids_next).enumerate() {
+            let Some((s, surface)) = near_surface(c, next, x[i], new_x[i], 0.5 * thickness, &mut 0) else {
                 continue;
             };
             let distinct = existing
@@ -415,17 +454,18 @@ pub fn project_out(
     model: &ClothModel,
     x: &[Vec3],
     t_next: f64,
-    bufs: &ContactBuffers,
+    bufs: &mut ContactBuffers,
     all: bool,
     new_x: &mut [Vec3],
     new_v: &mut [Vec3],
 ) -> usize {
     let thickness = model.contact_thickness();
+    let solids_next = bufs.next.at(model, t_next);
     let mut moved = 0;
     let mut fix = |i: usize| {
         let mut changed = false;
-        for c in model.colliders() {
-            let Some((_, surface)) = near_surface(c, &c.pose(t_next), x[i], new_x[i], 0.5 * thickness, &mut 0) else {
+        for (c, next) in model.colliders().iter().zip(solids_next) {
+            let Some((_, surface)) = near_surface(c, next, x[i], new_x[i], 0.5 * thickness, &mut 0) else {
                 continue;
             };
             let n = surface.normal;
@@ -470,11 +510,13 @@ pub fn collide_after_step(
     model: &ClothModel,
     x: &[Vec3],
     (t, h): (f64, f64),
+    bufs: &mut ContactBuffers,
     new_x: &mut [Vec3],
     new_v: &mut [Vec3],
 ) -> ContactStats {
     let thickness = model.contact_thickness();
     let t_next = t + h;
+    let (solids_now, solids_next) = (bufs.now.at(model, t), bufs.next.at(model, t_next));
     // Particles are independent; the counters add and the depth is a
     // maximum, so the parallel reduction is exact in any order.
     new_x
@@ -487,13 +529,12 @@ pub fn collide_after_step(
             if model.is_pinned(i) {
                 return stats;
             }
-            for c in model.colliders() {
-                let Some((_, surface)) =
-                    near_surface(c, &c.pose(t_next), x[i], *xi, thickness, &mut stats.narrow_phase_queries)
+            for (c, (now, next)) in model.colliders().iter().zip(solids_now.iter().zip(solids_next)) {
+                let Some((_, surface)) = near_surface(c, next, x[i], *xi, thickness, &mut stats.narrow_phase_queries)
                 else {
                     continue;
                 };
-                let before = c.shape.closest(&c.pose(t), x[i]);
+                let before = c.shape.closest(&now.pose, x[i]);
                 stats.max_penetration_m = stats.max_penetration_m.max(-before.distance_m);
                 stats.narrow_phase_queries += 1;
                 let n = surface.normal;

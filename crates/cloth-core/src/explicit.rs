@@ -327,7 +327,14 @@ impl crate::Integrator for Explicit {
         if !model.colliders().is_empty() {
             let t = std::time::Instant::now();
             let times = (state.time_s, h);
-            report.contacts = crate::contacts::collide_after_step(model, &state.x, times, &mut ws.new_x, &mut ws.new_v);
+            report.contacts = crate::contacts::collide_after_step(
+                model,
+                &state.x,
+                times,
+                &mut ws.contacts,
+                &mut ws.new_x,
+                &mut ws.new_v,
+            );
             report.stages.collision_s += t.elapsed().as_secs_f64();
         }
         crate::integrator::commit(state, ws, h)?;

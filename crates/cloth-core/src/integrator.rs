@@ -219,7 +219,7 @@ pub enum StepError {
     /// The model asks for self-collision, which only the assembled implicit
     /// integrators (`backward-euler`, `bdf2`) handle.
     #[error("integrator {integrator} does not handle self-collisions: use backward-euler or bdf2")]
-    CollisionsNeedImplicit {
+    SelfCollisionNeedsMatrix {
         /// The integrator's scene name.
         integrator: &'static str,
     },
@@ -534,10 +534,8 @@ fn linearised_step<S: Linearised>(
     // particles that end up inside a solid become contacts; then solve
     // again (a few passes at most).
     let mut unresolved = false;
-    for pass in 0..=MAX_CONTACT_PASSES {
-        if model.colliders().is_empty() {
-            break;
-        }
+    let passes = if model.colliders().is_empty() { 0 } else { MAX_CONTACT_PASSES + 1 };
+    for pass in 0..passes {
         let (matrix, rhs) = (&ws.system.matrix, &ws.system.rhs);
         let (contacts, unknown) = (&mut ws.contacts.solid, &ws.unknown);
         let released =
@@ -597,13 +595,13 @@ fn linearised_step<S: Linearised>(
         // Newton corrections move free particles after the contact set was
         // settled: check them all then.
         let all = unresolved || solver.newton_iterations > 1;
-        stats.projected = project_out(model, &state.x, t_next, &ws.contacts, all, &mut ws.new_x, &mut ws.new_v);
+        stats.projected = project_out(model, &state.x, t_next, &mut ws.contacts, all, &mut ws.new_x, &mut ws.new_v);
     }
     if let Some(sc) = model.self_collision() {
         let pairs = &ws.contacts.self_pairs;
         stats.self_separations = separate_self_contacts(model, sc, pairs, tau, &mut ws.new_x, &mut ws.new_v);
     }
-    stats.contacts = solid.iter().filter(|c| c.active).count();
+    stats.contacts = ws.contacts.solid.iter().filter(|c| c.active).count();
     commit(state, ws, h)?;
     report.stages = StageTimes {
         forces_s,
@@ -671,7 +669,7 @@ fn step_loads(model: &ClothModel, state: &ClothState, h: f64, ws: &mut Workspace
 /// others, see [`crate::contacts::collide_after_step`]).
 pub(crate) fn reject_self_collision(model: &ClothModel, integrator: IntegratorKind) -> Result<(), StepError> {
     if model.self_collision().is_some() {
-        return Err(StepError::CollisionsNeedImplicit { integrator: integrator.name() });
+        return Err(StepError::SelfCollisionNeedsMatrix { integrator: integrator.name() });
     }
     Ok(())
 }

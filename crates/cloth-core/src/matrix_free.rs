@@ -98,7 +98,14 @@ impl crate::Integrator for BackwardEulerFixedCg {
         let contacts = if model.colliders().is_empty() {
             Default::default()
         } else {
-            crate::contacts::collide_after_step(model, &state.x, (state.time_s, h), &mut ws.new_x, &mut ws.new_v)
+            crate::contacts::collide_after_step(
+                model,
+                &state.x,
+                (state.time_s, h),
+                &mut ws.contacts,
+                &mut ws.new_x,
+                &mut ws.new_v,
+            )
         };
         commit(state, ws, h)?;
         Ok(StepReport {

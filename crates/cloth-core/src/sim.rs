@@ -39,7 +39,7 @@ impl Simulation {
             report.strain_corrections = apply_strain_limit(&self.model, &limit, x, v, h).corrections;
             // The corrections may move particles into solids: move them out.
             if !self.model.colliders().is_empty() {
-                let contacts = &self.workspace.contacts;
+                let contacts = &mut self.workspace.contacts;
                 report.contacts.projected += project_out(&self.model, x_prev, *time_s, contacts, true, x, v);
             }
             report.stages.update_s += t.elapsed().as_secs_f64();
