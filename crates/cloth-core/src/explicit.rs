@@ -324,19 +324,7 @@ impl crate::Integrator for Explicit {
         let bufs = ws.explicit.as_mut().expect("allocated above");
         std::mem::swap(&mut ws.new_x, &mut bufs.x_new);
         std::mem::swap(&mut ws.new_v, &mut bufs.v_new);
-        if !model.colliders().is_empty() {
-            let t = std::time::Instant::now();
-            let times = (state.time_s, h);
-            report.contacts = crate::contacts::collide_after_step(
-                model,
-                &state.x,
-                times,
-                &mut ws.contacts,
-                &mut ws.new_x,
-                &mut ws.new_v,
-            );
-            report.stages.collision_s += t.elapsed().as_secs_f64();
-        }
+        report.contacts = crate::integrator::collide_after_step(model, state, h, ws, &mut report.stages);
         crate::integrator::commit(state, ws, h)?;
         state.next_dt_s = next_dt;
         Ok(report)

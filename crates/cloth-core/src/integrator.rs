@@ -664,6 +664,27 @@ fn step_loads(model: &ClothModel, state: &ClothState, h: f64, ws: &mut Workspace
     Ok(loads)
 }
 
+/// The after-step response to solids of the integrators without an
+/// assembled matrix, on `ws.new_x`/`new_v` (nothing without solids); its
+/// time goes to `stages.collision_s`.
+pub(crate) fn collide_after_step(
+    model: &ClothModel,
+    state: &ClothState,
+    h: f64,
+    ws: &mut Workspace,
+    stages: &mut StageTimes,
+) -> ContactStats {
+    if model.colliders().is_empty() {
+        return ContactStats::default();
+    }
+    let t = Instant::now();
+    let times = (state.time_s, h);
+    let stats =
+        crate::contacts::collide_after_step(model, &state.x, times, &mut ws.contacts, &mut ws.new_x, &mut ws.new_v);
+    stages.collision_s += t.elapsed().as_secs_f64();
+    stats
+}
+
 /// Fails when the model asks for self-collision, which only the assembled
 /// implicit integrators handle (solids are handled after the step by the
 /// others, see [`crate::contacts::collide_after_step`]).

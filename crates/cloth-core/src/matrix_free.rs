@@ -10,8 +10,8 @@ use crate::{
     ClothModel, ClothState, SolverParams, Vec3, Workspace,
     forces::{apply_scaled_operator, assemble_matrix_free},
     integrator::{
-        BackwardEuler, Linearised, StageTimes, StepError, StepReport, check_step, commit, constrain_pins,
-        external_forces, reject_self_collision,
+        BackwardEuler, Linearised, StageTimes, StepError, StepReport, check_step, collide_after_step, commit,
+        constrain_pins, external_forces, reject_self_collision,
     },
 };
 use cloth_linalg::{CgScratch, PcgError, cg_fixed_iterations};
@@ -95,18 +95,14 @@ impl crate::Integrator for BackwardEulerFixedCg {
             let dv = ws.unknown[i] * mf.inv_sqrt_mass[i];
             (ws.new_x[i], ws.new_v[i]) = scheme.advance(state, &ws.aux, h, i, dv);
         }
-        let contacts = if model.colliders().is_empty() {
-            Default::default()
-        } else {
-            crate::contacts::collide_after_step(
-                model,
-                &state.x,
-                (state.time_s, h),
-                &mut ws.contacts,
-                &mut ws.new_x,
-                &mut ws.new_v,
-            )
+        let mut stages = StageTimes {
+            forces_s: timing.links_s,
+            assembly_s: timing.gather_s,
+            solve_s,
+            update_s: t_update.elapsed().as_secs_f64(),
+            ..StageTimes::default()
         };
+        let contacts = collide_after_step(model, state, h, ws, &mut stages);
         commit(state, ws, h)?;
         Ok(StepReport {
             force_evaluations: 1,
@@ -116,13 +112,7 @@ impl crate::Integrator for BackwardEulerFixedCg {
             cg_iterations: info.iterations,
             rel_residual: info.rel_residual,
             converged: true,
-            stages: StageTimes {
-                forces_s: timing.links_s,
-                assembly_s: timing.gather_s,
-                solve_s,
-                update_s: t_update.elapsed().as_secs_f64(),
-                ..StageTimes::default()
-            },
+            stages,
             contacts,
         })
     }
