@@ -2,7 +2,6 @@
 //! no penetration of solids, no self-intersection in a fold.
 
 use cloth_collide::closest_point_on_triangle;
-use cloth_core::contacts::max_penetration;
 use cloth_core::{ClothModel, Simulation, Vec3};
 use cloth_tests::simulation;
 
@@ -127,7 +126,7 @@ fn deepest_penetration(sim: &mut Simulation, dt: f64, steps: u64) -> (f64, usize
         deepest = deepest.max(r.contacts.max_penetration_m);
         contacts = contacts.max(r.contacts.contacts);
     }
-    (deepest.max(max_penetration(sim.model(), &sim.state().x, sim.time())), contacts)
+    (deepest.max(sim.max_penetration()), contacts)
 }
 
 /// Drape fixtures (ball, box, table with a post and the floor, OBJ mesh,

@@ -2,7 +2,6 @@
 
 use crate::output::{StageWall, Summary, write_obj};
 use anyhow::{Context, Result, bail};
-use cloth_core::contacts::max_penetration;
 use cloth_core::scene::{EffectName, RunConfig, Scene, SceneError};
 use cloth_core::{ClothModel, ContactStats, Simulation};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -146,7 +145,7 @@ fn simulate(
         max_speed_m_s: state.v.iter().map(|v| v.norm()).fold(0.0, f64::max),
         finite: error.is_none() && state.first_non_finite().is_none(),
         contacts_max: contacts.contacts_max,
-        max_penetration_m: contacts.max_penetration_m.max(max_penetration(model, &state.x, state.time_s)),
+        max_penetration_m: contacts.max_penetration_m.max(sim.max_penetration()),
         self_contacts_max: contacts.self_contacts_max,
         released_contacts_total: contacts.released,
         narrow_phase_queries_total: contacts.queries,

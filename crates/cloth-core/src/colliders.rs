@@ -109,6 +109,11 @@ impl Collider {
     pub fn is_moving(&self) -> bool {
         self.motion != PinMotion::Fixed || self.spin_rad_s != Vec3::zeros()
     }
+
+    /// Whether the solid is driven from outside ([`crate::Control::set_solid_motion`]).
+    pub fn is_external(&self) -> bool {
+        self.motion == PinMotion::External
+    }
 }
 
 /// Self-collision parameters of a built model.
@@ -157,6 +162,12 @@ impl CollisionSpec {
             finite3("rotation_deg", &c.rotation_deg).map_err(|(f, m)| (field(f), m))?;
             finite3("spin_deg_s", &c.spin_deg_s).map_err(|(f, m)| (field(f), m))?;
             c.motion.validate().map_err(|(f, m)| (field(&format!("motion.{f}")), m))?;
+            if c.motion == PinMotion::External && c.spin_deg_s != [0.0; 3] {
+                return Err((
+                    field("spin_deg_s"),
+                    "an external solid's rotation is set from outside: leave spin out".into(),
+                ));
+            }
             let friction = non_negative(field("friction"), c.friction)?;
             let [rx, ry, rz] = c.rotation_deg.map(f64::to_radians);
             let rotation = UnitQuaternion::from_axis_angle(&Vec3::z_axis(), rz)

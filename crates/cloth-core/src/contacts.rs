@@ -23,6 +23,7 @@
 //! so results do not depend on the number of threads.
 
 use crate::colliders::SelfCollision;
+use crate::control::{Control, SolidMotion};
 use crate::laws::{self, pair_stiffness};
 use crate::{ClothModel, ClothState, Mat3, Vec3};
 use cloth_collide::{BodyPose, SurfacePoint, VoxelHash, closest_point_on_triangle};
@@ -52,6 +53,9 @@ pub struct SolidContact {
     pub friction: f64,
     /// Force the constraint exerts along the normal, N (>= 0 once solved).
     pub normal_force_n: f64,
+    /// Impulse the solid gave the particle over the step, N s: the normal
+    /// force times the step plus friction (the solid received the opposite).
+    pub impulse_n_s: Vec3,
     /// False once released because it pulled.
     pub active: bool,
 }
@@ -134,6 +138,8 @@ pub struct ContactBuffers {
     /// The solids at the start and at the end of the current step.
     now: SolidFrames,
     next: SolidFrames,
+    /// Motions of externally driven solids for the current step.
+    external: Vec<Option<SolidMotion>>,
     hash: Option<VoxelHash>,
     corners: Vec<[Vec3; 3]>,
     /// Broad-phase output, reused.
@@ -204,10 +210,14 @@ impl Nearest {
     }
 }
 
-/// A solid's pose and world bounding box at one instant.
+/// A solid's pose, motion and world bounding box at one instant.
 #[derive(Debug, Clone, Copy)]
 struct SolidPose {
+    /// Index among the model's colliders.
+    index: usize,
     pose: BodyPose,
+    /// The motion through `pose` at this instant (for surface velocities).
+    motion: SolidMotion,
     lo: Vec3,
     hi: Vec3,
 }
@@ -216,6 +226,11 @@ impl SolidPose {
     /// Whether `p` is within `margin` of the bounding box.
     fn near(&self, p: &Vec3, margin: f64) -> bool {
         (0..3).all(|a| p[a] >= self.lo[a] - margin && p[a] <= self.hi[a] + margin)
+    }
+
+    /// Velocity of the solid's material point at `point` (m), m/s.
+    fn velocity_at(&self, point: Vec3) -> Vec3 {
+        self.motion.velocity_at(self.motion.time_s, point)
     }
 }
 
@@ -229,18 +244,40 @@ struct SolidFrames {
 }
 
 impl SolidFrames {
-    /// The solids of `model` at `time` (s), recomputed only when the time changes.
-    fn at(&mut self, model: &ClothModel, time: f64) -> &[SolidPose] {
+    /// The solids of `model` at `time` (s), recomputed only when the time
+    /// changes: path-driven ones from their path, external ones from
+    /// `external` (held at their anchor when not set).
+    fn at(&mut self, model: &ClothModel, external: &[Option<SolidMotion>], time: f64) -> &[SolidPose] {
         if self.time != Some(time) || self.solids.len() != model.colliders().len() {
             self.solids.clear();
-            self.solids.extend(model.colliders().iter().map(|c| {
-                let pose = c.pose(time);
-                let (lo, hi) = c.shape.aabb(&pose);
-                SolidPose { pose, lo, hi }
+            self.solids.extend(model.colliders().iter().enumerate().map(|(k, c)| {
+                let motion = match external.get(k).copied().flatten() {
+                    Some(m) if c.is_external() => SolidMotion { time_s: time, pose: m.pose_at(time), ..m },
+                    _ => SolidMotion {
+                        time_s: time,
+                        pose: c.pose(time),
+                        linear_velocity: c.motion.velocity(time),
+                        angular_velocity: c.spin_rad_s,
+                    },
+                };
+                let (lo, hi) = c.shape.aabb(&motion.pose);
+                SolidPose { index: k, pose: motion.pose, motion, lo, hi }
             }));
             self.time = Some(time);
         }
         &self.solids
+    }
+}
+
+impl ContactBuffers {
+    /// Takes the motions of externally driven solids for the next step
+    /// from `control` (and forgets solid poses computed before, since a
+    /// repeated step may move them differently).
+    pub(crate) fn set_external(&mut self, control: &Control, solids: usize) {
+        self.external.clear();
+        self.external.extend((0..solids).map(|k| control.solid_motion(k).copied()));
+        self.now.time = None;
+        self.next.time = None;
     }
 }
 
@@ -262,7 +299,7 @@ pub fn detect_solid_contacts(
     let thickness = model.contact_thickness();
     let reach = thickness * (1.0 + CONTACT_MARGIN);
     let colliders = model.colliders();
-    let (solids_now, solids_next) = (bufs.now.at(model, t), bufs.next.at(model, t + h));
+    let (solids_now, solids_next) = (bufs.now.at(model, &bufs.external, t), bufs.next.at(model, &bufs.external, t + h));
     bufs.candidate.par_iter_mut().zip(bufs.probe.par_iter_mut()).enumerate().for_each(|(i, (cand, probe))| {
         *cand = [None; 2];
         *probe = (0.0, 0);
@@ -290,7 +327,7 @@ pub fn detect_solid_contacts(
                 let from = if c.is_moving() { Some(c.shape.closest(&next.pose, x[i])) } else { here };
                 let surface = from.filter(|f| f.distance_m > 0.0).unwrap_or(s);
                 let travel = normal_travel(surface.normal.dot(&(x[i] - surface.point)), thickness, reach);
-                nearest.offer(s.distance_m, contact(i, k, c, &surface, s.distance_m, travel, t + h));
+                nearest.offer(s.distance_m, contact(i, k, c, &surface, s.distance_m, travel, next));
             }
         }
         *cand = nearest.pick();
@@ -313,7 +350,7 @@ fn contact(
     s: &SurfacePoint,
     distance: f64,
     travel: f64,
-    t_next: f64,
+    next: &SolidPose,
 ) -> SolidContact {
     SolidContact {
         particle: i as u32,
@@ -322,9 +359,10 @@ fn contact(
         distance_m: distance,
         normal: s.normal,
         normal_travel_m: travel,
-        solid_velocity: c.velocity_at(t_next, s.point),
+        solid_velocity: next.velocity_at(s.point),
         friction: c.friction,
         normal_force_n: 0.0,
+        impulse_n_s: Vec3::zeros(),
         active: true,
     }
 }
@@ -395,7 +433,7 @@ pub fn add_penetrating(
     for range in groups(&bufs.solid) {
         bufs.first_entry[bufs.solid[range.start].particle as usize] = range.start as u32;
     }
-    let solids_next = bufs.next.at(model, t_next);
+    let solids_next = bufs.next.at(model, &bufs.external, t_next);
     let (solid, first_entry) = (&bufs.solid, &bufs.first_entry);
     bufs.candidate.par_iter_mut().enumerate().for_each(|(i, cand)| {
         *cand = [None; 2];
@@ -423,7 +461,7 @@ pub fn add_penetrating(
                 .is_none_or(|e| e.collider as usize != k && e.normal.dot(&surface.normal).abs() <= PARALLEL_COS);
             if distinct {
                 let travel = normal_travel(surface.normal.dot(&(x[i] - surface.point)), thickness, thickness);
-                nearest.offer(s.distance_m, contact(i, k, c, &surface, s.distance_m, travel, t_next));
+                nearest.offer(s.distance_m, contact(i, k, c, &surface, s.distance_m, travel, next));
             }
         }
         cand[0] = nearest.pick()[0];
@@ -460,7 +498,7 @@ pub fn project_out(
     new_v: &mut [Vec3],
 ) -> usize {
     let thickness = model.contact_thickness();
-    let solids_next = bufs.next.at(model, t_next);
+    let solids_next = bufs.next.at(model, &bufs.external, t_next);
     let mut moved = 0;
     let mut fix = |i: usize| {
         let mut changed = false;
@@ -472,7 +510,7 @@ pub fn project_out(
             let gap = n.dot(&(new_x[i] - surface.point));
             if gap < thickness {
                 new_x[i] += n * (thickness - gap);
-                let inward = n.dot(&(new_v[i] - c.velocity_at(t_next, surface.point)));
+                let inward = n.dot(&(new_v[i] - next.velocity_at(surface.point)));
                 if inward < 0.0 {
                     new_v[i] -= n * inward;
                 }
@@ -516,20 +554,26 @@ pub fn collide_after_step(
 ) -> ContactStats {
     let thickness = model.contact_thickness();
     let t_next = t + h;
-    let (solids_now, solids_next) = (bufs.now.at(model, t), bufs.next.at(model, t_next));
+    bufs.candidate.resize(x.len(), [None; 2]);
+    let (solids_now, solids_next) =
+        (bufs.now.at(model, &bufs.external, t), bufs.next.at(model, &bufs.external, t_next));
+    let masses = model.masses();
     // Particles are independent; the counters add and the depth is a
     // maximum, so the parallel reduction is exact in any order.
-    new_x
+    let stats = new_x
         .par_iter_mut()
         .zip(new_v.par_iter_mut())
+        .zip(bufs.candidate.par_iter_mut())
         .enumerate()
         .with_min_len(ROW_CHUNK)
-        .map(|(i, (xi, vi))| {
+        .map(|(i, ((xi, vi), cand))| {
             let mut stats = ContactStats::default();
+            *cand = [None; 2];
             if model.is_pinned(i) {
                 return stats;
             }
-            for (c, (now, next)) in model.colliders().iter().zip(solids_now.iter().zip(solids_next)) {
+            let mut slot = 0;
+            for (k, (c, (now, next))) in model.colliders().iter().zip(solids_now.iter().zip(solids_next)).enumerate() {
                 let Some((_, surface)) = near_surface(c, next, x[i], *xi, thickness, &mut stats.narrow_phase_queries)
                 else {
                     continue;
@@ -542,9 +586,10 @@ pub fn collide_after_step(
                 if gap < thickness {
                     *xi += n * (thickness - gap);
                 }
-                let solid_v = c.velocity_at(t_next, surface.point);
+                let solid_v = next.velocity_at(surface.point);
                 let rel = *vi - solid_v;
                 let inward = n.dot(&rel);
+                let v_before = *vi;
                 if inward < 0.0 {
                     let tangential = rel - n * inward;
                     let speed = tangential.norm();
@@ -556,6 +601,13 @@ pub fn collide_after_step(
                     // friction: take back that part of the slide (x' = x + h v').
                     *xi += (slip - tangential) * h;
                 }
+                if slot < 2 {
+                    let mut contact = contact(i, k, c, &surface, gap, 0.0, next);
+                    contact.impulse_n_s = (*vi - v_before) * masses[i];
+                    contact.normal_force_n = n.dot(&contact.impulse_n_s) / h;
+                    cand[slot] = Some(contact);
+                    slot += 1;
+                }
                 stats.contacts = 1;
             }
             stats
@@ -563,19 +615,23 @@ pub fn collide_after_step(
         .reduce(ContactStats::default, |mut a, b| {
             a += b;
             a
-        })
+        });
+    bufs.solid.clear();
+    bufs.solid.extend(bufs.candidate.iter().flatten().flatten());
+    stats
 }
 
 /// Deepest any particle at positions `x` is inside a solid at time `t`, m
-/// (0 when none is inside). A diagnostic: it queries every particle near
-/// every solid.
-pub fn max_penetration(model: &ClothModel, x: &[Vec3], t: f64) -> f64 {
+/// (0 when none is inside), with externally driven solids where `control`
+/// puts them. A diagnostic: it queries every particle near every solid.
+pub fn max_penetration(model: &ClothModel, control: &Control, x: &[Vec3], t: f64) -> f64 {
     let mut deepest: f64 = 0.0;
-    for c in model.colliders() {
-        let pose = c.pose(t);
-        let (lo, hi) = c.shape.aabb(&pose);
+    let external: Vec<_> = (0..model.colliders().len()).map(|k| control.solid_motion(k).copied()).collect();
+    for s in SolidFrames::default().at(model, &external, t) {
+        let (pose, lo, hi) = (&s.pose, s.lo, s.hi);
+        let c = &model.colliders()[s.index];
         for p in x.iter().filter(|p| (0..3).all(|a| p[a] >= lo[a] && p[a] <= hi[a])) {
-            deepest = deepest.max(-c.shape.closest(&pose, *p).distance_m);
+            deepest = deepest.max(-c.shape.closest(pose, *p).distance_m);
         }
     }
     deepest
@@ -704,30 +760,41 @@ pub fn release_pulling(
 /// largest coefficient of the solids touched. `tau` is the time over
 /// which a force changes the new velocity in the integrator (`h` for
 /// backward Euler, `2h/3` for BDF2), so the friction force is exactly
-/// `mu f_n` while sliding. Returns the sticking count.
+/// `mu f_n` while sliding. Each contact's `impulse_n_s` becomes its
+/// normal force plus its share of the friction force (in proportion to
+/// the normal forces), times the step `h`. Returns the sticking count.
 pub fn apply_friction(
-    contacts: &[SolidContact],
+    contacts: &mut [SolidContact],
     masses: &[f64],
-    tau: f64,
+    (tau, h): (f64, f64),
     new_x: &mut [Vec3],
     new_v: &mut [Vec3],
 ) -> usize {
     let mut sticking = 0;
-    for range in groups(contacts) {
-        let mut active = contacts[range].iter().filter(|c| c.active);
+    let mut start = 0;
+    while start < contacts.len() {
+        let p = contacts[start].particle;
+        let end = start + contacts[start..].iter().take_while(|c| c.particle == p).count();
+        let group = &mut contacts[start..end];
+        start = end;
+        for c in group.iter_mut() {
+            c.impulse_n_s = if c.active { c.normal * (c.normal_force_n * h) } else { Vec3::zeros() };
+        }
+        let mut active = group.iter().enumerate().filter(|(_, c)| c.active).map(|(k, _)| k);
         let Some(a) = active.next() else { continue };
         let b = active.next();
-        let mu = b.map_or(a.friction, |b| a.friction.max(b.friction));
+        let (ca, cb) = (group[a], b.map(|b| group[b]));
+        let mu = cb.map_or(ca.friction, |cb| ca.friction.max(cb.friction));
         if mu <= 0.0 {
             continue;
         }
-        let i = a.particle as usize;
-        let rel = new_v[i] - a.solid_velocity;
-        let (normal_force, free) = match b {
-            None => (a.normal * a.normal_force_n.max(0.0), rel - a.normal * a.normal.dot(&rel)),
-            Some(b) => {
-                let crease = a.normal.cross(&b.normal).normalize();
-                let force = a.normal * a.normal_force_n.max(0.0) + b.normal * b.normal_force_n.max(0.0);
+        let i = ca.particle as usize;
+        let rel = new_v[i] - ca.solid_velocity;
+        let (normal_force, free) = match cb {
+            None => (ca.normal * ca.normal_force_n.max(0.0), rel - ca.normal * ca.normal.dot(&rel)),
+            Some(cb) => {
+                let crease = ca.normal.cross(&cb.normal).normalize();
+                let force = ca.normal * ca.normal_force_n.max(0.0) + cb.normal * cb.normal_force_n.max(0.0);
                 (force, crease * crease.dot(&rel))
             }
         };
@@ -741,6 +808,17 @@ pub fn apply_friction(
         };
         new_v[i] += dv;
         new_x[i] += dv * tau;
+        // The friction force is m dv / tau; over the step it gives h times that.
+        let friction_impulse = dv * (masses[i] * h / tau);
+        match b {
+            None => group[a].impulse_n_s += friction_impulse,
+            Some(b) => {
+                let (fa, fb) = (ca.normal_force_n.max(0.0), group[b].normal_force_n.max(0.0));
+                let share = if fa + fb > 0.0 { fa / (fa + fb) } else { 0.5 };
+                group[a].impulse_n_s += friction_impulse * share;
+                group[b].impulse_n_s += friction_impulse * (1.0 - share);
+            }
+        }
     }
     sticking
 }
@@ -1116,17 +1194,18 @@ mod tests {
             solid_velocity: Vec3::new(0.1, 0.0, 0.0),
             friction: 0.5,
             normal_force_n: 2.0,
+            impulse_n_s: Vec3::zeros(),
             active: true,
         };
         let (mass, tau) = (0.5, 0.01);
         let budget = 0.5 * 2.0 * tau / mass; // 0.02 m/s
         let mut x = vec![Vec3::zeros()];
         let mut v = vec![Vec3::new(0.1 + 0.015, 0.0, -0.3)];
-        assert_eq!(apply_friction(&[contact], &[mass], tau, &mut x, &mut v), 1);
+        assert_eq!(apply_friction(&mut [contact], &[mass], (tau, tau), &mut x, &mut v), 1);
         assert!((v[0] - Vec3::new(0.1, 0.0, -0.3)).norm() < 1e-15);
         assert!((x[0] - Vec3::new(-0.015 * tau, 0.0, 0.0)).norm() < 1e-15);
         let mut v = vec![Vec3::new(0.1 + 0.05, 0.0, 0.2)];
-        assert_eq!(apply_friction(&[contact], &[mass], tau, &mut x, &mut v), 0);
+        assert_eq!(apply_friction(&mut [contact], &[mass], (tau, tau), &mut x, &mut v), 0);
         assert!((v[0] - Vec3::new(0.1 + 0.05 - budget, 0.0, 0.2)).norm() < 1e-15);
     }
 

@@ -7,6 +7,7 @@
 //! particles are prescribed: at every stage and at the end of a step their
 //! position and velocity are set from their path, so pins stay exact.
 
+use crate::control::{Control, PinPaths};
 use crate::{
     ClothModel, ClothState, SolverParams, Vec3, Workspace,
     forces::{ForceBuffers, forces_into},
@@ -79,6 +80,10 @@ pub struct ExplicitBuffers {
     /// Result of the last attempted step.
     pub(crate) x_new: Vec<Vec3>,
     pub(crate) v_new: Vec<Vec3>,
+    /// Per pin, minus the step's quadrature of the other forces on its
+    /// particle, N s: in the last attempt, and summed over accepted substeps.
+    pin_impulse: Vec<Vec3>,
+    pin_total: Vec<Vec3>,
 }
 
 impl ExplicitBuffers {
@@ -96,15 +101,24 @@ impl ExplicitBuffers {
             normals: Vec::with_capacity(n),
             x_new: zeros(),
             v_new: zeros(),
+            pin_impulse: vec![Vec3::zeros(); model.pins().len()],
+            pin_total: vec![Vec3::zeros(); model.pins().len()],
         }
     }
 }
 
 /// Sets pinned particles to their path at time `t`.
-fn impose_pins(model: &ClothModel, t: f64, x: &mut [Vec3], v: &mut [Vec3]) {
-    for pin in model.pins() {
-        x[pin.particle] = pin.position(t);
-        v[pin.particle] = pin.velocity(t);
+fn impose_pins(paths: &PinPaths<'_>, t: f64, x: &mut [Vec3], v: &mut [Vec3]) {
+    for (k, pin) in paths.model().pins().iter().enumerate() {
+        x[pin.particle] = paths.position(k, t);
+        v[pin.particle] = paths.velocity(k, t);
+    }
+}
+
+/// Adds the control's external forces, if any, to `force`.
+fn add_applied(control: &Control, force: &mut [Vec3]) {
+    if let Some(applied) = control.forces() {
+        force.iter_mut().zip(applied).for_each(|(f, a)| *f += a);
     }
 }
 
@@ -130,6 +144,9 @@ pub(crate) struct Start<'a> {
     pub x: &'a [Vec3],
     pub v: &'a [Vec3],
     pub t: f64,
+    /// Pin paths and external forces of the step.
+    pub pins: PinPaths<'a>,
+    pub control: &'a Control,
 }
 
 /// One Runge-Kutta step of size `h` from `start` into `bufs.x_new`,
@@ -144,30 +161,34 @@ pub(crate) fn rk_step(
     bufs: &mut ExplicitBuffers,
     stages_time: &mut StageTimes,
 ) -> (usize, f64) {
-    let Start { x, v, t } = start;
+    let Start { x, v, t, pins, control } = start;
     let masses = model.masses();
+    bufs.pin_impulse.iter_mut().for_each(|p| *p = Vec3::zeros());
     for s in 0..tab.c.len() {
         let t_update = Instant::now();
         let (ts, coef) = (t + tab.c[s] * h, tab.a[s]);
         combine(x, h, coef, &bufs.kx, &mut bufs.xs);
         combine(v, h, coef, &bufs.kv, &mut bufs.vs);
-        impose_pins(model, ts, &mut bufs.xs, &mut bufs.vs);
+        impose_pins(&pins, ts, &mut bufs.xs, &mut bufs.vs);
         stages_time.update_s += t_update.elapsed().as_secs_f64();
         let t_force = Instant::now();
         forces_into(model, &bufs.xs, &bufs.vs, &mut bufs.forces, &mut bufs.force);
         add_wind_forces(model, &bufs.xs, &bufs.vs, ts, &mut bufs.normals, &mut bufs.force);
+        add_applied(control, &mut bufs.force);
         stages_time.forces_s += t_force.elapsed().as_secs_f64();
         let (kx, kv) = (&mut bufs.kx[s], &mut bufs.kv[s]);
         kx.copy_from_slice(&bufs.vs);
         kv.iter_mut().zip(&bufs.force).zip(masses).for_each(|((a, f), m)| *a = f / *m);
-        for pin in model.pins() {
+        // The force the pins must cancel, quadrature-weighted like the step.
+        for (pin, applied) in model.pins().iter().zip(&mut bufs.pin_impulse) {
+            *applied -= bufs.force[pin.particle] * (h * tab.b[s]);
             kv[pin.particle] = Vec3::zeros();
         }
     }
     let t_update = Instant::now();
     combine(x, h, tab.b, &bufs.kx, &mut bufs.x_new);
     combine(v, h, tab.b, &bufs.kv, &mut bufs.v_new);
-    impose_pins(model, t + h, &mut bufs.x_new, &mut bufs.v_new);
+    impose_pins(&pins, t + h, &mut bufs.x_new, &mut bufs.v_new);
     let error = tab.e.map_or(0.0, |e| {
         // RMS over all components of e / (tol + tol |y|), Hairer-style; pins carry no error.
         let mut sum = 0.0;
@@ -195,16 +216,16 @@ pub(crate) fn rk_step(
 /// Symplectic (semi-implicit) Euler: `v' = v + h M^-1 f(x, v)`, `x' = x + h v'`.
 pub(crate) fn symplectic_euler_step(
     model: &ClothModel,
-    x: &[Vec3],
-    v: &[Vec3],
-    t: f64,
+    start: Start<'_>,
     h: f64,
     bufs: &mut ExplicitBuffers,
     stages_time: &mut StageTimes,
 ) {
+    let Start { x, v, t, pins, control } = start;
     let t_force = Instant::now();
     forces_into(model, x, v, &mut bufs.forces, &mut bufs.force);
     add_wind_forces(model, x, v, t, &mut bufs.normals, &mut bufs.force);
+    add_applied(control, &mut bufs.force);
     stages_time.forces_s += t_force.elapsed().as_secs_f64();
     let t_update = Instant::now();
     let masses = model.masses();
@@ -212,7 +233,10 @@ pub(crate) fn symplectic_euler_step(
         bufs.v_new[i] = v[i] + bufs.force[i] * (h / masses[i]);
         bufs.x_new[i] = x[i] + bufs.v_new[i] * h;
     }
-    impose_pins(model, t + h, &mut bufs.x_new, &mut bufs.v_new);
+    for (pin, applied) in model.pins().iter().zip(&mut bufs.pin_impulse) {
+        *applied = -bufs.force[pin.particle] * h;
+    }
+    impose_pins(&pins, t + h, &mut bufs.x_new, &mut bufs.v_new);
     stages_time.update_s += t_update.elapsed().as_secs_f64();
 }
 
@@ -223,6 +247,7 @@ pub(crate) fn symplectic_euler_step(
 pub(crate) fn adaptive_dopri5(
     model: &ClothModel,
     state: &ClothState,
+    control: &Control,
     h_total: f64,
     solver: &SolverParams,
     ws: &mut Workspace,
@@ -231,6 +256,8 @@ pub(crate) fn adaptive_dopri5(
     let bufs = ws.explicit.get_or_insert_with(|| ExplicitBuffers::new(model, DOPRI5.c.len()));
     let (x_work, v_work) = (&mut ws.new_x, &mut ws.new_v);
     let mut report = StepReport { converged: true, ..Default::default() };
+    let pins = PinPaths::new(model, control, &state.x, state.time_s, h_total);
+    bufs.pin_total.iter_mut().for_each(|p| *p = Vec3::zeros());
     x_work.copy_from_slice(&state.x);
     v_work.copy_from_slice(&state.v);
     let mut done = 0.0;
@@ -240,7 +267,7 @@ pub(crate) fn adaptive_dopri5(
         let remaining = h_total - done;
         let last = h >= remaining * (1.0 - 1e-12);
         let h_try = if last { remaining } else { h };
-        let start = Start { x: x_work, v: v_work, t: state.time_s + done };
+        let start = Start { x: x_work, v: v_work, t: state.time_s + done, pins, control };
         let (evals, err) = rk_step(model, &DOPRI5, start, h_try, tolerance, bufs, &mut report.stages);
         report.force_evaluations += evals;
         // Step-size controller (order 5 error estimate of the order-4 solution).
@@ -256,6 +283,7 @@ pub(crate) fn adaptive_dopri5(
             std::mem::swap(v_work, &mut bufs.v_new);
             done = if last { h_total } else { done + h_try };
             report.substeps += 1;
+            bufs.pin_total.iter_mut().zip(&bufs.pin_impulse).for_each(|(t, p)| *t += p);
             // A last step shortened to land on h_total says little about
             // the step size the dynamics allow: keep the larger proposal.
             suggestion = if last { (h_try * factor).max(h) } else { h_try * factor };
@@ -291,6 +319,7 @@ impl crate::Integrator for Explicit {
         &self,
         model: &ClothModel,
         state: &mut ClothState,
+        control: &Control,
         h: f64,
         ws: &mut crate::Workspace,
         solver: &crate::SolverParams,
@@ -301,9 +330,11 @@ impl crate::Integrator for Explicit {
         let mut report = StepReport { converged: true, substeps: 1, ..Default::default() };
         let mut next_dt = 0.0;
         let bufs = ws.explicit.get_or_insert_with(|| ExplicitBuffers::new(model, DOPRI5.c.len()));
+        let pins = PinPaths::new(model, control, &state.x, state.time_s, h);
+        let start = Start { x: &state.x, v: &state.v, t: state.time_s, pins, control };
         match self.0 {
             K::SymplecticEuler => {
-                symplectic_euler_step(model, &state.x, &state.v, state.time_s, h, bufs, &mut report.stages);
+                symplectic_euler_step(model, start, h, bufs, &mut report.stages);
                 report.force_evaluations = 1;
             }
             K::ForwardEuler | K::Midpoint | K::Rk4 => {
@@ -312,19 +343,28 @@ impl crate::Integrator for Explicit {
                     K::Midpoint => &MIDPOINT,
                     _ => &RK4,
                 };
-                let start = Start { x: &state.x, v: &state.v, t: state.time_s };
                 let (evals, _) = rk_step(model, tab, start, h, 0.0, bufs, &mut report.stages);
                 report.force_evaluations = evals;
             }
-            K::Dopri5 => (report, next_dt) = adaptive_dopri5(model, state, h, solver, ws)?,
+            K::Dopri5 => (report, next_dt) = adaptive_dopri5(model, state, control, h, solver, ws)?,
             K::BackwardEuler | K::BackwardEulerFixedCg | K::Bdf2 => {
                 unreachable!("implicit kinds are built as their own integrators")
             }
         }
         let bufs = ws.explicit.as_mut().expect("allocated above");
+        if self.0 != K::Dopri5 {
+            std::mem::swap(&mut bufs.pin_total, &mut bufs.pin_impulse);
+        }
+        // What the pin gave its particle: its momentum change less the
+        // other forces' impulse, as a mean force over the step.
+        let masses = model.masses();
+        for ((pin, f), other) in model.pins().iter().zip(&mut ws.pin_forces).zip(&bufs.pin_total) {
+            let i = pin.particle;
+            *f = ((bufs.v_new[i] - state.v[i]) * masses[i] + other) / h;
+        }
         std::mem::swap(&mut ws.new_x, &mut bufs.x_new);
         std::mem::swap(&mut ws.new_v, &mut bufs.v_new);
-        report.contacts = crate::integrator::collide_after_step(model, state, h, ws, &mut report.stages);
+        report.contacts = crate::integrator::collide_after_step(model, state, control, h, ws, &mut report.stages);
         crate::integrator::commit(state, ws, h)?;
         state.next_dt_s = next_dt;
         Ok(report)

@@ -5,6 +5,7 @@ use crate::contacts::{
     ContactBuffers, ContactStats, add_penetrating, apply_friction, constrain_contacts, detect_self_contacts,
     detect_solid_contacts, project_out, release_pulling, separate_self_contacts,
 };
+use crate::control::{Control, PinPaths};
 use crate::explicit::ExplicitBuffers;
 use crate::{
     ClothModel, ClothState, Vec3,
@@ -255,6 +256,8 @@ pub struct Workspace {
     pub(crate) matrix_free: Option<crate::matrix_free::MatrixFreeBuffers>,
     /// Contacts and collision scratch space.
     pub(crate) contacts: ContactBuffers,
+    /// Force each pin exerted on its particle in the last step, N.
+    pub(crate) pin_forces: Vec<Vec3>,
 }
 
 impl Workspace {
@@ -281,6 +284,7 @@ impl Workspace {
             explicit: None,
             matrix_free: None,
             contacts: ContactBuffers::default(),
+            pin_forces: vec![Vec3::zeros(); model.pins().len()],
         }
     }
 }
@@ -297,6 +301,7 @@ pub trait Integrator: Send + Sync + std::fmt::Debug {
         &self,
         model: &ClothModel,
         state: &mut ClothState,
+        control: &Control,
         h: f64,
         ws: &mut Workspace,
         solver: &SolverParams,
@@ -325,12 +330,13 @@ impl Integrator for BackwardEuler {
         &self,
         model: &ClothModel,
         state: &mut ClothState,
+        control: &Control,
         h: f64,
         ws: &mut Workspace,
         solver: &SolverParams,
     ) -> Result<StepReport, StepError> {
         check_step(model, state, h)?;
-        linearised_step(self, model, state, h, ws, solver)
+        linearised_step(self, model, state, control, h, ws, solver)
     }
 }
 
@@ -343,6 +349,7 @@ impl Integrator for Bdf2 {
         &self,
         model: &ClothModel,
         state: &mut ClothState,
+        control: &Control,
         h: f64,
         ws: &mut Workspace,
         solver: &SolverParams,
@@ -351,9 +358,9 @@ impl Integrator for Bdf2 {
         // BDF2 needs one previous step of the same size; otherwise start
         // (or restart) with backward Euler.
         if !state.has_history || state.last_dt_s != h {
-            return linearised_step(&BackwardEuler, model, state, h, ws, solver);
+            return linearised_step(&BackwardEuler, model, state, control, h, ws, solver);
         }
-        linearised_step(self, model, state, h, ws, solver)
+        linearised_step(self, model, state, control, h, ws, solver)
     }
 }
 
@@ -508,12 +515,13 @@ fn linearised_step<S: Linearised>(
     scheme: &S,
     model: &ClothModel,
     state: &mut ClothState,
+    control: &Control,
     h: f64,
     ws: &mut Workspace,
     solver: &SolverParams,
 ) -> Result<StepReport, StepError> {
     scheme.prepare(state, h, &mut ws.aux, &mut ws.aux2);
-    let loads = step_loads(model, state, h, ws)?;
+    let loads = step_loads(model, state, control, h, ws)?;
     let mut terms = scheme.terms(state, &ws.aux, &ws.aux2, h);
     terms.external = loads.external.then_some(&ws.external[..]);
     terms.diag_stiffness = loads.self_collision.then_some(&ws.contacts.self_stiffness[..]);
@@ -521,7 +529,7 @@ fn linearised_step<S: Linearised>(
     let timing = assemble(model, &state.x, &terms, &mut ws.system);
     let t_pins = Instant::now();
     let value = |target, i| scheme.pinned(state, h, target, i);
-    constrain_pins(model, state, h, &mut ws.filter, value);
+    constrain_pins(model, state, control, h, &mut ws.filter, value);
     constrain_contacts(&ws.contacts.solid, &state.x, &mut ws.filter, value);
     for i in 0..state.len() {
         ws.unknown[i] = scheme.guess(state, &ws.aux, i);
@@ -570,7 +578,7 @@ fn linearised_step<S: Linearised>(
         terms.diag_stiffness = loads.self_collision.then_some(&ws.contacts.self_stiffness[..]);
         let t = assemble(model, &ws.new_x, &terms, &mut ws.system);
         let zero = |_, _| Vec3::zeros();
-        constrain_pins(model, state, h, &mut ws.filter, zero);
+        constrain_pins(model, state, control, h, &mut ws.filter, zero);
         constrain_contacts(&ws.contacts.solid, &state.x, &mut ws.filter, zero);
         ws.unknown.iter_mut().for_each(|u| *u = Vec3::zeros());
         let (r, s) = solve(ws, state, solver)?;
@@ -584,12 +592,17 @@ fn linearised_step<S: Linearised>(
         (forces_s, assembly_s, solve_s) = (forces_s + t.links_s, assembly_s + t.gather_s, solve_s + s);
     }
     let t_update = Instant::now();
+    // The force each pin exerts: its row of the unfiltered residual.
+    for (pin, f) in model.pins().iter().zip(&mut ws.pin_forces) {
+        let i = pin.particle;
+        *f = (ws.system.matrix.row_times(i, &ws.unknown) - ws.system.rhs[i]) / force_coefficient;
+    }
     for i in 0..state.len() {
         (ws.new_x[i], ws.new_v[i]) = scheme.advance(state, &ws.aux, h, i, ws.unknown[i]);
     }
     let tau = scheme.response_time(h);
-    let solid = &ws.contacts.solid;
-    stats.sticking = apply_friction(solid, model.masses(), tau, &mut ws.new_x, &mut ws.new_v);
+    let solid = &mut ws.contacts.solid;
+    stats.sticking = apply_friction(solid, model.masses(), (tau, h), &mut ws.new_x, &mut ws.new_v);
     if !model.colliders().is_empty() {
         let t_next = state.time_s + h;
         // Newton corrections move free particles after the contact set was
@@ -632,9 +645,15 @@ struct StepLoads {
 /// Wind and self-collision forces at the start of the step into
 /// `ws.external`, and the cloth-solid contacts of the step into
 /// `ws.contacts.solid`. Only what the model has is computed.
-fn step_loads(model: &ClothModel, state: &ClothState, h: f64, ws: &mut Workspace) -> Result<StepLoads, StepError> {
+fn step_loads(
+    model: &ClothModel,
+    state: &ClothState,
+    control: &Control,
+    h: f64,
+    ws: &mut Workspace,
+) -> Result<StepLoads, StepError> {
     let mut loads = StepLoads {
-        external: external_forces(model, state, ws),
+        external: external_forces(model, state, control, ws),
         self_collision: false,
         stats: ContactStats::default(),
         collision_s: 0.0,
@@ -658,6 +677,7 @@ fn step_loads(model: &ClothModel, state: &ClothState, h: f64, ws: &mut Workspace
     ws.contacts.solid.clear();
     if !model.colliders().is_empty() {
         let t = Instant::now();
+        ws.contacts.set_external(control, model.colliders().len());
         loads.stats += detect_solid_contacts(model, state, h, &mut ws.contacts);
         loads.collision_s = t.elapsed().as_secs_f64();
     }
@@ -670,6 +690,7 @@ fn step_loads(model: &ClothModel, state: &ClothState, h: f64, ws: &mut Workspace
 pub(crate) fn collide_after_step(
     model: &ClothModel,
     state: &ClothState,
+    control: &Control,
     h: f64,
     ws: &mut Workspace,
     stages: &mut StageTimes,
@@ -678,6 +699,7 @@ pub(crate) fn collide_after_step(
         return ContactStats::default();
     }
     let t = Instant::now();
+    ws.contacts.set_external(control, model.colliders().len());
     let times = (state.time_s, h);
     let stats =
         crate::contacts::collide_after_step(model, &state.x, times, &mut ws.contacts, &mut ws.new_x, &mut ws.new_v);
@@ -695,14 +717,21 @@ pub(crate) fn reject_self_collision(model: &ClothModel, integrator: IntegratorKi
     Ok(())
 }
 
-/// Wind forces at the start of the step into `ws.external`; false (and
-/// nothing computed) when the model has no wind effect.
-pub(crate) fn external_forces(model: &ClothModel, state: &ClothState, ws: &mut Workspace) -> bool {
-    if model.wind().is_none() {
+/// Wind forces at the start of the step and the control's external
+/// forces into `ws.external`; false (and nothing computed) when there are
+/// neither.
+pub(crate) fn external_forces(model: &ClothModel, state: &ClothState, control: &Control, ws: &mut Workspace) -> bool {
+    let applied = control.forces();
+    if model.wind().is_none() && applied.is_none() {
         return false;
     }
     ws.external.iter_mut().for_each(|f| *f = Vec3::zeros());
-    crate::wind::add_wind_forces(model, &state.x, &state.v, state.time_s, &mut ws.normals, &mut ws.external);
+    if model.wind().is_some() {
+        crate::wind::add_wind_forces(model, &state.x, &state.v, state.time_s, &mut ws.normals, &mut ws.external);
+    }
+    if let Some(applied) = applied {
+        ws.external.iter_mut().zip(applied).for_each(|(f, a)| *f += a);
+    }
     true
 }
 
@@ -721,14 +750,16 @@ pub(crate) fn check_step(model: &ClothModel, state: &ClothState, h: f64) -> Resu
 pub(crate) fn constrain_pins(
     model: &ClothModel,
     state: &ClothState,
+    control: &Control,
     h: f64,
     filter: &mut ConstraintFilter,
     value: impl Fn(Vec3, usize) -> Vec3,
 ) {
     filter.clear();
     let t_next = state.time_s + h;
-    for pin in model.pins() {
-        let z = value(pin.position(t_next), pin.particle);
+    let paths = PinPaths::new(model, control, &state.x, state.time_s, h);
+    for (k, pin) in model.pins().iter().enumerate() {
+        let z = value(paths.position(k, t_next), pin.particle);
         // A non-finite prescribed value is caught as a non-finite state below.
         let _ = filter.set(pin.particle, Constraint::Fixed, z);
     }

@@ -11,6 +11,7 @@
 pub mod colliders;
 mod constraints;
 pub mod contacts;
+pub mod control;
 pub mod element_laws;
 pub mod elements;
 mod explicit;
@@ -33,6 +34,7 @@ pub use cloth_linalg::{PcgParams, PreconditionerKind};
 pub use colliders::{Collider, ColliderSpec, CollisionSpec, SelfCollision, SelfCollisionSpec};
 pub use constraints::{StrainLimitReport, apply_strain_limit};
 pub use contacts::ContactStats;
+pub use control::{Control, ControlError, SolidImpulse, SolidMotion};
 pub use integrator::{
     BackwardEuler, Bdf2, Integrator, IntegratorKind, SolverParams, StageTimes, StepError, StepReport, Workspace,
 };

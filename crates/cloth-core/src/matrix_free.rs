@@ -6,6 +6,7 @@
 //! mass part, and CG runs exactly `SolverParams::fixed_cg_iterations`
 //! iterations with the product computed link by link, never assembled.
 
+use crate::control::Control;
 use crate::{
     ClothModel, ClothState, SolverParams, Vec3, Workspace,
     forces::{apply_scaled_operator, assemble_matrix_free},
@@ -49,6 +50,7 @@ impl crate::Integrator for BackwardEulerFixedCg {
         &self,
         model: &ClothModel,
         state: &mut ClothState,
+        control: &Control,
         h: f64,
         ws: &mut Workspace,
         solver: &SolverParams,
@@ -56,7 +58,7 @@ impl crate::Integrator for BackwardEulerFixedCg {
         check_step(model, state, h)?;
         reject_self_collision(model, self.kind())?;
         let scheme = BackwardEuler;
-        let has_wind = external_forces(model, state, ws);
+        let has_wind = external_forces(model, state, control, ws);
         let mut terms = scheme.terms(state, &ws.aux, &ws.aux2, h);
         terms.external = has_wind.then_some(&ws.external[..]);
         let timing = assemble_matrix_free(model, &state.x, &terms, &mut ws.system);
@@ -67,7 +69,7 @@ impl crate::Integrator for BackwardEulerFixedCg {
             *bs = b * *s;
         }
         let inv_sqrt_mass = &mf.inv_sqrt_mass;
-        constrain_pins(model, state, h, &mut ws.filter, |target, i| {
+        constrain_pins(model, state, control, h, &mut ws.filter, |target, i| {
             scheme.pinned(state, h, target, i) / inv_sqrt_mass[i]
         });
         for (i, (u, s)) in ws.unknown.iter_mut().zip(inv_sqrt_mass).enumerate() {
@@ -89,6 +91,14 @@ impl crate::Integrator for BackwardEulerFixedCg {
             }
             Err(other) => unreachable!("fixed-iteration CG reports only curvature and finiteness: {other}"),
         };
+        if !model.pins().is_empty() {
+            // Pin forces from the unfiltered residual, one more operator product.
+            apply_scaled_operator(model, system, inv_sqrt_mass, &ws.unknown, &mut ws.aux);
+            for (pin, f) in model.pins().iter().zip(&mut ws.pin_forces) {
+                let i = pin.particle;
+                *f = (ws.aux[i] - mf.scaled_rhs[i]) / (inv_sqrt_mass[i] * h);
+            }
+        }
         let solve_s = t_solve.elapsed().as_secs_f64();
         let t_update = Instant::now();
         for i in 0..state.len() {
@@ -102,7 +112,7 @@ impl crate::Integrator for BackwardEulerFixedCg {
             update_s: t_update.elapsed().as_secs_f64(),
             ..StageTimes::default()
         };
-        let contacts = collide_after_step(model, state, h, ws, &mut stages);
+        let contacts = collide_after_step(model, state, control, h, ws, &mut stages);
         commit(state, ws, h)?;
         Ok(StepReport {
             force_evaluations: 1,

@@ -33,13 +33,16 @@ pub enum PinMotion {
         /// Offset at each time, m.
         offsets_m: Vec<[f64; 3]>,
     },
+    /// Driven from outside, step by step ([`crate::Control`]): stays where
+    /// it is until a target or motion is set.
+    External,
 }
 
 impl PinMotion {
     /// Offset from the initial position at time `t` (s), m.
     pub fn offset(&self, t: f64) -> Vec3 {
         match self {
-            PinMotion::Fixed => Vec3::zeros(),
+            PinMotion::Fixed | PinMotion::External => Vec3::zeros(),
             PinMotion::Linear { velocity_m_s } => Vec3::from(*velocity_m_s) * t,
             PinMotion::Oscillate { amplitude_m, frequency_hz } => {
                 Vec3::from(*amplitude_m) * (2.0 * std::f64::consts::PI * frequency_hz * t).sin()
@@ -52,7 +55,7 @@ impl PinMotion {
     /// slope of the segment containing `t`; zero outside the keyframes).
     pub fn velocity(&self, t: f64) -> Vec3 {
         match self {
-            PinMotion::Fixed => Vec3::zeros(),
+            PinMotion::Fixed | PinMotion::External => Vec3::zeros(),
             PinMotion::Linear { velocity_m_s } => Vec3::from(*velocity_m_s),
             PinMotion::Oscillate { amplitude_m, frequency_hz } => {
                 let w = 2.0 * std::f64::consts::PI * frequency_hz;
@@ -65,7 +68,7 @@ impl PinMotion {
     /// Checks the motion's numbers; names the first bad field.
     pub fn validate(&self) -> Result<(), (&'static str, String)> {
         match self {
-            PinMotion::Fixed => Ok(()),
+            PinMotion::Fixed | PinMotion::External => Ok(()),
             PinMotion::Linear { velocity_m_s } => finite3("velocity_m_s", velocity_m_s),
             PinMotion::Oscillate { amplitude_m, frequency_hz } => {
                 finite3("amplitude_m", amplitude_m)?;
@@ -96,6 +99,11 @@ impl Pin {
     /// Prescribed velocity at time `t`, m/s.
     pub fn velocity(&self, t: f64) -> Vec3 {
         self.motion.velocity(t)
+    }
+
+    /// Whether the pin is driven from outside ([`crate::Control::set_pin_target`]).
+    pub fn is_external(&self) -> bool {
+        self.motion == PinMotion::External
     }
 }
 

@@ -2,8 +2,9 @@
 //! its scratch space.
 
 use crate::apply_strain_limit;
-use crate::contacts::project_out;
-use crate::{ClothModel, ClothState, Integrator, IntegratorKind, SolverParams, StepError, StepReport, Workspace};
+use crate::contacts::{max_penetration, project_out};
+use crate::control::{Control, ControlError, SolidImpulse, SolidMotion};
+use crate::{ClothModel, ClothState, Integrator, IntegratorKind, SolverParams, StepError, StepReport, Vec3, Workspace};
 use std::sync::Arc;
 
 /// Owns a model and its state and advances them in time.
@@ -14,6 +15,7 @@ pub struct Simulation {
     integrator: Box<dyn Integrator>,
     solver: SolverParams,
     workspace: Workspace,
+    control: Control,
 }
 
 impl Simulation {
@@ -23,6 +25,7 @@ impl Simulation {
         Self {
             state: ClothState::at_rest(&model),
             workspace: Workspace::new(&model, &solver),
+            control: Control::for_model(&model),
             integrator: integrator.build(),
             solver,
             model,
@@ -32,7 +35,8 @@ impl Simulation {
     /// Advances by `h` seconds, then applies the model's deformation
     /// constraints if it has them. On error the state is unchanged.
     pub fn step(&mut self, h: f64) -> Result<StepReport, StepError> {
-        let mut report = self.integrator.step(&self.model, &mut self.state, h, &mut self.workspace, &self.solver)?;
+        let (model, control) = (&self.model, &self.control);
+        let mut report = self.integrator.step(model, &mut self.state, control, h, &mut self.workspace, &self.solver)?;
         if let Some(limit) = self.model.strain_limit() {
             let t = std::time::Instant::now();
             let ClothState { x, v, x_prev, time_s, .. } = &mut self.state;
@@ -71,6 +75,61 @@ impl Simulation {
     /// velocity and the normal force each exerted), sorted by particle.
     pub fn contacts(&self) -> &[crate::contacts::SolidContact] {
         &self.workspace.contacts.solid
+    }
+
+    /// The per-step inputs set so far.
+    pub fn control(&self) -> &Control {
+        &self.control
+    }
+
+    /// Sets the motion of externally driven solid `index` for the next
+    /// steps (see [`Control::set_solid_motion`]).
+    pub fn set_solid_motion(&mut self, index: usize, motion: SolidMotion) -> Result<(), ControlError> {
+        self.control.set_solid_motion(&self.model, index, motion)
+    }
+
+    /// Sets where externally driven pin `index` is at the end of the next
+    /// step, m (see [`Control::set_pin_target`]).
+    pub fn set_pin_target(&mut self, index: usize, position: Vec3) -> Result<(), ControlError> {
+        self.control.set_pin_target(&self.model, index, position)
+    }
+
+    /// Sets external forces on every particle, N, for the next steps.
+    pub fn set_external_forces(&mut self, forces: &[Vec3]) -> Result<(), ControlError> {
+        self.control.set_forces(&self.model, forces)
+    }
+
+    /// Removes the external forces.
+    pub fn clear_external_forces(&mut self) {
+        self.control.clear_forces();
+    }
+
+    /// What the cloth did to solid `index` over the last step: the
+    /// impulse (N s) and the angular impulse about `about` (m), N m s,
+    /// summed over its contacts at their surface points. Zero before the
+    /// first step and for solids not touched.
+    pub fn solid_impulse(&self, index: usize, about: Vec3) -> SolidImpulse {
+        let mut out = SolidImpulse::default();
+        for c in self.contacts().iter().filter(|c| c.collider as usize == index && c.impulse_n_s != Vec3::zeros()) {
+            let on_solid = -c.impulse_n_s;
+            out.linear += on_solid;
+            out.angular += (c.point - about).cross(&on_solid);
+            out.contacts += 1;
+        }
+        out
+    }
+
+    /// The mean force the cloth exerted on pin `index` over the last step,
+    /// N (the opposite of what holds the particle on its path: a hanging
+    /// cloth pulls its pins down). Zero before the first step.
+    pub fn pin_reaction(&self, index: usize) -> Vec3 {
+        self.workspace.pin_forces.get(index).map_or(Vec3::zeros(), |f| -f)
+    }
+
+    /// Deepest any particle is inside a solid now, m (0 when none is), with
+    /// external solids where the control put them.
+    pub fn max_penetration(&self) -> f64 {
+        max_penetration(&self.model, &self.control, &self.state.x, self.state.time_s)
     }
 
     /// A copy of the complete state (history included), for rollback.

@@ -1,0 +1,276 @@
+//! Per-step inputs set from outside the model, and what the cloth did to
+//! the outside in a step (Newton's `Control` beside `Model` and `State`).
+//!
+//! Inputs ([`Control`], set on a [`crate::Simulation`] before a step):
+//! - the motion of each externally driven solid (a collider whose scene
+//!   `motion` is `{ kind = "external" }`): its pose at the start of the step
+//!   and its linear and angular velocity over the step ([`SolidMotion`]);
+//! - the position at the end of the step of each externally driven pin;
+//! - external forces per particle, N, held constant over the step.
+//!
+//! Outputs (read after a step): per solid, the impulse and angular impulse
+//! the cloth exerted on it over the step ([`SolidImpulse`]); per pin, the
+//! force the cloth exerted on it ([`crate::Simulation::pin_reactions`]).
+//!
+//! Inputs persist from step to step until changed or cleared, as a motor
+//! command would: set them only when they change.
+
+use crate::{ClothModel, Vec3};
+use cloth_collide::BodyPose;
+use nalgebra::UnitQuaternion;
+
+/// The motion of a solid over one step: its pose at `time_s` and constant
+/// velocities, so `pose(t)` moves the frame origin at `linear_velocity`
+/// and turns it at `angular_velocity` (world axes, about the origin).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SolidMotion {
+    /// When `pose` holds, s.
+    pub time_s: f64,
+    /// The solid frame's pose at `time_s`.
+    pub pose: BodyPose,
+    /// Velocity of the frame origin, m/s.
+    pub linear_velocity: Vec3,
+    /// Angular velocity, rad/s, world axes.
+    pub angular_velocity: Vec3,
+}
+
+impl SolidMotion {
+    /// A solid at rest at `pose`.
+    pub fn at_rest(time_s: f64, pose: BodyPose) -> Self {
+        Self { time_s, pose, linear_velocity: Vec3::zeros(), angular_velocity: Vec3::zeros() }
+    }
+
+    /// The motion that takes the solid from `start` at `time_s` to `end`
+    /// at `time_s + h` with constant velocities (the rotation about the
+    /// shortest axis).
+    pub fn between(time_s: f64, start: BodyPose, end: BodyPose, h: f64) -> Self {
+        let turn = end.rotation * start.rotation.inverse();
+        Self {
+            time_s,
+            pose: start,
+            linear_velocity: (end.position - start.position) / h,
+            angular_velocity: turn.scaled_axis() / h,
+        }
+    }
+
+    /// Pose at time `t` (s): `p(t) = p_0 + v (t - t_0)`, `R(t) = exp(omega (t - t_0)) R_0`.
+    pub fn pose_at(&self, t: f64) -> BodyPose {
+        let dt = t - self.time_s;
+        BodyPose {
+            position: self.pose.position + self.linear_velocity * dt,
+            rotation: UnitQuaternion::from_scaled_axis(self.angular_velocity * dt) * self.pose.rotation,
+        }
+    }
+
+    /// Velocity of the solid's material point at `point` (m) at time `t`, m/s:
+    /// `v + omega x (point - origin(t))`.
+    pub fn velocity_at(&self, t: f64, point: Vec3) -> Vec3 {
+        let origin = self.pose.position + self.linear_velocity * (t - self.time_s);
+        self.linear_velocity + self.angular_velocity.cross(&(point - origin))
+    }
+
+    fn is_finite(&self) -> bool {
+        let p = &self.pose;
+        [p.position, self.linear_velocity, self.angular_velocity].iter().all(|v| v.iter().all(|c| c.is_finite()))
+            && p.rotation.coords.iter().all(|c| c.is_finite())
+            && self.time_s.is_finite()
+    }
+}
+
+/// The impulse a solid received from the cloth over one step.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SolidImpulse {
+    /// Linear impulse, N s (the step's mean contact force times the step).
+    pub linear: Vec3,
+    /// Angular impulse about the point the caller named, N m s.
+    pub angular: Vec3,
+    /// Contacts that carried it.
+    pub contacts: usize,
+}
+
+/// Why a control input was refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ControlError {
+    /// No collider with this index.
+    #[error("solid {index}: the model has {count} colliders")]
+    NoSuchSolid {
+        /// The index given.
+        index: usize,
+        /// Colliders in the model.
+        count: usize,
+    },
+    /// The collider follows a path from its scene; only `motion = { kind = "external" }` ones are driven.
+    #[error("solid {index}: its motion comes from the scene; declare motion = {{ kind = \"external\" }} to drive it")]
+    SolidNotExternal {
+        /// The collider.
+        index: usize,
+    },
+    /// No pin with this index.
+    #[error("pin {index}: the model has {count} pinned particles")]
+    NoSuchPin {
+        /// The index given.
+        index: usize,
+        /// Pins in the model.
+        count: usize,
+    },
+    /// The pin follows a path from its scene.
+    #[error("pin {index}: its motion comes from the scene; declare motion = {{ kind = \"external\" }} to drive it")]
+    PinNotExternal {
+        /// The pin.
+        index: usize,
+    },
+    /// A force array of the wrong length.
+    #[error("external forces: {got} given for {expected} particles")]
+    ForceCount {
+        /// Particles in the model.
+        expected: usize,
+        /// Forces given.
+        got: usize,
+    },
+    /// A value is NaN or infinite.
+    #[error("{what}: not finite")]
+    NonFinite {
+        /// Which input.
+        what: String,
+    },
+}
+
+/// Per-step inputs from outside the model. Build with
+/// [`Control::for_model`]; a [`crate::Simulation`] owns one.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Control {
+    solids: Vec<Option<SolidMotion>>,
+    pins: Vec<Option<Vec3>>,
+    forces: Vec<Vec3>,
+    has_forces: bool,
+}
+
+impl Control {
+    /// No inputs: externally driven solids and pins stay where they are.
+    pub fn for_model(model: &ClothModel) -> Self {
+        Self {
+            solids: vec![None; model.colliders().len()],
+            pins: vec![None; model.pins().len()],
+            forces: Vec::new(),
+            has_forces: false,
+        }
+    }
+
+    /// Sets the motion of externally driven solid `index` (its index among
+    /// the model's colliders).
+    pub fn set_solid_motion(
+        &mut self,
+        model: &ClothModel,
+        index: usize,
+        motion: SolidMotion,
+    ) -> Result<(), ControlError> {
+        let count = model.colliders().len();
+        let c = model.colliders().get(index).ok_or(ControlError::NoSuchSolid { index, count })?;
+        if !c.is_external() {
+            return Err(ControlError::SolidNotExternal { index });
+        }
+        if !motion.is_finite() {
+            return Err(ControlError::NonFinite { what: format!("solid {index} motion") });
+        }
+        self.solids[index] = Some(motion);
+        Ok(())
+    }
+
+    /// Sets where externally driven pin `index` (its index in
+    /// [`ClothModel::pins`]) is at the end of the next step, m. Within the
+    /// step it moves on a straight line from where its particle is.
+    pub fn set_pin_target(&mut self, model: &ClothModel, index: usize, position: Vec3) -> Result<(), ControlError> {
+        let count = model.pins().len();
+        let pin = model.pins().get(index).ok_or(ControlError::NoSuchPin { index, count })?;
+        if !pin.is_external() {
+            return Err(ControlError::PinNotExternal { index });
+        }
+        if !position.iter().all(|c| c.is_finite()) {
+            return Err(ControlError::NonFinite { what: format!("pin {index} target") });
+        }
+        self.pins[index] = Some(position);
+        Ok(())
+    }
+
+    /// Sets external forces on every particle, N, constant over each step
+    /// until changed.
+    pub fn set_forces(&mut self, model: &ClothModel, forces: &[Vec3]) -> Result<(), ControlError> {
+        let expected = model.particle_count();
+        if forces.len() != expected {
+            return Err(ControlError::ForceCount { expected, got: forces.len() });
+        }
+        if let Some(i) = forces.iter().position(|f| !f.iter().all(|c| c.is_finite())) {
+            return Err(ControlError::NonFinite { what: format!("external force on particle {i}") });
+        }
+        self.forces.clear();
+        self.forces.extend_from_slice(forces);
+        self.has_forces = forces.iter().any(|f| *f != Vec3::zeros());
+        Ok(())
+    }
+
+    /// Removes the external forces.
+    pub fn clear_forces(&mut self) {
+        self.forces.clear();
+        self.has_forces = false;
+    }
+
+    /// The motion set for solid `index`, if any.
+    pub fn solid_motion(&self, index: usize) -> Option<&SolidMotion> {
+        self.solids.get(index).and_then(Option::as_ref)
+    }
+
+    /// The target set for pin `index`, if any.
+    pub fn pin_target(&self, index: usize) -> Option<Vec3> {
+        self.pins.get(index).copied().flatten()
+    }
+
+    /// The external forces, when any is non-zero.
+    pub fn forces(&self) -> Option<&[Vec3]> {
+        self.has_forces.then_some(&self.forces[..])
+    }
+}
+
+/// Where each pin is during one step from `t0` to `t0 + h`: its scene path,
+/// or, for an external pin, the straight line from its particle's position
+/// `x0` to the target (held in place without one).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct PinPaths<'a> {
+    model: &'a ClothModel,
+    control: &'a Control,
+    x0: &'a [Vec3],
+    t0: f64,
+    h: f64,
+}
+
+impl<'a> PinPaths<'a> {
+    pub(crate) fn new(model: &'a ClothModel, control: &'a Control, x0: &'a [Vec3], t0: f64, h: f64) -> Self {
+        Self { model, control, x0, t0, h }
+    }
+
+    /// The model the pins belong to.
+    pub(crate) fn model(&self) -> &'a ClothModel {
+        self.model
+    }
+
+    /// Velocity of external pin `k` over the step, m/s.
+    fn external_velocity(&self, k: usize) -> Vec3 {
+        let start = self.x0[self.model.pins()[k].particle];
+        self.control.pin_target(k).map_or(Vec3::zeros(), |target| (target - start) / self.h)
+    }
+
+    /// Position of pin `k` at time `t` (s), m.
+    pub(crate) fn position(&self, k: usize, t: f64) -> Vec3 {
+        let pin = &self.model.pins()[k];
+        if pin.is_external() {
+            self.x0[pin.particle] + self.external_velocity(k) * (t - self.t0)
+        } else {
+            pin.position(t)
+        }
+    }
+
+    /// Velocity of pin `k` at time `t` (s), m/s.
+    pub(crate) fn velocity(&self, k: usize, t: f64) -> Vec3 {
+        let pin = &self.model.pins()[k];
+        if pin.is_external() { self.external_velocity(k) } else { pin.velocity(t) }
+    }
+}

@@ -1,0 +1,242 @@
+//! A co-simulation unit in the style of FMI 3.0 co-simulation: typed
+//! variables with a causality, `do_step` that may be discarded, and state
+//! get/set/serialise for rollback.
+
+use std::any::Any;
+
+/// What a variable is to the outside (FMI's causality).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Causality {
+    /// Set before the run, constant during it.
+    Parameter,
+    /// Set by the master before each step.
+    Input,
+    /// Read by the master after each step.
+    Output,
+}
+
+/// The value type of a variable. Only `Float64` is used so far; the type
+/// is carried so that an FMU's `modelDescription.xml` can be generated
+/// from it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum VarType {
+    /// A 64-bit float.
+    Float64,
+}
+
+/// One variable of a unit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Variable {
+    /// Unique name within the unit, e.g. `"pin0.target.x"`.
+    pub name: String,
+    /// Parameter, input or output.
+    pub causality: Causality,
+    /// Value type.
+    pub ty: VarType,
+    /// SI unit, e.g. `"N"`, `"m/s"` (`""` for dimensionless).
+    pub unit: &'static str,
+    /// What it is.
+    pub description: String,
+    /// Value before the first step.
+    pub start: f64,
+}
+
+impl Variable {
+    /// A `Float64` variable.
+    pub fn new(
+        name: impl Into<String>,
+        causality: Causality,
+        unit: &'static str,
+        description: impl Into<String>,
+    ) -> Self {
+        Self { name: name.into(), causality, ty: VarType::Float64, unit, description: description.into(), start: 0.0 }
+    }
+
+    /// The same variable with start value `start`.
+    pub fn with_start(mut self, start: f64) -> Self {
+        self.start = start;
+        self
+    }
+}
+
+/// Index of a variable in [`Unit::variables`] (FMI's value reference).
+pub type ValueRef = usize;
+
+/// How a step ended.
+#[derive(Debug, Clone, PartialEq)]
+pub enum StepOutcome {
+    /// The unit reached `t + h`.
+    Completed,
+    /// The unit could not complete the step (FMI's `fmi3Discard`) and
+    /// stopped at `last_time_s`; its state is valid there.
+    Discarded {
+        /// The time the unit reached, s.
+        last_time_s: f64,
+        /// Why.
+        reason: String,
+    },
+}
+
+/// A unit's saved state: opaque, only its own unit reads it.
+pub struct UnitState(pub Box<dyn Any + Send>);
+
+impl std::fmt::Debug for UnitState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("UnitState(..)")
+    }
+}
+
+/// Why a unit refused a call.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum UnitError {
+    /// No variable with this value reference.
+    #[error("{unit}: no variable {vr} (it has {count})")]
+    NoSuchVariable {
+        /// The unit.
+        unit: String,
+        /// The value reference given.
+        vr: ValueRef,
+        /// Variables of the unit.
+        count: usize,
+    },
+    /// The variable's causality forbids this call (e.g. setting an output).
+    #[error("{unit}: {name} is an {causality:?}: {message}")]
+    Causality {
+        /// The unit.
+        unit: String,
+        /// The variable.
+        name: String,
+        /// Its causality.
+        causality: Causality,
+        /// What was refused.
+        message: &'static str,
+    },
+    /// A value that is not finite or out of range.
+    #[error("{unit}: {name} = {value}: {message}")]
+    InvalidValue {
+        /// The unit.
+        unit: String,
+        /// The variable.
+        name: String,
+        /// The value.
+        value: f64,
+        /// Why.
+        message: String,
+    },
+    /// The unit does not support this call.
+    #[error("{unit}: {what} is not supported")]
+    Unsupported {
+        /// The unit.
+        unit: String,
+        /// The call.
+        what: &'static str,
+    },
+    /// A step failed for good (not a discard: the state is not usable).
+    #[error("{unit}: step from t = {time_s} s failed: {message}")]
+    StepFailed {
+        /// The unit.
+        unit: String,
+        /// Start of the step, s.
+        time_s: f64,
+        /// What went wrong.
+        message: String,
+    },
+    /// A saved state does not belong to this unit or is corrupt.
+    #[error("{unit}: bad state: {message}")]
+    BadState {
+        /// The unit.
+        unit: String,
+        /// Why.
+        message: String,
+    },
+}
+
+/// A co-simulation unit. Inputs hold their value (and, if the unit
+/// supports it, a time derivative for linear interpolation within the
+/// step) until set again.
+pub trait Unit: Send {
+    /// The unit's name, for messages.
+    fn name(&self) -> &str;
+
+    /// Every variable; a [`ValueRef`] indexes this slice.
+    fn variables(&self) -> &[Variable];
+
+    /// Sets an input (or a parameter before the first step).
+    fn set(&mut self, vr: ValueRef, value: f64) -> Result<(), UnitError>;
+
+    /// Sets the time derivative of an input over the next step, per
+    /// second: the unit then sees `u(t) = u(t0) + du (t - t0)` (FMI 2's
+    /// input derivatives). Units that hold inputs constant refuse it.
+    fn set_input_derivative(&mut self, vr: ValueRef, _du: f64) -> Result<(), UnitError> {
+        let _ = vr;
+        Err(UnitError::Unsupported { unit: self.name().to_string(), what: "input derivatives" })
+    }
+
+    /// Reads a variable.
+    fn get(&self, vr: ValueRef) -> Result<f64, UnitError>;
+
+    /// Advances from `t` to `t + h` (s) with the inputs set.
+    fn do_step(&mut self, t: f64, h: f64) -> Result<StepOutcome, UnitError>;
+
+    /// The complete state (FMI's `fmi3GetFMUState`).
+    fn get_state(&self) -> UnitState;
+
+    /// Returns to a state from [`Unit::get_state`] of this unit.
+    fn set_state(&mut self, state: &UnitState) -> Result<(), UnitError>;
+
+    /// A state as bytes (FMI's `fmi3SerializeFMUState`).
+    fn serialize_state(&self, state: &UnitState) -> Result<Vec<u8>, UnitError>;
+
+    /// A state from bytes written by [`Unit::serialize_state`].
+    fn deserialize_state(&self, bytes: &[u8]) -> Result<UnitState, UnitError>;
+
+    /// The value reference of the variable called `name`.
+    fn find(&self, name: &str) -> Option<ValueRef> {
+        self.variables().iter().position(|v| v.name == name)
+    }
+}
+
+/// Checks that `vr` exists and may be set; returns its variable.
+pub fn settable<'a>(unit: &str, vars: &'a [Variable], vr: ValueRef, value: f64) -> Result<&'a Variable, UnitError> {
+    let var = vars.get(vr).ok_or(UnitError::NoSuchVariable { unit: unit.into(), vr, count: vars.len() })?;
+    if var.causality == Causality::Output {
+        return Err(UnitError::Causality {
+            unit: unit.into(),
+            name: var.name.clone(),
+            causality: var.causality,
+            message: "outputs cannot be set",
+        });
+    }
+    if !value.is_finite() {
+        return Err(UnitError::InvalidValue {
+            unit: unit.into(),
+            name: var.name.clone(),
+            value,
+            message: "must be finite".into(),
+        });
+    }
+    Ok(var)
+}
+
+/// Little-endian `f64` packing for state serialisation, with a tag so that
+/// a state of another kind of unit is recognised.
+pub mod bytes {
+    /// Writes `tag` and the values.
+    pub fn pack(tag: &[u8; 8], values: impl IntoIterator<Item = f64>) -> Vec<u8> {
+        let mut out = tag.to_vec();
+        for v in values {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        out
+    }
+
+    /// Reads the values after `tag`; `None` if the tag differs or the
+    /// length is not a whole number of values.
+    pub fn unpack(tag: &[u8; 8], bytes: &[u8]) -> Option<Vec<f64>> {
+        let rest = bytes.strip_prefix(&tag[..])?;
+        if rest.len() % 8 != 0 {
+            return None;
+        }
+        Some(rest.chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().expect("chunks of 8"))).collect())
+    }
+}
