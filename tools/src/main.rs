@@ -87,6 +87,8 @@ enum StudyKind {
     Cost,
     /// Error against a converged reference versus wall time (work-precision).
     Precision,
+    /// Co-simulation masters on the two-mass oscillator: order and energy drift.
+    Cosim,
 }
 
 fn main() -> ExitCode {
@@ -104,6 +106,7 @@ fn main() -> ExitCode {
                 StudyKind::Drape => study::drape(&args),
                 StudyKind::Cost => study::cost(&args),
                 StudyKind::Precision => study::precision(&args),
+                StudyKind::Cosim => study::cosim(&args),
             }
         }
     };

@@ -29,7 +29,7 @@ mod state;
 mod topology;
 pub mod wind;
 
-pub use cloth_collide::{ShapeSpec, VoxelHash};
+pub use cloth_collide::{BodyPose, ShapeSpec, VoxelHash};
 pub use cloth_linalg::{PcgParams, PreconditionerKind};
 pub use colliders::{Collider, ColliderSpec, CollisionSpec, SelfCollision, SelfCollisionSpec};
 pub use constraints::{StrainLimitReport, apply_strain_limit};

@@ -1,2 +1,366 @@
-//! placeholder
-pub struct ClothUnit;
+//! A cloth [`Simulation`] as a co-simulation [`Unit`].
+//!
+//! Variables (all `Float64`, SI):
+//! - inputs, per externally driven pin `k`: `pin{k}.target.{x,y,z}`, where
+//!   the pin is at the end of the step (m), with optional derivatives (the
+//!   target then moves on to `value + du h`);
+//! - inputs, per externally driven solid `k`: `solid{k}.position.{x,y,z}`
+//!   (m) and `solid{k}.rotation.{x,y,z}` (rotation vector, rad) at the
+//!   start of the step, `solid{k}.velocity.{x,y,z}` (m/s) and
+//!   `solid{k}.angular_velocity.{x,y,z}` (rad/s) over it;
+//! - outputs, per solid `k`: `solid{k}.force.{x,y,z}` (N) and
+//!   `solid{k}.torque.{x,y,z}` (N m, about the solid's frame origin at the
+//!   start of the step): the mean the cloth exerted over the last step;
+//! - outputs, per pin `k`: `pin{k}.reaction.{x,y,z}` (N), the mean force the
+//!   cloth exerted on it;
+//! - outputs: `lowest_z` (m), `max_stretch` (longest link over its rest length).
+//!
+//! A step that fails in the solver or goes non-finite is discarded: the
+//! cloth stays at the start of the step, as FMI's `fmi3Discard` asks.
+
+use crate::unit::{Causality, StepOutcome, Unit, UnitError, UnitState, ValueRef, Variable, bytes, settable};
+use cloth_core::{BodyPose, ClothState, Simulation, SolidMotion, Vec3};
+use nalgebra::UnitQuaternion;
+
+/// What a variable of the cloth unit refers to.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Role {
+    PinTarget(usize, usize),
+    SolidPosition(usize, usize),
+    SolidRotation(usize, usize),
+    SolidVelocity(usize, usize),
+    SolidAngularVelocity(usize, usize),
+    SolidForce(usize, usize),
+    SolidTorque(usize, usize),
+    PinReaction(usize, usize),
+    LowestZ,
+    MaxStretch,
+}
+
+/// A cloth simulation as a co-simulation unit.
+#[derive(Debug)]
+pub struct ClothUnit {
+    name: String,
+    sim: Simulation,
+    vars: Vec<Variable>,
+    roles: Vec<Role>,
+    /// Current value of every variable (inputs as set, outputs after the last step).
+    values: Vec<f64>,
+    /// Input derivatives, per second.
+    rates: Vec<f64>,
+}
+
+const AXES: [&str; 3] = ["x", "y", "z"];
+const TAG: &[u8; 8] = b"clothunt";
+
+impl ClothUnit {
+    /// Wraps `sim`; its external pins and solids become inputs.
+    pub fn new(name: impl Into<String>, sim: Simulation) -> Self {
+        let mut vars = Vec::new();
+        let mut roles = Vec::new();
+        let model = sim.model().clone();
+        let mut add = |var: Variable, role: Role| {
+            vars.push(var);
+            roles.push(role);
+        };
+        for (k, pin) in model.pins().iter().enumerate().filter(|(_, p)| p.is_external()) {
+            for (a, axis) in AXES.iter().enumerate() {
+                let var = Variable::new(
+                    format!("pin{k}.target.{axis}"),
+                    Causality::Input,
+                    "m",
+                    "pin position at the end of the step",
+                );
+                add(var.with_start(pin.anchor[a]), Role::PinTarget(k, a));
+            }
+        }
+        for (k, c) in model.colliders().iter().enumerate().filter(|(_, c)| c.is_external()) {
+            let rotation = c.anchor.rotation.scaled_axis();
+            for (a, axis) in AXES.iter().enumerate() {
+                let v = Variable::new(
+                    format!("solid{k}.position.{axis}"),
+                    Causality::Input,
+                    "m",
+                    "solid frame origin at the start of the step",
+                );
+                add(v.with_start(c.anchor.position[a]), Role::SolidPosition(k, a));
+                let v = Variable::new(
+                    format!("solid{k}.rotation.{axis}"),
+                    Causality::Input,
+                    "rad",
+                    "solid orientation (rotation vector) at the start of the step",
+                );
+                add(v.with_start(rotation[a]), Role::SolidRotation(k, a));
+                let v = Variable::new(
+                    format!("solid{k}.velocity.{axis}"),
+                    Causality::Input,
+                    "m/s",
+                    "velocity of the solid frame origin",
+                );
+                add(v, Role::SolidVelocity(k, a));
+                let v = Variable::new(
+                    format!("solid{k}.angular_velocity.{axis}"),
+                    Causality::Input,
+                    "rad/s",
+                    "angular velocity of the solid",
+                );
+                add(v, Role::SolidAngularVelocity(k, a));
+            }
+        }
+        for k in 0..model.colliders().len() {
+            for (a, axis) in AXES.iter().enumerate() {
+                let v = Variable::new(
+                    format!("solid{k}.force.{axis}"),
+                    Causality::Output,
+                    "N",
+                    "mean force of the cloth on the solid over the last step",
+                );
+                add(v, Role::SolidForce(k, a));
+                let v = Variable::new(
+                    format!("solid{k}.torque.{axis}"),
+                    Causality::Output,
+                    "N.m",
+                    "mean torque of the cloth on the solid about its frame origin",
+                );
+                add(v, Role::SolidTorque(k, a));
+            }
+        }
+        for k in 0..model.pins().len() {
+            for (a, axis) in AXES.iter().enumerate() {
+                let v = Variable::new(
+                    format!("pin{k}.reaction.{axis}"),
+                    Causality::Output,
+                    "N",
+                    "mean force of the cloth on the pin over the last step",
+                );
+                add(v, Role::PinReaction(k, a));
+            }
+        }
+        add(Variable::new("lowest_z", Causality::Output, "m", "lowest particle height"), Role::LowestZ);
+        add(
+            Variable::new("max_stretch", Causality::Output, "1", "longest link over its rest length"),
+            Role::MaxStretch,
+        );
+        let values = vars.iter().map(|v| v.start).collect();
+        let rates = vec![0.0; vars.len()];
+        let mut unit = Self { name: name.into(), sim, vars, roles, values, rates };
+        unit.update_shape_outputs();
+        unit
+    }
+
+    /// The wrapped simulation.
+    pub fn simulation(&self) -> &Simulation {
+        &self.sim
+    }
+
+    fn update_shape_outputs(&mut self) {
+        let state = self.sim.state();
+        let lowest = state.x.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
+        let stretch = self.sim.model().max_stretch_ratio(&state.x);
+        for (role, value) in self.roles.iter().zip(&mut self.values) {
+            match role {
+                Role::LowestZ => *value = lowest,
+                Role::MaxStretch => *value = stretch,
+                _ => {}
+            }
+        }
+    }
+
+    /// Collects a 3-vector input of `role` kind for item `k`.
+    fn vector(&self, k: usize, pick: impl Fn(Role) -> Option<(usize, usize)>) -> (Vec3, Vec3) {
+        let (mut value, mut rate) = (Vec3::zeros(), Vec3::zeros());
+        for (i, role) in self.roles.iter().enumerate() {
+            if let Some((item, axis)) = pick(*role)
+                && item == k
+            {
+                (value[axis], rate[axis]) = (self.values[i], self.rates[i]);
+            }
+        }
+        (value, rate)
+    }
+
+    /// Puts the inputs into the simulation's control for a step from `t` of `h`.
+    fn apply_inputs(&mut self, t: f64, h: f64) -> Result<(), UnitError> {
+        let model = self.sim.model().clone();
+        let refuse = |e: cloth_core::ControlError| UnitError::StepFailed {
+            unit: self.name.clone(),
+            time_s: t,
+            message: e.to_string(),
+        };
+        for k in (0..model.pins().len()).filter(|&k| model.pins()[k].is_external()) {
+            let (target, rate) = self.vector(k, |r| if let Role::PinTarget(k, a) = r { Some((k, a)) } else { None });
+            self.sim.set_pin_target(k, target + rate * h).map_err(refuse)?;
+        }
+        for k in (0..model.colliders().len()).filter(|&k| model.colliders()[k].is_external()) {
+            let get = |f: fn(Role) -> Option<(usize, usize)>| self.vector(k, f).0;
+            let position = get(|r| if let Role::SolidPosition(k, a) = r { Some((k, a)) } else { None });
+            let rotation = get(|r| if let Role::SolidRotation(k, a) = r { Some((k, a)) } else { None });
+            let linear_velocity = get(|r| if let Role::SolidVelocity(k, a) = r { Some((k, a)) } else { None });
+            let angular_velocity = get(|r| if let Role::SolidAngularVelocity(k, a) = r { Some((k, a)) } else { None });
+            let pose = BodyPose { position, rotation: UnitQuaternion::from_scaled_axis(rotation) };
+            let motion = SolidMotion { time_s: t, pose, linear_velocity, angular_velocity };
+            self.sim.set_solid_motion(k, motion).map_err(refuse)?;
+        }
+        Ok(())
+    }
+
+    /// Reads the step's outputs; `h` turns impulses into mean forces.
+    fn read_outputs(&mut self, h: f64) {
+        let model = self.sim.model().clone();
+        let origins: Vec<Vec3> = (0..model.colliders().len())
+            .map(|k| {
+                self.sim
+                    .control()
+                    .solid_motion(k)
+                    .map_or(model.colliders()[k].pose(self.sim.time() - h).position, |m| m.pose.position)
+            })
+            .collect();
+        let impulses: Vec<_> = origins.iter().enumerate().map(|(k, o)| self.sim.solid_impulse(k, *o)).collect();
+        for (i, role) in self.roles.iter().enumerate() {
+            self.values[i] = match *role {
+                Role::SolidForce(k, a) => impulses[k].linear[a] / h,
+                Role::SolidTorque(k, a) => impulses[k].angular[a] / h,
+                Role::PinReaction(k, a) => self.sim.pin_reaction(k)[a],
+                _ => continue,
+            };
+        }
+        self.update_shape_outputs();
+    }
+}
+
+/// The unit's complete state: the cloth's and every variable's value and rate.
+#[derive(Debug, Clone, PartialEq)]
+struct Saved {
+    cloth: ClothState,
+    values: Vec<f64>,
+    rates: Vec<f64>,
+}
+
+impl Unit for ClothUnit {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn variables(&self) -> &[Variable] {
+        &self.vars
+    }
+
+    fn set(&mut self, vr: ValueRef, value: f64) -> Result<(), UnitError> {
+        settable(&self.name, &self.vars, vr, value)?;
+        (self.values[vr], self.rates[vr]) = (value, 0.0);
+        Ok(())
+    }
+
+    fn set_input_derivative(&mut self, vr: ValueRef, du: f64) -> Result<(), UnitError> {
+        settable(&self.name, &self.vars, vr, du)?;
+        if !matches!(self.roles[vr], Role::PinTarget(..)) {
+            return Err(UnitError::Unsupported {
+                unit: self.name.clone(),
+                what: "derivatives of inputs other than pin targets",
+            });
+        }
+        self.rates[vr] = du;
+        Ok(())
+    }
+
+    fn get(&self, vr: ValueRef) -> Result<f64, UnitError> {
+        self.values.get(vr).copied().ok_or(UnitError::NoSuchVariable {
+            unit: self.name.clone(),
+            vr,
+            count: self.vars.len(),
+        })
+    }
+
+    fn do_step(&mut self, t: f64, h: f64) -> Result<StepOutcome, UnitError> {
+        let now = self.sim.time();
+        if (t - now).abs() > 1e-9 * now.abs().max(1.0) {
+            return Err(UnitError::StepFailed {
+                unit: self.name.clone(),
+                time_s: t,
+                message: format!("the cloth is at t = {now} s"),
+            });
+        }
+        if !(h.is_finite() && h > 0.0) {
+            return Err(UnitError::InvalidValue {
+                unit: self.name.clone(),
+                name: "step".into(),
+                value: h,
+                message: "must be finite and > 0".into(),
+            });
+        }
+        self.apply_inputs(t, h)?;
+        match self.sim.step(h) {
+            Ok(_) => {
+                self.read_outputs(h);
+                Ok(StepOutcome::Completed)
+            }
+            Err(e) => Ok(StepOutcome::Discarded { last_time_s: now, reason: e.to_string() }),
+        }
+    }
+
+    fn get_state(&self) -> UnitState {
+        UnitState(Box::new(Saved {
+            cloth: self.sim.snapshot(),
+            values: self.values.clone(),
+            rates: self.rates.clone(),
+        }))
+    }
+
+    fn set_state(&mut self, state: &UnitState) -> Result<(), UnitError> {
+        let bad = |message: String| UnitError::BadState { unit: self.name.clone(), message };
+        let saved = state.0.downcast_ref::<Saved>().ok_or_else(|| bad("not a state of a cloth unit".into()))?;
+        if saved.values.len() != self.values.len() {
+            return Err(bad(format!("{} variables, this unit has {}", saved.values.len(), self.values.len())));
+        }
+        self.sim.restore(&saved.cloth).map_err(|e| bad(e.to_string()))?;
+        self.values.clone_from(&saved.values);
+        self.rates.clone_from(&saved.rates);
+        Ok(())
+    }
+
+    /// Layout: tag, then `time, steps, has_history, last_dt, next_dt`,
+    /// `x, v, x_prev, v_prev` (3 values per particle each), values, rates.
+    fn serialize_state(&self, state: &UnitState) -> Result<Vec<u8>, UnitError> {
+        let saved = state.0.downcast_ref::<Saved>().ok_or_else(|| UnitError::BadState {
+            unit: self.name.clone(),
+            message: "not a state of a cloth unit".into(),
+        })?;
+        let c = &saved.cloth;
+        let head = [c.time_s, c.steps as f64, f64::from(u8::from(c.has_history)), c.last_dt_s, c.next_dt_s];
+        let vectors =
+            [&c.x, &c.v, &c.x_prev, &c.v_prev].into_iter().flat_map(|a| a.iter().flat_map(|p| [p.x, p.y, p.z]));
+        let values =
+            head.into_iter().chain(vectors).chain(saved.values.iter().copied()).chain(saved.rates.iter().copied());
+        Ok(bytes::pack(TAG, values))
+    }
+
+    fn deserialize_state(&self, data: &[u8]) -> Result<UnitState, UnitError> {
+        let n = self.sim.model().particle_count();
+        let m = self.values.len();
+        let expected = 5 + 12 * n + 2 * m;
+        let values = bytes::unpack(TAG, data).filter(|v| v.len() == expected).ok_or_else(|| UnitError::BadState {
+            unit: self.name.clone(),
+            message: format!("{} bytes are not a serialised state of this cloth unit ({expected} values)", data.len()),
+        })?;
+        let vec3s = |k: usize| -> Vec<Vec3> {
+            (0..n)
+                .map(|i| {
+                    Vec3::new(values[5 + 3 * (k * n + i)], values[6 + 3 * (k * n + i)], values[7 + 3 * (k * n + i)])
+                })
+                .collect()
+        };
+        let cloth = ClothState {
+            time_s: values[0],
+            steps: values[1] as u64,
+            has_history: values[2] != 0.0,
+            last_dt_s: values[3],
+            next_dt_s: values[4],
+            x: vec3s(0),
+            v: vec3s(1),
+            x_prev: vec3s(2),
+            v_prev: vec3s(3),
+        };
+        let tail = &values[5 + 12 * n..];
+        Ok(UnitState(Box::new(Saved { cloth, values: tail[..m].to_vec(), rates: tail[m..].to_vec() })))
+    }
+}
