@@ -65,7 +65,8 @@
 //! position_m = [0.0, 0.0, 0.0]
 //! rotation_deg = [0.0, 0.0, 0.0]   # about x, then y, then z (fixed axes)
 //! friction = 0.3                   # Coulomb coefficient
-//! motion = { kind = "fixed" }      # or linear / oscillate / keyframes, as pins
+//! motion = { kind = "fixed" }      # or linear / oscillate / keyframes, as pins, or "external"
+//!                                  # (moved by the program each step; held in place by `cloth run`)
 //! spin_deg_s = [0.0, 0.0, 0.0]     # angular velocity about the frame origin
 //!
 //! [self_collision]             # optional; absent: no spatial hash is built
