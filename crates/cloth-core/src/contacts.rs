@@ -213,16 +213,18 @@ impl Nearest {
 /// A solid's pose, motion and world bounding box at one instant.
 #[derive(Debug, Clone, Copy)]
 struct SolidPose {
-    /// Index among the model's colliders.
-    index: usize,
-    pose: BodyPose,
-    /// The motion through `pose` at this instant (for surface velocities).
+    /// The pose at this instant (`motion.pose`) and the velocities through it.
     motion: SolidMotion,
     lo: Vec3,
     hi: Vec3,
 }
 
 impl SolidPose {
+    /// The solid frame's pose at this instant.
+    fn pose(&self) -> &BodyPose {
+        &self.motion.pose
+    }
+
     /// Whether `p` is within `margin` of the bounding box.
     fn near(&self, p: &Vec3, margin: f64) -> bool {
         (0..3).all(|a| p[a] >= self.lo[a] - margin && p[a] <= self.hi[a] + margin)
@@ -261,7 +263,7 @@ impl SolidFrames {
                     },
                 };
                 let (lo, hi) = c.shape.aabb(&motion.pose);
-                SolidPose { index: k, pose: motion.pose, motion, lo, hi }
+                SolidPose { motion, lo, hi }
             }));
             self.time = Some(time);
         }
@@ -273,9 +275,9 @@ impl ContactBuffers {
     /// Takes the motions of externally driven solids for the next step
     /// from `control` (and forgets solid poses computed before, since a
     /// repeated step may move them differently).
-    pub(crate) fn set_external(&mut self, control: &Control, solids: usize) {
+    pub(crate) fn set_external(&mut self, control: &Control) {
         self.external.clear();
-        self.external.extend((0..solids).map(|k| control.solid_motion(k).copied()));
+        self.external.extend_from_slice(control.solid_motions());
         self.now.time = None;
         self.next.time = None;
     }
@@ -311,7 +313,7 @@ pub fn detect_solid_contacts(
         for (k, (c, (now, next))) in colliders.iter().zip(solids_now.iter().zip(solids_next)).enumerate() {
             let mut here = None;
             if now.near(&x[i], reach) {
-                let s = c.shape.closest(&now.pose, x[i]);
+                let s = c.shape.closest(now.pose(), x[i]);
                 probe.0 = probe.0.max(-s.distance_m);
                 probe.1 += 1;
                 here = Some(s);
@@ -319,12 +321,12 @@ pub fn detect_solid_contacts(
             if !next.near(&predicted, reach) {
                 continue;
             }
-            let s = c.shape.closest(&next.pose, predicted);
+            let s = c.shape.closest(next.pose(), predicted);
             probe.1 += 1;
             if s.distance_m < reach {
                 // The side the particle comes from: a prediction deep inside
                 // a thin solid is closest to its far face.
-                let from = if c.is_moving() { Some(c.shape.closest(&next.pose, x[i])) } else { here };
+                let from = if c.is_moving() { Some(c.shape.closest(next.pose(), x[i])) } else { here };
                 let surface = from.filter(|f| f.distance_m > 0.0).unwrap_or(s);
                 let travel = normal_travel(surface.normal.dot(&(x[i] - surface.point)), thickness, reach);
                 nearest.offer(s.distance_m, contact(i, k, c, &surface, s.distance_m, travel, next));
@@ -383,7 +385,7 @@ fn near_surface(
     if !solid.near(&to, limit) {
         return None;
     }
-    let pose = &solid.pose;
+    let pose = solid.pose();
     let at = c.shape.closest(pose, to);
     *queries += 1;
     if at.distance_m >= limit {
@@ -397,17 +399,17 @@ fn near_surface(
 /// The entries of `contacts` (sorted by particle) that belong to one
 /// particle each, in order.
 fn groups(contacts: &[SolidContact]) -> impl Iterator<Item = std::ops::Range<usize>> + '_ {
-    let mut start = 0;
-    std::iter::from_fn(move || {
-        if start >= contacts.len() {
-            return None;
-        }
-        let p = contacts[start].particle;
-        let end = start + contacts[start..].iter().take_while(|c| c.particle == p).count();
-        let range = start..end;
-        start = end;
+    contacts.chunk_by(same_particle).scan(0, |start, group| {
+        let range = *start..*start + group.len();
+        *start = range.end;
         Some(range)
     })
+}
+
+/// Whether two contact entries belong to the same particle (entries are
+/// sorted by particle, so a particle's entries are consecutive).
+fn same_particle(a: &SolidContact, b: &SolidContact) -> bool {
+    a.particle == b.particle
 }
 
 /// After a solve: a particle whose new position `new_x` ends closer than
@@ -578,7 +580,7 @@ pub fn collide_after_step(
                 else {
                     continue;
                 };
-                let before = c.shape.closest(&now.pose, x[i]);
+                let before = c.shape.closest(now.pose(), x[i]);
                 stats.max_penetration_m = stats.max_penetration_m.max(-before.distance_m);
                 stats.narrow_phase_queries += 1;
                 let n = surface.normal;
@@ -626,12 +628,10 @@ pub fn collide_after_step(
 /// puts them. A diagnostic: it queries every particle near every solid.
 pub fn max_penetration(model: &ClothModel, control: &Control, x: &[Vec3], t: f64) -> f64 {
     let mut deepest: f64 = 0.0;
-    let external: Vec<_> = (0..model.colliders().len()).map(|k| control.solid_motion(k).copied()).collect();
-    for s in SolidFrames::default().at(model, &external, t) {
-        let (pose, lo, hi) = (&s.pose, s.lo, s.hi);
-        let c = &model.colliders()[s.index];
-        for p in x.iter().filter(|p| (0..3).all(|a| p[a] >= lo[a] && p[a] <= hi[a])) {
-            deepest = deepest.max(-c.shape.closest(pose, *p).distance_m);
+    let mut frames = SolidFrames::default();
+    for (c, s) in model.colliders().iter().zip(frames.at(model, control.solid_motions(), t)) {
+        for p in x.iter().filter(|p| s.near(p, 0.0)) {
+            deepest = deepest.max(-c.shape.closest(s.pose(), *p).distance_m);
         }
     }
     deepest
@@ -719,12 +719,8 @@ pub fn release_pulling(
     value: impl Fn(Vec3, usize) -> Vec3,
 ) -> usize {
     let mut released = 0;
-    let mut start = 0;
-    while start < contacts.len() {
-        let i = contacts[start].particle as usize;
-        let end = start + contacts[start..].iter().take_while(|c| c.particle as usize == i).count();
-        let group = &mut contacts[start..end];
-        start = end;
+    for group in contacts.chunk_by_mut(same_particle) {
+        let i = group[0].particle as usize;
         let mut active = (0..group.len()).filter(|&k| group[k].active);
         let (first, second) = (active.next(), active.next());
         let Some(a) = first else { continue };
@@ -771,12 +767,7 @@ pub fn apply_friction(
     new_v: &mut [Vec3],
 ) -> usize {
     let mut sticking = 0;
-    let mut start = 0;
-    while start < contacts.len() {
-        let p = contacts[start].particle;
-        let end = start + contacts[start..].iter().take_while(|c| c.particle == p).count();
-        let group = &mut contacts[start..end];
-        start = end;
+    for group in contacts.chunk_by_mut(same_particle) {
         for c in group.iter_mut() {
             c.impulse_n_s = if c.active { c.normal * (c.normal_force_n * h) } else { Vec3::zeros() };
         }

@@ -208,6 +208,13 @@ impl Control {
         Ok(())
     }
 
+    /// Adds the external forces, if any, to `force` (N per particle).
+    pub(crate) fn add_forces_to(&self, force: &mut [Vec3]) {
+        if let Some(applied) = self.forces() {
+            force.iter_mut().zip(applied).for_each(|(f, a)| *f += a);
+        }
+    }
+
     /// Removes the external forces.
     pub fn clear_forces(&mut self) {
         self.forces.clear();
@@ -217,6 +224,11 @@ impl Control {
     /// The motion set for solid `index`, if any.
     pub fn solid_motion(&self, index: usize) -> Option<&SolidMotion> {
         self.solids.get(index).and_then(Option::as_ref)
+    }
+
+    /// The motion set for each of the model's solids (`None`: not set).
+    pub(crate) fn solid_motions(&self) -> &[Option<SolidMotion>] {
+        &self.solids
     }
 
     /// The target set for pin `index`, if any.

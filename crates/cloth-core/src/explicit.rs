@@ -115,13 +115,6 @@ fn impose_pins(paths: &PinPaths<'_>, t: f64, x: &mut [Vec3], v: &mut [Vec3]) {
     }
 }
 
-/// Adds the control's external forces, if any, to `force`.
-fn add_applied(control: &Control, force: &mut [Vec3]) {
-    if let Some(applied) = control.forces() {
-        force.iter_mut().zip(applied).for_each(|(f, a)| *f += a);
-    }
-}
-
 /// `out = base + h sum_j coef_j k_j`, parallel per particle.
 fn combine(base: &[Vec3], h: f64, coef: &[f64], k: &[Vec<Vec3>], out: &mut [Vec3]) {
     out.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(chunk, o)| {
@@ -174,7 +167,7 @@ pub(crate) fn rk_step(
         let t_force = Instant::now();
         forces_into(model, &bufs.xs, &bufs.vs, &mut bufs.forces, &mut bufs.force);
         add_wind_forces(model, &bufs.xs, &bufs.vs, ts, &mut bufs.normals, &mut bufs.force);
-        add_applied(control, &mut bufs.force);
+        control.add_forces_to(&mut bufs.force);
         stages_time.forces_s += t_force.elapsed().as_secs_f64();
         let (kx, kv) = (&mut bufs.kx[s], &mut bufs.kv[s]);
         kx.copy_from_slice(&bufs.vs);
@@ -225,7 +218,7 @@ pub(crate) fn symplectic_euler_step(
     let t_force = Instant::now();
     forces_into(model, x, v, &mut bufs.forces, &mut bufs.force);
     add_wind_forces(model, x, v, t, &mut bufs.normals, &mut bufs.force);
-    add_applied(control, &mut bufs.force);
+    control.add_forces_to(&mut bufs.force);
     stages_time.forces_s += t_force.elapsed().as_secs_f64();
     let t_update = Instant::now();
     let masses = model.masses();

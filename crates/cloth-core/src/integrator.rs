@@ -677,7 +677,7 @@ fn step_loads(
     ws.contacts.solid.clear();
     if !model.colliders().is_empty() {
         let t = Instant::now();
-        ws.contacts.set_external(control, model.colliders().len());
+        ws.contacts.set_external(control);
         loads.stats += detect_solid_contacts(model, state, h, &mut ws.contacts);
         loads.collision_s = t.elapsed().as_secs_f64();
     }
@@ -699,7 +699,7 @@ pub(crate) fn collide_after_step(
         return ContactStats::default();
     }
     let t = Instant::now();
-    ws.contacts.set_external(control, model.colliders().len());
+    ws.contacts.set_external(control);
     let times = (state.time_s, h);
     let stats =
         crate::contacts::collide_after_step(model, &state.x, times, &mut ws.contacts, &mut ws.new_x, &mut ws.new_v);
@@ -721,17 +721,14 @@ pub(crate) fn reject_self_collision(model: &ClothModel, integrator: IntegratorKi
 /// forces into `ws.external`; false (and nothing computed) when there are
 /// neither.
 pub(crate) fn external_forces(model: &ClothModel, state: &ClothState, control: &Control, ws: &mut Workspace) -> bool {
-    let applied = control.forces();
-    if model.wind().is_none() && applied.is_none() {
+    if model.wind().is_none() && control.forces().is_none() {
         return false;
     }
     ws.external.iter_mut().for_each(|f| *f = Vec3::zeros());
     if model.wind().is_some() {
         crate::wind::add_wind_forces(model, &state.x, &state.v, state.time_s, &mut ws.normals, &mut ws.external);
     }
-    if let Some(applied) = applied {
-        ws.external.iter_mut().zip(applied).for_each(|(f, a)| *f += a);
-    }
+    control.add_forces_to(&mut ws.external);
     true
 }
 

@@ -22,19 +22,27 @@ use crate::unit::{Causality, StepOutcome, Unit, UnitError, UnitState, ValueRef, 
 use cloth_core::{BodyPose, ClothState, Simulation, SolidMotion, Vec3};
 use nalgebra::UnitQuaternion;
 
-/// What a variable of the cloth unit refers to.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Role {
-    PinTarget(usize, usize),
-    SolidPosition(usize, usize),
-    SolidRotation(usize, usize),
-    SolidVelocity(usize, usize),
-    SolidAngularVelocity(usize, usize),
-    SolidForce(usize, usize),
-    SolidTorque(usize, usize),
-    PinReaction(usize, usize),
+/// What a variable of the cloth unit stands for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Quantity {
+    PinTarget,
+    SolidPosition,
+    SolidRotation,
+    SolidVelocity,
+    SolidAngularVelocity,
+    SolidForce,
+    SolidTorque,
+    PinReaction,
     LowestZ,
     MaxStretch,
+}
+
+/// A variable's quantity, for pin or solid `item`, component `axis` (0 for scalars).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Role {
+    quantity: Quantity,
+    item: usize,
+    axis: usize,
 }
 
 /// A cloth simulation as a co-simulation unit.
@@ -53,94 +61,81 @@ pub struct ClothUnit {
 const AXES: [&str; 3] = ["x", "y", "z"];
 const TAG: &[u8; 8] = b"clothunt";
 
+/// The variables of one kind of 3-vector: quantity, name after the item
+/// (`pin{k}.` or `solid{k}.`), causality, unit, description.
+type VectorKind = (Quantity, &'static str, Causality, &'static str, &'static str);
+
+const PIN_INPUTS: [VectorKind; 1] =
+    [(Quantity::PinTarget, "target", Causality::Input, "m", "pin position at the end of the step")];
+const SOLID_INPUTS: [VectorKind; 4] = [
+    (Quantity::SolidPosition, "position", Causality::Input, "m", "solid frame origin at the start of the step"),
+    (
+        Quantity::SolidRotation,
+        "rotation",
+        Causality::Input,
+        "rad",
+        "solid orientation (rotation vector) at the start of the step",
+    ),
+    (Quantity::SolidVelocity, "velocity", Causality::Input, "m/s", "velocity of the solid frame origin"),
+    (Quantity::SolidAngularVelocity, "angular_velocity", Causality::Input, "rad/s", "angular velocity of the solid"),
+];
+const SOLID_OUTPUTS: [VectorKind; 2] = [
+    (Quantity::SolidForce, "force", Causality::Output, "N", "mean force of the cloth on the solid over the last step"),
+    (
+        Quantity::SolidTorque,
+        "torque",
+        Causality::Output,
+        "N.m",
+        "mean torque of the cloth on the solid about its frame origin",
+    ),
+];
+const PIN_OUTPUTS: [VectorKind; 1] = [(
+    Quantity::PinReaction,
+    "reaction",
+    Causality::Output,
+    "N",
+    "mean force of the cloth on the pin over the last step",
+)];
+
 impl ClothUnit {
     /// Wraps `sim`; its external pins and solids become inputs.
     pub fn new(name: impl Into<String>, sim: Simulation) -> Self {
         let mut vars = Vec::new();
         let mut roles = Vec::new();
         let model = sim.model().clone();
-        let mut add = |var: Variable, role: Role| {
-            vars.push(var);
-            roles.push(role);
+        // Adds the x, y, z variables of `kind` for item `k` of `prefix`, starting at `start`.
+        let mut add = |prefix: &str, k: usize, kind: &VectorKind, start: Vec3| {
+            let (quantity, field, causality, unit, description) = *kind;
+            for (axis, name) in AXES.iter().enumerate() {
+                let var = Variable::new(format!("{prefix}{k}.{field}.{name}"), causality, unit, description);
+                vars.push(var.with_start(start[axis]));
+                roles.push(Role { quantity, item: k, axis });
+            }
         };
         for (k, pin) in model.pins().iter().enumerate().filter(|(_, p)| p.is_external()) {
-            for (a, axis) in AXES.iter().enumerate() {
-                let var = Variable::new(
-                    format!("pin{k}.target.{axis}"),
-                    Causality::Input,
-                    "m",
-                    "pin position at the end of the step",
-                );
-                add(var.with_start(pin.anchor[a]), Role::PinTarget(k, a));
-            }
+            add("pin", k, &PIN_INPUTS[0], pin.anchor);
         }
         for (k, c) in model.colliders().iter().enumerate().filter(|(_, c)| c.is_external()) {
-            let rotation = c.anchor.rotation.scaled_axis();
-            for (a, axis) in AXES.iter().enumerate() {
-                let v = Variable::new(
-                    format!("solid{k}.position.{axis}"),
-                    Causality::Input,
-                    "m",
-                    "solid frame origin at the start of the step",
-                );
-                add(v.with_start(c.anchor.position[a]), Role::SolidPosition(k, a));
-                let v = Variable::new(
-                    format!("solid{k}.rotation.{axis}"),
-                    Causality::Input,
-                    "rad",
-                    "solid orientation (rotation vector) at the start of the step",
-                );
-                add(v.with_start(rotation[a]), Role::SolidRotation(k, a));
-                let v = Variable::new(
-                    format!("solid{k}.velocity.{axis}"),
-                    Causality::Input,
-                    "m/s",
-                    "velocity of the solid frame origin",
-                );
-                add(v, Role::SolidVelocity(k, a));
-                let v = Variable::new(
-                    format!("solid{k}.angular_velocity.{axis}"),
-                    Causality::Input,
-                    "rad/s",
-                    "angular velocity of the solid",
-                );
-                add(v, Role::SolidAngularVelocity(k, a));
+            let starts = [c.anchor.position, c.anchor.rotation.scaled_axis(), Vec3::zeros(), Vec3::zeros()];
+            for (kind, start) in SOLID_INPUTS.iter().zip(starts) {
+                add("solid", k, kind, start);
             }
         }
         for k in 0..model.colliders().len() {
-            for (a, axis) in AXES.iter().enumerate() {
-                let v = Variable::new(
-                    format!("solid{k}.force.{axis}"),
-                    Causality::Output,
-                    "N",
-                    "mean force of the cloth on the solid over the last step",
-                );
-                add(v, Role::SolidForce(k, a));
-                let v = Variable::new(
-                    format!("solid{k}.torque.{axis}"),
-                    Causality::Output,
-                    "N.m",
-                    "mean torque of the cloth on the solid about its frame origin",
-                );
-                add(v, Role::SolidTorque(k, a));
+            for kind in &SOLID_OUTPUTS {
+                add("solid", k, kind, Vec3::zeros());
             }
         }
         for k in 0..model.pins().len() {
-            for (a, axis) in AXES.iter().enumerate() {
-                let v = Variable::new(
-                    format!("pin{k}.reaction.{axis}"),
-                    Causality::Output,
-                    "N",
-                    "mean force of the cloth on the pin over the last step",
-                );
-                add(v, Role::PinReaction(k, a));
-            }
+            add("pin", k, &PIN_OUTPUTS[0], Vec3::zeros());
         }
-        add(Variable::new("lowest_z", Causality::Output, "m", "lowest particle height"), Role::LowestZ);
-        add(
-            Variable::new("max_stretch", Causality::Output, "1", "longest link over its rest length"),
-            Role::MaxStretch,
-        );
+        for (quantity, name, unit, description) in [
+            (Quantity::LowestZ, "lowest_z", "m", "lowest particle height"),
+            (Quantity::MaxStretch, "max_stretch", "1", "longest link over its rest length"),
+        ] {
+            vars.push(Variable::new(name, Causality::Output, unit, description));
+            roles.push(Role { quantity, item: 0, axis: 0 });
+        }
         let values = vars.iter().map(|v| v.start).collect();
         let rates = vec![0.0; vars.len()];
         let mut unit = Self { name: name.into(), sim, vars, roles, values, rates };
@@ -158,22 +153,20 @@ impl ClothUnit {
         let lowest = state.x.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
         let stretch = self.sim.model().max_stretch_ratio(&state.x);
         for (role, value) in self.roles.iter().zip(&mut self.values) {
-            match role {
-                Role::LowestZ => *value = lowest,
-                Role::MaxStretch => *value = stretch,
+            match role.quantity {
+                Quantity::LowestZ => *value = lowest,
+                Quantity::MaxStretch => *value = stretch,
                 _ => {}
             }
         }
     }
 
-    /// Collects a 3-vector input of `role` kind for item `k`.
-    fn vector(&self, k: usize, pick: impl Fn(Role) -> Option<(usize, usize)>) -> (Vec3, Vec3) {
+    /// The 3-vector input `quantity` of item `k`, and its derivative.
+    fn input(&self, quantity: Quantity, k: usize) -> (Vec3, Vec3) {
         let (mut value, mut rate) = (Vec3::zeros(), Vec3::zeros());
         for (i, role) in self.roles.iter().enumerate() {
-            if let Some((item, axis)) = pick(*role)
-                && item == k
-            {
-                (value[axis], rate[axis]) = (self.values[i], self.rates[i]);
+            if role.quantity == quantity && role.item == k {
+                (value[role.axis], rate[role.axis]) = (self.values[i], self.rates[i]);
             }
         }
         (value, rate)
@@ -188,17 +181,19 @@ impl ClothUnit {
             message: e.to_string(),
         };
         for k in (0..model.pins().len()).filter(|&k| model.pins()[k].is_external()) {
-            let (target, rate) = self.vector(k, |r| if let Role::PinTarget(k, a) = r { Some((k, a)) } else { None });
+            let (target, rate) = self.input(Quantity::PinTarget, k);
             self.sim.set_pin_target(k, target + rate * h).map_err(refuse)?;
         }
         for k in (0..model.colliders().len()).filter(|&k| model.colliders()[k].is_external()) {
-            let get = |f: fn(Role) -> Option<(usize, usize)>| self.vector(k, f).0;
-            let position = get(|r| if let Role::SolidPosition(k, a) = r { Some((k, a)) } else { None });
-            let rotation = get(|r| if let Role::SolidRotation(k, a) = r { Some((k, a)) } else { None });
-            let linear_velocity = get(|r| if let Role::SolidVelocity(k, a) = r { Some((k, a)) } else { None });
-            let angular_velocity = get(|r| if let Role::SolidAngularVelocity(k, a) = r { Some((k, a)) } else { None });
-            let pose = BodyPose { position, rotation: UnitQuaternion::from_scaled_axis(rotation) };
-            let motion = SolidMotion { time_s: t, pose, linear_velocity, angular_velocity };
+            let get = |quantity| self.input(quantity, k).0;
+            let rotation = UnitQuaternion::from_scaled_axis(get(Quantity::SolidRotation));
+            let pose = BodyPose { position: get(Quantity::SolidPosition), rotation };
+            let motion = SolidMotion {
+                time_s: t,
+                pose,
+                linear_velocity: get(Quantity::SolidVelocity),
+                angular_velocity: get(Quantity::SolidAngularVelocity),
+            };
             self.sim.set_solid_motion(k, motion).map_err(refuse)?;
         }
         Ok(())
@@ -217,10 +212,11 @@ impl ClothUnit {
             .collect();
         let impulses: Vec<_> = origins.iter().enumerate().map(|(k, o)| self.sim.solid_impulse(k, *o)).collect();
         for (i, role) in self.roles.iter().enumerate() {
-            self.values[i] = match *role {
-                Role::SolidForce(k, a) => impulses[k].linear[a] / h,
-                Role::SolidTorque(k, a) => impulses[k].angular[a] / h,
-                Role::PinReaction(k, a) => self.sim.pin_reaction(k)[a],
+            let (k, a) = (role.item, role.axis);
+            self.values[i] = match role.quantity {
+                Quantity::SolidForce => impulses[k].linear[a] / h,
+                Quantity::SolidTorque => impulses[k].angular[a] / h,
+                Quantity::PinReaction => self.sim.pin_reaction(k)[a],
                 _ => continue,
             };
         }
@@ -253,7 +249,7 @@ impl Unit for ClothUnit {
 
     fn set_input_derivative(&mut self, vr: ValueRef, du: f64) -> Result<(), UnitError> {
         settable(&self.name, &self.vars, vr, du)?;
-        if !matches!(self.roles[vr], Role::PinTarget(..)) {
+        if self.roles[vr].quantity != Quantity::PinTarget {
             return Err(UnitError::Unsupported {
                 unit: self.name.clone(),
                 what: "derivatives of inputs other than pin targets",
@@ -308,7 +304,7 @@ impl Unit for ClothUnit {
 
     fn set_state(&mut self, state: &UnitState) -> Result<(), UnitError> {
         let bad = |message: String| UnitError::BadState { unit: self.name.clone(), message };
-        let saved = state.0.downcast_ref::<Saved>().ok_or_else(|| bad("not a state of a cloth unit".into()))?;
+        let saved: &Saved = state.downcast(&self.name, "cloth unit")?;
         if saved.values.len() != self.values.len() {
             return Err(bad(format!("{} variables, this unit has {}", saved.values.len(), self.values.len())));
         }
@@ -321,10 +317,7 @@ impl Unit for ClothUnit {
     /// Layout: tag, then `time, steps, has_history, last_dt, next_dt`,
     /// `x, v, x_prev, v_prev` (3 values per particle each), values, rates.
     fn serialize_state(&self, state: &UnitState) -> Result<Vec<u8>, UnitError> {
-        let saved = state.0.downcast_ref::<Saved>().ok_or_else(|| UnitError::BadState {
-            unit: self.name.clone(),
-            message: "not a state of a cloth unit".into(),
-        })?;
+        let saved: &Saved = state.downcast(&self.name, "cloth unit")?;
         let c = &saved.cloth;
         let head = [c.time_s, c.steps as f64, f64::from(u8::from(c.has_history)), c.last_dt_s, c.next_dt_s];
         let vectors =

@@ -328,8 +328,8 @@ impl CoSimulation {
         }
     }
 
-    /// Sets connection `k`'s input to `value` with derivative `rate` (a
-    /// zero rate is sent only to units that take derivatives).
+    /// Sets connection `k`'s input to `value`, and its derivative to `rate`
+    /// when given (units that hold inputs constant refuse a derivative).
     fn feed(&mut self, k: usize, value: f64, rate: Option<f64>) -> Result<(), CosimError> {
         let to = self.connections[k].to;
         let unit = &mut self.units[to.unit];

@@ -177,19 +177,13 @@ impl Unit for MassUnit {
     }
 
     fn set_state(&mut self, state: &UnitState) -> Result<(), UnitError> {
-        let s = state.0.downcast_ref::<[f64; 4]>().ok_or_else(|| UnitError::BadState {
-            unit: self.name.clone(),
-            message: "not a state of a mass unit".into(),
-        })?;
+        let s: &[f64; 4] = state.downcast(&self.name, "mass unit")?;
         [self.x, self.v, self.input, self.input_rate] = *s;
         Ok(())
     }
 
     fn serialize_state(&self, state: &UnitState) -> Result<Vec<u8>, UnitError> {
-        let s = state.0.downcast_ref::<[f64; 4]>().ok_or_else(|| UnitError::BadState {
-            unit: self.name.clone(),
-            message: "not a state of a mass unit".into(),
-        })?;
+        let s: &[f64; 4] = state.downcast(&self.name, "mass unit")?;
         Ok(bytes::pack(TAG, *s))
     }
 

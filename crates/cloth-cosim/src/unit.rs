@@ -80,6 +80,16 @@ pub enum StepOutcome {
 /// A unit's saved state: opaque, only its own unit reads it.
 pub struct UnitState(pub Box<dyn Any + Send>);
 
+impl UnitState {
+    /// The state as the `T` unit `unit` saved, or a `BadState` error saying
+    /// it is not a state of a `kind`.
+    pub fn downcast<T: 'static>(&self, unit: &str, kind: &str) -> Result<&T, UnitError> {
+        self.0
+            .downcast_ref::<T>()
+            .ok_or_else(|| UnitError::BadState { unit: unit.to_string(), message: format!("not a state of a {kind}") })
+    }
+}
+
 impl std::fmt::Debug for UnitState {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str("UnitState(..)")

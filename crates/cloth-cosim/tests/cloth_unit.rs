@@ -74,11 +74,11 @@ fn rollback_and_serialised_state_replay_bit_for_bit() {
     unit.set_state(&restored).unwrap();
     run(&mut unit, 40, 30);
     assert_eq!(outputs(&unit), first);
-    assert!(cloth_tests_same(&unit.simulation().state().x, &first_x));
+    assert!(same_bits(&unit.simulation().state().x, &first_x));
     assert!(matches!(unit.deserialize_state(&bytes[..bytes.len() - 8]), Err(UnitError::BadState { .. })));
     assert!(matches!(unit.do_step(0.0, 0.01), Err(UnitError::StepFailed { .. })), "wrong start time");
 }
 
-fn cloth_tests_same(a: &[cloth_core::Vec3], b: &[cloth_core::Vec3]) -> bool {
+fn same_bits(a: &[cloth_core::Vec3], b: &[cloth_core::Vec3]) -> bool {
     a.iter().zip(b).all(|(p, q)| p.iter().zip(q.iter()).all(|(x, y)| x.to_bits() == y.to_bits()))
 }
