@@ -184,6 +184,19 @@ impl SolidShape {
         Ok(Self { shape, local })
     }
 
+    /// Wraps a shape built elsewhere (a rapier collider's), placed at
+    /// `local` in the solid's frame. Not checked: parry's constructors
+    /// already refused degenerate shapes.
+    pub fn from_parry(shape: SharedShape, local: Pose) -> Self {
+        Self { shape, local }
+    }
+
+    /// parry's shape and its pose in the solid's frame (to give a
+    /// rigid-body engine the same solid).
+    pub fn parts(&self) -> (&SharedShape, Pose) {
+        (&self.shape, self.local)
+    }
+
     fn pose(&self, body: &BodyPose) -> Pose {
         let q = body.rotation.quaternion();
         let rotation = Rotation::from_xyzw(q.i, q.j, q.k, q.w);

@@ -91,6 +91,12 @@ pub struct Collider {
 }
 
 impl Collider {
+    /// A solid driven from outside ([`crate::Control::set_solid_motion`]),
+    /// starting at `anchor`, with Coulomb coefficient `friction` (>= 0).
+    pub fn external(shape: SolidShape, anchor: BodyPose, friction: f64) -> Self {
+        Self { shape, anchor, motion: PinMotion::External, spin_rad_s: Vec3::zeros(), friction }
+    }
+
     /// Pose at time `t` (s): the anchor moved along the path and turned by
     /// the spin, `R(t) = exp(omega t) R_0`.
     pub fn pose(&self, t: f64) -> BodyPose {

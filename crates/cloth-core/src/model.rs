@@ -485,6 +485,30 @@ impl ClothModel {
         })
     }
 
+    /// The same model with `solids` added after the scene's colliders (a
+    /// rigid-body engine's colliders, whose indices start at
+    /// `colliders().len()` before the call). Each is checked as a scene
+    /// collider would be.
+    pub fn with_solids(mut self, solids: impl IntoIterator<Item = Collider>) -> Result<Self, ModelError> {
+        for c in solids {
+            let field = |name: &str| format!("solids[{}].{name}", self.colliders.len());
+            let fail = |name: &str, message: String| ModelError::Collision { field: field(name), message };
+            if !(c.friction.is_finite() && c.friction >= 0.0) {
+                return Err(fail("friction", format!("must be finite and >= 0, got {}", c.friction)));
+            }
+            let anchor = &c.anchor;
+            if !(anchor.position.iter().chain(anchor.rotation.coords.iter()).all(|v| v.is_finite())) {
+                return Err(fail("anchor", "must be finite".into()));
+            }
+            if !c.spin_rad_s.iter().all(|v| v.is_finite()) {
+                return Err(fail("spin_rad_s", "must be finite".into()));
+            }
+            c.motion.validate().map_err(|(f, m)| fail(&format!("motion.{f}"), m))?;
+            self.colliders.push(c);
+        }
+        Ok(self)
+    }
+
     /// Number of particles.
     pub fn particle_count(&self) -> usize {
         self.mass.len()
@@ -668,7 +692,7 @@ fn build_pins(spec: &ModelSpec, panels: &[PanelRange], rest: &[Vec3]) -> Result<
                 return Err(err("nodes", format!("node [{i}, {j}] is pinned twice")));
             }
             pinned[particle] = true;
-            pins.push(Pin { particle, anchor: rest[particle], motion: ps.motion.clone() });
+            pins.push(Pin { particle, anchor: rest[particle], motion: ps.motion.clone(), spec: k });
         }
     }
     Ok((pins, pinned))

@@ -88,6 +88,8 @@ pub struct Pin {
     pub anchor: Vec3,
     /// Path relative to `anchor`.
     pub motion: PinMotion,
+    /// Index of the [`crate::PinSpec`] (`[[pins]]` entry) that made it.
+    pub spec: usize,
 }
 
 impl Pin {

@@ -348,13 +348,35 @@ impl Scene {
         if overrides.is_empty() {
             return toml::from_str(text).map_err(|e| SceneErrorKind::Parse(e.to_string()));
         }
+        Self::parse_with_extensions(text, overrides, &[]).map(|(scene, _)| scene)
+    }
+
+    /// Parses scene text with overrides, taking the top-level `extensions`
+    /// keys (sections another crate reads, such as rigid bodies) out first:
+    /// returns the scene and a table of the extension keys present.
+    /// Overrides may address extension keys too.
+    pub fn parse_with_extensions(
+        text: &str,
+        overrides: &[String],
+        extensions: &[&str],
+    ) -> Result<(Self, toml::Table), SceneErrorKind> {
         let mut table: toml::Table = toml::from_str(text).map_err(|e| SceneErrorKind::Parse(e.to_string()))?;
         for arg in overrides {
             apply_override(&mut table, arg)
                 .map_err(|message| SceneErrorKind::Override { arg: arg.clone(), message })?;
         }
+        let mut taken = toml::Table::new();
+        for key in extensions {
+            if let Some(value) = table.remove(*key) {
+                taken.insert((*key).to_string(), value);
+            }
+        }
         let rewritten = toml::to_string(&table).map_err(|e| SceneErrorKind::Parse(e.to_string()))?;
-        toml::from_str(&rewritten).map_err(|e| SceneErrorKind::Parse(format!("after --set overrides: {e}")))
+        let scene = toml::from_str(&rewritten).map_err(|e| {
+            let after = if overrides.is_empty() { "" } else { "after --set overrides: " };
+            SceneErrorKind::Parse(format!("{after}{e}"))
+        })?;
+        Ok((scene, taken))
     }
 
     /// Range checks that the types cannot express, naming the field

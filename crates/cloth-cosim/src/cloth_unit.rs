@@ -6,8 +6,14 @@
 //!   target then moves on to `value + du h`);
 //! - inputs, per externally driven solid `k`: `solid{k}.position.{x,y,z}`
 //!   (m) and `solid{k}.rotation.{x,y,z}` (rotation vector, rad) at the
-//!   start of the step, `solid{k}.velocity.{x,y,z}` (m/s) and
-//!   `solid{k}.angular_velocity.{x,y,z}` (rad/s) over it;
+//!   end of the step, `solid{k}.velocity.{x,y,z}` (m/s) and
+//!   `solid{k}.angular_velocity.{x,y,z}` (rad/s) over it; the solid reaches
+//!   that pose moving at those velocities, so it starts the step at
+//!   `position - velocity h`, turned back by `angular_velocity h` (what a
+//!   rigid-body integrator's symplectic Euler step does). End values, like
+//!   the pins' targets, so an iterated master converges to a consistent
+//!   motion and a Gauss-Seidel master that steps the bodies first hands the
+//!   cloth exactly where they went;
 //! - outputs, per solid `k`: `solid{k}.force.{x,y,z}` (N) and
 //!   `solid{k}.torque.{x,y,z}` (N m, about the solid's frame origin at the
 //!   start of the step): the mean the cloth exerted over the last step;
@@ -68,13 +74,13 @@ type VectorKind = (Quantity, &'static str, Causality, &'static str, &'static str
 const PIN_INPUTS: [VectorKind; 1] =
     [(Quantity::PinTarget, "target", Causality::Input, "m", "pin position at the end of the step")];
 const SOLID_INPUTS: [VectorKind; 4] = [
-    (Quantity::SolidPosition, "position", Causality::Input, "m", "solid frame origin at the start of the step"),
+    (Quantity::SolidPosition, "position", Causality::Input, "m", "solid frame origin at the end of the step"),
     (
         Quantity::SolidRotation,
         "rotation",
         Causality::Input,
         "rad",
-        "solid orientation (rotation vector) at the start of the step",
+        "solid orientation (rotation vector) at the end of the step",
     ),
     (Quantity::SolidVelocity, "velocity", Causality::Input, "m/s", "velocity of the solid frame origin"),
     (Quantity::SolidAngularVelocity, "angular_velocity", Causality::Input, "rad/s", "angular velocity of the solid"),
@@ -189,7 +195,7 @@ impl ClothUnit {
             let rotation = UnitQuaternion::from_scaled_axis(get(Quantity::SolidRotation));
             let pose = BodyPose { position: get(Quantity::SolidPosition), rotation };
             let motion = SolidMotion {
-                time_s: t,
+                time_s: t + h,
                 pose,
                 linear_velocity: get(Quantity::SolidVelocity),
                 angular_velocity: get(Quantity::SolidAngularVelocity),
@@ -207,7 +213,9 @@ impl ClothUnit {
                 self.sim
                     .control()
                     .solid_motion(k)
-                    .map_or(model.colliders()[k].pose(self.sim.time() - h).position, |m| m.pose.position)
+                    .map_or(model.colliders()[k].pose(self.sim.time() - h).position, |m| {
+                        m.pose_at(self.sim.time() - h).position
+                    })
             })
             .collect();
         let impulses: Vec<_> = origins.iter().enumerate().map(|(k, o)| self.sim.solid_impulse(k, *o)).collect();

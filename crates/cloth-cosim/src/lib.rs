@@ -14,7 +14,7 @@ pub mod unit;
 
 pub use cloth_unit::ClothUnit;
 pub use master::{
-    CoSimulation, Connection, CosimError, Extrapolation, GaussSeidelParams, InputOverStep, IteratedParams,
+    CoSimulation, Connection, CosimError, Extrapolation, GaussSeidelParams, GuessUpdate, InputOverStep, IteratedParams,
     JacobiParams, MacroStepReport, Master, Port, Relaxation,
 };
 pub use unit::{Causality, StepOutcome, Unit, UnitError, UnitState, ValueRef, VarType, Variable};

@@ -457,8 +457,12 @@ impl CoSimulation {
     }
 }
 
-/// The iterated master's guess update within one macro step.
-struct GuessUpdate {
+/// The iterated master's guess update within one macro step (also used by
+/// couplings that iterate outside a [`CoSimulation`]): feed it each
+/// iterate's guess and the end values it produced; it moves the guess by
+/// the [`Relaxation`].
+#[derive(Debug, Clone)]
+pub struct GuessUpdate {
     relaxation: Relaxation,
     omega: f64,
     /// Scaled residuals and outputs of the earlier iterations (newest last).
@@ -467,7 +471,8 @@ struct GuessUpdate {
 }
 
 impl GuessUpdate {
-    fn new(relaxation: Relaxation) -> Self {
+    /// A fresh update for one macro step.
+    pub fn new(relaxation: Relaxation) -> Self {
         let omega = match relaxation {
             Relaxation::Fixed(w) => w,
             Relaxation::QuasiNewton { initial } => initial,
@@ -477,7 +482,7 @@ impl GuessUpdate {
 
     /// Moves `guess` given the outputs `end` it produced; `weight` scales
     /// each value by its tolerance.
-    fn next(&mut self, guess: &mut [f64], end: &[f64], weight: &[f64]) {
+    pub fn next(&mut self, guess: &mut [f64], end: &[f64], weight: &[f64]) {
         let r: Vec<f64> = end.iter().zip(guess.iter()).zip(weight).map(|((y, u), w)| (y - u) * w).collect();
         let y: Vec<f64> = end.iter().zip(weight).map(|(y, w)| y * w).collect();
         let relaxed = |guess: &mut [f64], omega: f64| {

@@ -1,0 +1,31 @@
+//! Cloth coupled both ways with rapier rigid bodies (rapier3d-f64 0.36).
+//!
+//! - [`ClothSet`] holds cloths next to a rapier [`PhysicsWorld`]'s
+//!   `RigidBodySet`; [`ClothBuilder`] makes one from a
+//!   [`cloth_core::ClothModel`], attaching pins to bodies.
+//! - [`ClothSet::step`] steps cloths and bodies together with a
+//!   [`Master`]: staggered (one pass) or iterated to agreement (see
+//!   [`coupling`]). Cloth particles collide with the world's colliders
+//!   (any parry shape rapier accepts, meshes included) of fixed, kinematic
+//!   and dynamic bodies; contact impulses (friction included) and the pull
+//!   on attached pins go back to the bodies.
+//! - [`RapierUnit`] is a rapier world as a co-simulation unit for
+//!   `cloth-cosim`'s masters.
+//!
+//! rapier's math is glam (through its `math` re-exports); the cloth's is
+//! nalgebra. [`convert`] converts at the boundary. Units are SI.
+
+pub mod cloth_set;
+pub mod convert;
+pub mod coupling;
+pub mod scene;
+pub mod unit;
+pub mod world;
+
+pub use cloth_set::{Attachment, ClothBuilder, ClothHandle, ClothSet, CoupledCloth, CouplingError};
+pub use coupling::{CouplingReport, IteratedCoupling, Master};
+pub use rapier3d_f64;
+pub use rapier3d_f64::prelude::PhysicsWorld;
+pub use scene::{CoupledRun, CoupledScene};
+pub use unit::RapierUnit;
+pub use world::{CollideWith, Momentum, WorldSnapshot, WorldSolid, bodies_momentum, import_colliders};

@@ -1,0 +1,454 @@
+//! Scene files with rigid bodies: a cloth scene (see `cloth_core::scene`)
+//! plus these sections, every key checked.
+//!
+//! ```toml
+//! [[bodies]]                   # rapier rigid bodies; the cloth meets their colliders
+//! name = "ball"                # unique; attachments and summaries use it
+//! kind = "dynamic"             # or "kinematic" (follows `motion` and `spin_deg_s`), "fixed"
+//! shape = { kind = "ball", radius_m = 0.1 }   # any collider shape but "mesh" and
+//!                              # "half-space" for dynamic bodies
+//! position_m = [0.0, 0.0, 1.0]
+//! rotation_deg = [0.0, 0.0, 0.0]   # about x, then y, then z (fixed axes)
+//! velocity_m_s = [0.0, 0.0, 0.0]   # dynamic bodies: initial velocity of the centre of mass
+//! angular_velocity_deg_s = [0.0, 0.0, 0.0]
+//! density_kg_m3 = 1000.0       # or mass_kg = 2.0 (not both); default density 1000
+//! friction = 0.5               # Coulomb coefficient, cloth-body and body-body
+//! restitution = 0.0
+//! motion = { kind = "fixed" }  # kinematic bodies: path of the frame origin, as pins
+//! spin_deg_s = [0.0, 0.0, 0.0] # kinematic bodies: angular velocity
+//!
+//! [[attachments]]              # a [[pins]] entry (external motion) held by a body
+//! pins = 0                     # index of the [[pins]] entry
+//! body = "post"
+//!
+//! [coupling]                   # optional, these are the defaults
+//! master = "iterated"          # or "staggered"
+//! max_iterations = 20
+//! abs_tol_m_s = 1e-6
+//! rel_tol = 1e-6
+//! relaxation = "quasi-newton"  # or "fixed"
+//! omega = 0.5                  # fixed relaxation, or the quasi-Newton's first step
+//! accept_unconverged = true   # keep the best pass when contacts keep switching
+//! ```
+//!
+//! The rapier world steps with the scene's `dt_s` and, with the `gravity`
+//! effect, its gravity (else none).
+
+use crate::cloth_set::{ClothBuilder, ClothHandle, ClothSet, CouplingError};
+use crate::convert::{pose_to_rapier, vec_to_rapier};
+use crate::coupling::{CouplingReport, IteratedCoupling, Master};
+use cloth_collide::{BodyPose, ShapeSpec, SolidShape};
+use cloth_core::scene::{RunConfig, Scene, SceneError, SceneErrorKind};
+use cloth_core::{PinMotion, Vec3};
+use cloth_cosim::Relaxation;
+use nalgebra::UnitQuaternion;
+use rapier3d_f64::prelude::{ColliderBuilder, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// What moves a body.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum BodyKind {
+    /// Moved by forces, contacts and the cloth.
+    Dynamic,
+    /// Follows its `motion` and `spin_deg_s`; pushes but is not pushed.
+    Kinematic,
+    /// Never moves.
+    Fixed,
+}
+
+fn fixed() -> PinMotion {
+    PinMotion::Fixed
+}
+
+fn half() -> f64 {
+    0.5
+}
+
+/// One `[[bodies]]` entry.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BodySpec {
+    /// Unique name.
+    pub name: String,
+    /// Dynamic, kinematic or fixed.
+    pub kind: BodyKind,
+    /// The collider's shape in the body's frame.
+    pub shape: ShapeSpec,
+    /// Frame origin at the start, m.
+    #[serde(default)]
+    pub position_m: [f64; 3],
+    /// Orientation: about x, then y, then z (fixed axes), degrees.
+    #[serde(default)]
+    pub rotation_deg: [f64; 3],
+    /// Initial velocity of the centre of mass (dynamic), m/s.
+    #[serde(default)]
+    pub velocity_m_s: [f64; 3],
+    /// Initial angular velocity (dynamic), degrees/s.
+    #[serde(default)]
+    pub angular_velocity_deg_s: [f64; 3],
+    /// Density, kg/m^3 (default 1000 unless `mass_kg` is given).
+    #[serde(default)]
+    pub density_kg_m3: Option<f64>,
+    /// Mass, kg (instead of a density).
+    #[serde(default)]
+    pub mass_kg: Option<f64>,
+    /// Coulomb coefficient (default 0.5).
+    #[serde(default = "half")]
+    pub friction: f64,
+    /// Restitution of body-body contacts (default 0).
+    #[serde(default)]
+    pub restitution: f64,
+    /// Path of a kinematic body's frame origin, as an offset from `position_m`.
+    #[serde(default = "fixed")]
+    pub motion: PinMotion,
+    /// Angular velocity of a kinematic body about its frame origin, degrees/s.
+    #[serde(default)]
+    pub spin_deg_s: [f64; 3],
+}
+
+/// One `[[attachments]]` entry.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AttachmentSpec {
+    /// Index of the `[[pins]]` entry; its motion must be external.
+    pub pins: usize,
+    /// Name of the body.
+    pub body: String,
+}
+
+/// The coupling master by name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum MasterName {
+    /// One pass per step.
+    Staggered,
+    /// Passes until the bodies' end velocities agree.
+    #[default]
+    Iterated,
+}
+
+/// Relaxation by name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum RelaxationName {
+    /// `u += omega r`.
+    Fixed,
+    /// IQN-ILS after a first step of `omega`.
+    #[default]
+    QuasiNewton,
+}
+
+/// `[coupling]`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CouplingSection {
+    /// Master.
+    pub master: MasterName,
+    /// Most passes per step.
+    pub max_iterations: usize,
+    /// Absolute velocity tolerance, m/s (and rad/s).
+    pub abs_tol_m_s: f64,
+    /// Relative tolerance.
+    pub rel_tol: f64,
+    /// Guess update.
+    pub relaxation: RelaxationName,
+    /// Relaxation factor, (0, 1].
+    pub omega: f64,
+    /// Keep the last pass when not converged.
+    pub accept_unconverged: bool,
+}
+
+impl Default for CouplingSection {
+    fn default() -> Self {
+        let d = IteratedCoupling::default();
+        Self {
+            master: MasterName::Iterated,
+            max_iterations: d.max_iterations,
+            abs_tol_m_s: d.abs_tol_m_s,
+            rel_tol: d.rel_tol,
+            relaxation: RelaxationName::QuasiNewton,
+            omega: 0.5,
+            accept_unconverged: d.accept_unconverged,
+        }
+    }
+}
+
+impl CouplingSection {
+    /// The master these settings describe.
+    pub fn master(&self) -> Master {
+        match self.master {
+            MasterName::Staggered => Master::Staggered,
+            MasterName::Iterated => Master::Iterated(IteratedCoupling {
+                max_iterations: self.max_iterations,
+                abs_tol_m_s: self.abs_tol_m_s,
+                rel_tol: self.rel_tol,
+                relaxation: match self.relaxation {
+                    RelaxationName::Fixed => Relaxation::Fixed(self.omega),
+                    RelaxationName::QuasiNewton => Relaxation::QuasiNewton { initial: self.omega },
+                },
+                accept_unconverged: self.accept_unconverged,
+            }),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Extensions {
+    #[serde(default)]
+    bodies: Vec<BodySpec>,
+    #[serde(default)]
+    attachments: Vec<AttachmentSpec>,
+    #[serde(default)]
+    coupling: CouplingSection,
+}
+
+/// A scene with rigid bodies.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CoupledScene {
+    /// The cloth part.
+    pub scene: Scene,
+    /// `[[bodies]]`.
+    pub bodies: Vec<BodySpec>,
+    /// `[[attachments]]`.
+    pub attachments: Vec<AttachmentSpec>,
+    /// `[coupling]`.
+    pub coupling: CouplingSection,
+}
+
+/// The top-level keys this module reads.
+const KEYS: [&str; 3] = ["bodies", "attachments", "coupling"];
+
+/// Whether scene text declares rigid bodies (a `[[bodies]]` table).
+pub fn has_bodies(text: &str) -> bool {
+    toml::from_str::<toml::Table>(text).is_ok_and(|t| t.contains_key("bodies"))
+}
+
+/// A body of a built scene.
+#[derive(Debug, Clone)]
+pub struct SceneBody {
+    /// Its name in the scene.
+    pub name: String,
+    /// Its handle.
+    pub handle: RigidBodyHandle,
+    /// Its `[[bodies]]` entry.
+    pub spec: BodySpec,
+    anchor: BodyPose,
+}
+
+/// A built scene: the world, the cloth, and how to step them.
+pub struct CoupledRun {
+    /// The rapier world.
+    pub world: PhysicsWorld,
+    /// The cloth set (one cloth).
+    pub cloths: ClothSet,
+    /// The scene's cloth.
+    pub cloth: ClothHandle,
+    /// The bodies, in scene order.
+    pub bodies: Vec<SceneBody>,
+    /// The master.
+    pub master: Master,
+    /// Time step, steps, integrator and solver.
+    pub config: RunConfig,
+}
+
+impl std::fmt::Debug for CoupledRun {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CoupledRun").field("bodies", &self.bodies).field("master", &self.master).finish_non_exhaustive()
+    }
+}
+
+impl CoupledScene {
+    /// Reads `path` with `--set` overrides (which may address bodies too).
+    pub fn load(path: &Path, overrides: &[String]) -> Result<Self, SceneError> {
+        let err = |kind| SceneError { file: path.to_path_buf(), kind };
+        let text = std::fs::read_to_string(path).map_err(|e| err(SceneErrorKind::Io(e.to_string())))?;
+        let mut scene = Self::parse(&text, overrides).map_err(err)?;
+        scene.scene.base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        Ok(scene)
+    }
+
+    /// Parses scene text with overrides.
+    pub fn parse(text: &str, overrides: &[String]) -> Result<Self, SceneErrorKind> {
+        let (scene, rest) = Scene::parse_with_extensions(text, overrides, &KEYS)?;
+        let ext: Extensions = rest.try_into().map_err(|e: toml::de::Error| SceneErrorKind::Parse(e.to_string()))?;
+        Ok(Self { scene, bodies: ext.bodies, attachments: ext.attachments, coupling: ext.coupling })
+    }
+
+    /// Checks every field and builds the world and the cloth.
+    pub fn build(&self) -> Result<CoupledRun, SceneErrorKind> {
+        let invalid = |field: String, message: String| SceneErrorKind::Invalid { field, message };
+        let (model, config) = self.scene.build()?;
+        let mut world = PhysicsWorld::new();
+        world.gravity = vec_to_rapier(model.effects().gravity.unwrap_or_else(Vec3::zeros));
+        world.integration_parameters.dt = config.dt_s;
+        let mut bodies = Vec::with_capacity(self.bodies.len());
+        for (k, b) in self.bodies.iter().enumerate() {
+            let field = |name: &str| format!("bodies[{k}].{name}");
+            if bodies.iter().any(|o: &SceneBody| o.name == b.name) {
+                return Err(invalid(field("name"), format!("{:?} is used twice", b.name)));
+            }
+            let (handle, anchor) =
+                add_body(&mut world, b, &self.scene.base_dir).map_err(|(f, m)| invalid(field(&f), m))?;
+            bodies.push(SceneBody { name: b.name.clone(), handle, spec: b.clone(), anchor });
+        }
+        self.check_coupling()?;
+        let mut builder = ClothBuilder::new(model.clone()).integrator(config.integrator).solver(config.solver);
+        for (k, a) in self.attachments.iter().enumerate() {
+            let field = |name: &str| format!("attachments[{k}].{name}");
+            let body = bodies
+                .iter()
+                .find(|b| b.name == a.body)
+                .ok_or_else(|| invalid(field("body"), format!("no body named {:?}", a.body)))?;
+            let pins: Vec<usize> = (0..model.pins().len()).filter(|&p| model.pins()[p].spec == a.pins).collect();
+            if pins.is_empty() {
+                return Err(invalid(field("pins"), format!("no [[pins]] entry {}", a.pins)));
+            }
+            if !model.pins()[pins[0]].is_external() {
+                return Err(invalid(
+                    field("pins"),
+                    format!("pins[{}] needs motion = {{ kind = \"external\" }}", a.pins),
+                ));
+            }
+            for p in pins {
+                builder = builder.attach(p, body.handle);
+            }
+        }
+        let mut cloths = ClothSet::new();
+        let cloth = cloths.insert(builder, &world).map_err(|e| match e {
+            CouplingError::Attachment { pin, message } => invalid(format!("attachments (model pin {pin})"), message),
+            other => invalid("bodies".into(), other.to_string()),
+        })?;
+        if config.initial_jitter_m > 0.0 {
+            let sim = config.simulation(model);
+            let jittered = sim.snapshot();
+            let own = cloths.get_mut(cloth).expect("just inserted").simulation_mut();
+            own.restore(&jittered).map_err(|e| invalid("simulation.initial_jitter_m".into(), e.to_string()))?;
+        }
+        Ok(CoupledRun { world, cloths, cloth, bodies, master: self.coupling.master(), config })
+    }
+
+    fn check_coupling(&self) -> Result<(), SceneErrorKind> {
+        let c = &self.coupling;
+        let invalid =
+            |field: &str, message: String| SceneErrorKind::Invalid { field: format!("coupling.{field}"), message };
+        if c.max_iterations == 0 {
+            return Err(invalid("max_iterations", "must be >= 1".into()));
+        }
+        for (name, v) in [("abs_tol_m_s", c.abs_tol_m_s), ("rel_tol", c.rel_tol)] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(invalid(name, format!("must be finite and >= 0, got {v}")));
+            }
+        }
+        if c.abs_tol_m_s + c.rel_tol == 0.0 {
+            return Err(invalid("abs_tol_m_s", "abs_tol_m_s and rel_tol cannot both be 0".into()));
+        }
+        if !(c.omega > 0.0 && c.omega <= 1.0) {
+            return Err(invalid("omega", format!("must be in (0, 1], got {}", c.omega)));
+        }
+        Ok(())
+    }
+}
+
+fn rotation_from_degrees(deg: &[f64; 3]) -> UnitQuaternion<f64> {
+    let [rx, ry, rz] = deg.map(f64::to_radians);
+    UnitQuaternion::from_axis_angle(&Vec3::z_axis(), rz)
+        * UnitQuaternion::from_axis_angle(&Vec3::y_axis(), ry)
+        * UnitQuaternion::from_axis_angle(&Vec3::x_axis(), rx)
+}
+
+/// Adds one body with its collider; errors name the field (relative to the entry).
+fn add_body(
+    world: &mut PhysicsWorld,
+    b: &BodySpec,
+    base_dir: &Path,
+) -> Result<(RigidBodyHandle, BodyPose), (String, String)> {
+    let finite = |name: &str, v: &[f64; 3]| {
+        if v.iter().all(|c| c.is_finite()) {
+            Ok(())
+        } else {
+            Err((name.to_string(), format!("must be finite, got {v:?}")))
+        }
+    };
+    finite("position_m", &b.position_m)?;
+    finite("rotation_deg", &b.rotation_deg)?;
+    finite("velocity_m_s", &b.velocity_m_s)?;
+    finite("angular_velocity_deg_s", &b.angular_velocity_deg_s)?;
+    finite("spin_deg_s", &b.spin_deg_s)?;
+    let non_negative = |name: &str, v: f64| {
+        if v.is_finite() && v >= 0.0 {
+            Ok(())
+        } else {
+            Err((name.to_string(), format!("must be finite and >= 0, got {v}")))
+        }
+    };
+    non_negative("friction", b.friction)?;
+    non_negative("restitution", b.restitution)?;
+    b.motion.validate().map_err(|(f, m)| (format!("motion.{f}"), m))?;
+    let moving = b.motion != PinMotion::Fixed || b.spin_deg_s != [0.0; 3];
+    if b.kind != BodyKind::Kinematic && moving {
+        return Err(("motion".into(), "only kinematic bodies follow a motion or spin".into()));
+    }
+    if b.motion == PinMotion::External {
+        return Err(("motion".into(), "a scene body cannot be external: use a kinematic path".into()));
+    }
+    let dynamic = b.kind == BodyKind::Dynamic;
+    if dynamic && matches!(b.shape, ShapeSpec::HalfSpace { .. } | ShapeSpec::Mesh { .. }) {
+        return Err((
+            "shape".into(),
+            "a dynamic body needs a solid shape (not half-space or mesh; use convex-hull)".into(),
+        ));
+    }
+    let shape = SolidShape::build(&b.shape, base_dir).map_err(|e| {
+        let text = e.to_string();
+        let (f, m) = text.split_once(": ").unwrap_or(("", &text));
+        (format!("shape.{f}"), m.to_string())
+    })?;
+    let (parry_shape, local) = shape.parts();
+    let mut collider =
+        ColliderBuilder::new(parry_shape.clone()).position(local).friction(b.friction).restitution(b.restitution);
+    match (b.density_kg_m3, b.mass_kg) {
+        (Some(_), Some(_)) => return Err(("mass_kg".into(), "give density_kg_m3 or mass_kg, not both".into())),
+        (_, Some(m)) if !(m.is_finite() && m > 0.0) => {
+            return Err(("mass_kg".into(), format!("must be finite and > 0, got {m}")));
+        }
+        (Some(d), _) if !(d.is_finite() && d > 0.0) => {
+            return Err(("density_kg_m3".into(), format!("must be finite and > 0, got {d}")));
+        }
+        (_, Some(m)) => collider = collider.mass(m),
+        (d, None) => collider = collider.density(d.unwrap_or(1000.0)),
+    }
+    let anchor = BodyPose { position: Vec3::from(b.position_m), rotation: rotation_from_degrees(&b.rotation_deg) };
+    let builder = match b.kind {
+        BodyKind::Dynamic => RigidBodyBuilder::dynamic()
+            .linvel(vec_to_rapier(Vec3::from(b.velocity_m_s)))
+            .angvel(vec_to_rapier(Vec3::from(b.angular_velocity_deg_s.map(f64::to_radians)))),
+        BodyKind::Kinematic => RigidBodyBuilder::kinematic_position_based(),
+        BodyKind::Fixed => RigidBodyBuilder::fixed(),
+    };
+    let body = builder.pose(pose_to_rapier(&anchor)).build();
+    let handle = world.bodies.insert(body);
+    world.colliders.insert_with_parent(collider.build(), handle, &mut world.bodies);
+    Ok((handle, anchor))
+}
+
+impl CoupledRun {
+    /// Steps cloth and bodies once: kinematic bodies are sent to their
+    /// path's pose at the end of the step first.
+    pub fn step(&mut self) -> Result<CouplingReport, CouplingError> {
+        let h = self.config.dt_s;
+        let t_end = self.cloths[self.cloth].simulation().time() + h;
+        for b in self.bodies.iter().filter(|b| b.spec.kind == BodyKind::Kinematic) {
+            let spin = UnitQuaternion::from_scaled_axis(Vec3::from(b.spec.spin_deg_s.map(f64::to_radians)) * t_end);
+            let pose = BodyPose {
+                position: b.anchor.position + b.spec.motion.offset(t_end),
+                rotation: spin * b.anchor.rotation,
+            };
+            let rb = &mut self.world.bodies[b.handle];
+            rb.set_next_kinematic_position(pose_to_rapier(&pose));
+        }
+        self.cloths.step(&mut self.world, &self.master)
+    }
+}
