@@ -84,4 +84,43 @@ pub struct Summary {
     /// The error that stopped the run, if any.
     pub error: Option<String>,
     pub stage_wall_s: StageWall,
+    /// Rigid bodies at the end (scenes with `[[bodies]]`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bodies: Option<Vec<BodySummary>>,
+    /// Cloth-body coupling counters (scenes with `[[bodies]]`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coupling: Option<CouplingSummary>,
+}
+
+/// A rigid body at the end of a run.
+#[derive(Debug, Serialize)]
+pub struct BodySummary {
+    pub name: String,
+    /// Frame origin, m.
+    pub position_m: [f64; 3],
+    /// Orientation quaternion (x, y, z, w).
+    pub rotation_xyzw: [f64; 4],
+    /// Velocity of the centre of mass, m/s.
+    pub velocity_m_s: [f64; 3],
+    /// Angular velocity, rad/s.
+    pub angular_velocity_rad_s: [f64; 3],
+}
+
+/// What the cloth-body coupling did over a run.
+#[derive(Debug, Serialize)]
+pub struct CouplingSummary {
+    /// `staggered` or `iterated`.
+    pub master: String,
+    /// Cloth-plus-bodies passes over the run (1 per step when staggered).
+    pub passes_total: u64,
+    pub passes_max: usize,
+    pub passes_mean: f64,
+    /// Steps whose iteration kept its best pass unconverged.
+    pub unconverged_steps: u64,
+    /// Change of the total linear momentum of cloth and dynamic bodies over
+    /// the run, N s. Gravity, pins and fixed or kinematic bodies change it;
+    /// in a free scene without gravity it is the coupling's drift.
+    pub linear_momentum_change_n_s: [f64; 3],
+    /// The same for angular momentum about the world origin, N m s.
+    pub angular_momentum_change_n_m_s: [f64; 3],
 }

@@ -1,9 +1,11 @@
 //! `cloth run`, `cloth validate` and `cloth time`.
 
-use crate::output::{StageWall, Summary, write_obj};
+use crate::output::{BodySummary, CouplingSummary, StageWall, Summary, write_obj};
 use anyhow::{Context, Result, bail};
 use cloth_core::scene::{EffectName, RunConfig, Scene, SceneError};
-use cloth_core::{ClothModel, ContactStats, Simulation};
+use cloth_core::{ClothModel, ContactStats, Simulation, StepReport};
+use cloth_rapier::scene::has_bodies;
+use cloth_rapier::{CoupledRun, CoupledScene, CouplingReport, Master, Momentum};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -24,8 +26,66 @@ fn load(path: &Path, overrides: &[String]) -> Result<(Scene, ClothModel, RunConf
     Ok((scene, model, cfg))
 }
 
+/// A cloth alone, or a cloth coupled with rapier bodies (a scene with `[[bodies]]`).
+enum Runner {
+    Alone(Simulation),
+    Coupled(Box<CoupledRun>),
+}
+
+impl Runner {
+    /// Loads `path`: with `[[bodies]]` a coupled run, else a cloth alone.
+    fn load(path: &Path, overrides: &[String]) -> Result<(Scene, RunConfig, Runner)> {
+        let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        if !has_bodies(&text) {
+            let (scene, model, cfg) = load(path, overrides)?;
+            return Ok((scene, cfg, Runner::Alone(cfg.simulation(model))));
+        }
+        let coupled = CoupledScene::load(path, overrides)?;
+        let run = coupled.build().map_err(|kind| SceneError { file: path.into(), kind })?;
+        Ok((coupled.scene, run.config, Runner::Coupled(Box::new(run))))
+    }
+
+    fn sim(&self) -> &Simulation {
+        match self {
+            Runner::Alone(sim) => sim,
+            Runner::Coupled(run) => run.cloths[run.cloth].simulation(),
+        }
+    }
+
+    fn step(&mut self, h: f64, totals: &mut CouplingTotals) -> Result<StepReport, String> {
+        match self {
+            Runner::Alone(sim) => sim.step(h).map_err(|e| e.to_string()),
+            Runner::Coupled(run) => {
+                let report = run.step().map_err(|e| e.to_string())?;
+                totals.add(&report);
+                Ok(report.cloths[0])
+            }
+        }
+    }
+}
+
+/// Coupling counters over a run.
+#[derive(Default)]
+struct CouplingTotals {
+    passes: u64,
+    passes_max: usize,
+    unconverged: u64,
+}
+
+impl CouplingTotals {
+    fn add(&mut self, r: &CouplingReport) {
+        self.passes += r.iterations as u64;
+        self.passes_max = self.passes_max.max(r.iterations);
+        self.unconverged += u64::from(!r.converged);
+    }
+}
+
 pub fn validate(path: &Path, overrides: &[String]) -> Result<()> {
-    let (_, model, cfg) = load(path, overrides)?;
+    let (_, cfg, runner) = Runner::load(path, overrides)?;
+    let model = runner.sim().model();
+    if let Runner::Coupled(run) = &runner {
+        println!("{}: {} rigid bodies, coupled {:?}", path.display(), run.bodies.len(), run.master);
+    }
     println!(
         "{}: ok ({} particles, {} type-1 and {} type-2 links, {} pins, {} steps of {} s with {})",
         path.display(),
@@ -53,12 +113,16 @@ fn simulate(
     if threads == 0 {
         bail!("--threads must be at least 1");
     }
-    let (scene, model, cfg) = load(scene_path, overrides)?;
+    let (scene, cfg, mut runner) = Runner::load(scene_path, overrides)?;
+    let start_momentum = match &runner {
+        Runner::Coupled(run) => Some(run.cloths.momentum(&run.world)),
+        Runner::Alone(_) => None,
+    };
+    let mut coupling = CouplingTotals::default();
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
     if let Some((_, dir)) = &frames {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
-    let mut sim = cfg.simulation(model);
     let bar = if progress { ProgressBar::new(cfg.steps) } else { ProgressBar::hidden() };
     bar.set_style(
         ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} steps  {msg}")
@@ -83,10 +147,10 @@ fn simulate(
         }
         Ok(())
     };
-    write_frame(&sim, &mut stages)?;
+    write_frame(runner.sim(), &mut stages)?;
     for _ in 0..cfg.steps {
         let t = Instant::now();
-        let result = pool.install(|| sim.step(cfg.dt_s));
+        let result = pool.install(|| runner.step(cfg.dt_s, &mut coupling));
         step_walls.push(t.elapsed().as_secs_f64());
         match result {
             Ok(r) => {
@@ -103,18 +167,19 @@ fn simulate(
                 stages.collision += r.stages.collision_s;
                 stages.self_collision += r.stages.self_collision_s;
                 contacts.add(&r.contacts);
-                bar.set_message(format!("t = {:.3} s, CG {}", sim.time(), r.cg_iterations));
+                bar.set_message(format!("t = {:.3} s, CG {}", runner.sim().time(), r.cg_iterations));
             }
             Err(e) => {
-                error = Some(e.to_string());
+                error = Some(e);
                 break;
             }
         }
-        write_frame(&sim, &mut stages)?;
+        write_frame(runner.sim(), &mut stages)?;
         bar.inc(1);
     }
     bar.finish_and_clear();
     let wall_s = wall.elapsed().as_secs_f64();
+    let sim = runner.sim();
     let state = sim.state();
     let model = sim.model();
     let steps = state.steps;
@@ -152,8 +217,50 @@ fn simulate(
         hash_builds_total: contacts.hash_builds,
         error,
         stage_wall_s: stages,
+        bodies: None,
+        coupling: None,
     };
-    Ok(summary)
+    Ok(match (&runner, start_momentum) {
+        (Runner::Coupled(run), Some(start)) => coupled_summary(summary, run, start, &coupling),
+        _ => summary,
+    })
+}
+
+/// Adds the bodies and the coupling counters to a coupled run's summary.
+fn coupled_summary(mut summary: Summary, run: &CoupledRun, start: Momentum, totals: &CouplingTotals) -> Summary {
+    let v3 = |v: cloth_rapier::rapier3d_f64::math::Vector| [v.x, v.y, v.z];
+    summary.bodies = Some(
+        run.bodies
+            .iter()
+            .map(|b| {
+                let rb = &run.world.bodies[b.handle];
+                let q = rb.rotation();
+                BodySummary {
+                    name: b.name.clone(),
+                    position_m: v3(rb.translation()),
+                    rotation_xyzw: [q.x, q.y, q.z, q.w],
+                    velocity_m_s: v3(rb.linvel()),
+                    angular_velocity_rad_s: v3(rb.angvel()),
+                }
+            })
+            .collect(),
+    );
+    let end = run.cloths.momentum(&run.world);
+    let steps = summary.steps.max(1);
+    summary.coupling = Some(CouplingSummary {
+        master: match run.master {
+            Master::Staggered => "staggered",
+            Master::Iterated(_) => "iterated",
+        }
+        .to_string(),
+        passes_total: totals.passes,
+        passes_max: totals.passes_max,
+        passes_mean: totals.passes as f64 / steps as f64,
+        unconverged_steps: totals.unconverged,
+        linear_momentum_change_n_s: (end.linear - start.linear).into(),
+        angular_momentum_change_n_m_s: (end.angular - start.angular).into(),
+    });
+    summary
 }
 
 /// Collision counters over a run.

@@ -2,8 +2,8 @@
 //! [`ClothHandle`]s, built with [`ClothBuilder`].
 
 use crate::convert::pose_from_rapier;
-use crate::world::{CollideWith, WorldSolid, import_colliders};
-use cloth_core::{ClothModel, IntegratorKind, ModelError, Simulation, SolverParams, Vec3};
+use crate::world::{CollideWith, Momentum, WorldSnapshot, WorldSolid, bodies_momentum, import_colliders};
+use cloth_core::{ClothModel, ClothState, IntegratorKind, ModelError, Simulation, SolverParams, Vec3};
 use rapier3d_f64::prelude::{PhysicsWorld, RigidBodyHandle};
 
 /// A cloth pin held at a point of a rigid body; the cloth's pull on the pin
@@ -190,6 +190,13 @@ impl ClothBuilder {
     }
 }
 
+/// The state of a world and its cloths ([`ClothSet::save`]).
+#[derive(Debug, Clone)]
+pub struct CoupledSnapshot {
+    world: WorldSnapshot,
+    cloths: Vec<Option<ClothState>>,
+}
+
 /// A handle to a cloth in a [`ClothSet`], stale once the cloth is removed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct ClothHandle {
@@ -259,6 +266,46 @@ impl ClothSet {
 
     pub(crate) fn cloths_mut(&mut self) -> impl Iterator<Item = &mut CoupledCloth> {
         self.slots.iter_mut().filter_map(|s| s.cloth.as_mut())
+    }
+
+    /// Total momentum of every cloth (pinned particles included) and every
+    /// dynamic body of `world`, about the world origin.
+    pub fn momentum(&self, world: &PhysicsWorld) -> Momentum {
+        let cloths = self.iter().fold(Momentum::default(), |acc, (_, c)| {
+            let (model, state) = (c.sim.model(), c.sim.state());
+            let cloth =
+                model.masses().iter().zip(&state.x).zip(&state.v).fold(Momentum::default(), |m, ((mi, x), v)| {
+                    m + Momentum { linear: v * *mi, angular: x.cross(&(v * *mi)) }
+                });
+            acc + cloth
+        });
+        cloths + bodies_momentum(&world.bodies)
+    }
+
+    /// A copy of the world's and every cloth's state, for rollback and
+    /// replay ([`ClothSet::restore`] repeats the run bit for bit).
+    pub fn save(&self, world: &PhysicsWorld) -> CoupledSnapshot {
+        CoupledSnapshot {
+            world: WorldSnapshot::take(world),
+            cloths: self.slots.iter().map(|s| s.cloth.as_ref().map(|c| c.sim.snapshot())).collect(),
+        }
+    }
+
+    /// Puts the world and the cloths back as saved. Cloths inserted since
+    /// are left as they are; a removed cloth is not brought back.
+    pub fn restore(&mut self, snapshot: &CoupledSnapshot, world: &mut PhysicsWorld) -> Result<(), CouplingError> {
+        snapshot.world.restore(world);
+        for (index, (slot, saved)) in self.slots.iter_mut().zip(&snapshot.cloths).enumerate() {
+            if let (Some(c), Some(state)) = (slot.cloth.as_mut(), saved) {
+                let time_s = state.time_s;
+                c.sim.restore(state).map_err(|e| CouplingError::Cloth {
+                    cloth: index,
+                    time_s,
+                    message: e.to_string(),
+                })?;
+            }
+        }
+        Ok(())
     }
 
     /// Number of cloths.

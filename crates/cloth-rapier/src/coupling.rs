@@ -32,7 +32,7 @@
 use crate::cloth_set::{ClothSet, CouplingError};
 use crate::convert::{rotation_from_rapier, vec_from_rapier, vec_to_rapier};
 use crate::world::{BodyStart, Drive, WorldSnapshot};
-use cloth_core::{ClothState, Vec3};
+use cloth_core::{ClothState, StepReport, Vec3};
 use cloth_cosim::{GuessUpdate, Relaxation};
 use rapier3d_f64::prelude::{PhysicsWorld, RigidBodyHandle};
 
@@ -86,7 +86,7 @@ impl Default for Master {
 }
 
 /// What a coupled step did.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct CouplingReport {
     /// Passes made (1 for the staggered master; `max_iterations + 1` when
     /// not converged: the best pass is repeated).
@@ -100,6 +100,8 @@ pub struct CouplingReport {
     pub contacts: usize,
     /// Dynamic bodies coupled to some cloth.
     pub coupled_bodies: usize,
+    /// Each cloth's step report in the accepted pass, in set order.
+    pub cloths: Vec<StepReport>,
 }
 
 /// The impulse the cloths gave one body in a pass.
@@ -157,20 +159,22 @@ impl ClothSet {
             Ok(())
         };
         let result = match master {
-            Master::Staggered => self.pass(world, &coupled, &guess, h).map(|(_, contacts)| CouplingReport {
+            Master::Staggered => self.pass(world, &coupled, &guess, h).map(|(_, contacts, cloths)| CouplingReport {
                 iterations: 1,
                 converged: true,
                 residual: 0.0,
                 contacts,
                 coupled_bodies: coupled.len(),
+                cloths,
             }),
             Master::Iterated(p) => self.iterate(world, &coupled, &mut guess, h, p, time_s, &rollback).map(
-                |(iterations, residual, contacts)| CouplingReport {
+                |(iterations, residual, (contacts, cloths))| CouplingReport {
                     iterations,
                     converged: residual <= 1.0,
                     residual,
                     contacts,
                     coupled_bodies: coupled.len(),
+                    cloths,
                 },
             ),
         };
@@ -191,19 +195,19 @@ impl ClothSet {
         p: &IteratedCoupling,
         time_s: f64,
         rollback: &dyn Fn(&mut ClothSet, &mut PhysicsWorld) -> Result<(), CouplingError>,
-    ) -> Result<(usize, f64, usize), CouplingError> {
+    ) -> Result<(usize, f64, (usize, Vec<StepReport>)), CouplingError> {
         let mut update = GuessUpdate::new(p.relaxation);
         let mut best = (f64::INFINITY, guess.to_vec());
         for iteration in 1..=p.max_iterations {
             if iteration > 1 {
                 rollback(self, world)?;
             }
-            let (end, contacts) = self.pass(world, coupled, guess, h)?;
+            let (end, contacts, reports) = self.pass(world, coupled, guess, h)?;
             let weight: Vec<f64> = end.iter().map(|y| 1.0 / (p.abs_tol_m_s + p.rel_tol * y.abs())).collect();
             let scaled =
                 end.iter().zip(guess.iter()).zip(&weight).map(|((y, u), w)| (y - u).abs() * w).fold(0.0, f64::max);
             if scaled <= 1.0 {
-                return Ok((iteration, scaled, contacts));
+                return Ok((iteration, scaled, (contacts, reports)));
             }
             if scaled < best.0 {
                 best = (scaled, guess.to_vec());
@@ -217,8 +221,8 @@ impl ClothSet {
         // map jump, and there may be no fixed point: keep the best pass.
         rollback(self, world)?;
         guess.copy_from_slice(&best.1);
-        let (_, contacts) = self.pass(world, coupled, guess, h)?;
-        Ok((p.max_iterations + 1, best.0, contacts))
+        let (_, contacts, reports) = self.pass(world, coupled, guess, h)?;
+        Ok((p.max_iterations + 1, best.0, (contacts, reports)))
     }
 
     /// The bodies any cloth touches through a solid or holds by a pin, in a
@@ -253,7 +257,7 @@ impl ClothSet {
         coupled: &[Coupled],
         guess: &[f64],
         h: f64,
-    ) -> Result<(Vec<f64>, usize), CouplingError> {
+    ) -> Result<(Vec<f64>, usize, Vec<StepReport>), CouplingError> {
         let twist = |c: &Coupled| match c.slot {
             Some(s) => (
                 Vec3::from_column_slice(&guess[6 * s..6 * s + 3]),
@@ -264,6 +268,7 @@ impl ClothSet {
         let find = |handle: RigidBodyHandle| coupled.iter().position(|c| c.handle == handle);
         let mut impulses = vec![BodyImpulse::default(); coupled.len()];
         let mut contacts = 0;
+        let mut reports = Vec::new();
         for (index, cloth) in self.cloths_mut().enumerate() {
             let t = cloth.sim.time();
             let fail = |message: String| CouplingError::Cloth { cloth: index, time_s: t, message };
@@ -281,7 +286,7 @@ impl ClothSet {
                 cloth.sim.set_pin_target(a.pin, target).map_err(|e| fail(e.to_string()))?;
                 targets.push((k, a.pin, target));
             }
-            cloth.sim.step(h).map_err(|e| fail(e.to_string()))?;
+            reports.push(cloth.sim.step(h).map_err(|e| fail(e.to_string()))?);
             for s in &cloth.solids {
                 let Some(k) = s.body.and_then(find) else { continue };
                 let got = cloth.sim.solid_impulse(s.solid, coupled[k].start.com);
@@ -317,7 +322,7 @@ impl ClothSet {
                 }
             }
         }
-        Ok((end, contacts))
+        Ok((end, contacts, reports))
     }
 }
 

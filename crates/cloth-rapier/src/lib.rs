@@ -22,7 +22,7 @@ pub mod scene;
 pub mod unit;
 pub mod world;
 
-pub use cloth_set::{Attachment, ClothBuilder, ClothHandle, ClothSet, CoupledCloth, CouplingError};
+pub use cloth_set::{Attachment, ClothBuilder, ClothHandle, ClothSet, CoupledCloth, CoupledSnapshot, CouplingError};
 pub use coupling::{CouplingReport, IteratedCoupling, Master};
 pub use rapier3d_f64;
 pub use rapier3d_f64::prelude::PhysicsWorld;
