@@ -112,6 +112,16 @@ struct BodyImpulse {
     angular: Vec3,
 }
 
+/// What one pass produced.
+struct Pass {
+    /// Mean velocities of the coupled dynamic bodies (6 per body).
+    end: Vec<f64>,
+    /// Cloth-body contacts.
+    contacts: usize,
+    /// Each cloth's step report.
+    reports: Vec<StepReport>,
+}
+
 /// A body some cloth touches or holds, and how it starts the step.
 #[derive(Debug, Clone, Copy)]
 struct Coupled {
@@ -159,22 +169,22 @@ impl ClothSet {
             Ok(())
         };
         let result = match master {
-            Master::Staggered => self.pass(world, &coupled, &guess, h).map(|(_, contacts, cloths)| CouplingReport {
+            Master::Staggered => self.pass(world, &coupled, &guess, h).map(|pass| CouplingReport {
                 iterations: 1,
                 converged: true,
                 residual: 0.0,
-                contacts,
+                contacts: pass.contacts,
                 coupled_bodies: coupled.len(),
-                cloths,
+                cloths: pass.reports,
             }),
             Master::Iterated(p) => self.iterate(world, &coupled, &mut guess, h, p, time_s, &rollback).map(
-                |(iterations, residual, (contacts, cloths))| CouplingReport {
+                |(iterations, residual, pass)| CouplingReport {
                     iterations,
                     converged: residual <= 1.0,
                     residual,
-                    contacts,
+                    contacts: pass.contacts,
                     coupled_bodies: coupled.len(),
-                    cloths,
+                    cloths: pass.reports,
                 },
             ),
         };
@@ -195,24 +205,25 @@ impl ClothSet {
         p: &IteratedCoupling,
         time_s: f64,
         rollback: &dyn Fn(&mut ClothSet, &mut PhysicsWorld) -> Result<(), CouplingError>,
-    ) -> Result<(usize, f64, (usize, Vec<StepReport>)), CouplingError> {
+    ) -> Result<(usize, f64, Pass), CouplingError> {
         let mut update = GuessUpdate::new(p.relaxation);
         let mut best = (f64::INFINITY, guess.to_vec());
         for iteration in 1..=p.max_iterations {
             if iteration > 1 {
                 rollback(self, world)?;
             }
-            let (end, contacts, reports) = self.pass(world, coupled, guess, h)?;
+            let pass = self.pass(world, coupled, guess, h)?;
+            let end = &pass.end;
             let weight: Vec<f64> = end.iter().map(|y| 1.0 / (p.abs_tol_m_s + p.rel_tol * y.abs())).collect();
             let scaled =
                 end.iter().zip(guess.iter()).zip(&weight).map(|((y, u), w)| (y - u).abs() * w).fold(0.0, f64::max);
             if scaled <= 1.0 {
-                return Ok((iteration, scaled, (contacts, reports)));
+                return Ok((iteration, scaled, pass));
             }
             if scaled < best.0 {
                 best = (scaled, guess.to_vec());
             }
-            update.next(guess, &end, &weight);
+            update.next(guess, end, &weight);
         }
         if !p.accept_unconverged {
             return Err(CouplingError::NotConverged { time_s, iterations: p.max_iterations, residual: best.0 });
@@ -221,8 +232,8 @@ impl ClothSet {
         // map jump, and there may be no fixed point: keep the best pass.
         rollback(self, world)?;
         guess.copy_from_slice(&best.1);
-        let (_, contacts, reports) = self.pass(world, coupled, guess, h)?;
-        Ok((p.max_iterations + 1, best.0, (contacts, reports)))
+        let pass = self.pass(world, coupled, guess, h)?;
+        Ok((p.max_iterations + 1, best.0, pass))
     }
 
     /// The bodies any cloth touches through a solid or holds by a pin, in a
@@ -257,7 +268,7 @@ impl ClothSet {
         coupled: &[Coupled],
         guess: &[f64],
         h: f64,
-    ) -> Result<(Vec<f64>, usize, Vec<StepReport>), CouplingError> {
+    ) -> Result<Pass, CouplingError> {
         let twist = |c: &Coupled| match c.slot {
             Some(s) => (
                 Vec3::from_column_slice(&guess[6 * s..6 * s + 3]),
@@ -322,7 +333,7 @@ impl ClothSet {
                 }
             }
         }
-        Ok((end, contacts, reports))
+        Ok(Pass { end, contacts, reports })
     }
 }
 
