@@ -28,7 +28,7 @@ fn load(path: &Path, overrides: &[String]) -> Result<(Scene, ClothModel, RunConf
 
 /// A cloth alone, or a cloth coupled with rapier bodies (a scene with `[[bodies]]`).
 enum Runner {
-    Alone(Simulation),
+    Alone(Box<Simulation>),
     Coupled(Box<CoupledRun>),
 }
 
@@ -38,7 +38,7 @@ impl Runner {
         let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
         if !has_bodies(&text) {
             let (scene, model, cfg) = load(path, overrides)?;
-            return Ok((scene, cfg, Runner::Alone(cfg.simulation(model))));
+            return Ok((scene, cfg, Runner::Alone(Box::new(cfg.simulation(model)))));
         }
         let coupled = CoupledScene::load(path, overrides)?;
         let run = coupled.build().map_err(|kind| SceneError { file: path.into(), kind })?;
