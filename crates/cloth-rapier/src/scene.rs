@@ -435,9 +435,15 @@ fn add_body(
 }
 
 impl CoupledRun {
-    /// Steps cloth and bodies once: kinematic bodies are sent to their
-    /// path's pose at the end of the step first.
+    /// Steps cloth and bodies once with the scene's master.
     pub fn step(&mut self) -> Result<CouplingReport, CouplingError> {
+        let master = self.master;
+        self.step_with(&master)
+    }
+
+    /// Steps cloth and bodies once with `master`: kinematic bodies are sent
+    /// to their path's pose at the end of the step first.
+    pub fn step_with(&mut self, master: &Master) -> Result<CouplingReport, CouplingError> {
         let h = self.config.dt_s;
         let t_end = self.cloths[self.cloth].simulation().time() + h;
         for b in self.bodies.iter().filter(|b| b.spec.kind == BodyKind::Kinematic) {
@@ -449,6 +455,6 @@ impl CoupledRun {
             let rb = &mut self.world.bodies[b.handle];
             rb.set_next_kinematic_position(pose_to_rapier(&pose));
         }
-        self.cloths.step(&mut self.world, &self.master)
+        self.cloths.step(&mut self.world, master)
     }
 }
