@@ -153,11 +153,10 @@ impl Unit for RapierUnit {
             starts.push(start);
         }
         self.world.step();
-        for k in 0..self.bodies.len() {
-            let handle = self.bodies[k];
-            let end = pose_from_rapier(self.world.bodies[handle].position());
-            let velocity = (end.position - starts[k].position) / h;
-            let turn = (end.rotation * starts[k].rotation.inverse()).scaled_axis() / h;
+        for (k, start) in starts.iter().enumerate() {
+            let end = pose_from_rapier(self.world.bodies[self.bodies[k]].position());
+            let velocity = (end.position - start.position) / h;
+            let turn = (end.rotation * start.rotation.inverse()).scaled_axis() / h;
             let outputs = [end.position, end.rotation.scaled_axis(), velocity, turn];
             if outputs.iter().any(|v| !v.iter().all(|c| c.is_finite())) {
                 saved.restore(&mut self.world);
