@@ -39,7 +39,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut posts = Vec::new();
     for x in [-0.55, 0.55] {
         let post = world.bodies.insert(RigidBodyBuilder::fixed().translation(Vector::new(x, 0.0, 1.0)));
-        let collider = world.colliders.insert_with_parent(ColliderBuilder::capsule_y(0.5, 0.02), post, &mut world.bodies);
+        let collider =
+            world.colliders.insert_with_parent(ColliderBuilder::capsule_y(0.5, 0.02), post, &mut world.bodies);
         posts.push((post, collider));
     }
     let ball = world.bodies.insert(RigidBodyBuilder::dynamic().translation(Vector::new(0.05, 0.02, 1.25)));
