@@ -1,6 +1,8 @@
 //! Fixture scenes: they validate, and they show the physics they are named for.
 
 use cloth_core::scene::Scene;
+use cloth_rapier::CoupledScene;
+use cloth_rapier::scene::has_bodies;
 use cloth_tests::{fixture, simulation};
 
 #[test]
@@ -10,9 +12,19 @@ fn every_fixture_scene_validates_and_builds() {
     for entry in std::fs::read_dir(&dir).unwrap() {
         let path = entry.unwrap().path();
         if path.extension().is_some_and(|e| e == "toml") {
-            let scene = Scene::load(&path, &[]).unwrap_or_else(|e| panic!("{e}"));
-            let (model, cfg) = scene.build().unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-            assert!(model.particle_count() > 0 && cfg.steps > 0, "{}", path.display());
+            let text = std::fs::read_to_string(&path).unwrap();
+            let (particles, steps) = if has_bodies(&text) {
+                // Rigid bodies: the cloth part and the bodies build together.
+                let scene = CoupledScene::load(&path, &[]).unwrap_or_else(|e| panic!("{e}"));
+                let run = scene.build().unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+                assert!(!run.bodies.is_empty(), "{}", path.display());
+                (run.cloths[run.cloth].simulation().model().particle_count(), run.config.steps)
+            } else {
+                let scene = Scene::load(&path, &[]).unwrap_or_else(|e| panic!("{e}"));
+                let (model, cfg) = scene.build().unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+                (model.particle_count(), cfg.steps)
+            };
+            assert!(particles > 0 && steps > 0, "{}", path.display());
             count += 1;
         }
     }

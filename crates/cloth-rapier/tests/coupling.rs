@@ -163,3 +163,35 @@ fn mass_ratios_from_1e_3_to_1e3_stay_stable_with_the_iterated_master() {
         }
     }
 }
+
+/// A kinematic plate rising at 0.2 m/s lifts the cloth lying on it: the
+/// cloth rides on the plate's top at the contact thickness.
+#[test]
+fn a_kinematic_plate_lifts_the_cloth() {
+    let plate = r#"
+[[bodies]]
+name = "plate"
+kind = "kinematic"
+shape = { kind = "cuboid", half_extents_m = [0.5, 0.5, 0.02] }
+position_m = [0.0, 0.0, -0.025]
+motion = { kind = "linear", velocity_m_s = [0.0, 0.0, 0.2] }
+"#;
+    let overrides =
+        ["simulation.effects=[\"gravity\", \"bending\", \"damping\"]", "bodies.0.position_m=[0.0, 0.0, 2.0]"];
+    let mut run = build(&scene(plate), &overrides);
+    let plate = run.bodies.iter().find(|b| b.name == "plate").unwrap().handle;
+    for _ in 0..run.config.steps {
+        run.step().unwrap();
+    }
+    let top = run.world.bodies[plate].translation().z + 0.02;
+    let cloth = run.cloths[run.cloth].simulation();
+    let (lo, hi) = cloth.state().x.iter().fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.z), b.max(p.z)));
+    let thickness = cloth.model().contact_thickness();
+    println!(
+        "after {:.2} s the plate's top is at {top:.4} m; the cloth spans z {lo:.4} .. {hi:.4} m (thickness {thickness} m)",
+        cloth.time()
+    );
+    assert!((top - (-0.005 + 0.2 * cloth.time())).abs() < 1e-9, "the plate follows its path");
+    assert!((lo - top - thickness).abs() < 1e-4, "the cloth rides on the plate: {lo} vs {top}");
+    assert!(hi - lo < 0.01, "and stays flat: {}", hi - lo);
+}
