@@ -7,27 +7,25 @@
 //! detection ([`contacts`], geometry from `cloth-collide`) -> system matrix
 //! with a pattern built once -> PCG with pins and contacts as Baraff-Witkin
 //! constraints -> friction -> new state. Units are SI throughout.
+//!
+//! Layout: [`model`] (what the cloth is: model, topology, material, laws),
+//! [`integrate`] (how it moves: state, integrators, the simulation, and
+//! [`control`], where an outside unit plugs in: external solids, pin
+//! targets and forces in, contact impulses and pin reactions out),
+//! [`contact`] (what it touches), [`scene`] (TOML files).
 
-pub mod colliders;
-mod constraints;
-pub mod contacts;
-pub mod control;
-pub mod element_laws;
-pub mod elements;
-mod explicit;
-pub mod forces;
-mod integrator;
-mod keyframes;
-pub mod laws;
-mod material;
-mod matrix_free;
-mod model;
-mod pins;
+pub mod contact;
+pub mod integrate;
+pub mod model;
 pub mod scene;
-mod sim;
-mod state;
-mod topology;
-pub mod wind;
+
+// Every module also under its own name at the root, so paths stay short
+// (`cloth_core::laws`, `cloth_core::contacts`) and inside the crate too.
+pub use contact::{colliders, contacts};
+pub use integrate::control;
+use integrate::{explicit, integrator, matrix_free, sim, state};
+use model::{constraints, keyframes, material, pins, topology};
+pub use model::{element_laws, elements, forces, laws, wind};
 
 pub use cloth_collide::{BodyPose, ShapeSpec, VoxelHash};
 pub use cloth_linalg::{PcgParams, PreconditionerKind};

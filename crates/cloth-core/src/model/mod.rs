@@ -1,0 +1,18 @@
+//! What the cloth is: the immutable [`ClothModel`] (particles, links,
+//! elements, pins, the effects a scene asked for, the sparsity pattern),
+//! its topology and material, and the interaction laws with the loops that
+//! evaluate them. Nothing here changes during a run.
+
+mod cloth_model;
+pub(crate) mod constraints;
+pub mod element_laws;
+pub mod elements;
+pub mod forces;
+pub(crate) mod keyframes;
+pub mod laws;
+pub(crate) mod material;
+pub(crate) mod pins;
+pub(crate) mod topology;
+pub mod wind;
+
+pub use cloth_model::*;
