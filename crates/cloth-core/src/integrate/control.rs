@@ -10,7 +10,7 @@
 //!
 //! Outputs (read after a step): per solid, the impulse and angular impulse
 //! the cloth exerted on it over the step ([`SolidImpulse`]); per pin, the
-//! force the cloth exerted on it ([`crate::Simulation::pin_reactions`]).
+//! force the cloth exerted on it ([`crate::Simulation::pin_reaction`]).
 //!
 //! Inputs persist from step to step until changed or cleared, as a motor
 //! command would: set them only when they change.
