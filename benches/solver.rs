@@ -43,6 +43,7 @@ fn system() -> (SystemBuffers, ConstraintFilter, Multigrid) {
         mass_times: Some(&delta),
         external: None,
         diag_stiffness: None,
+        diag_damping: None,
     };
     assemble(model, &state.x, &terms, &mut bufs);
     let mut filter = ConstraintFilter::new(model.particle_count());

@@ -127,6 +127,7 @@ fn jacobian_error(model: &ClothModel, x: &[Vec3], v: &[Vec3], wrt_velocity: bool
         mass_times: None,
         external: None,
         diag_stiffness: None,
+        diag_damping: None,
     };
     assemble(model, x, &terms, &mut bufs);
     let mut a = dense(&bufs, n);

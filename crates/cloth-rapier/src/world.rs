@@ -48,7 +48,8 @@ pub struct WorldSolid {
 /// Adds the admitted colliders of `world` to `model` as externally driven
 /// solids: the solid's frame is the body's frame (the collider's own pose
 /// for a parentless collider), the shape sits at the collider's position
-/// relative to its body, and the cloth-solid friction is the collider's.
+/// relative to its body, and the cloth-solid friction is the collider's;
+/// dynamic bodies' colliders are [yielding](cloth_core::Collider::yielding).
 /// Returns the model and which solid stands for which collider, in the
 /// collider set's (deterministic) order.
 pub fn import_colliders(
@@ -64,12 +65,15 @@ pub fn import_colliders(
             continue;
         }
         let body = collider.parent();
-        let (frame, local) = match body.and_then(|b| world.bodies.get(b)) {
+        let parent = body.and_then(|b| world.bodies.get(b));
+        let (frame, local) = match parent {
             Some(rb) => (*rb.position(), collider.position_wrt_parent().copied().unwrap_or(Pose::IDENTITY)),
             None => (*collider.position(), Pose::IDENTITY),
         };
         let shape = SolidShape::from_parry(collider.shared_shape().clone(), local);
-        solids.push(Collider::external(shape, pose_from_rapier(&frame), collider.friction()));
+        // A dynamic body gives way; fixed and kinematic ones hold the cloth.
+        let dynamic = parent.is_some_and(|rb| rb.is_dynamic());
+        solids.push(Collider::external(shape, pose_from_rapier(&frame), collider.friction()).with_yielding(dynamic));
         links.push(WorldSolid { solid: first + links.len(), collider: handle, body });
     }
     Ok((model.with_solids(solids)?, links))

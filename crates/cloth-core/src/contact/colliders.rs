@@ -88,13 +88,25 @@ pub struct Collider {
     pub spin_rad_s: Vec3,
     /// Coulomb friction coefficient.
     pub friction: f64,
+    /// Whether the solid gives way to the cloth's push (a dynamic rigid
+    /// body's collider): a particle squeezed between it and a solid that
+    /// does not give way is held by the other one and pressed by this one
+    /// (see `contacts::squeeze_force`). Prescribed solids do not.
+    pub yielding: bool,
 }
 
 impl Collider {
     /// A solid driven from outside ([`crate::Control::set_solid_motion`]),
-    /// starting at `anchor`, with Coulomb coefficient `friction` (>= 0).
+    /// starting at `anchor`, with Coulomb coefficient `friction` (>= 0);
+    /// not yielding (see [`Collider::yielding`]).
     pub fn external(shape: SolidShape, anchor: BodyPose, friction: f64) -> Self {
-        Self { shape, anchor, motion: PinMotion::External, spin_rad_s: Vec3::zeros(), friction }
+        Self { shape, anchor, motion: PinMotion::External, spin_rad_s: Vec3::zeros(), friction, yielding: false }
+    }
+
+    /// The same solid, giving way to the cloth's push or not (see
+    /// [`Collider::yielding`]).
+    pub fn with_yielding(self, yielding: bool) -> Self {
+        Self { yielding, ..self }
     }
 
     /// Pose at time `t` (s): the anchor moved along the path and turned by
@@ -181,7 +193,7 @@ impl CollisionSpec {
                 * UnitQuaternion::from_axis_angle(&Vec3::x_axis(), rx);
             let anchor = BodyPose { position: Vec3::from(c.position_m), rotation };
             let spin_rad_s = Vec3::from(c.spin_deg_s.map(f64::to_radians));
-            out.push(Collider { shape, anchor, motion: c.motion.clone(), spin_rad_s, friction });
+            out.push(Collider { shape, anchor, motion: c.motion.clone(), spin_rad_s, friction, yielding: false });
         }
         Ok(out)
     }

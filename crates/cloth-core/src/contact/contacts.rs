@@ -58,6 +58,21 @@ pub struct SolidContact {
     pub impulse_n_s: Vec3,
     /// False once released because it pulled.
     pub active: bool,
+    /// Squeezed: the particle is also held by a solid on the opposite side
+    /// (a cloth between a box and a table). It cannot be held by both, so
+    /// this one presses with [`squeeze_force`] instead of a constraint;
+    /// `normal_force_n` is that force.
+    pub pressed: bool,
+    /// Friction of a squeezed particle inside the implicit solve
+    /// ([`linearise_squeeze_friction`]), linearised as `f = e - C v`:
+    /// `C`, N s/m, ...
+    pub solve_damping: Mat3,
+    /// ... `e`, N, ...
+    pub solve_constant_n: Vec3,
+    /// The force it exerted at the solved velocity, N
+    /// ([`squeeze_friction_forces`]); [`apply_friction`] settles the rest
+    /// within the Coulomb bound.
+    pub solve_friction_n: Vec3,
 }
 
 /// A pair of cloth pieces closer than the self-collision thickness.
@@ -154,6 +169,9 @@ pub struct ContactBuffers {
     pub self_force: Vec<Vec3>,
     /// Self-collision stiffness on the diagonal, `-df_i/dx_i`, N/m.
     pub self_stiffness: Vec<Mat3>,
+    /// Friction of squeezed particles as damping on the diagonal,
+    /// `-df_i/dv_i`, N s/m ([`linearise_squeeze_friction`]).
+    pub friction_damping: Vec<Mat3>,
     /// Per particle, its nearest triangle's entry in `self_pairs` (or `u32::MAX`).
     nearest: Vec<u32>,
 }
@@ -168,6 +186,15 @@ const CONTACT_MARGIN: f64 = 0.05;
 
 /// Two contact normals closer than this (cosine) constrain one direction.
 const PARALLEL_COS: f64 = 0.98;
+
+/// Two contact normals further apart than this (cosine below its
+/// negative, more than 120 degrees) squeeze the particle between their
+/// solids: one holds it, the other presses ([`squeeze_force`]). Holding
+/// it with both would lock it in the plane of the two normals: a cloth
+/// pulled under a resting box's edge (whose normal turns from the bottom
+/// face's as the particle passes) would push the box instead of sliding.
+/// Between the two bounds the normals make a crease, both hold.
+const OPPOSED_COS: f64 = 0.5;
 
 /// Keeps the deepest solid and the deepest other one whose normal is not
 /// parallel to it, from up to four solids in reach.
@@ -192,7 +219,10 @@ impl Nearest {
         }
     }
 
-    fn pick(&self) -> [Option<SolidContact>; 2] {
+    /// The deepest contact and a second one: a crease, or a solid on the
+    /// opposite side (`pressed`). `yielding` tells whether a contact's
+    /// solid gives way ([`crate::Collider::yielding`]).
+    fn pick(&self, yielding: impl Fn(&SolidContact) -> bool) -> [Option<SolidContact>; 2] {
         let deepest = |skip: &dyn Fn(&SolidContact) -> bool| {
             self.found
                 .iter()
@@ -204,10 +234,47 @@ impl Nearest {
                 .map(|(_, c)| c)
         };
         let first = deepest(&|_| false);
-        let second =
-            first.and_then(|f| deepest(&|c| c.collider == f.collider || f.normal.dot(&c.normal).abs() > PARALLEL_COS));
-        [first, second]
+        let crease = first.and_then(|f| {
+            deepest(&|c| c.collider == f.collider || !(-OPPOSED_COS..=PARALLEL_COS).contains(&f.normal.dot(&c.normal)))
+        });
+        if crease.is_some() {
+            return [first, crease];
+        }
+        let opposite =
+            first.and_then(|f| deepest(&|c| c.collider == f.collider || f.normal.dot(&c.normal) >= -OPPOSED_COS));
+        match (first, opposite) {
+            // Squeezed: a solid that gives way presses, the other holds
+            // (the deeper one when both or neither give way).
+            (Some(f), Some(o)) => {
+                let (hold, mut press) = if yielding(&f) && !yielding(&o) { (o, f) } else { (f, o) };
+                press.pressed = true;
+                [Some(hold), Some(press)]
+            }
+            _ => [first, None],
+        }
     }
+}
+
+/// Stiffness of a squeezed contact per unit particle mass and per `1/h^2`:
+/// the pressing solid meets a particle `SQUEEZE` times stiffer than the
+/// particle's own inertia over one step (`m / h^2`). Any value gives the
+/// same forces once a coupled step converges (the overlap adjusts); this
+/// one keeps the overlap below a thousandth of the load's free-fall
+/// distance over a step and an explicitly coupled body of the particle's
+/// mass stable (`k h^2 / m < 4` fails only for bodies 25 times lighter
+/// than the particles they press).
+const SQUEEZE: f64 = 100.0;
+
+/// Force with which a solid presses a particle that a solid on the other
+/// side holds (N, >= 0): a penalty `f = k max(0, e - g)` on the particle's
+/// gap `g` (m) to the pressing solid below the thickness `e` (m), with
+/// `k = SQUEEZE m / h^2` (N/m) for particle mass `m` (kg) and step `h`
+/// (s). Choi & Ko (2002, §5) hold particles on solids with constraints;
+/// a particle between two solids (their normals opposite) can only be
+/// held by one, and the other's push must be a force the holding solid
+/// carries (Baraff & Witkin 1998 filter one direction once).
+pub fn squeeze_force(gap_m: f64, thickness_m: f64, mass_kg: f64, h: f64) -> f64 {
+    SQUEEZE * mass_kg / (h * h) * (thickness_m - gap_m).max(0.0)
 }
 
 /// A solid's pose, motion and world bounding box at one instant.
@@ -300,7 +367,7 @@ pub fn detect_solid_contacts(
     bufs.probe.resize(n, (0.0, 0));
     let thickness = model.contact_thickness();
     let reach = thickness * (1.0 + CONTACT_MARGIN);
-    let colliders = model.colliders();
+    let (colliders, masses) = (model.colliders(), model.masses());
     let (solids_now, solids_next) = (bufs.now.at(model, &bufs.external, t), bufs.next.at(model, &bufs.external, t + h));
     bufs.candidate.par_iter_mut().zip(bufs.probe.par_iter_mut()).enumerate().for_each(|(i, (cand, probe))| {
         *cand = [None; 2];
@@ -332,7 +399,15 @@ pub fn detect_solid_contacts(
                 nearest.offer(s.distance_m, contact(i, k, c, &surface, s.distance_m, travel, next));
             }
         }
-        *cand = nearest.pick();
+        *cand = nearest.pick(|c| colliders[c.collider as usize].yielding);
+        if let [Some(held), Some(pressed)] = cand
+            && pressed.pressed
+        {
+            // The particle ends the step where the holding solid puts it.
+            let end = x[i] + held.normal * held.normal_travel_m;
+            let gap = pressed.normal.dot(&(end - pressed.point));
+            pressed.normal_force_n = squeeze_force(gap, thickness, masses[i], h);
+        }
     });
     bufs.solid.clear();
     let mut stats = ContactStats::default();
@@ -366,6 +441,10 @@ fn contact(
         normal_force_n: 0.0,
         impulse_n_s: Vec3::zeros(),
         active: true,
+        pressed: false,
+        solve_damping: Mat3::zeros(),
+        solve_constant_n: Vec3::zeros(),
+        solve_friction_n: Vec3::zeros(),
     }
 }
 
@@ -459,14 +538,15 @@ pub fn add_penetrating(
             let Some((s, surface)) = near_surface(c, next, x[i], new_x[i], 0.5 * thickness, &mut 0) else {
                 continue;
             };
-            let distinct = existing
-                .is_none_or(|e| e.collider as usize != k && e.normal.dot(&surface.normal).abs() <= PARALLEL_COS);
+            let distinct = existing.is_none_or(|e| {
+                e.collider as usize != k && (-OPPOSED_COS..=PARALLEL_COS).contains(&e.normal.dot(&surface.normal))
+            });
             if distinct {
                 let travel = normal_travel(surface.normal.dot(&(x[i] - surface.point)), thickness, thickness);
                 nearest.offer(s.distance_m, contact(i, k, c, &surface, s.distance_m, travel, next));
             }
         }
-        cand[0] = nearest.pick()[0];
+        cand[0] = nearest.pick(|_| false)[0];
     });
     let before = bufs.solid.len();
     bufs.solid.extend(bufs.candidate.iter().filter_map(|c| c[0]));
@@ -669,7 +749,7 @@ fn constrain_particle(
     value: &impl Fn(Vec3, usize) -> Vec3,
 ) {
     let i = group[0].particle as usize;
-    let mut active = group.iter().filter(|c| c.active);
+    let mut active = group.iter().filter(|c| c.active && !c.pressed);
     // A non-finite value is caught as a non-finite state after the step.
     let _ = match (active.next(), active.next()) {
         (None, _) => filter.set(i, Constraint::Free, Vec3::zeros()),
@@ -721,10 +801,13 @@ pub fn release_pulling(
     let mut released = 0;
     for group in contacts.chunk_by_mut(same_particle) {
         let i = group[0].particle as usize;
-        let mut active = (0..group.len()).filter(|&k| group[k].active);
+        let mut active = (0..group.len()).filter(|&k| group[k].active && !group[k].pressed);
         let (first, second) = (active.next(), active.next());
         let Some(a) = first else { continue };
-        let force = (matrix.row_times(i, unknown) - rhs[i]) / force_coefficient;
+        // A squeezed particle's holding contact also carries the push of
+        // the solid pressing from the other side (not part of the solve).
+        let pressing: Vec3 = group.iter().filter(|c| c.active && c.pressed).map(|c| c.normal * c.normal_force_n).sum();
+        let force = (matrix.row_times(i, unknown) - rhs[i]) / force_coefficient - pressing;
         match second {
             None => group[a].normal_force_n = group[a].normal.dot(&force),
             Some(b) => {
@@ -741,6 +824,12 @@ pub fn release_pulling(
                 released += 1;
             }
         }
+        if changed && !group.iter().any(|c| c.active && !c.pressed) {
+            // The holding solid let go: the pressing one holds instead.
+            for c in group.iter_mut().filter(|c| c.active && c.pressed) {
+                (c.pressed, c.normal_force_n) = (false, 0.0);
+            }
+        }
         if changed {
             constrain_particle(group, x, filter, &value);
         }
@@ -748,17 +837,101 @@ pub fn release_pulling(
     released
 }
 
-/// Coulomb friction on the new state: the velocity relative to the solid
-/// in the particle's free directions (the tangent plane, or the crease
-/// for a two-solid contact) loses at most `mu |f_n| tau / m`, all of it
-/// when that is enough (the particle sticks); positions move by `tau`
-/// times the change. `f_n` is the total normal constraint force, `mu` the
-/// largest coefficient of the solids touched. `tau` is the time over
-/// which a force changes the new velocity in the integrator (`h` for
-/// backward Euler, `2h/3` for BDF2), so the friction force is exactly
-/// `mu f_n` while sliding. Each contact's `impulse_n_s` becomes its
-/// normal force plus its share of the friction force (in proportion to
-/// the normal forces), times the step `h`. Returns the sticking count.
+/// Slip speed above which a squeezed particle's friction goes into the
+/// solve (m/s); slower ones stick or slip under [`apply_friction`] alone.
+/// Sliding friction linearised near the point of sticking overshoots and
+/// reverses: on the tablecloth fixture pulled slowly (0.1 m/s), a
+/// threshold of 1 cm/s let the box alternate between slipping forwards
+/// and back and lag 3 cm after 1 s; at 5 cm/s it follows within 5 mm.
+const SLIDE_SPEED: f64 = 5e-2;
+
+/// Coulomb friction of a sliding contact (Choi & Ko 2002, §5): the force
+/// `f = -mu N u` against the slip direction `u = w / |w|` (`w` the slip
+/// velocity in the tangent plane, m/s), with `limit = mu N` (N).
+pub fn sliding_friction(slip: Vec3, limit_n: f64) -> Vec3 {
+    -slip * (limit_n / slip.norm())
+}
+
+/// `-d f / d w` of [`sliding_friction`] within the tangent plane `P`
+/// (projector), N s/m: `limit / |w| (P - u u^T)`. The force keeps its
+/// magnitude and only turns with the slip.
+fn sliding_friction_damping(slip: Vec3, limit_n: f64, tangent: &Mat3) -> Mat3 {
+    let speed = slip.norm();
+    let u = slip / speed;
+    (tangent - u * u.transpose()) * (limit_n / speed)
+}
+
+/// Friction of squeezed particles that slide, inside the implicit solve:
+/// [`sliding_friction`] linearised about the slip `w0 = P (v - v_s)` at
+/// the start of the step, relative to the pressing solid (velocity `v_s`)
+/// in the holding solid's tangent plane (`P = I - n n^T`), with `N` the
+/// pressing force ([`squeeze_force`]): `f = f(w0) - C (w - w0)`, which is
+/// `e - C v`; `C` is added to `damping` (N s/m) and `e` to `external`
+/// (N). Only slips above [`SLIDE_SPEED`]. Why in the solve: a pressing
+/// solid often rests on a few particles (a box on its leading edge), and
+/// friction applied after the solve cannot exceed what stops that
+/// particle alone (`m |w| / h`); in the solve its neighbours' links take
+/// up the load and the full `mu N` reaches the cloth. A particle that
+/// would stop within the step overshoots; [`apply_friction`] trims that
+/// within the Coulomb bound. Returns whether any was added.
+pub fn linearise_squeeze_friction(
+    contacts: &mut [SolidContact],
+    v: &[Vec3],
+    damping: &mut [Mat3],
+    external: &mut [Vec3],
+) -> bool {
+    let mut added = false;
+    for group in contacts.chunk_by_mut(same_particle) {
+        let Some(hold) = group.iter().find(|c| c.active && !c.pressed).map(|c| c.normal) else { continue };
+        let tangent = Mat3::identity() - hold * hold.transpose();
+        for c in group.iter_mut().filter(|c| c.pressed && c.friction > 0.0) {
+            let i = c.particle as usize;
+            let slip = tangent * (v[i] - c.solid_velocity);
+            if slip.norm() <= SLIDE_SPEED {
+                continue;
+            }
+            let limit = c.friction * c.normal_force_n;
+            let damp = sliding_friction_damping(slip, limit, &tangent);
+            // f(w0) - C (w - w0) with w = P (v - v_s), C P = C and C w0 = 0.
+            let constant = sliding_friction(slip, limit) + damp * c.solid_velocity;
+            damping[i] += damp;
+            external[i] += constant;
+            (c.solve_damping, c.solve_constant_n) = (damp, constant);
+            added = true;
+        }
+    }
+    added
+}
+
+/// The force each of [`linearise_squeeze_friction`]'s contacts exerted at
+/// the solved velocities `v`, `e - C v`, N, into `solve_friction_n`.
+pub fn squeeze_friction_forces(contacts: &mut [SolidContact], v: &[Vec3]) {
+    for c in contacts.iter_mut() {
+        c.solve_friction_n = c.solve_constant_n - c.solve_damping * v[c.particle as usize];
+    }
+}
+
+/// Coulomb friction on the new state, per particle in contact: each solid
+/// `k` it touches drags it towards the solid's velocity `v_k` in the
+/// particle's free directions (the tangent plane; the crease for two
+/// solids at an angle; the plane for a particle squeezed between two
+/// opposite solids) by at most `mu_k f_k tau / m`, `f_k` the normal force
+/// of that contact and `mu_k` its coefficient. With one solid the
+/// relative velocity stops when that is enough (static regime) and loses
+/// exactly that much otherwise. With two, the new velocity `w` minimises
+/// `m/(2 tau) |w - v|^2 + sum_k mu_k f_k |w - v_k|` over the free
+/// directions (implicit Coulomb friction against both surfaces), found by
+/// projected Gauss-Seidel on the two changes ([`FRICTION_SWEEPS`] sweeps).
+/// Positions move by `tau` times the change. `tau` is the time over which
+/// a force changes the new velocity in the integrator (`h` for backward
+/// Euler, `2h/3` for BDF2), so each friction force is exactly `mu_k f_k`
+/// while sliding. Friction already applied in the solve
+/// (`solve_friction_n`, see [`linearise_squeeze_friction`]) counts as the
+/// velocity change `f tau / m` it gives: it is taken out, the friction
+/// computed as above, and the difference applied, so the total stays
+/// within each bound. Each contact's `impulse_n_s` becomes its normal
+/// force plus its own friction force, times the step `h`. Returns how
+/// many particles stick to a solid.
 pub fn apply_friction(
     contacts: &mut [SolidContact],
     masses: &[f64],
@@ -774,45 +947,67 @@ pub fn apply_friction(
         let mut active = group.iter().enumerate().filter(|(_, c)| c.active).map(|(k, _)| k);
         let Some(a) = active.next() else { continue };
         let b = active.next();
-        let (ca, cb) = (group[a], b.map(|b| group[b]));
-        let mu = cb.map_or(ca.friction, |cb| ca.friction.max(cb.friction));
-        if mu <= 0.0 {
+        let i = group[a].particle as usize;
+        // Friction already in the solve, as the velocity change it gave.
+        let in_solve =
+            (group[a].solve_friction_n + b.map_or(Vec3::zeros(), |b| group[b].solve_friction_n)) * (tau / masses[i]);
+        let squeezed = group[a].pressed || b.is_some_and(|b| group[b].pressed);
+        let (na, nb) = (group[a].normal, b.map(|b| group[b].normal));
+        let free = |u: Vec3| match nb {
+            Some(nb) if !squeezed => {
+                let crease = na.cross(&nb).normalize();
+                crease * crease.dot(&u)
+            }
+            _ => u - na * na.dot(&u),
+        };
+        if squeezed {
+            // The pressing force's part in the holding solid's tangent
+            // plane moves the particle (its normal part the holding
+            // solid carries, see `release_pulling`).
+            for c in group.iter().filter(|c| c.active && c.pressed) {
+                let dv = free(c.normal * c.normal_force_n) * (tau / masses[i]);
+                new_v[i] += dv;
+                new_x[i] += dv * tau;
+            }
+        }
+        if group[a].friction <= 0.0 && b.is_none_or(|b| group[b].friction <= 0.0) {
             continue;
         }
-        let i = ca.particle as usize;
-        let rel = new_v[i] - ca.solid_velocity;
-        let (normal_force, free) = match cb {
-            None => (ca.normal * ca.normal_force_n.max(0.0), rel - ca.normal * ca.normal.dot(&rel)),
-            Some(cb) => {
-                let crease = ca.normal.cross(&cb.normal).normalize();
-                let force = ca.normal * ca.normal_force_n.max(0.0) + cb.normal * cb.normal_force_n.max(0.0);
-                (force, crease * crease.dot(&rel))
-            }
-        };
-        let speed = free.norm();
-        let budget = mu * normal_force.norm() * tau / masses[i];
-        let dv = if speed <= budget {
-            sticking += 1;
-            -free
-        } else {
-            -free * (budget / speed)
-        };
-        new_v[i] += dv;
-        new_x[i] += dv * tau;
-        // The friction force is m dv / tau; over the step it gives h times that.
-        let friction_impulse = dv * (masses[i] * h / tau);
-        match b {
-            None => group[a].impulse_n_s += friction_impulse,
-            Some(b) => {
-                let (fa, fb) = (ca.normal_force_n.max(0.0), group[b].normal_force_n.max(0.0));
-                let share = if fa + fb > 0.0 { fa / (fa + fb) } else { 0.5 };
-                group[a].impulse_n_s += friction_impulse * share;
-                group[b].impulse_n_s += friction_impulse * (1.0 - share);
+        let budget = |c: &SolidContact| c.friction * c.normal_force_n.max(0.0) * tau / masses[i];
+        // The change that would make the particle move with each solid,
+        // from its velocity without the friction already applied.
+        let v_free = new_v[i] - in_solve;
+        let to_a = free(group[a].solid_velocity - v_free);
+        let to_b = b.map(|b| free(group[b].solid_velocity - v_free));
+        let (budget_a, budget_b) = (budget(&group[a]), b.map_or(0.0, |b| budget(&group[b])));
+        let clamp = |u: Vec3, limit: f64| if u.norm() <= limit { u } else { u * (limit / u.norm()) };
+        let (mut dv_a, mut dv_b) = (clamp(to_a, budget_a), Vec3::zeros());
+        if let Some(to_b) = to_b {
+            for _ in 0..FRICTION_SWEEPS {
+                dv_b = clamp(to_b - dv_a, budget_b);
+                dv_a = clamp(to_a - dv_b, budget_a);
             }
         }
+        let dv = dv_a + dv_b - in_solve;
+        new_v[i] += dv;
+        new_x[i] += dv * tau;
+        // A friction force is m dv / tau; over the step it gives h times that.
+        let scale = masses[i] * h / tau;
+        group[a].impulse_n_s += dv_a * scale;
+        if let Some(b) = b {
+            group[b].impulse_n_s += dv_b * scale;
+        }
+        let sticks = |dv: &Vec3, limit: f64| limit > 0.0 && dv.norm() < limit;
+        sticking += usize::from(sticks(&dv_a, budget_a) || sticks(&dv_b, budget_b));
     }
     sticking
 }
+
+/// Sweeps of [`apply_friction`]'s projected Gauss-Seidel for a particle
+/// against two solids: two suffice when both slide or one sticks; the rest
+/// settle the case where the particle's velocity lies between the two
+/// solids'. Fixed, so results do not depend on a tolerance.
+const FRICTION_SWEEPS: usize = 16;
 
 /// Whether particles `a` and `b` share a link (they never repel).
 fn linked(model: &ClothModel, a: usize, b: usize) -> bool {
@@ -1171,6 +1366,61 @@ mod tests {
         }
     }
 
+    /// The squeezed particle's friction in the solve, `e - C v`, is the
+    /// sliding force at the start velocity and follows it to first order
+    /// as the slip turns (C against central differences); a slip below
+    /// `SLIDE_SPEED` adds nothing.
+    #[test]
+    fn squeeze_friction_linearisation_matches_the_law() {
+        let mut hold = SolidContact {
+            particle: 0,
+            collider: 0,
+            point: Vec3::zeros(),
+            distance_m: 0.0,
+            normal: Vec3::new(0.0, 0.6, 0.8),
+            normal_travel_m: 0.0,
+            solid_velocity: Vec3::zeros(),
+            friction: 0.3,
+            normal_force_n: 1.0,
+            impulse_n_s: Vec3::zeros(),
+            active: true,
+            pressed: false,
+            solve_damping: Mat3::zeros(),
+            solve_constant_n: Vec3::zeros(),
+            solve_friction_n: Vec3::zeros(),
+        };
+        let mut press = hold;
+        (press.collider, press.normal, press.pressed) = (1, -hold.normal, true);
+        (press.solid_velocity, press.friction, press.normal_force_n) = (Vec3::new(0.2, -0.1, 0.3), 0.4, 2.5);
+        hold.solid_velocity = Vec3::new(1.0, 2.0, 3.0);
+        let v0 = Vec3::new(1.3, 0.4, -0.2);
+        let mut contacts = [hold, press];
+        let (mut damping, mut external) = ([Mat3::zeros()], [Vec3::new(0.5, 0.0, 0.0)]);
+        assert!(linearise_squeeze_friction(&mut contacts, &[v0], &mut damping, &mut external));
+        let n = hold.normal;
+        let tangent = Mat3::identity() - n * n.transpose();
+        let slip = |v: Vec3| tangent * (v - press.solid_velocity);
+        let limit = 0.4 * 2.5;
+        let linear = |v: Vec3| external[0] - Vec3::new(0.5, 0.0, 0.0) - damping[0] * v;
+        assert!((linear(v0) - sliding_friction(slip(v0), limit)).norm() < 1e-15);
+        assert!((sliding_friction(slip(v0), limit).norm() - limit).abs() < 1e-15);
+        assert!(sliding_friction(slip(v0), limit).dot(&n).abs() < 1e-15);
+        let eps = 1e-6;
+        for d in [Vec3::x(), Vec3::y(), Vec3::z()] {
+            let numeric = (sliding_friction(slip(v0 + d * eps), limit) - sliding_friction(slip(v0 - d * eps), limit))
+                / (2.0 * eps);
+            let analytic = -damping[0] * d;
+            assert!((numeric - analytic).norm() < 1e-8, "{numeric} vs {analytic}");
+        }
+        squeeze_friction_forces(&mut contacts, &[v0]);
+        assert!((contacts[1].solve_friction_n - sliding_friction(slip(v0), limit)).norm() < 1e-15);
+        assert_eq!(contacts[0].solve_friction_n, Vec3::zeros());
+        // Nearly moving with the box: left to `apply_friction`.
+        let mut contacts = [hold, press];
+        let slow = press.solid_velocity + tangent * Vec3::new(0.03, 0.0, 0.0);
+        assert!(!linearise_squeeze_friction(&mut contacts, &[slow], &mut damping, &mut external));
+    }
+
     /// Coulomb friction: a tangential speed below mu f_n tau / m stops
     /// (static), above it loses exactly that much; normal velocity is kept.
     #[test]
@@ -1187,6 +1437,10 @@ mod tests {
             normal_force_n: 2.0,
             impulse_n_s: Vec3::zeros(),
             active: true,
+            pressed: false,
+            solve_damping: Mat3::zeros(),
+            solve_constant_n: Vec3::zeros(),
+            solve_friction_n: Vec3::zeros(),
         };
         let (mass, tau) = (0.5, 0.01);
         let budget = 0.5 * 2.0 * tau / mass; // 0.02 m/s

@@ -3,12 +3,13 @@
 
 use crate::contacts::{
     ContactBuffers, ContactStats, add_penetrating, apply_friction, constrain_contacts, detect_self_contacts,
-    detect_solid_contacts, project_out, release_pulling, separate_self_contacts,
+    detect_solid_contacts, linearise_squeeze_friction, project_out, release_pulling, separate_self_contacts,
+    squeeze_friction_forces,
 };
 use crate::control::{Control, PinPaths};
 use crate::explicit::ExplicitBuffers;
 use crate::{
-    ClothModel, ClothState, Vec3,
+    ClothModel, ClothState, Mat3, Vec3,
     forces::{SystemBuffers, SystemTerms, assemble},
 };
 use cloth_linalg::{Constraint, ConstraintFilter, Pcg, PcgError, PcgParams, PreconditionerKind};
@@ -406,6 +407,7 @@ impl Linearised for BackwardEuler {
             mass_times: None,
             external: None,
             diag_stiffness: None,
+            diag_damping: None,
         }
     }
 
@@ -443,6 +445,7 @@ impl Linearised for BackwardEuler {
             mass_times: Some(y),
             external: None,
             diag_stiffness: None,
+            diag_damping: None,
         }
     }
 }
@@ -467,6 +470,7 @@ impl Linearised for Bdf2 {
             mass_times: Some(aux2),
             external: None,
             diag_stiffness: None,
+            diag_damping: None,
         }
     }
 
@@ -505,6 +509,7 @@ impl Linearised for Bdf2 {
             mass_times: Some(y),
             external: None,
             diag_stiffness: None,
+            diag_damping: None,
         }
     }
 }
@@ -521,10 +526,9 @@ fn linearised_step<S: Linearised>(
     solver: &SolverParams,
 ) -> Result<StepReport, StepError> {
     scheme.prepare(state, h, &mut ws.aux, &mut ws.aux2);
-    let loads = step_loads(model, state, control, h, ws)?;
-    let mut terms = scheme.terms(state, &ws.aux, &ws.aux2, h);
-    terms.external = loads.external.then_some(&ws.external[..]);
-    terms.diag_stiffness = loads.self_collision.then_some(&ws.contacts.self_stiffness[..]);
+    let mut loads = step_loads(model, state, control, h, ws)?;
+    squeeze_friction_in_solve(state, ws, &mut loads);
+    let terms = step_terms(scheme, state, (&ws.aux, &ws.aux2), h, &ws.external, &ws.contacts, &loads);
     let force_coefficient = terms.force;
     let timing = assemble(model, &state.x, &terms, &mut ws.system);
     let t_pins = Instant::now();
@@ -576,6 +580,7 @@ fn linearised_step<S: Linearised>(
         let mut terms = scheme.newton_terms(h, &ws.new_v, &ws.newton_y);
         terms.external = loads.external.then_some(&ws.external[..]);
         terms.diag_stiffness = loads.self_collision.then_some(&ws.contacts.self_stiffness[..]);
+        terms.diag_damping = loads.squeeze_friction.then_some(&ws.contacts.friction_damping[..]);
         let t = assemble(model, &ws.new_x, &terms, &mut ws.system);
         let zero = |_, _| Vec3::zeros();
         constrain_pins(model, state, control, h, &mut ws.filter, zero);
@@ -602,6 +607,9 @@ fn linearised_step<S: Linearised>(
     }
     let tau = scheme.response_time(h);
     let solid = &mut ws.contacts.solid;
+    if loads.squeeze_friction {
+        squeeze_friction_forces(solid, &ws.new_v);
+    }
     stats.sticking = apply_friction(solid, model.masses(), (tau, h), &mut ws.new_x, &mut ws.new_v);
     if !model.colliders().is_empty() {
         let t_next = state.time_s + h;
@@ -628,6 +636,42 @@ fn linearised_step<S: Linearised>(
     Ok(report)
 }
 
+/// The system's terms for the step: the scheme's, with the loads that
+/// `loads` says are present.
+fn step_terms<'a, S: Linearised>(
+    scheme: &S,
+    state: &'a ClothState,
+    (aux, aux2): (&'a [Vec3], &'a [Vec3]),
+    h: f64,
+    external: &'a [Vec3],
+    contacts: &'a ContactBuffers,
+    loads: &StepLoads,
+) -> SystemTerms<'a> {
+    let mut terms = scheme.terms(state, aux, aux2, h);
+    terms.external = loads.external.then_some(external);
+    terms.diag_stiffness = loads.self_collision.then_some(&contacts.self_stiffness[..]);
+    terms.diag_damping = loads.squeeze_friction.then_some(&contacts.friction_damping[..]);
+    terms
+}
+
+/// Puts the friction of squeezed particles that slide into the solve (see
+/// [`linearise_squeeze_friction`]): damping blocks into
+/// `ws.contacts.friction_damping`, their constant part into `ws.external`.
+fn squeeze_friction_in_solve(state: &ClothState, ws: &mut Workspace, loads: &mut StepLoads) {
+    if !ws.contacts.solid.iter().any(|c| c.pressed && c.friction > 0.0) {
+        return;
+    }
+    if !loads.external {
+        ws.external.iter_mut().for_each(|f| *f = Vec3::zeros());
+        loads.external = true;
+    }
+    let bufs = &mut ws.contacts;
+    bufs.friction_damping.resize(state.len(), Mat3::zeros());
+    bufs.friction_damping.iter_mut().for_each(|c| *c = Mat3::zeros());
+    loads.squeeze_friction =
+        linearise_squeeze_friction(&mut bufs.solid, &state.v, &mut bufs.friction_damping, &mut ws.external);
+}
+
 /// Most re-solves after changing the contact set within one step.
 const MAX_CONTACT_PASSES: usize = 3;
 
@@ -637,6 +681,8 @@ struct StepLoads {
     external: bool,
     /// `ws.contacts.self_stiffness` holds self-collision stiffness.
     self_collision: bool,
+    /// `ws.contacts.friction_damping` holds friction of squeezed particles.
+    squeeze_friction: bool,
     stats: ContactStats,
     collision_s: f64,
     self_collision_s: f64,
@@ -655,6 +701,7 @@ fn step_loads(
     let mut loads = StepLoads {
         external: external_forces(model, state, control, ws),
         self_collision: false,
+        squeeze_friction: false,
         stats: ContactStats::default(),
         collision_s: 0.0,
         self_collision_s: 0.0,

@@ -184,6 +184,12 @@ pub struct SystemTerms<'a> {
     /// semidefinite; self-collision). Adds `c_x S_i` to the matrix and,
     /// with `k_times = (a_k, w_k)`, `-a_k S_i w_k` to the right-hand side.
     pub diag_stiffness: Option<&'a [Mat3]>,
+    /// Optional damping of forces outside the links, kept on the diagonal
+    /// only: blocks `C_i = -df_i/dv_i` (N s/m, positive semidefinite;
+    /// friction of squeezed particles). Adds `c_v C_i` to the matrix and,
+    /// with `d_times = (a_d, w_d)`, `-a_d C_i w_d` to the right-hand side;
+    /// the force's constant part goes in `external`.
+    pub diag_damping: Option<&'a [Mat3]>,
 }
 
 /// Scratch buffers for [`assemble`], sized once per model.
@@ -234,6 +240,9 @@ pub fn assemble(model: &ClothModel, x: &[Vec3], terms: &SystemTerms<'_>, bufs: &
         let mut diag = Mat3::identity() * (model.masses()[i] + c_v * model.drag(i));
         if let Some(s) = terms.diag_stiffness {
             diag += s[i] * terms.c_x;
+        }
+        if let Some(c) = terms.diag_damping {
+            diag += c[i] * c_v;
         }
         for inc in model.incidence(i) {
             let b = &link_block[inc.link as usize];
@@ -302,6 +311,9 @@ pub fn assemble_matrix_free(
             if let Some((a, w)) = terms.d_times {
                 // Drag is a diagonal D = -c_i I.
                 acc -= w[i] * (a * model.drag(i));
+                if let Some(c) = terms.diag_damping {
+                    acc -= c[i] * w[i] * a;
+                }
             }
             let acc = if set.is_empty() { acc } else { acc + elements::rhs_at(set, element_bufs, i) };
             *bi = gather_links(model, i, link_rhs, acc);
