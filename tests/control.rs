@@ -55,6 +55,7 @@ fn inputs_that_do_not_fit_the_model_are_refused() {
     let mut driven = curtain_and_ball(true, 0.5);
     let bad = SolidMotion { linear_velocity: Vec3::new(f64::INFINITY, 0.0, 0.0), ..rest };
     assert!(matches!(driven.set_solid_motion(0, bad), Err(ControlError::NonFinite { .. })));
+    assert_eq!(driven.set_wind(Vec3::x()), Err(ControlError::WindNotExternal), "no wind at all");
 }
 
 /// A free 0.6 m cloth in zero gravity, hit by a ball of radius 0.1 m

@@ -106,7 +106,7 @@ fn flag_wind_force_grows_with_wind_speed() {
             sim.step(cfg.dt_s).unwrap();
             let s = sim.state();
             let mut f = vec![cloth_core::Vec3::zeros(); s.len()];
-            cloth_core::wind::add_wind_forces(&model, &s.x, &s.v, s.time_s, &mut normals, &mut f);
+            cloth_core::wind::add_wind_forces(&model, sim.control(), (&s.x, &s.v), s.time_s, &mut normals, &mut f);
             total += f.iter().sum::<cloth_core::Vec3>().norm();
         }
         let mean = total / steps as f64;

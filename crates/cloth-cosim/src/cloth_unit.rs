@@ -14,6 +14,9 @@
 //!   the pins' targets, so an iterated master converges to a consistent
 //!   motion and a Gauss-Seidel master that steps the bodies first hands the
 //!   cloth exactly where they went;
+//! - inputs, when the scene's wind is external (`[wind] profile = { kind =
+//!   "external" }`): `wind.velocity.{x,y,z}`, the air velocity over the
+//!   step (m/s);
 //! - outputs, per solid `k`: `solid{k}.force.{x,y,z}` (N) and
 //!   `solid{k}.torque.{x,y,z}` (N m, about the solid's frame origin at the
 //!   start of the step): the mean the cloth exerted over the last step;
@@ -25,13 +28,14 @@
 //! cloth stays at the start of the step, as FMI's `fmi3Discard` asks.
 
 use crate::unit::{Causality, StepOutcome, Unit, UnitError, UnitState, ValueRef, Variable, bytes, settable};
-use cloth_core::{BodyPose, ClothState, Simulation, SolidMotion, Vec3};
+use cloth_core::{BodyPose, ClothState, Simulation, SolidMotion, Vec3, wind::WindProfile};
 use nalgebra::UnitQuaternion;
 
 /// What a variable of the cloth unit stands for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Quantity {
     PinTarget,
+    WindVelocity,
     SolidPosition,
     SolidRotation,
     SolidVelocity,
@@ -73,6 +77,8 @@ type VectorKind = (Quantity, &'static str, Causality, &'static str, &'static str
 
 const PIN_INPUTS: [VectorKind; 1] =
     [(Quantity::PinTarget, "target", Causality::Input, "m", "pin position at the end of the step")];
+const WIND_INPUT: VectorKind =
+    (Quantity::WindVelocity, "velocity", Causality::Input, "m/s", "air velocity over the step (external wind)");
 const SOLID_INPUTS: [VectorKind; 4] = [
     (Quantity::SolidPosition, "position", Causality::Input, "m", "solid frame origin at the end of the step"),
     (
@@ -104,20 +110,26 @@ const PIN_OUTPUTS: [VectorKind; 1] = [(
 )];
 
 impl ClothUnit {
-    /// Wraps `sim`; its external pins and solids become inputs.
+    /// Wraps `sim`; its external pins, solids and wind become inputs.
     pub fn new(name: impl Into<String>, sim: Simulation) -> Self {
         let mut vars = Vec::new();
         let mut roles = Vec::new();
         let model = sim.model().clone();
-        // Adds the x, y, z variables of `kind` for item `k` of `prefix`, starting at `start`.
-        let mut add = |prefix: &str, k: usize, kind: &VectorKind, start: Vec3| {
+        // Adds the x, y, z variables of `kind` for item `k` of `prefix`
+        // (`{prefix}{k}.`; just `{prefix}.` for a single item, `k = None`), starting at `start`.
+        let mut add_item = |prefix: &str, k: Option<usize>, kind: &VectorKind, start: Vec3| {
             let (quantity, field, causality, unit, description) = *kind;
+            let item = k.map_or(String::new(), |k| k.to_string());
             for (axis, name) in AXES.iter().enumerate() {
-                let var = Variable::new(format!("{prefix}{k}.{field}.{name}"), causality, unit, description);
+                let var = Variable::new(format!("{prefix}{item}.{field}.{name}"), causality, unit, description);
                 vars.push(var.with_start(start[axis]));
-                roles.push(Role { quantity, item: k, axis });
+                roles.push(Role { quantity, item: k.unwrap_or(0), axis });
             }
         };
+        if model.wind().is_some_and(|w| w.profile == WindProfile::External) {
+            add_item("wind", None, &WIND_INPUT, Vec3::zeros());
+        }
+        let mut add = |prefix: &str, k: usize, kind: &VectorKind, start: Vec3| add_item(prefix, Some(k), kind, start);
         for (k, pin) in model.pins().iter().enumerate().filter(|(_, p)| p.is_external()) {
             add("pin", k, &PIN_INPUTS[0], pin.anchor);
         }
@@ -189,6 +201,9 @@ impl ClothUnit {
         for k in (0..model.pins().len()).filter(|&k| model.pins()[k].is_external()) {
             let (target, rate) = self.input(Quantity::PinTarget, k);
             self.sim.set_pin_target(k, target + rate * h).map_err(refuse)?;
+        }
+        if self.roles.iter().any(|r| r.quantity == Quantity::WindVelocity) {
+            self.sim.set_wind(self.input(Quantity::WindVelocity, 0).0).map_err(refuse)?;
         }
         for k in (0..model.colliders().len()).filter(|&k| model.colliders()[k].is_external()) {
             let get = |quantity| self.input(quantity, k).0;

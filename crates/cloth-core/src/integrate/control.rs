@@ -119,6 +119,9 @@ pub enum ControlError {
         /// The pin.
         index: usize,
     },
+    /// The model has no wind, or its wind follows a profile from the scene.
+    #[error("wind: the model's air velocity is not external; declare [wind] profile = {{ kind = \"external\" }}")]
+    WindNotExternal,
     /// A force array of the wrong length.
     #[error("external forces: {got} given for {expected} particles")]
     ForceCount {
@@ -143,6 +146,7 @@ pub struct Control {
     pins: Vec<Option<Vec3>>,
     forces: Vec<Vec3>,
     has_forces: bool,
+    wind: Option<Vec3>,
 }
 
 impl Control {
@@ -153,6 +157,7 @@ impl Control {
             pins: vec![None; model.pins().len()],
             forces: Vec::new(),
             has_forces: false,
+            wind: None,
         }
     }
 
@@ -213,6 +218,24 @@ impl Control {
         if let Some(applied) = self.forces() {
             force.iter_mut().zip(applied).for_each(|(f, a)| *f += a);
         }
+    }
+
+    /// Sets the air velocity of an external wind (`[wind] profile = { kind
+    /// = "external" }`), m/s, constant over each step until changed.
+    pub fn set_wind(&mut self, model: &ClothModel, velocity: Vec3) -> Result<(), ControlError> {
+        if !model.wind().is_some_and(|w| w.profile == crate::wind::WindProfile::External) {
+            return Err(ControlError::WindNotExternal);
+        }
+        if !velocity.iter().all(|c| c.is_finite()) {
+            return Err(ControlError::NonFinite { what: "wind velocity".into() });
+        }
+        self.wind = Some(velocity);
+        Ok(())
+    }
+
+    /// The air velocity set for an external wind, m/s, if any.
+    pub fn wind(&self) -> Option<Vec3> {
+        self.wind
     }
 
     /// Removes the external forces.

@@ -166,7 +166,7 @@ pub(crate) fn rk_step(
         stages_time.update_s += t_update.elapsed().as_secs_f64();
         let t_force = Instant::now();
         forces_into(model, &bufs.xs, &bufs.vs, &mut bufs.forces, &mut bufs.force);
-        add_wind_forces(model, &bufs.xs, &bufs.vs, ts, &mut bufs.normals, &mut bufs.force);
+        add_wind_forces(model, control, (&bufs.xs, &bufs.vs), ts, &mut bufs.normals, &mut bufs.force);
         control.add_forces_to(&mut bufs.force);
         stages_time.forces_s += t_force.elapsed().as_secs_f64();
         let (kx, kv) = (&mut bufs.kx[s], &mut bufs.kv[s]);
@@ -217,7 +217,7 @@ pub(crate) fn symplectic_euler_step(
     let Start { x, v, t, pins, control } = start;
     let t_force = Instant::now();
     forces_into(model, x, v, &mut bufs.forces, &mut bufs.force);
-    add_wind_forces(model, x, v, t, &mut bufs.normals, &mut bufs.force);
+    add_wind_forces(model, control, (x, v), t, &mut bufs.normals, &mut bufs.force);
     control.add_forces_to(&mut bufs.force);
     stages_time.forces_s += t_force.elapsed().as_secs_f64();
     let t_update = Instant::now();

@@ -773,7 +773,8 @@ pub(crate) fn external_forces(model: &ClothModel, state: &ClothState, control: &
     }
     ws.external.iter_mut().for_each(|f| *f = Vec3::zeros());
     if model.wind().is_some() {
-        crate::wind::add_wind_forces(model, &state.x, &state.v, state.time_s, &mut ws.normals, &mut ws.external);
+        let (x, v) = (&state.x[..], &state.v[..]);
+        crate::wind::add_wind_forces(model, control, (x, v), state.time_s, &mut ws.normals, &mut ws.external);
     }
     control.add_forces_to(&mut ws.external);
     true

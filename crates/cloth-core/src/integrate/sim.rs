@@ -94,6 +94,12 @@ impl Simulation {
         self.control.set_pin_target(&self.model, index, position)
     }
 
+    /// Sets the air velocity of an external wind for the next steps, m/s
+    /// (see [`Control::set_wind`]).
+    pub fn set_wind(&mut self, velocity: Vec3) -> Result<(), ControlError> {
+        self.control.set_wind(&self.model, velocity)
+    }
+
     /// Sets external forces on every particle, N, for the next steps.
     pub fn set_external_forces(&mut self, forces: &[Vec3]) -> Result<(), ControlError> {
         self.control.set_forces(&self.model, forces)

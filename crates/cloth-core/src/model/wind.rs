@@ -7,7 +7,7 @@
 //! stiffness.
 
 use crate::keyframes::{self, finite3};
-use crate::{ClothModel, Vec3};
+use crate::{ClothModel, Control, Vec3};
 use serde::{Deserialize, Serialize};
 
 /// How the wind velocity varies in time.
@@ -35,12 +35,17 @@ pub enum WindProfile {
         /// Velocity at each time, m/s.
         velocities_m_s: Vec<[f64; 3]>,
     },
+    /// Set from outside before each step ([`crate::Control::set_wind`],
+    /// a co-simulation input), constant over the step; still air until set.
+    External,
 }
 
 impl WindProfile {
-    /// Air velocity at time `t` (s), m/s.
-    pub fn velocity(&self, t: f64) -> Vec3 {
+    /// Air velocity at time `t` (s), m/s; `set` is the externally set
+    /// velocity, used by [`WindProfile::External`] (still air without one).
+    pub fn velocity(&self, t: f64, set: Option<Vec3>) -> Vec3 {
         match self {
+            WindProfile::External => set.unwrap_or_else(Vec3::zeros),
             WindProfile::Constant { velocity_m_s } => Vec3::from(*velocity_m_s),
             WindProfile::Gust { mean_m_s, amplitude_m_s, frequency_hz } => {
                 Vec3::from(*mean_m_s)
@@ -62,6 +67,7 @@ impl WindProfile {
             WindProfile::Keyframes { times_s, velocities_m_s } => {
                 keyframes::validate(times_s, velocities_m_s, "velocities_m_s")
             }
+            WindProfile::External => Ok(()),
         }
     }
 }
@@ -141,16 +147,23 @@ pub fn triangle_aero_force(n: &Vec3, area: f64, wind: &Vec3, v: &Vec3, rho: f64,
     drag + lift
 }
 
-/// Adds the wind forces of `model` at `(x, v)` and time `t` to `out`, using
-/// `normals` (one per particle) as scratch. Deterministic: triangles are
-/// visited in order.
-pub fn add_wind_forces(model: &ClothModel, x: &[Vec3], v: &[Vec3], t: f64, normals: &mut Vec<Vec3>, out: &mut [Vec3]) {
+/// Adds the wind forces of `model` at `(x, v)` and time `t` to `out`
+/// (an external wind's velocity from `control`), using `normals` (one per
+/// particle) as scratch. Deterministic: triangles are visited in order.
+pub fn add_wind_forces(
+    model: &ClothModel,
+    control: &Control,
+    (x, v): (&[Vec3], &[Vec3]),
+    t: f64,
+    normals: &mut Vec<Vec3>,
+    out: &mut [Vec3],
+) {
     let Some(wind) = model.wind() else { return };
     let (fluid, aero) = (model.effects().wind, model.effects().aerodynamics);
     if !fluid && !aero {
         return;
     }
-    let air = wind.profile.velocity(t);
+    let air = wind.profile.velocity(t, control.wind());
     normals.clear();
     normals.resize(x.len(), Vec3::zeros());
     for tri in model.triangles() {
@@ -227,10 +240,14 @@ mod tests {
     #[test]
     fn profiles_vary_as_declared() {
         let g = WindProfile::Gust { mean_m_s: [5.0, 0.0, 0.0], amplitude_m_s: [2.0, 0.0, 0.0], frequency_hz: 0.5 };
-        assert!((g.velocity(0.5).x - 7.0).abs() < 1e-12);
+        assert!((g.velocity(0.5, None).x - 7.0).abs() < 1e-12);
         let k = WindProfile::Keyframes { times_s: vec![0.0, 2.0], velocities_m_s: vec![[0.0; 3], [4.0, 0.0, 0.0]] };
-        assert_eq!(k.velocity(1.0), Vec3::new(2.0, 0.0, 0.0));
-        assert_eq!(k.velocity(9.0), Vec3::new(4.0, 0.0, 0.0));
+        assert_eq!(k.velocity(1.0, None), Vec3::new(2.0, 0.0, 0.0));
+        assert_eq!(k.velocity(9.0, None), Vec3::new(4.0, 0.0, 0.0));
+        let set = Vec3::new(1.0, 2.0, 3.0);
+        assert_eq!(k.velocity(9.0, Some(set)), Vec3::new(4.0, 0.0, 0.0), "only an external wind takes the set value");
+        assert_eq!(WindProfile::External.velocity(4.0, Some(set)), set);
+        assert_eq!(WindProfile::External.velocity(4.0, None), Vec3::zeros());
         let bad = WindProfile::Keyframes { times_s: vec![1.0, 0.0], velocities_m_s: vec![[0.0; 3]; 2] };
         assert_eq!(bad.validate().unwrap_err().0, "times_s");
     }
