@@ -108,11 +108,15 @@ pub struct Multigrid {
     omega: f64,
 }
 
-/// Smoother damping. The symmetric cycle is positive definite when
-/// `2 D / omega - A` is. Cloth matrices are `A = M + sum_e L_e (x) B_e` with
-/// PSD link blocks, and `(a - b)^T B (a - b) <= 2 (a^T B a + b^T B b)`
-/// gives `A <= 2 D`; so any `omega < 1` is safe. 0.7 took the fewest
-/// iterations among 0.45-0.8 on the 75 x 75 hanging cloth.
+/// Smoother damping for matrices of two-node elements (links). The
+/// symmetric cycle is positive definite when `2 D / omega - A` is. A sum
+/// of PSD element matrices over `k` nodes each (plus a diagonal) satisfies
+/// `A <= k D` (Cauchy-Schwarz on each element's PSD blocks,
+/// `|x_a^T K_ab x_b| <= sqrt(x_a^T K_aa x_a x_b^T K_bb x_b)`), on every
+/// level too (an aggregated element still touches at most `k` nodes); so
+/// `omega < 2 / k` is safe: `omega < 1` for links. 0.7 took the fewest
+/// iterations among 0.45-0.8 on the 75 x 75 hanging cloth; elements of `k`
+/// nodes get `0.7 * 2 / k` ([`Multigrid::for_element_size`]).
 const OMEGA: f64 = 0.7;
 
 impl Multigrid {
@@ -169,6 +173,15 @@ impl Multigrid {
             coarsest_x: vec![Vec3::zeros(); nc],
             omega: OMEGA,
         })
+    }
+
+    /// Sets the smoother's damping for a matrix assembled from PSD element
+    /// matrices of at most `nodes` nodes each (2 for links, 3 for
+    /// triangles, 4 for hinges): `omega = 0.7 * 2 / nodes`, which keeps
+    /// the cycle positive definite (see [`OMEGA`]); the default is links.
+    pub fn for_element_size(mut self, nodes: usize) -> Self {
+        self.omega = OMEGA * 2.0 / nodes.max(2) as f64;
+        self
     }
 
     /// Number of levels including the finest.
