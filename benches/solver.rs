@@ -35,15 +35,9 @@ fn system() -> (SystemBuffers, ConstraintFilter, Multigrid) {
     let delta: Vec<Vec3> = state.x.iter().zip(&state.x_prev).map(|(a, b)| a - b).collect();
     let mut bufs = SystemBuffers::new(model);
     let terms = SystemTerms {
-        c_x: 4.0 * h * h / 9.0,
-        c_v: 2.0 * h / 3.0,
-        force: 4.0 * h * h / 9.0,
-        k_times: None,
         d_times: Some((-2.0 * h / 9.0, &delta)),
         mass_times: Some(&delta),
-        external: None,
-        diag_stiffness: None,
-        diag_damping: None,
+        ..SystemTerms::new(4.0 * h * h / 9.0, 2.0 * h / 3.0, 4.0 * h * h / 9.0)
     };
     assemble(model, &state.x, &terms, &mut bufs);
     let mut filter = ConstraintFilter::new(model.particle_count());

@@ -118,17 +118,7 @@ fn forces_are_minus_the_energy_gradient() {
 fn jacobian_error(model: &ClothModel, x: &[Vec3], v: &[Vec3], wrt_velocity: bool, dropped: &Mat3Sum) -> f64 {
     let n = x.len();
     let mut bufs = SystemBuffers::new(model);
-    let terms = SystemTerms {
-        c_x: if wrt_velocity { 0.0 } else { -1.0 },
-        c_v: if wrt_velocity { -1.0 } else { 0.0 },
-        force: 0.0,
-        k_times: None,
-        d_times: None,
-        mass_times: None,
-        external: None,
-        diag_stiffness: None,
-        diag_damping: None,
-    };
+    let terms = SystemTerms::new(if wrt_velocity { 0.0 } else { -1.0 }, if wrt_velocity { -1.0 } else { 0.0 }, 0.0);
     assemble(model, x, &terms, &mut bufs);
     let mut a = dense(&bufs, n);
     for i in 0..n {

@@ -1366,29 +1366,36 @@ mod tests {
         }
     }
 
-    /// The squeezed particle's friction in the solve, `e - C v`, is the
-    /// sliding force at the start velocity and follows it to first order
-    /// as the slip turns (C against central differences); a slip below
-    /// `SLIDE_SPEED` adds nothing.
-    #[test]
-    fn squeeze_friction_linearisation_matches_the_law() {
-        let mut hold = SolidContact {
+    /// Particle 0 held on solid 0 at the origin: outward `normal`, the
+    /// solid moving at `solid_velocity` (m/s), Coulomb `friction`, normal
+    /// force `normal_force_n` (N).
+    fn touching(normal: Vec3, solid_velocity: Vec3, friction: f64, normal_force_n: f64) -> SolidContact {
+        SolidContact {
             particle: 0,
             collider: 0,
             point: Vec3::zeros(),
             distance_m: 0.0,
-            normal: Vec3::new(0.0, 0.6, 0.8),
+            normal,
             normal_travel_m: 0.0,
-            solid_velocity: Vec3::zeros(),
-            friction: 0.3,
-            normal_force_n: 1.0,
+            solid_velocity,
+            friction,
+            normal_force_n,
             impulse_n_s: Vec3::zeros(),
             active: true,
             pressed: false,
             solve_damping: Mat3::zeros(),
             solve_constant_n: Vec3::zeros(),
             solve_friction_n: Vec3::zeros(),
-        };
+        }
+    }
+
+    /// The squeezed particle's friction in the solve, `e - C v`, is the
+    /// sliding force at the start velocity and follows it to first order
+    /// as the slip turns (C against central differences); a slip below
+    /// `SLIDE_SPEED` adds nothing.
+    #[test]
+    fn squeeze_friction_linearisation_matches_the_law() {
+        let mut hold = touching(Vec3::new(0.0, 0.6, 0.8), Vec3::zeros(), 0.3, 1.0);
         let mut press = hold;
         (press.collider, press.normal, press.pressed) = (1, -hold.normal, true);
         (press.solid_velocity, press.friction, press.normal_force_n) = (Vec3::new(0.2, -0.1, 0.3), 0.4, 2.5);
@@ -1425,23 +1432,7 @@ mod tests {
     /// (static), above it loses exactly that much; normal velocity is kept.
     #[test]
     fn friction_sticks_below_the_budget_and_slides_above() {
-        let contact = SolidContact {
-            particle: 0,
-            collider: 0,
-            point: Vec3::zeros(),
-            distance_m: 0.0,
-            normal: Vec3::z(),
-            normal_travel_m: 0.0,
-            solid_velocity: Vec3::new(0.1, 0.0, 0.0),
-            friction: 0.5,
-            normal_force_n: 2.0,
-            impulse_n_s: Vec3::zeros(),
-            active: true,
-            pressed: false,
-            solve_damping: Mat3::zeros(),
-            solve_constant_n: Vec3::zeros(),
-            solve_friction_n: Vec3::zeros(),
-        };
+        let contact = touching(Vec3::z(), Vec3::new(0.1, 0.0, 0.0), 0.5, 2.0);
         let (mass, tau) = (0.5, 0.01);
         let budget = 0.5 * 2.0 * tau / mass; // 0.02 m/s
         let mut x = vec![Vec3::zeros()];

@@ -398,17 +398,7 @@ impl Linearised for BackwardEuler {
 
     fn terms<'a>(&self, state: &'a ClothState, _: &'a [Vec3], _: &'a [Vec3], h: f64) -> SystemTerms<'a> {
         let v = &state.v;
-        SystemTerms {
-            c_x: h * h,
-            c_v: h,
-            force: h,
-            k_times: Some((h * h, v)),
-            d_times: Some((h, v)),
-            mass_times: None,
-            external: None,
-            diag_stiffness: None,
-            diag_damping: None,
-        }
+        SystemTerms { k_times: Some((h * h, v)), d_times: Some((h, v)), ..SystemTerms::new(h * h, h, h) }
     }
 
     /// `dv = (p(t + h) - x) / h - v`.
@@ -436,17 +426,7 @@ impl Linearised for BackwardEuler {
     }
 
     fn newton_terms<'a>(&self, h: f64, v_k: &'a [Vec3], y: &'a [Vec3]) -> SystemTerms<'a> {
-        SystemTerms {
-            c_x: h * h,
-            c_v: h,
-            force: h,
-            k_times: None,
-            d_times: Some((h, v_k)),
-            mass_times: Some(y),
-            external: None,
-            diag_stiffness: None,
-            diag_damping: None,
-        }
+        SystemTerms { d_times: Some((h, v_k)), mass_times: Some(y), ..SystemTerms::new(h * h, h, h) }
     }
 }
 
@@ -462,15 +442,9 @@ impl Linearised for Bdf2 {
 
     fn terms<'a>(&self, _: &'a ClothState, aux: &'a [Vec3], aux2: &'a [Vec3], h: f64) -> SystemTerms<'a> {
         SystemTerms {
-            c_x: 4.0 * h * h / 9.0,
-            c_v: 2.0 * h / 3.0,
-            force: 4.0 * h * h / 9.0,
-            k_times: None,
             d_times: Some((-2.0 * h / 9.0, aux)),
             mass_times: Some(aux2),
-            external: None,
-            diag_stiffness: None,
-            diag_damping: None,
+            ..SystemTerms::new(4.0 * h * h / 9.0, 2.0 * h / 3.0, 4.0 * h * h / 9.0)
         }
     }
 
@@ -500,17 +474,7 @@ impl Linearised for Bdf2 {
 
     fn newton_terms<'a>(&self, h: f64, v_k: &'a [Vec3], y: &'a [Vec3]) -> SystemTerms<'a> {
         let c = 4.0 * h * h / 9.0;
-        SystemTerms {
-            c_x: c,
-            c_v: 2.0 * h / 3.0,
-            force: c,
-            k_times: None,
-            d_times: Some((c, v_k)),
-            mass_times: Some(y),
-            external: None,
-            diag_stiffness: None,
-            diag_damping: None,
-        }
+        SystemTerms { d_times: Some((c, v_k)), mass_times: Some(y), ..SystemTerms::new(c, 2.0 * h / 3.0, c) }
     }
 }
 
@@ -528,7 +492,7 @@ fn linearised_step<S: Linearised>(
     scheme.prepare(state, h, &mut ws.aux, &mut ws.aux2);
     let mut loads = step_loads(model, state, control, h, ws)?;
     squeeze_friction_in_solve(state, ws, &mut loads);
-    let terms = step_terms(scheme, state, (&ws.aux, &ws.aux2), h, &ws.external, &ws.contacts, &loads);
+    let terms = with_loads(scheme.terms(state, &ws.aux, &ws.aux2, h), &ws.external, &ws.contacts, &loads);
     let force_coefficient = terms.force;
     let timing = assemble(model, &state.x, &terms, &mut ws.system);
     let t_pins = Instant::now();
@@ -577,10 +541,7 @@ fn linearised_step<S: Linearised>(
             ws.newton_y[i] = scheme.newton_mass_term(&ws.aux2, i, ws.unknown[i]);
         }
         ws.newton_u.copy_from_slice(&ws.unknown);
-        let mut terms = scheme.newton_terms(h, &ws.new_v, &ws.newton_y);
-        terms.external = loads.external.then_some(&ws.external[..]);
-        terms.diag_stiffness = loads.self_collision.then_some(&ws.contacts.self_stiffness[..]);
-        terms.diag_damping = loads.squeeze_friction.then_some(&ws.contacts.friction_damping[..]);
+        let terms = with_loads(scheme.newton_terms(h, &ws.new_v, &ws.newton_y), &ws.external, &ws.contacts, &loads);
         let t = assemble(model, &ws.new_x, &terms, &mut ws.system);
         let zero = |_, _| Vec3::zeros();
         constrain_pins(model, state, control, h, &mut ws.filter, zero);
@@ -636,18 +597,14 @@ fn linearised_step<S: Linearised>(
     Ok(report)
 }
 
-/// The system's terms for the step: the scheme's, with the loads that
-/// `loads` says are present.
-fn step_terms<'a, S: Linearised>(
-    scheme: &S,
-    state: &'a ClothState,
-    (aux, aux2): (&'a [Vec3], &'a [Vec3]),
-    h: f64,
+/// A scheme's `terms` with the loads of the step that `loads` says are
+/// present: external forces, self-collision stiffness, squeeze friction.
+fn with_loads<'a>(
+    mut terms: SystemTerms<'a>,
     external: &'a [Vec3],
     contacts: &'a ContactBuffers,
     loads: &StepLoads,
 ) -> SystemTerms<'a> {
-    let mut terms = scheme.terms(state, aux, aux2, h);
     terms.external = loads.external.then_some(external);
     terms.diag_stiffness = loads.self_collision.then_some(&contacts.self_stiffness[..]);
     terms.diag_damping = loads.squeeze_friction.then_some(&contacts.friction_damping[..]);

@@ -192,6 +192,24 @@ pub struct SystemTerms<'a> {
     pub diag_damping: Option<&'a [Mat3]>,
 }
 
+impl<'a> SystemTerms<'a> {
+    /// `A = M - c_v D - c_x K`, `b = force (f + m g)`, with none of the
+    /// optional terms; set those with struct update syntax.
+    pub fn new(c_x: f64, c_v: f64, force: f64) -> Self {
+        Self {
+            c_x,
+            c_v,
+            force,
+            k_times: None,
+            d_times: None,
+            mass_times: None,
+            external: None,
+            diag_stiffness: None,
+            diag_damping: None,
+        }
+    }
+}
+
 /// Scratch buffers for [`assemble`], sized once per model.
 #[derive(Debug, Clone)]
 pub struct SystemBuffers {
