@@ -89,6 +89,8 @@ enum StudyKind {
     Precision,
     /// Co-simulation masters on the two-mass oscillator: order and energy drift.
     Cosim,
+    /// Peirce's cantilever against the heavy elastica, per model and resolution.
+    Bending,
 }
 
 fn main() -> ExitCode {
@@ -107,6 +109,7 @@ fn main() -> ExitCode {
                 StudyKind::Cost => study::cost(&args),
                 StudyKind::Precision => study::precision(&args),
                 StudyKind::Cosim => study::cosim(&args),
+                StudyKind::Bending => study::bending(&args),
             }
         }
     };

@@ -169,6 +169,28 @@ fn study_cost_reports_every_method_and_model() {
     assert!(md.contains("BE per CG iteration"));
 }
 
+/// The quick bending study runs Volino's strip at 1 cm and compares it with
+/// the elastica computed by shooting (41.49 degrees at 10 cm).
+#[test]
+fn study_bending_compares_the_cantilever_with_the_elastica() {
+    let out = out_dir("bending");
+    let status = cloth()
+        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+        .args(["study", "bending", "--quick", "--out"])
+        .arg(&out)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let csv = std::fs::read_to_string(out.join("bending.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().collect();
+    assert_eq!(rows.len(), 2, "{csv}");
+    let cells: Vec<f64> = rows[1].split(',').skip(1).map(|c| c.parse().unwrap()).collect();
+    assert!((cells[3] - 41.49).abs() < 0.01, "exact chord: {}", rows[1]);
+    assert!((cells[2] - cells[3]).abs() < 2.0, "simulated chord: {}", rows[1]);
+    let md = std::fs::read_to_string(out.join("bending.md")).unwrap();
+    assert!(md.contains("| volino | 1 | 10 |"), "{md}");
+}
+
 /// Runs a fixture with overrides and returns its summary.
 fn summary_of(name: &str, overrides: &[&str]) -> serde_json::Value {
     let out = out_dir(name);

@@ -17,6 +17,7 @@
 pub mod contact;
 pub mod integrate;
 pub mod model;
+pub mod reference;
 pub mod scene;
 
 // Every module also under its own name at the root, so paths stay short

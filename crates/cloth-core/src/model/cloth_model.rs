@@ -339,6 +339,7 @@ impl ClothModel {
         let mut rest_positions = Vec::new();
         let mut stretch = Vec::new();
         let mut bend = Vec::new();
+        let mut bend_middle = Vec::new();
         let mut panels = Vec::new();
         let mut triangles = Vec::new();
         let mut elements = ElementSet::default();
@@ -359,14 +360,14 @@ impl ClothModel {
                 message: format!("{:?} m gives links of zero or non-finite length or stiffness", panel.size_m),
             };
             for link in &mesh.sequential {
-                let rest = rest_of(*link);
+                let rest = rest_of(link.ends);
                 let c = spec.material.link_constants(rest, mesh.cell_area);
                 if degenerate(rest, &c) {
                     return Err(degenerate_err());
                 }
                 stretch.push(StretchLink {
-                    i: at(link[0]),
-                    j: at(link[1]),
+                    i: at(link.ends[0]),
+                    j: at(link.ends[1]),
                     rest,
                     // Volino's membrane replaces the springs; the links stay for damping and limits.
                     k_s: if spec.kind == ModelKind::Volino { 0.0 } else { c.k_s },
@@ -384,7 +385,7 @@ impl ClothModel {
             } else if spec.effects.bending {
                 let links = if spec.kind == ModelKind::Provot { &mesh.flexion } else { &mesh.interlaced };
                 for link in links {
-                    let rest = rest_of(*link);
+                    let rest = rest_of(link.ends);
                     let c = spec.material.link_constants(rest, mesh.cell_area);
                     if degenerate(rest, &c) {
                         return Err(degenerate_err());
@@ -393,7 +394,8 @@ impl ClothModel {
                         ModelKind::Provot => BendLaw::Flexion { rest, k: c.k_flexion },
                         _ => BendLaw::Buckling(BucklingLaw::new(rest, c.k_b, c.c_b)),
                     };
-                    bend.push(BendLink { i: at(link[0]), j: at(link[1]), law });
+                    bend.push(BendLink { i: at(link.ends[0]), j: at(link.ends[1]), law });
+                    bend_middle.push(link.middle.map(at));
                 }
             }
             triangles.extend(mesh.triangles.iter().map(|t| t.map(at)));
@@ -406,6 +408,8 @@ impl ClothModel {
         }
         let n = mass.len();
         let (pins, pinned) = build_pins(spec, &panels, &rest_positions)?;
+        clamp_bend_links(&mut bend, &bend_middle, &pinned);
+        clamp_hinges(&mut elements.hinges, &rest_positions, &pinned);
         if spec.effects.wind || spec.effects.aerodynamics {
             let wind = spec.wind.as_ref().ok_or(ModelError::Wind {
                 field: "profile",
@@ -708,6 +712,38 @@ fn build_pins(spec: &ModelSpec, panels: &[PanelRange], rest: &[Vec3]) -> Result<
         }
     }
     Ok((pins, pinned))
+}
+
+/// Type-2 links across a clamped edge (middle particle and one end pinned,
+/// the other end free) stand for half the bending of a free link: their
+/// constants double (see [`crate::material`]).
+fn clamp_bend_links(bend: &mut [BendLink], middle: &[Option<u32>], pinned: &[bool]) {
+    for (link, middle) in bend.iter_mut().zip(middle) {
+        let (Some(m), BendLaw::Buckling(law)) = (middle, &mut link.law) else { continue };
+        if pinned[*m as usize] && pinned[link.i as usize] != pinned[link.j as usize] {
+            *law = BucklingLaw::new(law.rest, 2.0 * law.k_b, 2.0 * law.c_b);
+        }
+    }
+}
+
+/// A hinge between a triangle whose corners are all pinned and a free one
+/// bends only on the free side: its stiffness `B |e|^2 / (A_1 + A_2)`
+/// becomes `B |e|^2 / A_free`. Without it the clamp line of Peirce's
+/// cantilever is as compliant as a cell's width of free cloth.
+fn clamp_hinges(hinges: &mut [HingeElement], rest: &[Vec3], pinned: &[bool]) {
+    let area = |t: [u32; 3]| {
+        let x = t.map(|q| rest[q as usize]);
+        0.5 * (x[1] - x[0]).cross(&(x[2] - x[0])).norm()
+    };
+    for h in hinges {
+        let [a, b, o1, o2] = h.nodes;
+        let is_pinned = |q: u32| pinned[q as usize];
+        let (a1, a2) = (area([a, b, o1]), area([b, a, o2]));
+        if is_pinned(a) && is_pinned(b) && is_pinned(o1) != is_pinned(o2) {
+            let free = if is_pinned(o1) { a2 } else { a1 };
+            h.k *= (a1 + a2) / free;
+        }
+    }
 }
 
 /// Volino's elements for one panel mesh (local indices shifted by `offset`):

@@ -2,23 +2,41 @@
 //!
 //! ## Why the mapping makes results resolution-independent
 //! A grid with spacing `dx x dy` has cells of area `A = dx dy`. Each link
-//! family (along u, along v, and the two diagonals) has one link per cell.
-//! A link of rest length `L` at angle `theta` to a uniform strain `eps` in
-//! direction 0 is strained by `eps cos^2 theta`; summed over the four
-//! families, `sum cos^4 = 3/2` for *any* direction on a square grid. So a
-//! link stiffness `k = (2/3) E A / L^2` stores the continuum energy density
-//! `E eps^2 / 2` per unit area, whatever the grid spacing and strain
-//! direction (exact for square cells, close for mildly rectangular ones).
-//! The same argument for curvature gives `k_b = (2/3) B A / L` for the
-//! arc law (`E = k_b L kappa^2 / 2`, normal curvature `kappa cos^2 theta`).
+//! family (along u, along v, and the two diagonals) has one link per cell,
+//! standing for the cell's area `a = A`. A link of rest length `L` at
+//! angle `theta` to a uniform strain `eps` in direction 0 is strained by
+//! `eps cos^2 theta`; summed over the four families, `sum cos^4 = 3/2` for
+//! *any* direction on a square grid. So a link stiffness
+//! `k = (2/3) E a / L^2` stores the continuum energy density `E eps^2 / 2`
+//! per unit area, whatever the grid spacing and strain direction (exact for
+//! square cells, close for mildly rectangular ones).
 //!
-//! | material field | unit | per-link constant |
-//! |---|---|---|
-//! | `areal_density` rho | kg/m^2 | mass of particle = rho x its share of cell area |
-//! | `tensile_stiffness` E | N/m | type-1 `k_s = (2/3) E A / L^2` (N/m) |
-//! | `flexural_rigidity` B | N m | type-2 `k_b = (2/3) B A / L` (N m^2) |
-//! | `buckling_stiffness` C_b | N/m | type-2 ramp `c_b = (2/3) C_b A / L^2` (N/m); Provot flexion spring `k_f = C_b A / L^2` |
-//! | `damping` D | N s/m | type-1 `k_d = (2/3) D A / L^2` (N s/m) |
+//! ## Flexural rigidity of type-2 links
+//! The same sum for curvature (normal curvature `kappa cos^2 theta`) gives
+//! `k_b = (2/3) B a / L` for the arc law `E = k_b L kappa^2 / 2`. Two known
+//! shortfalls, measured and left for issue 10: the arc law reads the
+//! curvature from the chord, and with the type-1 links keeping their length
+//! as chords it reads `kappa'^2 = (3/4) kappa^2` (three particles on a
+//! circle with chords `L / 2` have `L - d = kappa^2 L^3 / 32`, not
+//! `/ 24`), so `k_b` is 3/4 of what it should be at every resolution; and
+//! links along a free boundary stand for a full cell where they border half
+//! of one.
+//!
+//! The ramp (Choi & Ko's Eq. 11) caps the arc force by `c_b (L - d)` so the
+//! force does not jump at `d = L`; below the curvature where the two meet,
+//! `kappa_s = sqrt(512 B / (C_b L^4))` with this mapping, the link's energy
+//! grows as `kappa^4` and stores almost no moment. `kappa_s` grows as the
+//! grid is refined (22/m at `L = 1 cm` for a shirt cotton), so finer grids
+//! are softer in bending: a known limit, measured in `tests/bending.rs`
+//! (issue 10). Holding `kappa_s` fixed needs `c_b ~ k_b / (kappa_s^2 L^5)`;
+//! that ramp gets the cantilever's static shape right but a single
+//! linearised implicit step chatters across its kink on fine grids.
+//!
+//! A type-2 link whose middle particle and one end are pinned (a clamped
+//! edge) stands for half the bending of a free one: the pinned half of its
+//! span cannot bend, so its constants double. Without that the clamp line
+//! is as compliant as a cell's width of free cloth, a first-order error
+//! (5 degrees at 1 cm on the cantilever).
 //!
 //! With type-1 links only in tension, the in-plane shear modulus that
 //! results is about `E / 6` (one diagonal per cell carries shear).

@@ -58,14 +58,24 @@ pub struct PanelMesh {
     pub area_share: Vec<f64>,
     /// Area of one grid cell, m^2.
     pub cell_area: f64,
-    /// Type-1 links (pairs of local indices), duplicates removed.
-    pub sequential: Vec<[u32; 2]>,
+    /// Type-1 links, duplicates removed.
+    pub sequential: Vec<GridLink>,
     /// Type-2 links.
-    pub interlaced: Vec<[u32; 2]>,
+    pub interlaced: Vec<GridLink>,
     /// Provot's flexion links: type-2 links along the axes only (`i+2`, `j+2`).
-    pub flexion: Vec<[u32; 2]>,
-    /// Two triangles per cell, counter-clockwise seen from `u x v`.
+    pub flexion: Vec<GridLink>,
+    /// Two triangles per cell, counter-clockwise seen from `u x v`; the
+    /// split diagonal alternates from cell to cell.
     pub triangles: Vec<[u32; 3]>,
+}
+
+/// One link of a grid panel.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GridLink {
+    /// The two particles (local indices).
+    pub ends: [u32; 2],
+    /// For links spanning two cells, the particle halfway between the ends.
+    pub middle: Option<u32>,
 }
 
 /// Why a panel is not a valid grid: the field and the reason.
@@ -170,7 +180,8 @@ impl GridPanel {
             };
             Some(self.index(ii, jj) as u32)
         };
-        let links = |step: usize, diagonals: bool| -> Vec<[u32; 2]> {
+        let cell_area = dx * dy;
+        let links = |step: usize, diagonals: bool| -> Vec<GridLink> {
             let s = step as isize;
             let offsets = [(s, 0), (0, step), (s, step), (-s, step)];
             let offsets = if diagonals { &offsets[..] } else { &offsets[..2] };
@@ -184,14 +195,14 @@ impl GridPanel {
                             && a != b
                             && seen.insert((a.min(b), a.max(b)))
                         {
-                            out.push([a, b]);
+                            let middle = if step == 2 { neighbour(i, j, di / 2, dj / 2) } else { None };
+                            out.push(GridLink { ends: [a, b], middle });
                         }
                     }
                 }
             }
             out
         };
-        let cell_area = dx * dy;
         let mut area_share = vec![0.0; nx * ny];
         let mut triangles = Vec::new();
         let cells_u = if self.wrap_u { nx } else { nx - 1 };
@@ -204,8 +215,17 @@ impl GridPanel {
                 for p in [a, b, c, d] {
                     area_share[p as usize] += 0.25 * cell_area;
                 }
-                triangles.push([a, b, c]);
-                triangles.push([a, c, d]);
+                // Diagonals alternate like a checkerboard: with all of them
+                // one way the mesh is chiral, and a strip bent along u
+                // twists (the dihedral hinges couple bending and twist),
+                // which made Volino's Peirce cantilever 15% too soft.
+                if (i + j) % 2 == 0 {
+                    triangles.push([a, b, c]);
+                    triangles.push([a, c, d]);
+                } else {
+                    triangles.push([a, b, d]);
+                    triangles.push([b, c, d]);
+                }
             }
         }
         Ok(PanelMesh {
