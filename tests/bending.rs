@@ -3,12 +3,22 @@
 //! degrees at 1, 0.5 and 0.25 cm for `choi-ko` and `volino`; these tests
 //! hold what is reached so far (`cloth study bending` prints the table).
 
-use cloth_core::reference::{CantileverStrip, TipMeasure, bending_length, heavy_elastica};
+use cloth_core::reference::CantileverStrip;
 use cloth_tests::simulation;
 
-/// Runs the cantilever fixture as `strip` with `model` for its 3 s; returns
-/// the tip, the rows' tip heights (m) and the fastest particle's speed (m/s).
-fn settle(model: &str, strip: &CantileverStrip) -> (TipMeasure, Vec<f64>, f64) {
+/// What a settled cantilever shows: its chord angle and the exact one for
+/// its material (degrees), and the tip heights of its rows (m).
+struct Settled {
+    chord_deg: f64,
+    exact_chord_deg: f64,
+    rows: Vec<f64>,
+}
+
+/// Runs the cantilever fixture as a 10 cm strip at 1 cm spacing with
+/// `model` for its 3 s and checks it has come to rest (every particle
+/// slower than 1e-5 m/s).
+fn settle(model: &str) -> Settled {
+    let strip = CantileverStrip { spacing: 0.01, overhang: 0.10, width: 0.02 };
     let mut o = strip.overrides();
     o.push(format!("simulation.model=\"{model}\""));
     let o: Vec<&str> = o.iter().map(String::as_str).collect();
@@ -16,16 +26,15 @@ fn settle(model: &str, strip: &CantileverStrip) -> (TipMeasure, Vec<f64>, f64) {
     for _ in 0..cfg.steps {
         sim.step(cfg.dt_s).unwrap();
     }
+    let speed = sim.state().v.iter().map(|v| v.norm()).fold(0.0, f64::max);
+    assert!(speed < 1e-5, "{model}: not settled, {speed} m/s");
     let x = &sim.state().x;
     let [nx, ny] = strip.particles();
-    let rows = (0..ny).map(|j| x[j * nx + nx - 1].z).collect();
-    let speed = sim.state().v.iter().map(|v| v.norm()).fold(0.0, f64::max);
-    (strip.measure(x, 0.5), rows, speed)
-}
-
-/// The exact chord angle of the fixture's 10 cm overhang, degrees.
-fn exact_chord_deg() -> f64 {
-    heavy_elastica(0.10 / bending_length(1.226e-4, 0.1, 9.81)).chord_angle_deg()
+    Settled {
+        chord_deg: strip.measure(x).chord_angle_deg(),
+        exact_chord_deg: strip.exact(sim.model()).0.chord_angle_deg(),
+        rows: (0..ny).map(|j| x[j * nx + nx - 1].z).collect(),
+    }
 }
 
 /// Volino's hinges at 1 cm: within 2 degrees of the elastica (measured
@@ -35,13 +44,10 @@ fn exact_chord_deg() -> f64 {
 /// clamp hinge as compliant as a free one the chord was 48.1 degrees.
 #[test]
 fn volino_cantilever_is_level_and_within_two_degrees_at_1_cm() {
-    let strip = CantileverStrip { spacing: 0.01, overhang: 0.10, width: 0.02 };
-    let (tip, rows, speed) = settle("volino", &strip);
-    assert!(speed < 1e-5, "not settled: {speed} m/s");
-    let chord = tip.chord_angle_deg();
-    assert!((chord - exact_chord_deg()).abs() < 2.0, "chord {chord} deg, exact {}", exact_chord_deg());
-    let twist = rows[0] - rows[rows.len() - 1];
-    assert!(twist.abs() < 1e-9, "tip twisted: rows at {rows:?}");
+    let s = settle("volino");
+    assert!((s.chord_deg - s.exact_chord_deg).abs() < 2.0, "chord {} deg, exact {}", s.chord_deg, s.exact_chord_deg);
+    let twist = s.rows[0] - s.rows[s.rows.len() - 1];
+    assert!(twist.abs() < 1e-9, "tip twisted: rows at {:?}", s.rows);
 }
 
 /// Choi & Ko's links at 1 cm: the type-2 links across the clamp line count
@@ -50,10 +56,7 @@ fn volino_cantilever_is_level_and_within_two_degrees_at_1_cm() {
 /// Still soft: the ramp's soft zone and the 3/4 of `k_b` (material docs).
 #[test]
 fn choi_ko_cantilever_clamp_counts_half_a_link_at_1_cm() {
-    let strip = CantileverStrip { spacing: 0.01, overhang: 0.10, width: 0.02 };
-    let (tip, rows, speed) = settle("choi-ko", &strip);
-    assert!(speed < 1e-5, "not settled: {speed} m/s");
-    let chord = tip.chord_angle_deg();
-    assert!((chord - exact_chord_deg()).abs() < 5.0, "chord {chord} deg, exact {}", exact_chord_deg());
-    assert!(rows.iter().all(|z| (z - rows[0]).abs() < 1e-4), "{rows:?}");
+    let s = settle("choi-ko");
+    assert!((s.chord_deg - s.exact_chord_deg).abs() < 5.0, "chord {} deg, exact {}", s.chord_deg, s.exact_chord_deg);
+    assert!(s.rows.iter().all(|z| (z - s.rows[0]).abs() < 1e-4), "{:?}", s.rows);
 }

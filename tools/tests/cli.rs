@@ -17,6 +17,20 @@ fn out_dir(name: &str) -> PathBuf {
     dir
 }
 
+/// Runs `cloth study <name> --quick` from the workspace root; returns its
+/// output directory.
+fn quick_study(name: &str) -> PathBuf {
+    let out = out_dir(&format!("study-{name}"));
+    let status = cloth()
+        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+        .args(["study", name, "--quick", "--out"])
+        .arg(&out)
+        .status()
+        .unwrap();
+    assert!(status.success(), "study {name}");
+    out
+}
+
 #[test]
 fn run_writes_summary_and_frames() {
     let out = out_dir("run");
@@ -125,14 +139,7 @@ fn time_prints_a_table_row_of_medians() {
 
 #[test]
 fn study_freefall_writes_csv_markdown_and_svg() {
-    let out = out_dir("study");
-    let status = cloth()
-        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
-        .args(["study", "freefall", "--quick", "--out"])
-        .arg(&out)
-        .status()
-        .unwrap();
-    assert!(status.success());
+    let out = quick_study("freefall");
     let csv = std::fs::read_to_string(out.join("freefall.csv")).unwrap();
     let rows: Vec<&str> = csv.lines().collect();
     assert!(rows[0].starts_with("model,method,K,"));
@@ -150,14 +157,7 @@ fn study_freefall_writes_csv_markdown_and_svg() {
 
 #[test]
 fn study_cost_reports_every_method_and_model() {
-    let out = out_dir("cost");
-    let status = cloth()
-        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
-        .args(["study", "cost", "--quick", "--out"])
-        .arg(&out)
-        .status()
-        .unwrap();
-    assert!(status.success());
+    let out = quick_study("cost");
     let csv = std::fs::read_to_string(out.join("cost.csv")).unwrap();
     // 3 models x 11 methods (10 + BE 0 CG) x 2 sizes.
     assert_eq!(csv.lines().count(), 1 + 3 * 11 * 2);
@@ -173,14 +173,7 @@ fn study_cost_reports_every_method_and_model() {
 /// the elastica computed by shooting (41.49 degrees at 10 cm).
 #[test]
 fn study_bending_compares_the_cantilever_with_the_elastica() {
-    let out = out_dir("bending");
-    let status = cloth()
-        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
-        .args(["study", "bending", "--quick", "--out"])
-        .arg(&out)
-        .status()
-        .unwrap();
-    assert!(status.success());
+    let out = quick_study("bending");
     let csv = std::fs::read_to_string(out.join("bending.csv")).unwrap();
     let rows: Vec<&str> = csv.lines().collect();
     assert_eq!(rows.len(), 2, "{csv}");

@@ -32,8 +32,14 @@ pub struct Elastica {
 impl Elastica {
     /// Angle of the chord from clamp to tip below horizontal, degrees.
     pub fn chord_angle_deg(&self) -> f64 {
-        self.tip_drop.atan2(self.tip_x).to_degrees()
+        chord_angle_deg(self.tip_x, self.tip_drop)
     }
+}
+
+/// Angle below horizontal of the chord to a tip `tip_x` along and
+/// `tip_drop` below the clamp (any one unit), degrees.
+fn chord_angle_deg(tip_x: f64, tip_drop: f64) -> f64 {
+    tip_drop.atan2(tip_x).to_degrees()
 }
 
 /// Bending length `c = (B / (rho g))^(1/3)`, m, of a strip of flexural
@@ -114,11 +120,14 @@ pub struct TipMeasure {
 impl TipMeasure {
     /// Angle of the chord from clamp to tip below horizontal, degrees.
     pub fn chord_angle_deg(&self) -> f64 {
-        self.tip_drop.atan2(self.tip_x).to_degrees()
+        chord_angle_deg(self.tip_x, self.tip_drop)
     }
 }
 
 impl CantileverStrip {
+    /// Height of the clamp (the strip's rest plane), m.
+    pub const CLAMP_Z: f64 = 0.5;
+
     /// Particles along the strip and across it.
     pub fn particles(&self) -> [usize; 2] {
         let cells = |len: f64| (len / self.spacing).round() as usize;
@@ -132,17 +141,26 @@ impl CantileverStrip {
         vec![
             format!("panels.0.particles=[{nx}, {ny}]"),
             format!("panels.0.size_m=[{}, {}]", self.overhang + self.spacing, self.width),
-            format!("panels.0.origin_m=[{}, {}, 0.5]", -self.spacing, -self.width / 2.0),
+            format!("panels.0.origin_m=[{}, {}, {}]", -self.spacing, -self.width / 2.0, Self::CLAMP_Z),
             format!("pins.0.nodes=[{}]", clamp.join(", ")),
         ]
     }
 
     /// The tip of positions `x` (the strip's particles, row-major), against
-    /// the clamp at height `clamp_z` (m).
-    pub fn measure(&self, x: &[crate::Vec3], clamp_z: f64) -> TipMeasure {
+    /// the clamp.
+    pub fn measure(&self, x: &[crate::Vec3]) -> TipMeasure {
         let [nx, ny] = self.particles();
         let tip = (0..ny).map(|j| x[j * nx + nx - 1]).sum::<crate::Vec3>() / ny as f64;
-        TipMeasure { tip_x: tip.x, tip_drop: clamp_z - tip.z }
+        TipMeasure { tip_x: tip.x, tip_drop: Self::CLAMP_Z - tip.z }
+    }
+
+    /// The exact shape of this strip when made of `model`'s material under
+    /// its gravity, and the bending length `c` (m) its values are in units of.
+    pub fn exact(&self, model: &crate::ClothModel) -> (Elastica, f64) {
+        let m = model.material();
+        let g = model.effects().gravity.map_or(0.0, |g| g.norm());
+        let c = bending_length(m.flexural_rigidity_n_m, m.areal_density_kg_m2, g);
+        (heavy_elastica(self.overhang / c), c)
     }
 }
 

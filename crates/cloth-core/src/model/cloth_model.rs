@@ -738,8 +738,8 @@ fn clamp_hinges(hinges: &mut [HingeElement], rest: &[Vec3], pinned: &[bool]) {
     for h in hinges {
         let [a, b, o1, o2] = h.nodes;
         let is_pinned = |q: u32| pinned[q as usize];
-        let (a1, a2) = (area([a, b, o1]), area([b, a, o2]));
         if is_pinned(a) && is_pinned(b) && is_pinned(o1) != is_pinned(o2) {
+            let (a1, a2) = (area([a, b, o1]), area([b, a, o2]));
             let free = if is_pinned(o1) { a2 } else { a1 };
             h.k *= (a1 + a2) / free;
         }
