@@ -565,6 +565,7 @@ fn newton_iterations_converge_the_nonlinear_step() {
                 "simulation.integrator=backward-euler",
                 "solver.rel_tol=1e-12",
                 "solver.preconditioner=block-jacobi",
+                "solver.newton_tolerance_m=1e-15",
                 &count,
             ],
         );

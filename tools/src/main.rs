@@ -91,6 +91,8 @@ enum StudyKind {
     Cosim,
     /// Peirce's cantilever against the heavy elastica, per model and resolution.
     Bending,
+    /// Large steps: the single linearised step against Newton with a line search.
+    LargeSteps,
 }
 
 fn main() -> ExitCode {
@@ -110,6 +112,7 @@ fn main() -> ExitCode {
                 StudyKind::Precision => study::precision(&args),
                 StudyKind::Cosim => study::cosim(&args),
                 StudyKind::Bending => study::bending(&args),
+                StudyKind::LargeSteps => study::large_steps(&args),
             }
         }
     };

@@ -66,6 +66,11 @@ pub struct Summary {
     pub unconverged_steps: u64,
     /// Largest type-1 length / rest length at the end.
     pub max_stretch_ratio: f64,
+    /// Largest type-1 length / rest length at any step (and at the start).
+    pub peak_stretch_ratio: f64,
+    /// Newton iterations (`solver.newton_iterations > 1`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub newton: Option<NewtonSummary>,
     pub min_z_m: f64,
     pub max_speed_m_s: f64,
     pub finite: bool,
@@ -90,6 +95,21 @@ pub struct Summary {
     /// Cloth-body coupling counters (scenes with `[[bodies]]`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub coupling: Option<CouplingSummary>,
+}
+
+/// What the Newton iterations did over a run.
+#[derive(Debug, Serialize)]
+pub struct NewtonSummary {
+    /// Newton corrections after each step's first linear solve.
+    pub corrections_total: u64,
+    pub corrections_max: usize,
+    pub corrections_mean: f64,
+    /// Halvings of a correction by the line search.
+    pub backtracks_total: u64,
+    /// Steps that ended with the residual above `solver.newton_tolerance_m`.
+    pub unconverged_steps: u64,
+    /// Largest final residual of a step, as a distance, m.
+    pub residual_max_m: f64,
 }
 
 /// A rigid body at the end of a run.

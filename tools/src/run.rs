@@ -1,6 +1,6 @@
 //! `cloth run`, `cloth validate` and `cloth time`.
 
-use crate::output::{BodySummary, CouplingSummary, StageWall, Summary, write_obj};
+use crate::output::{BodySummary, CouplingSummary, NewtonSummary, StageWall, Summary, write_obj};
 use anyhow::{Context, Result, bail};
 use cloth_core::scene::{EffectName, RunConfig, Scene, SceneError};
 use cloth_core::{ClothModel, ContactStats, Simulation, StepReport};
@@ -134,6 +134,8 @@ fn simulate(
     let (mut cg_total, mut cg_max, mut unconverged) = (0u64, 0usize, 0u64);
     let (mut evaluations, mut substeps, mut rejected) = (0u64, 0u64, 0u64);
     let mut contacts = ContactTotals::default();
+    let mut newton = NewtonTotals::default();
+    let mut peak_stretch = runner.sim().model().max_stretch_ratio(&runner.sim().state().x);
     let mut error = None;
     let wall = Instant::now();
     let write_frame = |sim: &Simulation, stages: &mut StageWall| -> Result<()> {
@@ -167,6 +169,8 @@ fn simulate(
                 stages.collision += r.stages.collision_s;
                 stages.self_collision += r.stages.self_collision_s;
                 contacts.add(&r.contacts);
+                newton.add(r.newton.as_ref());
+                peak_stretch = peak_stretch.max(runner.sim().model().max_stretch_ratio(&runner.sim().state().x));
                 bar.set_message(format!("t = {:.3} s, CG {}", runner.sim().time(), r.cg_iterations));
             }
             Err(e) => {
@@ -206,6 +210,8 @@ fn simulate(
         cg_iterations_mean: if steps > 0 { cg_total as f64 / steps as f64 } else { 0.0 },
         unconverged_steps: unconverged,
         max_stretch_ratio: model.max_stretch_ratio(&state.x),
+        peak_stretch_ratio: peak_stretch,
+        newton: newton.summary(),
         min_z_m: state.x.iter().map(|p| p.z).fold(f64::INFINITY, f64::min),
         max_speed_m_s: state.v.iter().map(|v| v.norm()).fold(0.0, f64::max),
         finite: error.is_none() && state.first_non_finite().is_none(),
@@ -261,6 +267,40 @@ fn coupled_summary(mut summary: Summary, run: &CoupledRun, start: Momentum, tota
         angular_momentum_change_n_m_s: (end.angular - start.angular).into(),
     });
     summary
+}
+
+/// Newton counters over a run.
+#[derive(Default)]
+struct NewtonTotals {
+    steps: u64,
+    corrections: u64,
+    corrections_max: usize,
+    backtracks: u64,
+    unconverged: u64,
+    residual_max_m: f64,
+}
+
+impl NewtonTotals {
+    fn add(&mut self, r: Option<&cloth_core::NewtonReport>) {
+        let Some(r) = r else { return };
+        self.steps += 1;
+        self.corrections += r.corrections as u64;
+        self.corrections_max = self.corrections_max.max(r.corrections);
+        self.backtracks += r.backtracks as u64;
+        self.unconverged += u64::from(!r.converged);
+        self.residual_max_m = self.residual_max_m.max(r.residual_m);
+    }
+
+    fn summary(&self) -> Option<NewtonSummary> {
+        (self.steps > 0).then(|| NewtonSummary {
+            corrections_total: self.corrections,
+            corrections_max: self.corrections_max,
+            corrections_mean: self.corrections as f64 / self.steps as f64,
+            backtracks_total: self.backtracks,
+            unconverged_steps: self.unconverged,
+            residual_max_m: self.residual_max_m,
+        })
+    }
 }
 
 /// Collision counters over a run.

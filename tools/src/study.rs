@@ -702,3 +702,147 @@ pub fn bending(args: &StudyArgs) -> Result<()> {
     );
     write_outputs(&args.out, "bending", &csv, &md, &[])
 }
+
+/// One run of the large-step study.
+struct LargeStepRun {
+    peak_stretch: f64,
+    final_stretch: f64,
+    steps: u64,
+    corrections: u64,
+    backtracks: u64,
+    unconverged: u64,
+    cg_iterations: u64,
+    step_wall_s: f64,
+    error: Option<String>,
+    x: Vec<cloth_core::Vec3>,
+}
+
+/// Runs a scene to its end, keeping the largest stretch of any step (no
+/// blow-up cut-off: the study is about how far large steps overstretch).
+fn large_step_run(scene: &Path, overrides: &[String], pool: &rayon::ThreadPool) -> Result<LargeStepRun> {
+    let parsed = Scene::parse_file(scene, overrides)?;
+    let (model, cfg) =
+        parsed.build().map_err(|kind| cloth_core::scene::SceneError { file: scene.to_path_buf(), kind })?;
+    let mut sim = cfg.simulation(model);
+    let mut run = LargeStepRun {
+        peak_stretch: 1.0,
+        final_stretch: 1.0,
+        steps: 0,
+        corrections: 0,
+        backtracks: 0,
+        unconverged: 0,
+        cg_iterations: 0,
+        step_wall_s: 0.0,
+        error: None,
+        x: Vec::new(),
+    };
+    for _ in 0..cfg.steps {
+        let t = Instant::now();
+        let result = pool.install(|| sim.step(cfg.dt_s));
+        run.step_wall_s += t.elapsed().as_secs_f64();
+        let report = match result {
+            Ok(r) => r,
+            Err(e) => {
+                run.error = Some(e.to_string());
+                break;
+            }
+        };
+        run.steps += 1;
+        run.cg_iterations += report.cg_iterations as u64;
+        if let Some(n) = report.newton {
+            run.corrections += n.corrections as u64;
+            run.backtracks += n.backtracks as u64;
+            run.unconverged += u64::from(!n.converged);
+        }
+        run.peak_stretch = run.peak_stretch.max(sim.model().max_stretch_ratio(&sim.state().x));
+    }
+    run.final_stretch = sim.model().max_stretch_ratio(&sim.state().x);
+    run.x = sim.state().x.clone();
+    Ok(run)
+}
+
+/// Large steps: the single linearised step against Newton with a line
+/// search, on the hanging cloth (with drag, so that it comes to rest) and
+/// the sphere drape: the largest stretch at any step, the rest shape
+/// against the smallest step's, and the cost in Newton corrections, CG
+/// iterations and time.
+pub fn large_steps(args: &StudyArgs) -> Result<()> {
+    let pool = setup(args)?;
+    let hang_overrides: Vec<String> = if args.quick { grid(21, "corners") } else { vec![] }
+        .into_iter()
+        .chain([
+            "simulation.effects=[\"gravity\", \"bending\", \"damping\", \"drag\"]".to_string(),
+            "material.drag_n_s_m3=0.5".into(),
+            format!("simulation.duration_s={}", if args.quick { 4 } else { 20 }),
+        ])
+        .collect();
+    let scenes: Vec<(&str, Vec<String>)> = if args.quick {
+        vec![("hang", hang_overrides)]
+    } else {
+        vec![("hang", hang_overrides), ("drape-sphere", vec![])]
+    };
+    let steps: &[f64] = if args.quick { &[0.2] } else { &[1.0 / 90.0, 0.05, 0.2] };
+    let newtons: &[usize] = &[1, 10];
+    let mut csv = String::from(
+        "scene,h_s,newton_iterations,peak_stretch,final_stretch,rest_gap_m,steps,corrections_per_step,\
+         backtracks,unconverged_steps,cg_per_step,step_wall_s,error\n",
+    );
+    let mut table = String::from(
+        "| scene | h (s) | solves per step (max) | peak stretch | final stretch | rest vs smallest h (cm) | \
+         Newton corrections / step | CG / step | wall (s) |\n|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for (name, overrides) in &scenes {
+        let scene = PathBuf::from(format!("fixtures/scenes/{name}.toml"));
+        let mut reference: Option<Vec<cloth_core::Vec3>> = None;
+        for &h in steps {
+            for &newton in newtons {
+                let mut o = overrides.clone();
+                o.extend([
+                    format!("simulation.dt_s={h}"),
+                    format!("solver.newton_iterations={newton}"),
+                    "solver.newton_tolerance_m=1e-5".into(),
+                    "solver.rel_tol=1e-6".into(),
+                ]);
+                let run = large_step_run(&scene, &o, &pool)?;
+                let reference = reference.get_or_insert_with(|| run.x.clone());
+                let gap = reference.iter().zip(&run.x).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max);
+                let per_step = |n: u64| n as f64 / run.steps.max(1) as f64;
+                let _ = writeln!(
+                    csv,
+                    "{name},{h},{newton},{:.4},{:.4},{gap:.5},{},{:.2},{},{},{:.1},{:.3},{}",
+                    run.peak_stretch,
+                    run.final_stretch,
+                    run.steps,
+                    per_step(run.corrections),
+                    run.backtracks,
+                    run.unconverged,
+                    per_step(run.cg_iterations),
+                    run.step_wall_s,
+                    run.error.as_deref().unwrap_or("")
+                );
+                let _ = writeln!(
+                    table,
+                    "| {name} | {h:.4} | {newton} | {:.3} | {:.3} | {:.2} | {:.1} | {:.0} | {:.2}{} |",
+                    run.peak_stretch,
+                    run.final_stretch,
+                    gap * 100.0,
+                    per_step(run.corrections),
+                    per_step(run.cg_iterations),
+                    run.step_wall_s,
+                    run.error.map_or(String::new(), |e| format!(" ({e})"))
+                );
+            }
+        }
+    }
+    let mut md = header("Large steps: one linearised solve against Newton with a line search", "large-steps", args);
+    let _ = writeln!(
+        md,
+        "`hang.toml` with drag (0.5 N s/m^3) for {} s and `drape-sphere.toml` for 2 s, BDF2, PCG to 1e-6, \
+         Newton tolerance 1e-5 m (residual as a distance). Peak stretch: the largest link length over \
+         rest length at any step. Rest gap: the largest distance between final positions and those of \
+         the first (smallest-step, single-solve) run.\n",
+        if args.quick { 4 } else { 20 }
+    );
+    md.push_str(&table);
+    write_outputs(&args.out, "large-steps", &csv, &md, &[])
+}

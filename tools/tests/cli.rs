@@ -184,6 +184,20 @@ fn study_bending_compares_the_cantilever_with_the_elastica() {
     assert!(md.contains("| volino | 1 | 10 |"), "{md}");
 }
 
+/// The quick large-step study runs the 21 x 21 hanging cloth at h = 0.2 s
+/// with one solve and with Newton: Newton's peak stretch is the cloth's
+/// sag, the single solve's many times the rest length.
+#[test]
+fn study_large_steps_compares_one_solve_with_newton() {
+    let out = quick_study("large-steps");
+    let csv = std::fs::read_to_string(out.join("large-steps.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 2, "{csv}");
+    let peak = |row: &[&str]| row[3].parse::<f64>().unwrap();
+    assert_eq!((rows[0][2], rows[1][2]), ("1", "10"), "{csv}");
+    assert!(peak(&rows[0]) > 5.0 && peak(&rows[1]) < 1.1, "{csv}");
+}
+
 /// Runs a fixture with overrides and returns its summary.
 fn summary_of(name: &str, overrides: &[&str]) -> serde_json::Value {
     let out = out_dir(name);

@@ -24,7 +24,7 @@ pub mod scene;
 // (`cloth_core::laws`, `cloth_core::contacts`) and inside the crate too.
 pub use contact::{colliders, contacts};
 pub use integrate::control;
-use integrate::{explicit, integrator, matrix_free, sim, state};
+use integrate::{explicit, integrator, matrix_free, newton, sim, state};
 use model::{constraints, keyframes, material, pins, topology};
 pub use model::{element_laws, elements, forces, laws, wind};
 
@@ -35,7 +35,8 @@ pub use constraints::{StrainLimitReport, apply_strain_limit};
 pub use contacts::ContactStats;
 pub use control::{Control, ControlError, SolidImpulse, SolidMotion};
 pub use integrator::{
-    BackwardEuler, Bdf2, Integrator, IntegratorKind, SolverParams, StageTimes, StepError, StepReport, Workspace,
+    BackwardEuler, Bdf2, Integrator, IntegratorKind, NewtonReport, SolverParams, StageTimes, StepError, StepReport,
+    Workspace,
 };
 pub use material::{LinkConstants, Material};
 pub use model::{

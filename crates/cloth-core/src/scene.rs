@@ -24,7 +24,8 @@
 //! error_tolerance = 1e-4       # dopri5 only
 //! max_substeps = 100000        # dopri5 only
 //! fixed_cg_iterations = 4      # backward-euler-fixed-cg only
-//! newton_iterations = 1        # backward-euler and bdf2
+//! newton_iterations = 1        # backward-euler and bdf2: most linear solves per step
+//! newton_tolerance_m = 1e-6    # Newton stops at this residual (as a distance, m)
 //!
 //! [material]
 //! areal_density_kg_m2 = 0.1
@@ -200,8 +201,11 @@ pub struct SolverSection {
     pub max_substeps: usize,
     /// CG iterations per step of `backward-euler-fixed-cg`.
     pub fixed_cg_iterations: usize,
-    /// Newton iterations per step of `backward-euler` and `bdf2` (>= 1).
+    /// Most linear solves per step of `backward-euler` and `bdf2` (>= 1;
+    /// more than 1 adds Newton corrections with a line search).
     pub newton_iterations: usize,
+    /// Newton's stopping rule: the step equation's residual as a distance, m (> 0).
+    pub newton_tolerance_m: f64,
 }
 
 impl Default for SolverSection {
@@ -216,6 +220,7 @@ impl Default for SolverSection {
             max_substeps: p.max_substeps,
             fixed_cg_iterations: p.fixed_cg_iterations,
             newton_iterations: p.newton_iterations,
+            newton_tolerance_m: p.newton_tolerance_m,
         }
     }
 }
@@ -427,6 +432,12 @@ impl Scene {
         if v.newton_iterations == 0 {
             return Err(invalid("solver.newton_iterations", "must be >= 1".into()));
         }
+        if !(v.newton_tolerance_m.is_finite() && v.newton_tolerance_m > 0.0) {
+            return Err(invalid(
+                "solver.newton_tolerance_m",
+                format!("must be finite and > 0, got {}", v.newton_tolerance_m),
+            ));
+        }
         // Checked even when the effect is not listed: a bad value is never silently kept.
         let c = &self.constraints;
         if !(c.max_strain.is_finite() && c.max_strain >= 0.0) {
@@ -508,6 +519,7 @@ impl Scene {
                 max_substeps: self.solver.max_substeps,
                 fixed_cg_iterations: self.solver.fixed_cg_iterations,
                 newton_iterations: self.solver.newton_iterations,
+                newton_tolerance_m: self.solver.newton_tolerance_m,
             },
         };
         Ok((model, config))
@@ -634,6 +646,7 @@ nodes = [[0, 3]]
             ("solver.error_tolerance=0.0", "solver.error_tolerance"),
             ("solver.max_substeps=0", "solver.max_substeps"),
             ("solver.newton_iterations=0", "solver.newton_iterations"),
+            ("solver.newton_tolerance_m=-1e-6", "solver.newton_tolerance_m"),
             ("constraints.max_strain=-0.1", "constraints.max_strain"),
             ("panels.0.particles=[1, 4]", "panels[0].particles"),
             ("panels.0.size_m=[1.0, inf]", "panels[0].size_m"),

@@ -102,9 +102,15 @@ pub struct SolverParams {
     pub max_substeps: usize,
     /// CG iterations per step of `backward-euler-fixed-cg`. Default 4.
     pub fixed_cg_iterations: usize,
-    /// Newton iterations per step of `backward-euler` and `bdf2` (1: Choi &
-    /// Ko's and Baraff & Witkin's single linearised step). Default 1.
+    /// Most linear solves per step of `backward-euler` and `bdf2`: 1 is
+    /// Choi & Ko's and Baraff & Witkin's single linearised step; more
+    /// adds Newton corrections with a line search on the incremental
+    /// potential (see [`NewtonReport`]). Default 1.
     pub newton_iterations: usize,
+    /// Newton stops once the step equation's residual, as a distance
+    /// (`|r_i| dx/du / m_i`, the distance a particle would still move under
+    /// its unbalanced force alone), is below this everywhere, m. Default 1e-6.
+    pub newton_tolerance_m: f64,
 }
 
 impl Default for SolverParams {
@@ -119,6 +125,7 @@ impl Default for SolverParams {
             max_substeps: 100_000,
             fixed_cg_iterations: 4,
             newton_iterations: 1,
+            newton_tolerance_m: 1e-6,
         }
     }
 }
@@ -172,6 +179,25 @@ pub struct StepReport {
     pub stages: StageTimes,
     /// Collision counters.
     pub contacts: ContactStats,
+    /// The Newton iterations (`None` for the single linearised step).
+    pub newton: Option<NewtonReport>,
+}
+
+/// What the Newton iterations of an implicit step did (see
+/// [`SolverParams::newton_iterations`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct NewtonReport {
+    /// Newton corrections after the first linearised solve.
+    pub corrections: usize,
+    /// Halvings of the correction by the line search, all corrections.
+    pub backtracks: usize,
+    /// Elastic energy evaluations of the line search.
+    pub energy_evaluations: usize,
+    /// Residual of the step equation at the final iterate as a distance,
+    /// `max_i |r_i| a / m_i` (m; `a = dx/du`).
+    pub residual_m: f64,
+    /// Whether the residual met [`SolverParams::newton_tolerance_m`].
+    pub converged: bool,
 }
 
 /// Why a step failed. The state is left as it was before the step.
@@ -239,15 +265,15 @@ pub enum StepError {
 #[derive(Debug, Clone)]
 pub struct Workspace {
     pub(crate) system: SystemBuffers,
-    pcg: Pcg,
+    pub(crate) pcg: Pcg,
     pub(crate) filter: ConstraintFilter,
     pub(crate) unknown: Vec<Vec3>,
     pub(crate) aux: Vec<Vec3>,
     pub(crate) aux2: Vec<Vec3>,
     pub(crate) new_x: Vec<Vec3>,
     pub(crate) new_v: Vec<Vec3>,
-    newton_u: Vec<Vec3>,
-    newton_y: Vec<Vec3>,
+    /// Newton iterations' buffers (allocated on first use).
+    pub(crate) newton: Option<crate::newton::NewtonBuffers>,
     /// External (wind) forces at the start of the step, and normals scratch.
     pub(crate) external: Vec<Vec3>,
     pub(crate) normals: Vec<Vec3>,
@@ -278,8 +304,7 @@ impl Workspace {
             aux2: vec![Vec3::zeros(); n],
             new_x: vec![Vec3::zeros(); n],
             new_v: vec![Vec3::zeros(); n],
-            newton_u: vec![Vec3::zeros(); n],
-            newton_y: vec![Vec3::zeros(); n],
+            newton: None,
             external: vec![Vec3::zeros(); n],
             normals: Vec::with_capacity(n),
             explicit: None,
@@ -387,6 +412,14 @@ pub(crate) trait Linearised {
     /// velocity, s (`h` for backward Euler, `2h/3` for BDF2); also the
     /// position change per velocity change of the new state.
     fn response_time(&self, h: f64) -> f64;
+    /// The coefficient `c_f` of the forces in the step equation
+    /// `M (u - y0) = c_f f(x(u), v(u))` (`h` for backward Euler, `4h^2/9`
+    /// for BDF2), s or s^2.
+    fn force_coefficient(&self, h: f64) -> f64;
+    /// `dx'/du`: how the new positions move with the unknown (`h`, `1`).
+    fn position_per_unknown(&self, h: f64) -> f64;
+    /// `dv'/du`: how the new velocities move with the unknown (`1`, `3/(2h)`).
+    fn velocity_per_unknown(&self, h: f64) -> f64;
     /// The system of a Newton correction at an iterate with velocities `v_k`
     /// (positions are passed to the assembly): same matrix, right-hand side
     /// the negative residual `c_f f(x_k, v_k) + M y`.
@@ -418,6 +451,18 @@ impl Linearised for BackwardEuler {
 
     fn response_time(&self, h: f64) -> f64 {
         h
+    }
+
+    fn force_coefficient(&self, h: f64) -> f64 {
+        h
+    }
+
+    fn position_per_unknown(&self, h: f64) -> f64 {
+        h
+    }
+
+    fn velocity_per_unknown(&self, _: f64) -> f64 {
+        1.0
     }
 
     /// Residual `M dv - h f(x + h (v + dv), v + dv)`: `y = -dv`.
@@ -465,6 +510,18 @@ impl Linearised for Bdf2 {
     /// `v' = (3 dx - delta) / (2h)` and `dx` moves by `(4h^2/9) f / m`.
     fn response_time(&self, h: f64) -> f64 {
         2.0 * h / 3.0
+    }
+
+    fn force_coefficient(&self, h: f64) -> f64 {
+        4.0 * h * h / 9.0
+    }
+
+    fn position_per_unknown(&self, _: f64) -> f64 {
+        1.0
+    }
+
+    fn velocity_per_unknown(&self, h: f64) -> f64 {
+        1.5 / h
     }
 
     /// Residual `M (dx - y0) - (4h^2/9) f(x + dx, v'(dx))` with `y0 = aux2`: `y = y0 - dx`.
@@ -532,36 +589,35 @@ fn linearised_step<S: Linearised>(
             (r.rel_residual, report.converged & r.converged, solve_s + s);
     }
     let (mut forces_s, mut assembly_s) = (timing.links_s, timing.gather_s + pins_s);
-    // Further Newton iterations on the nonlinear step equation: linearise
-    // at the current iterate, solve for the correction (pins and contacts:
-    // zero). Collision forces stay those of the start of the step.
-    for _ in 1..solver.newton_iterations {
-        for i in 0..state.len() {
-            (ws.new_x[i], ws.new_v[i]) = scheme.advance(state, &ws.aux, h, i, ws.unknown[i]);
-            ws.newton_y[i] = scheme.newton_mass_term(&ws.aux2, i, ws.unknown[i]);
-        }
-        ws.newton_u.copy_from_slice(&ws.unknown);
-        let terms = with_loads(scheme.newton_terms(h, &ws.new_v, &ws.newton_y), &ws.external, &ws.contacts, &loads);
-        let t = assemble(model, &ws.new_x, &terms, &mut ws.system);
-        let zero = |_, _| Vec3::zeros();
-        constrain_pins(model, state, control, h, &mut ws.filter, zero);
-        constrain_contacts(&ws.contacts.solid, &state.x, &mut ws.filter, zero);
-        ws.unknown.iter_mut().for_each(|u| *u = Vec3::zeros());
-        let (r, s) = solve(ws, state, solver)?;
-        for (u, base) in ws.unknown.iter_mut().zip(&ws.newton_u) {
-            *u += base;
-        }
-        report.force_evaluations += 1;
-        report.cg_iterations += r.cg_iterations;
-        report.rel_residual = r.rel_residual;
-        report.converged &= r.converged;
-        (forces_s, assembly_s, solve_s) = (forces_s + t.links_s, assembly_s + t.gather_s, solve_s + s);
-    }
+    // Newton iterations with a line search on the nonlinear step equation
+    // (see `newton`); collision forces stay those of the start of the step.
+    let newton = if solver.newton_iterations > 1 {
+        let out = crate::newton::iterate(scheme, model, state, control, h, ws, solver, &loads)?;
+        report.force_evaluations += out.evaluations;
+        report.cg_iterations += out.cg_iterations;
+        report.converged &= out.cg_converged;
+        report.newton = Some(NewtonReport {
+            corrections: out.corrections,
+            backtracks: out.backtracks,
+            energy_evaluations: out.energy_evaluations,
+            residual_m: out.residual_m,
+            converged: out.converged,
+        });
+        forces_s += out.forces_s;
+        assembly_s += out.assembly_s;
+        solve_s += out.solve_s;
+        true
+    } else {
+        false
+    };
     let t_update = Instant::now();
-    // The force each pin exerts: its row of the unfiltered residual.
+    // The force each pin exerts: its row of the unfiltered residual (after
+    // Newton the system is assembled at the final iterate: `rhs = -r`).
     for (pin, f) in model.pins().iter().zip(&mut ws.pin_forces) {
         let i = pin.particle;
-        *f = (ws.system.matrix.row_times(i, &ws.unknown) - ws.system.rhs[i]) / force_coefficient;
+        let residual =
+            if newton { -ws.system.rhs[i] } else { ws.system.matrix.row_times(i, &ws.unknown) - ws.system.rhs[i] };
+        *f = residual / force_coefficient;
     }
     for i in 0..state.len() {
         (ws.new_x[i], ws.new_v[i]) = scheme.advance(state, &ws.aux, h, i, ws.unknown[i]);
@@ -576,7 +632,7 @@ fn linearised_step<S: Linearised>(
         let t_next = state.time_s + h;
         // Newton corrections move free particles after the contact set was
         // settled: check them all then.
-        let all = unresolved || solver.newton_iterations > 1;
+        let all = unresolved || newton;
         stats.projected = project_out(model, &state.x, t_next, &mut ws.contacts, all, &mut ws.new_x, &mut ws.new_v);
     }
     if let Some(sc) = model.self_collision() {
@@ -599,7 +655,7 @@ fn linearised_step<S: Linearised>(
 
 /// A scheme's `terms` with the loads of the step that `loads` says are
 /// present: external forces, self-collision stiffness, squeeze friction.
-fn with_loads<'a>(
+pub(crate) fn with_loads<'a>(
     mut terms: SystemTerms<'a>,
     external: &'a [Vec3],
     contacts: &'a ContactBuffers,
@@ -633,13 +689,13 @@ fn squeeze_friction_in_solve(state: &ClothState, ws: &mut Workspace, loads: &mut
 const MAX_CONTACT_PASSES: usize = 3;
 
 /// What acts on the cloth besides its own links in one step.
-struct StepLoads {
+pub(crate) struct StepLoads {
     /// `ws.external` holds forces (wind, self-collision).
-    external: bool,
+    pub(crate) external: bool,
     /// `ws.contacts.self_stiffness` holds self-collision stiffness.
     self_collision: bool,
     /// `ws.contacts.friction_damping` holds friction of squeezed particles.
-    squeeze_friction: bool,
+    pub(crate) squeeze_friction: bool,
     stats: ContactStats,
     collision_s: f64,
     self_collision_s: f64,
@@ -767,7 +823,11 @@ pub(crate) fn constrain_pins(
     }
 }
 
-fn solve(ws: &mut Workspace, state: &ClothState, solver: &SolverParams) -> Result<(StepReport, f64), StepError> {
+pub(crate) fn solve(
+    ws: &mut Workspace,
+    state: &ClothState,
+    solver: &SolverParams,
+) -> Result<(StepReport, f64), StepError> {
     let t0 = Instant::now();
     let result = ws.pcg.solve_in_place(&mut ws.system.matrix, &ws.system.rhs, &ws.filter, &solver.pcg, &mut ws.unknown);
     let elapsed = t0.elapsed().as_secs_f64();

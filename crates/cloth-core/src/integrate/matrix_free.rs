@@ -124,6 +124,7 @@ impl crate::Integrator for BackwardEulerFixedCg {
             converged: true,
             stages,
             contacts,
+            newton: None,
         })
     }
 }

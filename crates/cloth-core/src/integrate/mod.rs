@@ -8,5 +8,6 @@ pub mod control;
 pub(crate) mod explicit;
 pub(crate) mod integrator;
 pub(crate) mod matrix_free;
+pub(crate) mod newton;
 pub(crate) mod sim;
 pub(crate) mod state;

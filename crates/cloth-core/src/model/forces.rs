@@ -64,17 +64,60 @@ pub fn eval_link(model: &ClothModel, k: usize, x: &[Vec3]) -> LinkEval {
     }
 }
 
+/// Elastic energy of link `k` at positions `x`, J (the law only, no
+/// Jacobian).
+#[inline]
+fn link_energy(model: &ClothModel, k: usize, x: &[Vec3]) -> f64 {
+    let ns = model.stretch_links().len();
+    if k < ns {
+        let l = &model.stretch_links()[k];
+        l.eval((x[l.j as usize] - x[l.i as usize]).norm()).energy
+    } else {
+        let l = &model.bend_links()[k - ns];
+        l.law.eval((x[l.j as usize] - x[l.i as usize]).norm()).energy
+    }
+}
+
+/// Scratch for [`elastic_energy`], sized once per model.
+#[derive(Debug, Clone)]
+pub struct EnergyBuffers {
+    link: Vec<f64>,
+    elements: ElementBuffers,
+}
+
+impl EnergyBuffers {
+    /// Buffers for `model`.
+    pub fn new(model: &ClothModel) -> Self {
+        Self { link: vec![0.0; model.link_count()], elements: ElementBuffers::new(model.elements()) }
+    }
+}
+
+/// Elastic energy of every link and element at `x`, J, without
+/// allocating: laws in parallel, summed in link and element order (the
+/// same bits for any thread count).
+pub fn elastic_energy(model: &ClothModel, x: &[Vec3], bufs: &mut EnergyBuffers) -> f64 {
+    bufs.link.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(chunk, es)| {
+        for (k, e) in es.iter_mut().enumerate() {
+            *e = link_energy(model, chunk * ROW_CHUNK + k, x);
+        }
+    });
+    let links: f64 = bufs.link.iter().sum();
+    let set = model.elements();
+    if set.is_empty() {
+        return links;
+    }
+    elements::evaluate(set, x, 0.0, 1.0, None, &mut bufs.elements);
+    links + elements::energy(&bufs.elements)
+}
+
 /// Total potential energy at `x`: link energies plus gravity `-sum m g.x`, J.
 pub fn potential_energy(model: &ClothModel, x: &[Vec3]) -> f64 {
-    let links: f64 = (0..model.link_count()).map(|k| eval_link(model, k, x).energy).sum();
-    let mut element_bufs = ElementBuffers::new(model.elements());
-    elements::evaluate(model.elements(), x, 0.0, 1.0, None, &mut element_bufs);
-    let links = links + elements::energy(&element_bufs);
+    let elastic = elastic_energy(model, x, &mut EnergyBuffers::new(model));
     let gravity = model
         .effects()
         .gravity
         .map_or(0.0, |g| -model.masses().iter().zip(x).map(|(m, xi)| m * g.dot(xi)).sum::<f64>());
-    links + gravity
+    elastic + gravity
 }
 
 /// Force on link `k`'s first particle at `(x, v)`: elastic plus directional

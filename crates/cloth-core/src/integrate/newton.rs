@@ -1,0 +1,394 @@
+//! Newton's method with a line search for the implicit step.
+//!
+//! Backward Euler and BDF2 both ask for the unknown `u` (BE: the velocity
+//! change `dv`; BDF2: the displacement `dx`) that zeroes the residual
+//! `r(u) = M (u - y0) - c_f f(x(u), v(u))`, with `x(u) = x_u + a u`,
+//! `v(u) = v_u + b u` (BE: `y0 = 0`, `c_f = h`, `a = h`, `b = 1`; BDF2:
+//! `y0 = delta/3 + h (8 v - 2 v_prev)/9`, `c_f = 4h^2/9`, `a = 1`,
+//! `b = 3/(2h)`). The residual is the gradient of the incremental
+//! potential (Martin et al. 2011, Gast et al. 2015)
+//!
+//! `E(u) = 1/2 (u - y0)^T M (u - y0) + (c_f / a) [U(x(u)) - (M g + f_ext).x(u)]
+//!        + (c_f / b) 1/2 v(u)^T C v(u)`,
+//!
+//! with `U` the elastic energy of links and elements and `C = -df/dv` the
+//! damping (link dampers, drag, friction of squeezed particles) frozen at the
+//! current iterate. Each Newton correction solves `A p = -r` with the
+//! step's positive definite matrix (compressed links' negative orthogonal
+//! stiffness dropped), so `p` is a descent direction of `E`; a backtracking
+//! line search (Armijo) takes the largest `alpha` in `1, 1/2, 1/4, ...`
+//! that lowers `E` by at least `1e-4 alpha |r.p|`. That is what keeps a
+//! large step from overshooting: a full step that stretches links far more
+//! than it gains in gravity and inertia is cut back.
+//!
+//! Stopping rule: the residual as a distance, `max_i |S_i r_i| a / m_i`
+//! over the free directions `S_i` (m): the distance particle `i` would
+//! still move if its unbalanced force acted on it alone over the step.
+//! Since the matrix is at least `M`, it bounds the remaining Newton
+//! correction in the mass norm. The iterations stop when it falls below
+//! [`crate::SolverParams::newton_tolerance_m`] or after
+//! [`crate::SolverParams::newton_iterations`] linear solves.
+
+use crate::contacts::constrain_contacts;
+use crate::control::Control;
+use crate::forces::{EnergyBuffers, assemble, elastic_energy};
+use crate::integrator::{Linearised, StepLoads, Workspace, constrain_pins, solve, with_loads};
+use crate::{ClothModel, ClothState, Mat3, SolverParams, StepError, Vec3};
+
+/// Armijo's sufficient-decrease constant.
+const ARMIJO: f64 = 1e-4;
+/// Most halvings of the step length before the line search gives up.
+const MAX_BACKTRACKS: usize = 30;
+
+/// Scratch of the Newton iterations, sized once per model.
+#[derive(Debug, Clone)]
+pub(crate) struct NewtonBuffers {
+    energy: EnergyBuffers,
+    /// The iterate's unknown, positions and velocities.
+    u: Vec<Vec3>,
+    x: Vec<Vec3>,
+    v: Vec<Vec3>,
+    /// `y0 - u` at the iterate (the residual's mass term).
+    y: Vec<Vec3>,
+    /// Positions of a line-search trial.
+    trial: Vec<Vec3>,
+}
+
+impl NewtonBuffers {
+    pub(crate) fn new(model: &ClothModel) -> Self {
+        let n = model.particle_count();
+        let zeros = vec![Vec3::zeros(); n];
+        Self {
+            energy: EnergyBuffers::new(model),
+            u: zeros.clone(),
+            x: zeros.clone(),
+            v: zeros.clone(),
+            y: zeros.clone(),
+            trial: zeros,
+        }
+    }
+}
+
+/// What the Newton iterations of one step did.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) struct NewtonOutcome {
+    /// Newton corrections taken after the first linearised solve.
+    pub corrections: usize,
+    /// Halvings of the step length over all corrections.
+    pub backtracks: usize,
+    /// The residual as a distance at the final iterate, m.
+    pub residual_m: f64,
+    /// Whether `residual_m` met the tolerance.
+    pub converged: bool,
+    /// PCG iterations of the corrections.
+    pub cg_iterations: usize,
+    /// Whether every correction's PCG converged.
+    pub cg_converged: bool,
+    /// Force and Jacobian evaluations (one per iterate checked).
+    pub evaluations: usize,
+    /// Elastic energy evaluations of the line search.
+    pub energy_evaluations: usize,
+    pub forces_s: f64,
+    pub assembly_s: f64,
+    pub solve_s: f64,
+}
+
+/// Newton iterations from the unknown in `ws.unknown` (the first
+/// linearised solve). On return `ws.unknown` holds the last accepted
+/// iterate and `ws.system` the assembly there (its right-hand side is `-r`).
+/// Pins and active contacts keep the values of the first solve.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn iterate<S: Linearised>(
+    scheme: &S,
+    model: &ClothModel,
+    state: &ClothState,
+    control: &Control,
+    h: f64,
+    ws: &mut Workspace,
+    solver: &SolverParams,
+    loads: &StepLoads,
+) -> Result<NewtonOutcome, StepError> {
+    let mut nb = ws.newton.take().unwrap_or_else(|| NewtonBuffers::new(model));
+    let result = iterate_with(scheme, model, state, control, h, ws, solver, loads, &mut nb);
+    ws.newton = Some(nb);
+    result
+}
+
+#[allow(clippy::too_many_arguments)]
+fn iterate_with<S: Linearised>(
+    scheme: &S,
+    model: &ClothModel,
+    state: &ClothState,
+    control: &Control,
+    h: f64,
+    ws: &mut Workspace,
+    solver: &SolverParams,
+    loads: &StepLoads,
+    nb: &mut NewtonBuffers,
+) -> Result<NewtonOutcome, StepError> {
+    let (c_f, a, b) = (scheme.force_coefficient(h), scheme.position_per_unknown(h), scheme.velocity_per_unknown(h));
+    let mut out = NewtonOutcome { cg_converged: true, ..Default::default() };
+    nb.u.copy_from_slice(&ws.unknown);
+    for solves in 1.. {
+        for i in 0..state.len() {
+            (nb.x[i], nb.v[i]) = scheme.advance(state, &ws.aux, h, i, nb.u[i]);
+            nb.y[i] = scheme.newton_mass_term(&ws.aux2, i, nb.u[i]);
+        }
+        let terms = with_loads(scheme.newton_terms(h, &nb.v, &nb.y), &ws.external, &ws.contacts, loads);
+        let t = assemble(model, &nb.x, &terms, &mut ws.system);
+        (out.forces_s, out.assembly_s, out.evaluations) =
+            (out.forces_s + t.links_s, out.assembly_s + t.gather_s, out.evaluations + 1);
+        let zero = |_, _| Vec3::zeros();
+        constrain_pins(model, state, control, h, &mut ws.filter, zero);
+        constrain_contacts(&ws.contacts.solid, &state.x, &mut ws.filter, zero);
+        out.residual_m = residual_distance(ws, a);
+        out.converged = out.residual_m <= solver.newton_tolerance_m;
+        if out.converged || solves >= solver.newton_iterations {
+            break;
+        }
+        ws.unknown.iter_mut().for_each(|p| *p = Vec3::zeros());
+        let (r, s) = solve(ws, state, solver)?;
+        (out.cg_iterations, out.cg_converged, out.solve_s) =
+            (out.cg_iterations + r.cg_iterations, out.cg_converged & r.converged, out.solve_s + s);
+        out.corrections += 1;
+        let Some((alpha, backtracks, evaluations)) = line_search(model, ws, nb, (c_f, a, b), loads) else {
+            // Not a descent direction (an unconverged PCG): keep the iterate.
+            break;
+        };
+        (out.backtracks, out.energy_evaluations) = (out.backtracks + backtracks, out.energy_evaluations + evaluations);
+        if alpha == 0.0 {
+            break;
+        }
+        for (u, p) in nb.u.iter_mut().zip(&ws.unknown) {
+            *u += p * alpha;
+        }
+    }
+    ws.unknown.copy_from_slice(&nb.u);
+    Ok(out)
+}
+
+/// `max_i |A_ii^-1 S_i r_i| a` with `r = -rhs` of the assembly at the
+/// iterate and `A_ii` the matrix's diagonal block, m.
+fn residual_distance(ws: &Workspace, a: f64) -> f64 {
+    (0..ws.system.rhs.len())
+        .map(|i| {
+            let r = if ws.filter.is_free(i) { ws.system.rhs[i] } else { ws.filter.projector(i) * ws.system.rhs[i] };
+            let d = ws.system.matrix.diag(i).try_inverse().map_or(f64::INFINITY, |inv| (inv * r).norm());
+            if r == Vec3::zeros() { 0.0 } else { d * a }
+        })
+        .fold(0.0, f64::max)
+}
+
+/// The step's coefficients `(c_f, a, b)`: forces, `dx/du`, `dv/du`.
+type Coefficients = (f64, f64, f64);
+
+/// The incremental potential along a correction `p` from an iterate:
+/// `E(alpha) - E(0) = alpha q1 + alpha^2 q2 + s (U(x + alpha a p) - U(x))`
+/// with `s = c_f / a`. Every term but the elastic energy `U` is a
+/// quadratic in `alpha`, so a trial costs one elastic energy evaluation.
+#[derive(Debug, Clone, Copy)]
+struct Line {
+    /// `dE/dalpha` at 0, `r.p` with `r = -rhs` of the assembly at the iterate.
+    slope: f64,
+    q1: f64,
+    q2: f64,
+    /// `c_f / a`.
+    scale: f64,
+    /// Elastic energy at the iterate, J.
+    u0: f64,
+    a: f64,
+}
+
+/// What acts on the particles besides links and elements, as in the
+/// assembly: external forces (N) and friction damping blocks (N s/m).
+#[derive(Debug, Clone, Copy)]
+struct Extra<'a> {
+    external: Option<&'a [Vec3]>,
+    friction: Option<&'a [Mat3]>,
+}
+
+impl Line {
+    /// The line through the iterate `(x, v, y)` (`y = y0 - u`) along `p`;
+    /// `rhs` is the assembly's right-hand side there.
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        model: &ClothModel,
+        (x, v, y): (&[Vec3], &[Vec3], &[Vec3]),
+        rhs: &[Vec3],
+        p: &[Vec3],
+        (c_f, a, b): Coefficients,
+        extra: Extra<'_>,
+        energy: &mut EnergyBuffers,
+    ) -> Self {
+        let masses = model.masses();
+        // p is zero in the constrained directions, so constrained rows add nothing.
+        let slope: f64 = -(0..p.len()).map(|i| rhs[i].dot(&p[i])).sum::<f64>();
+        let gravity = model.effects().gravity.unwrap_or_else(Vec3::zeros);
+        let (mut q1, mut q2) = (0.0, 0.0);
+        for i in 0..p.len() {
+            let m = masses[i];
+            let load = gravity * m + extra.external.map_or(Vec3::zeros(), |f| f[i]);
+            // (u - y0).p = -y.p
+            q1 += -m * y[i].dot(&p[i]) - c_f * load.dot(&p[i]);
+            q2 += 0.5 * m * p[i].norm_squared();
+            // Drag and squeezed-particle friction: (c_f/b) 1/2 v^T C v.
+            let (drag, cp) = (model.drag(i), extra.friction.map_or(Vec3::zeros(), |c| c[i] * p[i]));
+            q1 += c_f * (drag * v[i].dot(&p[i]) + v[i].dot(&cp));
+            q2 += 0.5 * c_f * b * (drag * p[i].norm_squared() + p[i].dot(&cp));
+        }
+        // Link dampers `k_d (e.(v_j - v_i))^2`, directions frozen at the iterate.
+        for l in model.stretch_links().iter().filter(|l| l.k_d > 0.0) {
+            let (i, j) = (l.i as usize, l.j as usize);
+            let e = (x[j] - x[i]).normalize();
+            let (dv, dp) = (e.dot(&(v[j] - v[i])), e.dot(&(p[j] - p[i])));
+            if dv.is_finite() && dp.is_finite() {
+                q1 += c_f * l.k_d * dv * dp;
+                q2 += 0.5 * c_f * b * l.k_d * dp * dp;
+            }
+        }
+        Self { slope, q1, q2, scale: c_f / a, u0: elastic_energy(model, x, energy), a }
+    }
+
+    /// `E(alpha) - E(0)`, J (trial positions written to `trial`).
+    fn change(
+        &self,
+        model: &ClothModel,
+        x: &[Vec3],
+        p: &[Vec3],
+        alpha: f64,
+        trial: &mut [Vec3],
+        energy: &mut EnergyBuffers,
+    ) -> f64 {
+        for ((t, x), p) in trial.iter_mut().zip(x).zip(p) {
+            *t = x + p * (alpha * self.a);
+        }
+        let elastic = elastic_energy(model, trial, energy) - self.u0;
+        alpha * self.q1 + alpha * alpha * self.q2 + self.scale * elastic
+    }
+}
+
+/// Backtracking along the correction `p = ws.unknown` from the iterate in
+/// `nb`: returns `(alpha, halvings, energy evaluations)`, `alpha = 0` when
+/// no length down to `2^-30` lowers the incremental potential enough, and
+/// `None` when `p` is not a descent direction.
+fn line_search(
+    model: &ClothModel,
+    ws: &Workspace,
+    nb: &mut NewtonBuffers,
+    coefficients: Coefficients,
+    loads: &StepLoads,
+) -> Option<(f64, usize, usize)> {
+    let p = &ws.unknown;
+    let extra = Extra {
+        external: loads.external.then_some(&ws.external[..]),
+        friction: loads.squeeze_friction.then_some(&ws.contacts.friction_damping[..]),
+    };
+    let iterate = (&nb.x[..], &nb.v[..], &nb.y[..]);
+    let line = Line::new(model, iterate, &ws.system.rhs, p, coefficients, extra, &mut nb.energy);
+    if line.slope.is_nan() || line.slope >= 0.0 {
+        return None;
+    }
+    // Rounding of a sum of many link energies: below this, changes are noise.
+    let noise = 1e-13 * line.scale * line.u0.abs();
+    let mut alpha = 1.0;
+    for halvings in 0..=MAX_BACKTRACKS {
+        let change = line.change(model, &nb.x, p, alpha, &mut nb.trial, &mut nb.energy);
+        if change <= ARMIJO * alpha * line.slope + noise {
+            return Some((alpha, halvings, halvings + 1));
+        }
+        alpha *= 0.5;
+    }
+    Some((0.0, MAX_BACKTRACKS, MAX_BACKTRACKS + 1))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::forces::{SystemBuffers, SystemTerms};
+    use crate::{Effects, GridPanel, Material, ModelKind, ModelSpec};
+
+    /// Deterministic numbers in [-1, 1).
+    fn noise(seed: &mut u64) -> f64 {
+        *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (*seed >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+    }
+
+    fn model(kind: ModelKind) -> ClothModel {
+        ClothModel::build(&ModelSpec {
+            kind,
+            panels: vec![GridPanel {
+                particles: [6, 5],
+                size_m: [0.1, 0.08],
+                origin_m: [0.0, 0.0, 0.5],
+                u_axis: [1.0, 0.0, 0.0],
+                v_axis: [0.0, 1.0, 0.0],
+                wrap_u: false,
+            }],
+            material: Material { damping_n_s_m: 0.5, drag_n_s_m3: 0.3, ..Material::default() },
+            effects: Effects {
+                gravity: Some(Vec3::new(0.0, 0.0, -9.81)),
+                damping: true,
+                bending: true,
+                drag: true,
+                ..Effects::default()
+            },
+            ..ModelSpec::default()
+        })
+        .unwrap()
+    }
+
+    /// The line search's potential is the one whose gradient is the
+    /// Newton residual: its derivative along `p` (central differences of
+    /// `Line::change`) equals `r.p` from the assembled right-hand side, for
+    /// every model, with link dampers, drag, external forces and friction
+    /// blocks. Dropping the external forces and friction from the line
+    /// (a wrong potential) is caught.
+    #[test]
+    fn line_search_potential_has_the_residual_as_gradient() {
+        for kind in [ModelKind::ChoiKo, ModelKind::Provot, ModelKind::Volino] {
+            let model = model(kind);
+            let n = model.particle_count();
+            let mut seed = 7;
+            let mut random = |s: f64| Vec3::new(noise(&mut seed), noise(&mut seed), noise(&mut seed)) * s;
+            // Stretched by 5 % and jittered: links in tension and compression.
+            let x: Vec<Vec3> = model.rest_positions().iter().map(|p| p * 1.05 + random(2e-3)).collect();
+            let v: Vec<Vec3> = (0..n).map(|_| random(0.3)).collect();
+            let y: Vec<Vec3> = (0..n).map(|_| random(1e-3)).collect();
+            let p: Vec<Vec3> = (0..n).map(|_| random(1e-3)).collect();
+            let external: Vec<Vec3> = (0..n).map(|_| random(1e-2)).collect();
+            let friction: Vec<Mat3> = (0..n)
+                .map(|_| {
+                    let w = random(1.0);
+                    w * w.transpose() * 1e-2
+                })
+                .collect();
+            // BDF2 at h = 10 ms.
+            let h = 0.01;
+            let (c_f, a, b) = (4.0 * h * h / 9.0, 1.0, 1.5 / h);
+            let terms = SystemTerms {
+                d_times: Some((c_f, &v[..])),
+                mass_times: Some(&y[..]),
+                external: Some(&external[..]),
+                diag_damping: Some(&friction[..]),
+                ..SystemTerms::new(c_f, 2.0 * h / 3.0, c_f)
+            };
+            let mut system = SystemBuffers::new(&model);
+            assemble(&model, &x, &terms, &mut system);
+            let mut energy = EnergyBuffers::new(&model);
+            let mut trial = vec![Vec3::zeros(); n];
+            let derivative_error = |extra: Extra<'_>, energy: &mut EnergyBuffers, trial: &mut [Vec3]| {
+                let line = Line::new(&model, (&x, &v, &y), &system.rhs, &p, (c_f, a, b), extra, energy);
+                let eps = 1e-4;
+                let plus = line.change(&model, &x, &p, eps, trial, energy);
+                let minus = line.change(&model, &x, &p, -eps, trial, energy);
+                ((plus - minus) / (2.0 * eps) - line.slope).abs() / line.slope.abs()
+            };
+            let full = Extra { external: Some(&external), friction: Some(&friction) };
+            let err = derivative_error(full, &mut energy, &mut trial);
+            let wrong = derivative_error(Extra { external: None, friction: None }, &mut energy, &mut trial);
+            eprintln!("{kind:?}: relative derivative error {err:.2e}, without external and friction {wrong:.2e}");
+            assert!(err < 2e-10, "{kind:?}: line derivative off the residual by {err:e}");
+            assert!(wrong > 1e-3, "{kind:?}: the check is blind to missing terms ({wrong:e})");
+        }
+    }
+}
