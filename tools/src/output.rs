@@ -71,6 +71,9 @@ pub struct Summary {
     /// Newton iterations (`solver.newton_iterations > 1`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub newton: Option<NewtonSummary>,
+    /// The energy monitor (implicit integrators with an assembled matrix).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub energy: Option<EnergySummary>,
     pub min_z_m: f64,
     pub max_speed_m_s: f64,
     pub finite: bool,
@@ -110,6 +113,27 @@ pub struct NewtonSummary {
     pub unconverged_steps: u64,
     /// Largest final residual of a step, as a distance, m.
     pub residual_max_m: f64,
+}
+
+/// The energy balance over a run, J (see `cloth_core::EnergyReport`).
+#[derive(Debug, Serialize)]
+pub struct EnergySummary {
+    /// Energies at the end.
+    pub kinetic_j: f64,
+    pub elastic_j: f64,
+    pub gravitational_j: f64,
+    /// Work of pins and external forces, and dissipation by dampers and drag, over the run.
+    pub pin_work_total_j: f64,
+    pub external_work_total_j: f64,
+    pub dissipated_total_j: f64,
+    /// Energy the steps created beyond their loads (negative: numerical dissipation).
+    pub gain_total_j: f64,
+    /// Largest gain of one step.
+    pub gain_max_j: f64,
+    /// Steps whose gain exceeded the tolerance (`cloth_core::GAIN_TOLERANCE` of the energy in play).
+    pub flagged_steps: u64,
+    /// BDF2 steps retaken as backward Euler because they were flagged.
+    pub retaken_as_backward_euler_steps: u64,
 }
 
 /// A rigid body at the end of a run.

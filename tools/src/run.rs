@@ -1,6 +1,6 @@
 //! `cloth run`, `cloth validate` and `cloth time`.
 
-use crate::output::{BodySummary, CouplingSummary, NewtonSummary, StageWall, Summary, write_obj};
+use crate::output::{BodySummary, CouplingSummary, EnergySummary, NewtonSummary, StageWall, Summary, write_obj};
 use anyhow::{Context, Result, bail};
 use cloth_core::scene::{EffectName, RunConfig, Scene, SceneError};
 use cloth_core::{ClothModel, ContactStats, Simulation, StepReport};
@@ -135,6 +135,7 @@ fn simulate(
     let (mut evaluations, mut substeps, mut rejected) = (0u64, 0u64, 0u64);
     let mut contacts = ContactTotals::default();
     let mut newton = NewtonTotals::default();
+    let mut energy = EnergyTotals::default();
     let mut peak_stretch = runner.sim().model().max_stretch_ratio(&runner.sim().state().x);
     let mut error = None;
     let wall = Instant::now();
@@ -170,6 +171,7 @@ fn simulate(
                 stages.self_collision += r.stages.self_collision_s;
                 contacts.add(&r.contacts);
                 newton.add(r.newton.as_ref());
+                energy.add(&r);
                 peak_stretch = peak_stretch.max(runner.sim().model().max_stretch_ratio(&runner.sim().state().x));
                 bar.set_message(format!("t = {:.3} s, CG {}", runner.sim().time(), r.cg_iterations));
             }
@@ -212,6 +214,7 @@ fn simulate(
         max_stretch_ratio: model.max_stretch_ratio(&state.x),
         peak_stretch_ratio: peak_stretch,
         newton: newton.summary(),
+        energy: energy.summary(),
         min_z_m: state.x.iter().map(|p| p.z).fold(f64::INFINITY, f64::min),
         max_speed_m_s: state.v.iter().map(|v| v.norm()).fold(0.0, f64::max),
         finite: error.is_none() && state.first_non_finite().is_none(),
@@ -299,6 +302,50 @@ impl NewtonTotals {
             backtracks_total: self.backtracks,
             unconverged_steps: self.unconverged,
             residual_max_m: self.residual_max_m,
+        })
+    }
+}
+
+/// The energy monitor over a run.
+#[derive(Default)]
+struct EnergyTotals {
+    steps: u64,
+    last: cloth_core::EnergyReport,
+    pin_work: f64,
+    external_work: f64,
+    dissipated: f64,
+    gain: f64,
+    gain_max: f64,
+    flagged: u64,
+    retaken: u64,
+}
+
+impl EnergyTotals {
+    fn add(&mut self, r: &StepReport) {
+        let Some(e) = r.energy else { return };
+        self.steps += 1;
+        self.last = e;
+        self.pin_work += e.pin_work_j;
+        self.external_work += e.external_work_j;
+        self.dissipated += e.dissipated_j;
+        self.gain += e.gain_j;
+        self.gain_max = self.gain_max.max(e.gain_j);
+        self.flagged += u64::from(e.flagged);
+        self.retaken += u64::from(r.retaken_as_backward_euler);
+    }
+
+    fn summary(&self) -> Option<EnergySummary> {
+        (self.steps > 0).then_some(EnergySummary {
+            kinetic_j: self.last.kinetic_j,
+            elastic_j: self.last.elastic_j,
+            gravitational_j: self.last.gravitational_j,
+            pin_work_total_j: self.pin_work,
+            external_work_total_j: self.external_work,
+            dissipated_total_j: self.dissipated,
+            gain_total_j: self.gain,
+            gain_max_j: self.gain_max,
+            flagged_steps: self.flagged,
+            retaken_as_backward_euler_steps: self.retaken,
         })
     }
 }

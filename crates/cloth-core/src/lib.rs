@@ -24,7 +24,8 @@ pub mod scene;
 // (`cloth_core::laws`, `cloth_core::contacts`) and inside the crate too.
 pub use contact::{colliders, contacts};
 pub use integrate::control;
-use integrate::{explicit, integrator, matrix_free, newton, sim, state};
+pub use integrate::energy::{EnergyReport, GAIN_TOLERANCE};
+use integrate::{energy, explicit, integrator, matrix_free, newton, sim, state};
 use model::{constraints, keyframes, material, pins, topology};
 pub use model::{element_laws, elements, forces, laws, wind};
 

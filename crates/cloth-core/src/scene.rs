@@ -26,6 +26,7 @@
 //! fixed_cg_iterations = 4      # backward-euler-fixed-cg only
 //! newton_iterations = 1        # backward-euler and bdf2: most linear solves per step
 //! newton_tolerance_m = 1e-6    # Newton stops at this residual (as a distance, m)
+//! energy_guard = true          # bdf2 retakes a step that creates energy as backward Euler
 //!
 //! [material]
 //! areal_density_kg_m2 = 0.1
@@ -206,6 +207,8 @@ pub struct SolverSection {
     pub newton_iterations: usize,
     /// Newton's stopping rule: the step equation's residual as a distance, m (> 0).
     pub newton_tolerance_m: f64,
+    /// `bdf2` retakes a step flagged by the energy monitor as backward Euler.
+    pub energy_guard: bool,
 }
 
 impl Default for SolverSection {
@@ -221,6 +224,7 @@ impl Default for SolverSection {
             fixed_cg_iterations: p.fixed_cg_iterations,
             newton_iterations: p.newton_iterations,
             newton_tolerance_m: p.newton_tolerance_m,
+            energy_guard: p.energy_guard,
         }
     }
 }
@@ -520,6 +524,7 @@ impl Scene {
                 fixed_cg_iterations: self.solver.fixed_cg_iterations,
                 newton_iterations: self.solver.newton_iterations,
                 newton_tolerance_m: self.solver.newton_tolerance_m,
+                energy_guard: self.solver.energy_guard,
             },
         };
         Ok((model, config))

@@ -7,6 +7,7 @@ use crate::contacts::{
     squeeze_friction_forces,
 };
 use crate::control::{Control, PinPaths};
+use crate::energy::{self, EnergyReport};
 use crate::explicit::ExplicitBuffers;
 use crate::{
     ClothModel, ClothState, Mat3, Vec3,
@@ -111,6 +112,9 @@ pub struct SolverParams {
     /// (`|r_i| dx/du / m_i`, the distance a particle would still move under
     /// its unbalanced force alone), is below this everywhere, m. Default 1e-6.
     pub newton_tolerance_m: f64,
+    /// `bdf2` retakes a step as backward Euler when the energy monitor
+    /// flags it ([`EnergyReport::flagged`]). Default true.
+    pub energy_guard: bool,
 }
 
 impl Default for SolverParams {
@@ -126,6 +130,7 @@ impl Default for SolverParams {
             fixed_cg_iterations: 4,
             newton_iterations: 1,
             newton_tolerance_m: 1e-6,
+            energy_guard: true,
         }
     }
 }
@@ -181,6 +186,13 @@ pub struct StepReport {
     pub contacts: ContactStats,
     /// The Newton iterations (`None` for the single linearised step).
     pub newton: Option<NewtonReport>,
+    /// The step's energy balance (implicit integrators with an assembled
+    /// matrix; `None` for the others).
+    pub energy: Option<EnergyReport>,
+    /// BDF2 only: the step gained energy beyond what its loads explain
+    /// ([`EnergyReport::flagged`]) and was retaken as a backward-Euler
+    /// step, which also restarts BDF2's history.
+    pub retaken_as_backward_euler: bool,
 }
 
 /// What the Newton iterations of an implicit step did (see
@@ -285,6 +297,8 @@ pub struct Workspace {
     pub(crate) contacts: ContactBuffers,
     /// Force each pin exerted on its particle in the last step, N.
     pub(crate) pin_forces: Vec<Vec3>,
+    /// Scratch of the energy monitor.
+    energy: crate::forces::EnergyBuffers,
 }
 
 impl Workspace {
@@ -311,6 +325,7 @@ impl Workspace {
             matrix_free: None,
             contacts: ContactBuffers::default(),
             pin_forces: vec![Vec3::zeros(); model.pins().len()],
+            energy: crate::forces::EnergyBuffers::new(model),
         }
     }
 }
@@ -386,7 +401,17 @@ impl Integrator for Bdf2 {
         if !state.has_history || state.last_dt_s != h {
             return linearised_step(&BackwardEuler, model, state, control, h, ws, solver);
         }
-        linearised_step(self, model, state, control, h, ws, solver)
+        // A BDF2 step that creates energy (its linearisation across the
+        // kink of tension-only links pumps energy into a violently moved
+        // cloth, issue 10) is retaken as backward Euler.
+        let report = uncommitted_step(self, model, state, control, h, ws, solver)?;
+        if solver.energy_guard && report.energy.is_some_and(|e| e.flagged) {
+            let mut report = linearised_step(&BackwardEuler, model, state, control, h, ws, solver)?;
+            report.retaken_as_backward_euler = true;
+            return Ok(report);
+        }
+        commit(state, ws, h)?;
+        Ok(report)
     }
 }
 
@@ -535,8 +560,7 @@ impl Linearised for Bdf2 {
     }
 }
 
-/// One step of a [`Linearised`] scheme: assemble, constrain pins, solve
-/// with filtered PCG, advance, check, commit.
+/// One step of a [`Linearised`] scheme, committed.
 fn linearised_step<S: Linearised>(
     scheme: &S,
     model: &ClothModel,
@@ -546,6 +570,24 @@ fn linearised_step<S: Linearised>(
     ws: &mut Workspace,
     solver: &SolverParams,
 ) -> Result<StepReport, StepError> {
+    let report = uncommitted_step(scheme, model, state, control, h, ws, solver)?;
+    commit(state, ws, h)?;
+    Ok(report)
+}
+
+/// One step of a [`Linearised`] scheme up to its commit: assemble,
+/// constrain pins, solve with filtered PCG, advance into `ws.new_x`/`new_v`,
+/// and the energy balance. The state is not changed.
+fn uncommitted_step<S: Linearised>(
+    scheme: &S,
+    model: &ClothModel,
+    state: &ClothState,
+    control: &Control,
+    h: f64,
+    ws: &mut Workspace,
+    solver: &SolverParams,
+) -> Result<StepReport, StepError> {
+    let energy_before = energy::mechanical(model, &state.x, &state.v, &mut ws.energy);
     scheme.prepare(state, h, &mut ws.aux, &mut ws.aux2);
     let mut loads = step_loads(model, state, control, h, ws)?;
     squeeze_friction_in_solve(state, ws, &mut loads);
@@ -640,7 +682,18 @@ fn linearised_step<S: Linearised>(
         stats.self_separations = separate_self_contacts(model, sc, pairs, tau, &mut ws.new_x, &mut ws.new_v);
     }
     stats.contacts = ws.contacts.solid.iter().filter(|c| c.active).count();
-    commit(state, ws, h)?;
+    let balance = energy::StepEnergy {
+        before: energy_before,
+        x: &state.x,
+        new_x: &ws.new_x,
+        new_v: &ws.new_v,
+        pin_forces: &ws.pin_forces,
+        external: loads.external.then_some(&ws.external[..]),
+        h,
+        contacts: stats.contacts,
+    };
+    let after = energy::mechanical(model, &ws.new_x, &ws.new_v, &mut ws.energy);
+    report.energy = Some(balance.report(model, after));
     report.stages = StageTimes {
         forces_s,
         assembly_s,

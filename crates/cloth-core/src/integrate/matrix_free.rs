@@ -125,6 +125,8 @@ impl crate::Integrator for BackwardEulerFixedCg {
             stages,
             contacts,
             newton: None,
+            energy: None,
+            retaken_as_backward_euler: false,
         })
     }
 }

@@ -5,6 +5,7 @@
 //! [`crate::Simulation`], which owns model, state, control and workspace.
 
 pub mod control;
+pub(crate) mod energy;
 pub(crate) mod explicit;
 pub(crate) mod integrator;
 pub(crate) mod matrix_free;
