@@ -41,12 +41,18 @@ pub struct EnergyReport {
     pub flagged: bool,
 }
 
-/// Mechanical energy of a state: `(kinetic, elastic, gravitational)`, J.
-pub(crate) fn mechanical(model: &ClothModel, x: &[Vec3], v: &[Vec3], bufs: &mut EnergyBuffers) -> (f64, f64, f64) {
+/// Mechanical energy of a state: `(kinetic, elastic, gravitational)`, J,
+/// with the elastic energy given (from an assembly at `x`).
+pub(crate) fn mechanical_with(model: &ClothModel, x: &[Vec3], v: &[Vec3], elastic: f64) -> (f64, f64, f64) {
     let m = model.masses();
     let kinetic = 0.5 * m.iter().zip(v).map(|(m, v)| m * v.norm_squared()).sum::<f64>();
     let gravity = model.effects().gravity.map_or(0.0, |g| -m.iter().zip(x).map(|(m, x)| m * g.dot(x)).sum::<f64>());
-    (kinetic, elastic_energy(model, x, bufs), gravity)
+    (kinetic, elastic, gravity)
+}
+
+/// Mechanical energy of a state: `(kinetic, elastic, gravitational)`, J.
+pub(crate) fn mechanical(model: &ClothModel, x: &[Vec3], v: &[Vec3], bufs: &mut EnergyBuffers) -> (f64, f64, f64) {
+    mechanical_with(model, x, v, elastic_energy(model, x, bufs))
 }
 
 /// What a step did to the energy, from the states before and after it.

@@ -587,13 +587,13 @@ fn uncommitted_step<S: Linearised>(
     ws: &mut Workspace,
     solver: &SolverParams,
 ) -> Result<StepReport, StepError> {
-    let energy_before = energy::mechanical(model, &state.x, &state.v, &mut ws.energy);
     scheme.prepare(state, h, &mut ws.aux, &mut ws.aux2);
     let mut loads = step_loads(model, state, control, h, ws)?;
     squeeze_friction_in_solve(state, ws, &mut loads);
     let terms = with_loads(scheme.terms(state, &ws.aux, &ws.aux2, h), &ws.external, &ws.contacts, &loads);
     let force_coefficient = terms.force;
     let timing = assemble(model, &state.x, &terms, &mut ws.system);
+    let energy_before = energy::mechanical_with(model, &state.x, &state.v, ws.system.elastic_energy());
     let t_pins = Instant::now();
     let value = |target, i| scheme.pinned(state, h, target, i);
     constrain_pins(model, state, control, h, &mut ws.filter, value);

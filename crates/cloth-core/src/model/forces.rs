@@ -260,6 +260,7 @@ pub struct SystemBuffers {
     c_v: f64,
     link_rhs: Vec<Vec3>,
     link_block: Vec<Mat3>,
+    link_energy: Vec<f64>,
     elements: ElementBuffers,
     /// The assembled matrix `A`.
     pub matrix: BlockSparseMatrix,
@@ -268,12 +269,19 @@ pub struct SystemBuffers {
 }
 
 impl SystemBuffers {
+    /// Elastic energy of links and elements at the positions of the last
+    /// assembly, J (summed in link and element order).
+    pub fn elastic_energy(&self) -> f64 {
+        self.link_energy.iter().sum::<f64>() + elements::energy(&self.elements)
+    }
+
     /// Buffers for `model`.
     pub fn new(model: &ClothModel) -> Self {
         Self {
             c_v: 0.0,
             link_rhs: vec![Vec3::zeros(); model.link_count()],
             link_block: vec![Mat3::zeros(); model.link_count()],
+            link_energy: vec![0.0; model.link_count()],
             elements: ElementBuffers::new(model.elements()),
             matrix: BlockSparseMatrix::new(model.pattern().clone()),
             rhs: vec![Vec3::zeros(); model.particle_count()],
@@ -329,9 +337,10 @@ pub fn assemble_matrix_free(
     bufs: &mut SystemBuffers,
 ) -> AssemblyTiming {
     let t0 = std::time::Instant::now();
-    bufs.link_rhs.par_chunks_mut(ROW_CHUNK).zip(bufs.link_block.par_chunks_mut(ROW_CHUNK)).enumerate().for_each(
-        |(chunk, (rhs, blocks))| {
-            for (k_local, (r, b)) in rhs.iter_mut().zip(blocks.iter_mut()).enumerate() {
+    let per_link = bufs.link_rhs.par_chunks_mut(ROW_CHUNK).zip(bufs.link_block.par_chunks_mut(ROW_CHUNK));
+    per_link.zip(bufs.link_energy.par_chunks_mut(ROW_CHUNK)).enumerate().for_each(
+        |(chunk, ((rhs, blocks), energies))| {
+            for (k_local, ((r, b), en)) in rhs.iter_mut().zip(blocks.iter_mut()).zip(energies.iter_mut()).enumerate() {
                 let k = chunk * ROW_CHUNK + k_local;
                 let e = eval_link(model, k, x);
                 let (i, j, _) = model.link_ends(k);
@@ -344,6 +353,7 @@ pub fn assemble_matrix_free(
                 }
                 *r = ri;
                 *b = e.stiffness * terms.c_x + e.damping * terms.c_v;
+                *en = e.energy;
             }
         },
     );
