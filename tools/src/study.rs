@@ -59,6 +59,13 @@ struct RunStats {
     cg_iterations: u64,
     /// Wall time inside `step` only (monitoring excluded), s.
     step_wall_s: f64,
+    /// Newton corrections, line-search halvings and steps left above the
+    /// Newton tolerance (`solver.newton_iterations > 1`).
+    newton_corrections: u64,
+    newton_backtracks: u64,
+    newton_unconverged: u64,
+    /// The error of a failed step.
+    error: Option<String>,
 }
 
 /// Exact time to fall 1 m at g = 10 m/s^2.
@@ -75,30 +82,60 @@ fn monitored_run(
     scene: &Path,
     overrides: &[String],
     pool: &rayon::ThreadPool,
+    watch: impl FnMut(&Simulation, f64) -> bool,
+) -> Result<(RunStats, Simulation)> {
+    run_until(scene, overrides, pool, BLOWN_UP_STRETCH, watch)
+}
+
+/// [`monitored_run`] with the blow-up stretch given (`f64::INFINITY`: run
+/// on however far links stretch).
+fn run_until(
+    scene: &Path,
+    overrides: &[String],
+    pool: &rayon::ThreadPool,
+    blown_up_stretch: f64,
     mut watch: impl FnMut(&Simulation, f64) -> bool,
 ) -> Result<(RunStats, Simulation)> {
     let parsed = Scene::parse_file(scene, overrides)?;
     let (model, cfg) =
         parsed.build().map_err(|kind| cloth_core::scene::SceneError { file: scene.to_path_buf(), kind })?;
     let mut sim = cfg.simulation(model);
-    let mut run =
-        RunStats { stable: true, max_stretch: 1.0, steps: 0, force_evaluations: 0, cg_iterations: 0, step_wall_s: 0.0 };
+    let mut run = RunStats {
+        stable: true,
+        max_stretch: 1.0,
+        steps: 0,
+        force_evaluations: 0,
+        cg_iterations: 0,
+        step_wall_s: 0.0,
+        newton_corrections: 0,
+        newton_backtracks: 0,
+        newton_unconverged: 0,
+        error: None,
+    };
     for _ in 0..cfg.steps {
         let t_prev = sim.time();
         let t = Instant::now();
         let result = pool.install(|| sim.step(cfg.dt_s));
         run.step_wall_s += t.elapsed().as_secs_f64();
-        let Ok(report) = result else {
-            run.stable = false;
-            break;
+        let report = match result {
+            Ok(r) => r,
+            Err(e) => {
+                (run.stable, run.error) = (false, Some(e.to_string()));
+                break;
+            }
         };
         run.steps += 1;
         run.force_evaluations += report.force_evaluations as u64;
         run.cg_iterations += report.cg_iterations as u64;
+        if let Some(n) = report.newton {
+            run.newton_corrections += n.corrections as u64;
+            run.newton_backtracks += n.backtracks as u64;
+            run.newton_unconverged += u64::from(!n.converged);
+        }
         let x = &sim.state().x;
         let stretch = sim.model().max_stretch_ratio(x);
         run.max_stretch = run.max_stretch.max(stretch);
-        if stretch.is_nan() || stretch >= BLOWN_UP_STRETCH {
+        if stretch.is_nan() || stretch >= blown_up_stretch {
             run.stable = false;
             break;
         }
@@ -703,64 +740,6 @@ pub fn bending(args: &StudyArgs) -> Result<()> {
     write_outputs(&args.out, "bending", &csv, &md, &[])
 }
 
-/// One run of the large-step study.
-struct LargeStepRun {
-    peak_stretch: f64,
-    final_stretch: f64,
-    steps: u64,
-    corrections: u64,
-    backtracks: u64,
-    unconverged: u64,
-    cg_iterations: u64,
-    step_wall_s: f64,
-    error: Option<String>,
-    x: Vec<cloth_core::Vec3>,
-}
-
-/// Runs a scene to its end, keeping the largest stretch of any step (no
-/// blow-up cut-off: the study is about how far large steps overstretch).
-fn large_step_run(scene: &Path, overrides: &[String], pool: &rayon::ThreadPool) -> Result<LargeStepRun> {
-    let parsed = Scene::parse_file(scene, overrides)?;
-    let (model, cfg) =
-        parsed.build().map_err(|kind| cloth_core::scene::SceneError { file: scene.to_path_buf(), kind })?;
-    let mut sim = cfg.simulation(model);
-    let mut run = LargeStepRun {
-        peak_stretch: 1.0,
-        final_stretch: 1.0,
-        steps: 0,
-        corrections: 0,
-        backtracks: 0,
-        unconverged: 0,
-        cg_iterations: 0,
-        step_wall_s: 0.0,
-        error: None,
-        x: Vec::new(),
-    };
-    for _ in 0..cfg.steps {
-        let t = Instant::now();
-        let result = pool.install(|| sim.step(cfg.dt_s));
-        run.step_wall_s += t.elapsed().as_secs_f64();
-        let report = match result {
-            Ok(r) => r,
-            Err(e) => {
-                run.error = Some(e.to_string());
-                break;
-            }
-        };
-        run.steps += 1;
-        run.cg_iterations += report.cg_iterations as u64;
-        if let Some(n) = report.newton {
-            run.corrections += n.corrections as u64;
-            run.backtracks += n.backtracks as u64;
-            run.unconverged += u64::from(!n.converged);
-        }
-        run.peak_stretch = run.peak_stretch.max(sim.model().max_stretch_ratio(&sim.state().x));
-    }
-    run.final_stretch = sim.model().max_stretch_ratio(&sim.state().x);
-    run.x = sim.state().x.clone();
-    Ok(run)
-}
-
 /// Large steps: the single linearised step against Newton with a line
 /// search, on the hanging cloth (with drag, so that it comes to rest) and
 /// the sphere drape: the largest stretch at any step, the rest shape
@@ -803,19 +782,21 @@ pub fn large_steps(args: &StudyArgs) -> Result<()> {
                     "solver.newton_tolerance_m=1e-5".into(),
                     "solver.rel_tol=1e-6".into(),
                 ]);
-                let run = large_step_run(&scene, &o, &pool)?;
-                let reference = reference.get_or_insert_with(|| run.x.clone());
-                let gap = reference.iter().zip(&run.x).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max);
+                let (run, sim) = run_until(&scene, &o, &pool, f64::INFINITY, |_, _| false)?;
+                let x = &sim.state().x;
+                let final_stretch = sim.model().max_stretch_ratio(x);
+                let reference = reference.get_or_insert_with(|| x.clone());
+                let gap = reference.iter().zip(x).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max);
                 let per_step = |n: u64| n as f64 / run.steps.max(1) as f64;
                 let _ = writeln!(
                     csv,
                     "{name},{h},{newton},{:.4},{:.4},{gap:.5},{},{:.2},{},{},{:.1},{:.3},{}",
-                    run.peak_stretch,
-                    run.final_stretch,
+                    run.max_stretch,
+                    final_stretch,
                     run.steps,
-                    per_step(run.corrections),
-                    run.backtracks,
-                    run.unconverged,
+                    per_step(run.newton_corrections),
+                    run.newton_backtracks,
+                    run.newton_unconverged,
                     per_step(run.cg_iterations),
                     run.step_wall_s,
                     run.error.as_deref().unwrap_or("")
@@ -823,10 +804,10 @@ pub fn large_steps(args: &StudyArgs) -> Result<()> {
                 let _ = writeln!(
                     table,
                     "| {name} | {h:.4} | {newton} | {:.3} | {:.3} | {:.2} | {:.1} | {:.0} | {:.2}{} |",
-                    run.peak_stretch,
-                    run.final_stretch,
+                    run.max_stretch,
+                    final_stretch,
                     gap * 100.0,
-                    per_step(run.corrections),
+                    per_step(run.newton_corrections),
                     per_step(run.cg_iterations),
                     run.step_wall_s,
                     run.error.map_or(String::new(), |e| format!(" ({e})"))

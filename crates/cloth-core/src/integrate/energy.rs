@@ -15,8 +15,9 @@ use crate::forces::{EnergyBuffers, elastic_energy};
 use crate::{ClothModel, Vec3};
 
 /// Relative energy gain of one step (of the energy in play) above which
-/// the step is flagged. BDF2's per-step fluctuation on the fixtures stays
-/// below 1e-2 of it; the violent pin jump of issue 10 gains 10-50 %.
+/// the step is flagged. Measured with it: BDF2 flags 0-3 steps per run on
+/// the fixtures at h = 1/90 s, and 152 of 540 steps of the runaway after
+/// issue 10's pin jump.
 pub const GAIN_TOLERANCE: f64 = 0.05;
 
 /// Energies after a step and the step's balance, J.

@@ -31,7 +31,7 @@
 
 use crate::contacts::constrain_contacts;
 use crate::control::Control;
-use crate::forces::{EnergyBuffers, assemble, elastic_energy};
+use crate::forces::{EnergyBuffers, SystemBuffers, assemble, elastic_energy};
 use crate::integrator::{Linearised, StepLoads, Workspace, constrain_pins, solve, with_loads};
 use crate::{ClothModel, ClothState, Mat3, SolverParams, StepError, Vec3};
 
@@ -209,17 +209,17 @@ struct Extra<'a> {
 
 impl Line {
     /// The line through the iterate `(x, v, y)` (`y = y0 - u`) along `p`;
-    /// `rhs` is the assembly's right-hand side there.
-    #[allow(clippy::too_many_arguments)]
+    /// `system` is the assembly there (its right-hand side and elastic
+    /// energy).
     fn new(
         model: &ClothModel,
         (x, v, y): (&[Vec3], &[Vec3], &[Vec3]),
-        rhs: &[Vec3],
+        system: &SystemBuffers,
         p: &[Vec3],
         (c_f, a, b): Coefficients,
         extra: Extra<'_>,
-        energy: &mut EnergyBuffers,
     ) -> Self {
+        let rhs = &system.rhs;
         let masses = model.masses();
         // p is zero in the constrained directions, so constrained rows add nothing.
         let slope: f64 = -(0..p.len()).map(|i| rhs[i].dot(&p[i])).sum::<f64>();
@@ -246,7 +246,7 @@ impl Line {
                 q2 += 0.5 * c_f * b * l.k_d * dp * dp;
             }
         }
-        Self { slope, q1, q2, scale: c_f / a, u0: elastic_energy(model, x, energy), a }
+        Self { slope, q1, q2, scale: c_f / a, u0: system.elastic_energy(), a }
     }
 
     /// `E(alpha) - E(0)`, J (trial positions written to `trial`).
@@ -284,7 +284,7 @@ fn line_search(
         friction: loads.squeeze_friction.then_some(&ws.contacts.friction_damping[..]),
     };
     let iterate = (&nb.x[..], &nb.v[..], &nb.y[..]);
-    let line = Line::new(model, iterate, &ws.system.rhs, p, coefficients, extra, &mut nb.energy);
+    let line = Line::new(model, iterate, &ws.system, p, coefficients, extra);
     if line.slope.is_nan() || line.slope >= 0.0 {
         return None;
     }
@@ -304,7 +304,7 @@ fn line_search(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::forces::{SystemBuffers, SystemTerms};
+    use crate::forces::SystemTerms;
     use crate::{Effects, GridPanel, Material, ModelKind, ModelSpec};
 
     /// Deterministic numbers in [-1, 1).
@@ -377,7 +377,7 @@ mod tests {
             let mut energy = EnergyBuffers::new(&model);
             let mut trial = vec![Vec3::zeros(); n];
             let derivative_error = |extra: Extra<'_>, energy: &mut EnergyBuffers, trial: &mut [Vec3]| {
-                let line = Line::new(&model, (&x, &v, &y), &system.rhs, &p, (c_f, a, b), extra, energy);
+                let line = Line::new(&model, (&x, &v, &y), &system, &p, (c_f, a, b), extra);
                 let eps = 1e-4;
                 let plus = line.change(&model, &x, &p, eps, trial, energy);
                 let minus = line.change(&model, &x, &p, -eps, trial, energy);
