@@ -2,7 +2,7 @@
 //! impulses per solid, pin reactions) of a simulation.
 
 use cloth_core::scene::Scene;
-use cloth_core::{BodyPose, ControlError, Simulation, SolidMotion, Vec3};
+use cloth_core::{BodyPose, ControlError, Simulation, SolidMotion, StepError, Vec3};
 use cloth_tests::simulation;
 use nalgebra::UnitQuaternion;
 
@@ -56,6 +56,21 @@ fn inputs_that_do_not_fit_the_model_are_refused() {
     let bad = SolidMotion { linear_velocity: Vec3::new(f64::INFINITY, 0.0, 0.0), ..rest };
     assert!(matches!(driven.set_solid_motion(0, bad), Err(ControlError::NonFinite { .. })));
     assert_eq!(driven.set_wind(Vec3::x()), Err(ControlError::WindNotExternal), "no wind at all");
+    // A snapshot that does not fit, or holds a NaN, is refused and the
+    // state left as it was.
+    let mut short = on_path.snapshot();
+    short.v.pop();
+    assert!(matches!(on_path.restore(&short), Err(StepError::StateMismatch { got, .. }) if got == n - 1));
+    for (quantity, field) in [("position", 0), ("velocity", 1)] {
+        let mut bad = on_path.snapshot();
+        [&mut bad.x, &mut bad.v][field][7].z = f64::NAN;
+        let refused = on_path.restore(&bad);
+        assert!(
+            matches!(refused, Err(StepError::NonFinite { particle: 7, quantity: q, .. }) if q == quantity),
+            "{refused:?}"
+        );
+        assert!(on_path.state().x[7].z.is_finite() && on_path.state().v[7].z.is_finite());
+    }
 }
 
 /// A free 0.6 m cloth in zero gravity, hit by a ball of radius 0.1 m

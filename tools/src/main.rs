@@ -93,6 +93,8 @@ enum StudyKind {
     Bending,
     /// Large steps: the single linearised step against Newton with a line search.
     LargeSteps,
+    /// The hard-case suite: what must hold in each case, and whether it does.
+    Stability,
 }
 
 fn main() -> ExitCode {
@@ -113,6 +115,7 @@ fn main() -> ExitCode {
                 StudyKind::Cosim => study::cosim(&args),
                 StudyKind::Bending => study::bending(&args),
                 StudyKind::LargeSteps => study::large_steps(&args),
+                StudyKind::Stability => study::stability(&args),
             }
         }
     };

@@ -827,3 +827,33 @@ pub fn large_steps(args: &StudyArgs) -> Result<()> {
     md.push_str(&table);
     write_outputs(&args.out, "large-steps", &csv, &md, &[])
 }
+
+/// The hard-case suite ([`cloth_tools::stability`]): writes the table and
+/// fails when a case's requirement does not hold.
+pub fn stability(args: &StudyArgs) -> Result<()> {
+    use cloth_tools::stability;
+    let pool = setup(args)?;
+    let rows = pool.install(|| stability::run_suite(args.quick));
+    let mut md = header("The hard-case suite", "stability", args);
+    let _ = writeln!(
+        md,
+        "Each case varies one thing of a 1 m square of cotton (21 x 21, 0.1 kg/m^2, E = 200 N/m, \
+         B = 1e-5 N m) pinned at two corners, and states what must hold. Worst stretch: the largest \
+         link length over rest length at any step.\n"
+    );
+    md.push_str(&stability::markdown(&rows));
+    write_outputs(&args.out, "stability", &stability::csv(&rows), &md, &[])?;
+    let unexpected: Vec<String> = rows
+        .iter()
+        .filter(|r| !r.as_expected())
+        .map(|r| format!("{} ({}, {}): {:?}", r.case, r.variant, r.integrator, r.verdict))
+        .collect();
+    anyhow::ensure!(
+        unexpected.is_empty(),
+        "{} of {} rows not as expected:\n{}",
+        unexpected.len(),
+        rows.len(),
+        unexpected.join("\n")
+    );
+    Ok(())
+}

@@ -144,12 +144,29 @@ impl Simulation {
     }
 
     /// Returns to a snapshot taken from a simulation of the same model.
-    /// Stepping from it reproduces the original run bit for bit.
+    /// Stepping from it reproduces the original run bit for bit. A state of
+    /// the wrong size or with a non-finite position or velocity is refused
+    /// ([`StepError::StateMismatch`], [`StepError::NonFinite`] naming the
+    /// particle).
     pub fn restore(&mut self, snapshot: &ClothState) -> Result<(), StepError> {
         let n = self.model.particle_count();
         let lens = [snapshot.x.len(), snapshot.v.len(), snapshot.x_prev.len(), snapshot.v_prev.len()];
         if let Some(&got) = lens.iter().find(|&&l| l != n) {
             return Err(StepError::StateMismatch { expected: n, got });
+        }
+        let finite = |a: &[Vec3]| a.iter().position(|p| !p.iter().all(|c| c.is_finite()));
+        let bad = [("position", &snapshot.x), ("velocity", &snapshot.v)]
+            .into_iter()
+            .chain(
+                snapshot
+                    .has_history
+                    .then_some([("previous position", &snapshot.x_prev), ("previous velocity", &snapshot.v_prev)])
+                    .into_iter()
+                    .flatten(),
+            )
+            .find_map(|(quantity, a)| finite(a).map(|particle| (quantity, particle)));
+        if let Some((quantity, particle)) = bad {
+            return Err(StepError::NonFinite { step: snapshot.steps, time_s: snapshot.time_s, particle, quantity });
         }
         self.state.clone_from(snapshot);
         Ok(())

@@ -1,0 +1,868 @@
+//! The hard-case suite (issue 10): scenes built to break a cloth
+//! simulator (extreme steps, stiffness ratios and scales, violent pins,
+//! crumpling, a fast solid, coincident particles, light and heavy coupled
+//! bodies). Each case states what must hold and what it measured;
+//! [`run_suite`] runs them all and judges each row. `cloth study
+//! stability` writes the table and this crate's `stability` test fails on
+//! any failed verdict, so the suite runs in CI.
+//!
+//! The scenes are written here, not in `fixtures/`, because each case
+//! varies one thing of one small base scene: a 1 m square of the hang
+//! fixture's cotton, 21 x 21 particles.
+
+use cloth_core::forces::{EnergyBuffers, elastic_energy};
+use cloth_core::scene::{Scene, SceneErrorKind};
+use cloth_core::{Simulation, StepError, StepReport, Vec3};
+use std::time::Instant;
+
+/// The base scene: the hang fixture's material on a 21 x 21 grid (5 cm
+/// links), BDF2 at Choi & Ko's 1/90 s, 2 s; no pins (see [`CORNERS`]).
+const BASE: &str = r#"
+[simulation]
+integrator = "bdf2"
+dt_s = 0.011111111111111112
+duration_s = 2.0
+effects = ["gravity", "bending", "damping"]
+
+[solver]
+rel_tol = 1e-4
+max_iter = 1000
+
+[material]
+areal_density_kg_m2 = 0.1
+tensile_stiffness_n_m = 200.0
+flexural_rigidity_n_m = 1e-5
+buckling_stiffness_n_m = 200.0
+damping_n_s_m = 0.02
+
+[[panels]]
+particles = [21, 21]
+size_m = [1.0, 1.0]
+origin_m = [-0.5, -0.5, 1.0]
+"#;
+
+/// The base scene's usual pins: the two corners of its far edge.
+const CORNERS: &str = r#"
+[[pins]]
+nodes = [[0, 20], [20, 20]]
+motion = { kind = "fixed" }
+"#;
+
+/// Rest link length of the base grid, m.
+const LINK_M: f64 = 0.05;
+/// Gravity of the base scene, m/s^2.
+const G: f64 = 9.81;
+
+/// A verdict: `Ok(what was measured)` or `Err(why the requirement fails)`.
+pub type Verdict = Result<String, String>;
+
+/// One row of the suite: a case run with one integrator and model.
+#[derive(Debug, Clone)]
+pub struct Row {
+    /// The case.
+    pub case: &'static str,
+    /// What varies within the case (step, ratio, scale...).
+    pub variant: String,
+    /// Integrator (with the Newton iterations when more than one solve).
+    pub integrator: String,
+    /// Cloth model.
+    pub model: String,
+    /// What must hold.
+    pub requirement: String,
+    /// "ran N steps", or the typed error that stopped the run.
+    pub outcome: String,
+    /// Largest type-1 link stretch at any step (NaN when nothing ran).
+    pub worst_stretch: f64,
+    /// Deepest penetration into a solid at any step, m.
+    pub penetration_m: f64,
+    /// Mean CG iterations per step.
+    pub cg_per_step: f64,
+    /// Wall time of the steps, s.
+    pub wall_s: f64,
+    /// Whether the requirement holds, with what was measured.
+    pub verdict: Verdict,
+    /// A failure that is known and explained (and still open): the row is
+    /// expected to fail; the suite fails when it holds (remove the note).
+    pub known_defect: Option<&'static str>,
+}
+
+impl Row {
+    /// Whether the row is as expected: holds, or fails as a known defect.
+    pub fn as_expected(&self) -> bool {
+        self.verdict.is_ok() == self.known_defect.is_none()
+    }
+}
+
+/// What stepping a simulation measured.
+struct Probe {
+    steps: u64,
+    cg: u64,
+    worst_stretch: f64,
+    penetration: f64,
+    wall_s: f64,
+    error: Option<StepError>,
+}
+
+impl Probe {
+    fn new() -> Self {
+        Probe { steps: 0, cg: 0, worst_stretch: 1.0, penetration: 0.0, wall_s: 0.0, error: None }
+    }
+
+    fn outcome(&self) -> String {
+        match &self.error {
+            None => format!("ran {} steps", self.steps),
+            Some(e) => format!("stopped: {e}"),
+        }
+    }
+
+    /// Finite and not stopped.
+    fn ran(&self) -> Result<(), String> {
+        self.error.as_ref().map_or(Ok(()), |e| Err(format!("stopped: {e}")))
+    }
+
+    fn stretch_at_most(&self, limit: f64) -> Verdict {
+        self.ran()?;
+        let s = self.worst_stretch;
+        if s <= limit { Ok(format!("stretch {s:.3}")) } else { Err(format!("stretch {s:.3} > {limit}")) }
+    }
+}
+
+/// One variant of a case: the base scene plus `extra` TOML and overrides.
+struct Case {
+    case: &'static str,
+    variant: String,
+    extra: String,
+    overrides: Vec<String>,
+    requirement: &'static str,
+    known_defect: Option<&'static str>,
+}
+
+impl Case {
+    fn new(case: &'static str, variant: impl Into<String>, requirement: &'static str) -> Self {
+        Self {
+            case,
+            variant: variant.into(),
+            extra: CORNERS.into(),
+            overrides: Vec::new(),
+            requirement,
+            known_defect: None,
+        }
+    }
+
+    fn known_defect(mut self, why: Option<&'static str>) -> Self {
+        self.known_defect = why;
+        self
+    }
+
+    fn extra(mut self, extra: impl Into<String>) -> Self {
+        self.extra = extra.into();
+        self
+    }
+
+    fn set(mut self, key: &str, value: impl std::fmt::Display) -> Self {
+        self.overrides.push(format!("{key}={value}"));
+        self
+    }
+
+    fn integrator(self, name: &str) -> Self {
+        self.set("simulation.integrator", name)
+    }
+
+    fn model(self, name: &str) -> Self {
+        self.set("simulation.model", format!("\"{name}\""))
+    }
+
+    /// The scene built into a simulation, with its step and step count.
+    fn build(&self) -> Result<(Simulation, f64, u64), SceneErrorKind> {
+        let (model, cfg) = Scene::parse(&format!("{BASE}{}", self.extra), &self.overrides)?.build()?;
+        Ok((cfg.simulation(model), cfg.dt_s, cfg.steps))
+    }
+
+    /// Builds, lets `prepare` set the start, steps (calling `each` after
+    /// every step) and returns the probe and the final simulation.
+    fn run(
+        &self,
+        prepare: impl FnOnce(&mut Simulation),
+        each: impl FnMut(&Simulation, &StepReport),
+    ) -> Result<(Probe, Simulation), String> {
+        let (mut sim, h, steps) = self.build().map_err(|e| format!("the scene does not build: {e}"))?;
+        prepare(&mut sim);
+        let p = probe(&mut sim, h, steps, each);
+        Ok((p, sim))
+    }
+
+    /// Runs from the scene's own start and judges the result.
+    fn judge(self, judge: impl FnOnce(&Probe, &Simulation) -> Verdict) -> Row {
+        match self.run(|_| {}, |_, _| {}) {
+            Ok((p, sim)) => {
+                let verdict = judge(&p, &sim);
+                self.row(Some(&p), verdict)
+            }
+            Err(e) => self.row(None, Err(e)),
+        }
+    }
+
+    /// The last override of `key`, unquoted, or `default`.
+    fn value(&self, key: &str, default: &str) -> String {
+        let prefix = format!("{key}=");
+        self.overrides
+            .iter()
+            .rev()
+            .find_map(|o| o.strip_prefix(&prefix).map(|v| v.trim_matches('"').to_string()))
+            .unwrap_or_else(|| default.to_string())
+    }
+
+    fn row(&self, p: Option<&Probe>, verdict: Verdict) -> Row {
+        let mut integrator = self.value("simulation.integrator", "bdf2");
+        let newton = self.value("solver.newton_iterations", "1");
+        if newton != "1" {
+            integrator = format!("{integrator} + Newton {newton}");
+        }
+        Row {
+            case: self.case,
+            variant: self.variant.clone(),
+            integrator,
+            model: self.value("simulation.model", "choi-ko"),
+            requirement: self.requirement.into(),
+            outcome: p.map_or_else(|| "did not build".into(), Probe::outcome),
+            worst_stretch: p.map_or(f64::NAN, |p| p.worst_stretch),
+            penetration_m: p.map_or(0.0, |p| p.penetration),
+            cg_per_step: p.map_or(0.0, |p| p.cg as f64 / p.steps.max(1) as f64),
+            wall_s: p.map_or(0.0, |p| p.wall_s),
+            verdict,
+            known_defect: self.known_defect,
+        }
+    }
+}
+
+/// Steps `sim` `steps` times at `h`, measuring after every step and
+/// calling `each`; stops at the first error.
+fn probe(sim: &mut Simulation, h: f64, steps: u64, mut each: impl FnMut(&Simulation, &StepReport)) -> Probe {
+    let mut p = Probe::new();
+    let solids = !sim.model().colliders().is_empty();
+    for _ in 0..steps {
+        let t = Instant::now();
+        let result = sim.step(h);
+        p.wall_s += t.elapsed().as_secs_f64();
+        let report = match result {
+            Ok(r) => r,
+            Err(e) => {
+                p.error = Some(e);
+                break;
+            }
+        };
+        p.cg += report.cg_iterations as u64;
+        p.steps += 1;
+        p.worst_stretch = p.worst_stretch.max(sim.model().max_stretch_ratio(&sim.state().x));
+        if solids {
+            p.penetration = p.penetration.max(sim.max_penetration());
+        }
+        each(sim, &report);
+    }
+    p
+}
+
+/// Implicit integrators the cases run: Choi & Ko's BDF2 and backward Euler.
+const IMPLICIT: [&str; 2] = ["bdf2", "backward-euler"];
+
+fn integrators(quick: bool) -> &'static [&'static str] {
+    if quick { &IMPLICIT[..1] } else { &IMPLICIT[..] }
+}
+
+/// Runs the whole suite; `quick` keeps one variant of each case.
+pub fn run_suite(quick: bool) -> Vec<Row> {
+    let mut rows = step_sizes(quick);
+    rows.extend(stiffness_ratios(quick));
+    rows.extend(crumpled(quick));
+    rows.extend(yanked(quick));
+    rows.extend(released_from_ten_times(quick));
+    rows.extend(shaken(quick));
+    rows.extend(ball_through_curtain(quick));
+    rows.extend(scales(quick));
+    rows.extend(coincident_particles());
+    rows.extend(coupled_mass_ratios(quick));
+    rows
+}
+
+/// Steps from 1 ns to 1 s. Up to 1 ms the middle of the cloth (its links
+/// still at rest length) must fall at g to 1e-13: nothing may be lost to
+/// cancellation at tiny steps (PCG to 1e-12, so the solve's tolerance does
+/// not hide it). Steps of 1/90 s, and large ones solved with Newton, must
+/// keep the stretch small steps give; the single linearised large step
+/// must stay finite (its overstretch is the documented price, README
+/// "Large steps").
+fn step_sizes(quick: bool) -> Vec<Row> {
+    let mut rows = Vec::new();
+    let steps: &[f64] = if quick { &[1e-9, 1.0] } else { &[1e-9, 1e-6, 1e-3, 1.0 / 90.0, 0.1, 1.0] };
+    let middle = 10 * 21 + 10;
+    for &h in steps {
+        let count = ((2.0 / h).ceil() as u64).min(40);
+        let mut variants: Vec<(&str, usize)> = IMPLICIT.iter().map(|&i| (i, 1)).collect();
+        if h >= 0.1 {
+            variants.push(("bdf2", 30));
+        }
+        if h <= 1e-6 {
+            variants.push(("symplectic-euler", 1));
+        }
+        for (integrator, newton) in variants {
+            let small = h <= 1e-3;
+            let requirement = if small {
+                "finite; the middle falls at g (1e-13)"
+            } else if h <= 1.0 / 90.0 || newton > 1 {
+                "finite; stretch <= 1.15"
+            } else {
+                "finite"
+            };
+            let case = Case::new("step size", format!("h = {h:.3e} s"), requirement)
+                .integrator(integrator)
+                .set("simulation.dt_s", format!("{h:e}"))
+                .set("simulation.duration_s", format!("{:e}", h * count as f64))
+                .set("solver.newton_iterations", newton)
+                .set("solver.rel_tol", if small { 1e-12 } else { 1e-4 });
+            let mut fall_error = 0.0f64;
+            let run = case.run(
+                |_| {},
+                |sim, _| {
+                    let t = sim.time();
+                    fall_error = fall_error.max((sim.state().v[middle].z + G * t).abs() / (G * t));
+                },
+            );
+            rows.push(match run {
+                Ok((p, _)) => {
+                    let verdict = if small {
+                        p.ran().and_then(|()| {
+                            let m = format!("off g by {fall_error:.1e}");
+                            if fall_error < 1e-13 { Ok(m) } else { Err(m) }
+                        })
+                    } else if h <= 1.0 / 90.0 || newton > 1 {
+                        p.stretch_at_most(1.15)
+                    } else {
+                        p.ran().map(|()| format!("stretch {:.1}", p.worst_stretch))
+                    };
+                    case.row(Some(&p), verdict)
+                }
+                Err(e) => case.row(None, Err(e)),
+            });
+        }
+    }
+    rows
+}
+
+/// Stretch-to-bending stiffness ratios `E L^2 / B` of 4e7 and 1/4e7 (the
+/// hang cloth's is 5e4): a nearly flexible and a nearly rigid sheet.
+fn stiffness_ratios(quick: bool) -> Vec<Row> {
+    let mut rows = Vec::new();
+    for ratio in [4e7, 1.0 / 4e7] {
+        let b = 200.0 * LINK_M * LINK_M / ratio;
+        for integrator in integrators(quick) {
+            let case = Case::new("stiffness ratio", format!("E L^2 / B = {ratio:.0e}"), "finite; stretch <= 1.15")
+                .integrator(integrator)
+                .set("material.flexural_rigidity_n_m", format!("{b:e}"));
+            rows.push(case.judge(|p, _| p.stretch_at_most(1.15)));
+        }
+    }
+    rows
+}
+
+/// The four corners pulled to the middle in 1 s and held there for 1 s,
+/// with self-collision: the cloth crumpled to a point.
+fn crumpled(quick: bool) -> Vec<Row> {
+    let corner = |i: usize, j: usize| {
+        let (dx, dy) = (0.5 - LINK_M * i as f64, 0.5 - LINK_M * j as f64);
+        format!(
+            "[[pins]]\nnodes = [[{i}, {j}]]\nmotion = {{ kind = \"keyframes\", times_s = [0.0, 1.0], \
+             offsets_m = [[0.0, 0.0, 0.0], [{dx:?}, {dy:?}, 0.0]] }}\n"
+        )
+    };
+    let extra = [(0, 0), (20, 0), (0, 20), (20, 20)].map(|(i, j)| corner(i, j)).concat()
+        + "[self_collision]\nthickness_m = 0.01\n";
+    integrators(quick)
+        .iter()
+        .map(|integrator| {
+            Case::new("crumpled to a point", "4 corners to the middle in 1 s", "finite; stretch <= 1.15")
+                .extra(extra.clone())
+                .integrator(integrator)
+                .judge(|p, _| p.stretch_at_most(1.15))
+        })
+        .collect()
+}
+
+/// Kinetic, elastic and gravitational energy, J.
+fn energies(sim: &Simulation) -> [f64; 3] {
+    let (model, s) = (sim.model(), sim.state());
+    let kinetic = model.masses().iter().zip(&s.v).map(|(m, v)| 0.5 * m * v.norm_squared()).sum();
+    let elastic = elastic_energy(model, &s.x, &mut EnergyBuffers::new(model));
+    let gravity = model.masses().iter().zip(&s.x).map(|(m, x)| m * G * x.z).sum();
+    [kinetic, elastic, gravity]
+}
+
+/// Issue 10's violent event: both pins jump 5 m sideways in 0.1 s (50 m/s,
+/// faster than the cloth's longitudinal wave speed `sqrt(E / rho)` = 45
+/// m/s, so the links at the pins overstretch whatever the integrator) and
+/// stop; 6 s. Once they stop nothing does work on the cloth. Newton's
+/// solve and the two-sided models (Provot's springs, Volino's membrane)
+/// must then only lose energy (a rise above 1% of what the cloth has at
+/// 0.1 s fails for backward Euler, 5% for BDF2). Choi & Ko's single linearised step cannot see a
+/// tension-only link go taut within the step (the cloth moves 20 links'
+/// length per step here) and gains energy: every step that gains more than
+/// 5% must be flagged by the energy monitor. All must settle.
+fn yanked(quick: bool) -> Vec<Row> {
+    let variants: &[(&str, &str, usize)] = if quick {
+        &[("bdf2", "choi-ko", 1)]
+    } else {
+        &[
+            ("bdf2", "choi-ko", 1),
+            ("backward-euler", "choi-ko", 1),
+            ("bdf2", "choi-ko", 10),
+            ("backward-euler", "choi-ko", 10),
+            ("bdf2", "provot", 1),
+            ("bdf2", "volino", 1),
+        ]
+    };
+    let jump = "{ kind = \"keyframes\", times_s = [0.0, 0.1], offsets_m = [[0.0, 0.0, 0.0], [5.0, 0.0, 0.0]] }";
+    let mut rows = Vec::new();
+    for &(integrator, model, newton) in variants {
+        let linearised_links = model == "choi-ko" && newton == 1;
+        // Backward Euler solved exactly minimises the incremental
+        // potential, so it can only lose energy; BDF2 is not a dissipative
+        // scheme (its guard allows 5% per step).
+        let allowed_rise = if integrator == "bdf2" { 0.05 } else { 1e-6 };
+        let requirement = if linearised_links {
+            "finite; every step gaining > 5% flagged; ends with < 1e-4 of E(0.1 s) kinetic, stretch < 1.25"
+        } else if allowed_rise > 0.01 {
+            "finite; never above 5% over its lowest after the jump; ends with < 1e-4 of E(0.1 s) kinetic, stretch < 1.25"
+        } else {
+            "finite; energy never rises after the jump; ends with < 1e-4 of E(0.1 s) kinetic, stretch < 1.25"
+        };
+        let case = Case::new("pins yanked at 50 m/s", "5 m in 0.1 s, then held; 6 s", requirement)
+            .integrator(integrator)
+            .model(model)
+            .set("solver.newton_iterations", newton)
+            .set("simulation.duration_s", 6)
+            .set("pins.0.motion", jump);
+        let (mut at_jump, mut lowest, mut rise, mut unflagged) = (f64::NAN, f64::INFINITY, 0.0f64, 0);
+        let mut before: Option<[f64; 3]> = None;
+        let run = case.run(
+            |_| {},
+            |sim, report| {
+                let now = energies(sim);
+                let total = now.iter().sum::<f64>();
+                if sim.time() > 0.1 + 1e-9 {
+                    if at_jump.is_nan() {
+                        at_jump = total - energies_at_rest(sim);
+                    }
+                    lowest = lowest.min(total);
+                    rise = rise.max(total - lowest);
+                    if let Some(b) = before {
+                        let in_play = b[0] + b[1] + now[0] + now[1];
+                        let gain = total - b.iter().sum::<f64>();
+                        let flagged = report.energy.is_some_and(|e| e.flagged);
+                        unflagged += usize::from(gain > 0.05 * in_play && !flagged);
+                    }
+                }
+                before = Some(now);
+            },
+        );
+        rows.push(match run {
+            Ok((p, sim)) => {
+                let verdict = p.ran().and_then(|()| {
+                    let (r, s) = (rise / at_jump, sim.model().max_stretch_ratio(&sim.state().x));
+                    let left = energies(&sim)[0] / at_jump;
+                    let m = format!(
+                        "rise {r:.1e} of E(0.1 s), {unflagged} unflagged gains; ends with {left:.1e} of it kinetic, \
+                         stretch {s:.3}"
+                    );
+                    let energy_ok = if linearised_links { unflagged == 0 } else { r <= allowed_rise };
+                    if energy_ok && left < 1e-4 && s < 1.25 { Ok(m) } else { Err(m) }
+                });
+                case.row(Some(&p), verdict)
+            }
+            Err(e) => case.row(None, Err(e)),
+        });
+    }
+    rows
+}
+
+/// Gravitational energy of the rest positions (the reference for the
+/// energy in the cloth), J.
+fn energies_at_rest(sim: &Simulation) -> f64 {
+    sim.model().masses().iter().zip(sim.model().rest_positions()).map(|(m, x)| m * G * x.z).sum()
+}
+
+fn centre_of_mass(m: &[f64], x: &[Vec3]) -> Vec3 {
+    let total: f64 = m.iter().sum();
+    m.iter().zip(x).fold(Vec3::zeros(), |acc, (mi, xi)| acc + xi * *mi) / total
+}
+
+/// A free cloth in zero gravity stretched 10x about its centre of mass
+/// and released: it must contract without blowing up and its centre of
+/// mass must stay put. PCG to 1e-10: an inexact solve's residual is not
+/// momentum-free (at `rel_tol = 1e-4` the centre drifts 1.6 mm in 2 s with
+/// `choi-ko`).
+fn released_from_ten_times(quick: bool) -> Vec<Row> {
+    let models: &[&str] = if quick { &["choi-ko"] } else { &["choi-ko", "provot", "volino"] };
+    let mut rows = Vec::new();
+    for model in models {
+        for integrator in integrators(quick) {
+            let case = Case::new(
+                "stretched 10x, released",
+                "free, no gravity, 2 s",
+                "finite; ends below stretch 1.5; centre of mass within 2 nm",
+            )
+            .extra("")
+            .integrator(integrator)
+            .model(model)
+            .set("simulation.effects", "[\"bending\", \"damping\"]")
+            .set("solver.rel_tol", 1e-10);
+            let stretch_tenfold = |sim: &mut Simulation| {
+                let mut s = sim.snapshot();
+                let centre = centre_of_mass(sim.model().masses(), &s.x);
+                for x in &mut s.x {
+                    *x = centre + (*x - centre) * 10.0;
+                }
+                s.x_prev.clone_from(&s.x);
+                sim.restore(&s).expect("a state of the same model");
+            };
+            rows.push(match case.run(stretch_tenfold, |_, _| {}) {
+                Ok((p, sim)) => {
+                    let verdict = p.ran().and_then(|()| {
+                        let m = sim.model().masses();
+                        let s = sim.model().max_stretch_ratio(&sim.state().x);
+                        let drift = (centre_of_mass(m, &sim.state().x)
+                            - centre_of_mass(m, sim.model().rest_positions()))
+                        .norm();
+                        let measured = format!("ends at stretch {s:.3}, centre moved {drift:.1e} m");
+                        if s <= 1.5 && drift <= 2e-9 { Ok(measured) } else { Err(measured) }
+                    });
+                    case.row(Some(&p), verdict)
+                }
+                Err(e) => case.row(None, Err(e)),
+            });
+        }
+    }
+    rows
+}
+
+/// The pins shaken 1 cm vertically at 100 Hz for 1 s, at Choi & Ko's step
+/// (the shaking far above the step's Nyquist frequency) and at 1 ms.
+fn shaken(quick: bool) -> Vec<Row> {
+    let steps: &[f64] = if quick { &[1.0 / 90.0] } else { &[1.0 / 90.0, 1e-3] };
+    let mut rows = Vec::new();
+    for &h in steps {
+        for integrator in integrators(quick) {
+            let case = Case::new("shaken at 100 Hz", format!("1 cm, h = {h:.4} s"), "finite; stretch <= 1.35")
+                .integrator(integrator)
+                .set("simulation.dt_s", format!("{h:e}"))
+                .set("simulation.duration_s", 1)
+                .set("pins.0.motion", "{ kind = \"oscillate\", amplitude_m = [0.0, 0.0, 0.01], frequency_hz = 100.0 }");
+            rows.push(case.judge(|p, _| p.stretch_at_most(1.35)));
+        }
+    }
+    rows
+}
+
+/// A ball of radius 15 cm at 3 m/s through a curtain (1 m x 1 m,
+/// vertical, hanging from its top edge) low enough for the hem to slip
+/// under it, friction 0.3; at Choi & Ko's step and at 1 ms.
+fn ball_through_curtain(quick: bool) -> Vec<Row> {
+    let top: Vec<String> = (0..21).map(|i| format!("[{i}, 20]")).collect();
+    let extra = format!(
+        "[[pins]]\nnodes = [{}]\nmotion = {{ kind = \"fixed\" }}\n\n[collision]\nthickness_m = 0.005\n\n\
+         [[colliders]]\nshape = {{ kind = \"ball\", radius_m = 0.15 }}\nposition_m = [0.0, -0.4, 0.2]\n\
+         friction = 0.3\nmotion = {{ kind = \"linear\", velocity_m_s = [0.0, 3.0, 0.0] }}\n",
+        top.join(", ")
+    );
+    // Contacts are particle-solid only: in a step the ball travels 3.3 cm
+    // (two thirds of a link), a particle on its leading face held by
+    // friction stays there while its neighbour slips over the top, and
+    // the link between them then straddles the ball: the curtain is cut
+    // and the held particle dragged along. Edge-solid contacts would
+    // stop it. At 1 ms the neighbours slide off together.
+    const CUT: &str = "particle-solid contacts only: a link straddles the ball";
+    let steps: &[f64] = if quick { &[1e-3] } else { &[1.0 / 90.0, 1e-3] };
+    let mut rows = Vec::new();
+    for &h in steps {
+        for integrator in integrators(quick) {
+            rows.push(
+                Case::new(
+                    "ball through a curtain",
+                    format!("r = 15 cm at 3 m/s, h = {h:.4} s, 0.8 s"),
+                    "finite; stretch <= 1.1; penetration <= 1 mm",
+                )
+                .extra(extra.clone())
+                .integrator(integrator)
+                .known_defect((h > 1e-3).then_some(CUT))
+                .set("simulation.dt_s", format!("{h:e}"))
+                .set("simulation.duration_s", 0.8)
+                .set("panels.0.origin_m", "[-0.5, 0.0, 0.0]")
+                .set("panels.0.u_axis", "[1.0, 0.0, 0.0]")
+                .set("panels.0.v_axis", "[0.0, 0.0, 1.0]")
+                .judge(|p, _| {
+                    let stretch = p.stretch_at_most(1.1)?;
+                    let m = format!("{stretch}, penetration {:.2} mm", p.penetration * 1e3);
+                    if p.penetration <= 1e-3 { Ok(m) } else { Err(m) }
+                }),
+            );
+        }
+    }
+    rows
+}
+
+/// The hanging cloth at 1 mm and 1 km, with the material scaled so that
+/// the dimensionless numbers stay those of the 1 m cloth (`E / (rho g l)`,
+/// `B / (rho g l^3)`, damping as `l^{3/2}`, time as `l^{1/2}`): the motion
+/// must be the 1 m cloth's, scaled. An absolute tolerance or epsilon
+/// hidden in the code would show here.
+fn scales(quick: bool) -> Vec<Row> {
+    let scaled = |l: f64| {
+        let t = l.sqrt();
+        Case::new(
+            "1 mm and 1 km cloths",
+            format!("{l:e} m, material scaled"),
+            "finite; the 1 m motion scaled, to 2e-11",
+        )
+        .set("simulation.dt_s", format!("{:e}", t / 90.0))
+        .set("simulation.duration_s", format!("{t:e}"))
+        .set("panels.0.size_m", format!("[{l:e}, {l:e}]"))
+        .set("panels.0.origin_m", format!("[{:e}, {:e}, {l:e}]", -0.5 * l, -0.5 * l))
+        .set("material.tensile_stiffness_n_m", format!("{:e}", 200.0 * l))
+        .set("material.buckling_stiffness_n_m", format!("{:e}", 200.0 * l))
+        .set("material.flexural_rigidity_n_m", format!("{:e}", 1e-5 * l * l * l))
+        .set("material.damping_n_s_m", format!("{:e}", 0.02 * l * t))
+        .set("solver.rel_tol", 1e-10)
+    };
+    let reference = scaled(1.0).run(|_| {}, |_, _| {}).map(|(_, sim)| sim.state().x.clone());
+    let sizes: &[f64] = if quick { &[1e3] } else { &[1e-3, 1e3] };
+    sizes
+        .iter()
+        .map(|&l| {
+            scaled(l).judge(|p, sim| {
+                p.ran()?;
+                let reference = reference.as_ref().map_err(|e| format!("the 1 m cloth: {e}"))?;
+                let gap = sim.state().x.iter().zip(reference).map(|(a, b)| (a / l - b).norm()).fold(0.0, f64::max);
+                let m = format!("off the scaled 1 m motion by {gap:.1e} of the size");
+                if gap <= 2e-11 { Ok(m) } else { Err(m) }
+            })
+        })
+        .collect()
+}
+
+/// Coincident particles: two neighbours on one point and the whole cloth on
+/// one point (both must step on to finite states), a state with a NaN
+/// (refused with a typed error naming the particle) and a zero-size panel
+/// (a scene error naming the field).
+fn coincident_particles() -> Vec<Row> {
+    let mut rows = Vec::new();
+    for (variant, collapsed) in [("particles 0 and 1 on one point", 2usize), ("the whole cloth on one point", 441)] {
+        let case = Case::new("coincident particles", variant, "finite").set("simulation.duration_s", 1);
+        let collapse = |sim: &mut Simulation| {
+            let mut s = sim.snapshot();
+            let p = s.x[0];
+            s.x.iter_mut().take(collapsed).for_each(|x| *x = p);
+            s.x_prev.clone_from(&s.x);
+            sim.restore(&s).expect("a state of the same model");
+        };
+        rows.push(match case.run(collapse, |_, _| {}) {
+            Ok((p, _)) => case.row(Some(&p), p.ran().map(|()| format!("stretch {:.1}", p.worst_stretch))),
+            Err(e) => case.row(None, Err(e)),
+        });
+    }
+    let nan = Case::new("coincident particles", "a NaN in a restored state", "a typed error naming the particle");
+    let verdict = nan.build().map_err(|e| e.to_string()).and_then(|(mut sim, ..)| {
+        let mut s = sim.snapshot();
+        s.x[7].y = f64::NAN;
+        match sim.restore(&s) {
+            Err(e @ StepError::NonFinite { particle: 7, .. }) => Ok(e.to_string()),
+            other => Err(format!("got {other:?}")),
+        }
+    });
+    rows.push(nan.row(None, verdict));
+    let zero = Case::new("coincident particles", "a panel of zero width", "a scene error naming the field")
+        .set("panels.0.size_m", "[0.0, 1.0]");
+    let verdict = match zero.build() {
+        Err(e @ SceneErrorKind::Invalid { .. }) if e.to_string().contains("size_m") => Ok(e.to_string()),
+        Err(e) => Err(format!("got: {e}")),
+        Ok(_) => Err("built".into()),
+    };
+    rows.push(zero.row(None, verdict));
+    rows
+}
+
+/// `cloth study stability`'s Markdown table.
+pub fn markdown(rows: &[Row]) -> String {
+    let mut s = String::from(
+        "| case | variant | integrator | model | must hold | outcome | worst stretch | penetration (mm) | \
+         CG/step | wall (s) | verdict |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for r in rows {
+        s.push_str(&format!(
+            "| {} | {} | {} | {} | {} | {} | {:.3} | {:.2} | {:.1} | {:.2} | {} |\n",
+            r.case,
+            r.variant,
+            r.integrator,
+            r.model,
+            r.requirement,
+            r.outcome.replace('|', "/"),
+            r.worst_stretch,
+            r.penetration_m * 1e3,
+            r.cg_per_step,
+            r.wall_s,
+            match (&r.verdict, r.known_defect) {
+                (Ok(m), None) => format!("holds: {m}"),
+                (Err(e), None) => format!("**fails**: {e}"),
+                (Err(e), Some(why)) => format!("known defect: {e} ({why})"),
+                (Ok(m), Some(_)) => format!("**holds although marked a known defect**: {m}"),
+            }
+        ));
+    }
+    s
+}
+
+/// Every row as CSV.
+pub fn csv(rows: &[Row]) -> String {
+    let mut s = String::from(
+        "case,variant,integrator,model,requirement,outcome,worst_stretch,penetration_m,cg_per_step,wall_s,holds,measured\n",
+    );
+    let quote = |t: &str| format!("\"{}\"", t.replace('"', "'"));
+    for r in rows {
+        let (holds, measured) = match &r.verdict {
+            Ok(m) => (true, m),
+            Err(e) => (false, e),
+        };
+        s.push_str(&format!(
+            "{},{},{},{},{},{},{:.4},{:.3e},{:.1},{:.3},{holds},{}\n",
+            quote(r.case),
+            quote(&r.variant),
+            r.integrator,
+            r.model,
+            quote(&r.requirement),
+            quote(&r.outcome),
+            r.worst_stretch,
+            r.penetration_m,
+            r.cg_per_step,
+            r.wall_s,
+            quote(measured)
+        ));
+    }
+    s
+}
+
+/// A rigid ball from 1e-3 to 1e3 times the cloth's mass dropped at 1 m/s
+/// onto a cloth (0.6 m, 13 x 13) pinned at its corners, coupled to rapier
+/// by the iterated master (the co-simulation issue): the whole system
+/// (cloth kinetic, elastic and gravitational energy, the ball's kinetic
+/// and gravitational) never rises above its lowest so far by more than
+/// 1e-4 of the energy in play (the most kinetic plus elastic energy held at
+/// once). A light ball may be flung by the cloth's own sag; that is
+/// energy the cloth had.
+fn coupled_mass_ratios(quick: bool) -> Vec<Row> {
+    use cloth_rapier::CoupledScene;
+    const SCENE: &str = r#"
+[simulation]
+integrator = "backward-euler"
+dt_s = 0.005
+duration_s = 0.5
+effects = ["gravity", "bending", "damping"]
+
+[solver]
+rel_tol = 1e-8
+max_iter = 2000
+
+[material]
+areal_density_kg_m2 = 0.1
+tensile_stiffness_n_m = 500.0
+flexural_rigidity_n_m = 1e-5
+buckling_stiffness_n_m = 500.0
+damping_n_s_m = 0.05
+
+[[panels]]
+particles = [13, 13]
+size_m = [0.6, 0.6]
+origin_m = [-0.3, -0.3, 0.0]
+
+[[pins]]
+nodes = [[0, 0], [12, 0], [0, 12], [12, 12]]
+
+[[bodies]]
+name = "ball"
+kind = "dynamic"
+shape = { kind = "ball", radius_m = 0.08 }
+position_m = [0.03, -0.02, 0.2]
+velocity_m_s = [0.0, 0.0, -1.0]
+mass_kg = 0.036
+friction = 0.3
+
+[coupling]
+master = "iterated"
+"#;
+    // Measured: with the ball kept off the cloth nothing is gained; with
+    // contact the iterated master gains up to 22% (ratio 1) and 5% (1e3)
+    // of the energy in play at h = 5 ms, 2-7% at 1 ms, the staggered one
+    // more. Where (the contact impulses' exchange, rapier's own contact
+    // solve) is not yet found.
+    const COUPLING_GAIN: &str = "two-way contact gains energy, not yet diagnosed";
+    let cloth_mass = 0.1 * 0.36;
+    let ratios: &[f64] = if quick { &[1e-3] } else { &[1e-3, 1.0, 1e3] };
+    let mut rows = Vec::new();
+    for &ratio in ratios {
+        let case = Case::new(
+            "coupled ball, mass ratios",
+            format!("ball / cloth = {ratio:e}"),
+            "finite; total energy never > 1e-4 of the energy in play above its lowest",
+        )
+        .set("bodies.0.mass_kg", format!("{:e}", ratio * cloth_mass))
+        .known_defect((ratio >= 1.0).then_some(COUPLING_GAIN));
+        let built = CoupledScene::parse(SCENE, &case.overrides).and_then(|s| s.build());
+        let mut run = match built {
+            Ok(run) => run,
+            Err(e) => {
+                rows.push(case.row(None, Err(format!("the scene does not build: {e}"))));
+                continue;
+            }
+        };
+        // (total, kinetic + elastic), J.
+        let energy = |run: &cloth_rapier::CoupledRun| {
+            let [kinetic, elastic, gravity] = energies(run.cloths[run.cloth].simulation());
+            let b = &run.world.bodies[run.bodies[0].handle];
+            let inertia = 0.4 * b.mass() * 0.08f64.powi(2);
+            let ball_kinetic =
+                b.mass() * 0.5 * b.linvel().length_squared() + 0.5 * inertia * b.angvel().length_squared();
+            let moving = kinetic + elastic + ball_kinetic;
+            (moving + gravity + b.mass() * G * b.center_of_mass().z, moving)
+        };
+        let (start, mut in_play) = energy(&run);
+        let (mut lowest, mut rise) = (start, 0.0f64);
+        let mut p = Probe::new();
+        let mut failure = None;
+        for _ in 0..run.config.steps {
+            let t = Instant::now();
+            let result = run.step();
+            p.wall_s += t.elapsed().as_secs_f64();
+            if let Err(e) = result {
+                failure = Some(e.to_string());
+                break;
+            }
+            p.steps += 1;
+            let sim = run.cloths[run.cloth].simulation();
+            p.worst_stretch = p.worst_stretch.max(sim.model().max_stretch_ratio(&sim.state().x));
+            let (e, moving) = energy(&run);
+            in_play = in_play.max(moving);
+            lowest = lowest.min(e);
+            rise = rise.max(e - lowest);
+        }
+        // Relative to the energy in play: the most kinetic and elastic
+        // energy the system held at once.
+        let scale = in_play.max(f64::MIN_POSITIVE);
+        let verdict = match failure {
+            Some(e) => Err(format!("stopped: {e}")),
+            None => {
+                let m = format!("rise {:.1e} of the energy in play", rise / scale);
+                if rise <= 1e-4 * scale { Ok(m) } else { Err(m) }
+            }
+        };
+        let mut r = case.row(Some(&p), verdict);
+        r.integrator = "backward-euler, iterated master".into();
+        rows.push(r);
+    }
+    rows
+}
