@@ -154,18 +154,7 @@ impl Simulation {
         if let Some(&got) = lens.iter().find(|&&l| l != n) {
             return Err(StepError::StateMismatch { expected: n, got });
         }
-        let finite = |a: &[Vec3]| a.iter().position(|p| !p.iter().all(|c| c.is_finite()));
-        let bad = [("position", &snapshot.x), ("velocity", &snapshot.v)]
-            .into_iter()
-            .chain(
-                snapshot
-                    .has_history
-                    .then_some([("previous position", &snapshot.x_prev), ("previous velocity", &snapshot.v_prev)])
-                    .into_iter()
-                    .flatten(),
-            )
-            .find_map(|(quantity, a)| finite(a).map(|particle| (quantity, particle)));
-        if let Some((quantity, particle)) = bad {
+        if let Some((particle, quantity)) = snapshot.first_non_finite() {
             return Err(StepError::NonFinite { step: snapshot.steps, time_s: snapshot.time_s, particle, quantity });
         }
         self.state.clone_from(snapshot);

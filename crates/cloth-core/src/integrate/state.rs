@@ -67,18 +67,19 @@ impl ClothState {
         self.x.is_empty()
     }
 
-    /// First particle whose position or velocity is not finite, with which.
+    /// First particle whose position or velocity (or, when the state has
+    /// a history, previous position or velocity) is not finite, with which.
     pub fn first_non_finite(&self) -> Option<(usize, &'static str)> {
         let bad = |v: &Vec3| !v.iter().all(|c| c.is_finite());
-        self.x.iter().zip(&self.v).enumerate().find_map(|(i, (x, v))| {
-            if bad(x) {
-                Some((i, "position"))
-            } else if bad(v) {
-                Some((i, "velocity"))
-            } else {
-                None
-            }
-        })
+        let fields = [
+            ("position", &self.x),
+            ("velocity", &self.v),
+            ("previous position", &self.x_prev),
+            ("previous velocity", &self.v_prev),
+        ];
+        let checked = if self.has_history { 4 } else { 2 };
+        (0..self.len())
+            .find_map(|i| fields[..checked].iter().find(|(_, a)| a.get(i).is_some_and(bad)).map(|(q, _)| (i, *q)))
     }
 }
 
