@@ -9,6 +9,8 @@
 //! ```toml
 //! [simulation]
 //! model = "choi-ko"           # or "provot", "volino"
+//! bending_law = "arc-chord"    # choi-ko: the paper's pair law, or "arc-path"
+//!                              # (a flexural rigidity that holds at every spacing)
 //! integrator = "bdf2"          # backward-euler, backward-euler-fixed-cg, forward-euler,
 //!                              # symplectic-euler, midpoint, rk4, dopri5
 //! dt_s = 0.011111111111111112  # s
@@ -83,8 +85,8 @@
 //! respond after the step (projection, inelastic impulse, Coulomb friction).
 
 use crate::{
-    ClothModel, ColliderSpec, CollisionSpec, Effects, GridPanel, IntegratorKind, Material, ModelKind, ModelSpec,
-    PcgParams, PinSpec, PreconditionerKind, SelfCollisionSpec, SolverParams, StrainLimit, Vec3, Wind,
+    BendingLaw, ClothModel, ColliderSpec, CollisionSpec, Effects, GridPanel, IntegratorKind, Material, ModelKind,
+    ModelSpec, PcgParams, PinSpec, PreconditionerKind, SelfCollisionSpec, SolverParams, StrainLimit, Vec3, Wind,
 };
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -163,6 +165,11 @@ pub struct SimulationSection {
     /// Discretisation of the fabric (default `choi-ko`).
     #[serde(default)]
     pub model: ModelKind,
+    /// `choi-ko` only: `arc-chord` (the paper's pair law, default) or
+    /// `arc-path` (bending read against the path through the middle
+    /// particle: a flexural rigidity that holds at every grid spacing).
+    #[serde(default)]
+    pub bending_law: BendingLaw,
     /// Time step, s.
     pub dt_s: f64,
     /// Simulated duration, s.
@@ -480,6 +487,7 @@ impl Scene {
                 base_dir: self.base_dir.clone(),
             },
             kind: self.simulation.model,
+            bending_law: self.simulation.bending_law,
             strain_limit: self.has_effect(EffectName::StrainLimit).then_some(self.constraints),
         }
     }
@@ -664,6 +672,9 @@ nodes = [[0, 3]]
         for (o, field) in cases {
             assert_eq!(field_of(check(BASE, &[o]).unwrap_err()), field, "{o}");
         }
+        let volino_path = ["simulation.model=\"volino\"", "simulation.bending_law=\"arc-path\""];
+        assert_eq!(field_of(check(BASE, &volino_path).unwrap_err()), "simulation.bending_law");
+        assert!(check(BASE, &["simulation.bending_law=\"arc-path\""]).is_ok());
     }
 
     #[test]

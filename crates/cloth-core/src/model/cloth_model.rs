@@ -3,10 +3,11 @@
 
 use crate::colliders::{Collider, CollisionSpec, SelfCollision};
 use crate::element_laws::{TriangleRest, dihedral_angle};
-use crate::elements::{ElementSet, HingeElement, MembraneElement};
+use crate::elements::{BendTriple, ElementSet, HingeElement, MembraneElement};
+use crate::material::PATH_CURVATURE_FACTOR;
 use crate::{
     GridPanel, LinkType, Material, Pin, PinMotion, Vec3, Wind,
-    laws::{BucklingLaw, ScalarLaw, linear_spring, tension_spring},
+    laws::{BucklingLaw, ScalarLaw, bilinear_spring, linear_spring},
 };
 use cloth_linalg::{Aggregation, BlockPattern, Multigrid};
 use serde::{Deserialize, Serialize};
@@ -80,6 +81,8 @@ pub struct ModelSpec {
     pub effects: Effects,
     /// The discretisation.
     pub kind: ModelKind,
+    /// How Choi & Ko's type-2 interactions read bending (`choi-ko` only).
+    pub bending_law: BendingLaw,
     /// Deformation constraints, if any.
     pub strain_limit: Option<StrainLimit>,
     /// The air's motion and coefficients, for the wind effects.
@@ -141,6 +144,9 @@ pub enum ModelError {
     /// Gravity is not finite.
     #[error("simulation.gravity_m_s2: must be finite, got {0:?}")]
     Gravity([f64; 3]),
+    /// A bending law was asked of a model that does not have it.
+    #[error("simulation.bending_law: {0} is a law of the choi-ko model, not of {1}")]
+    BendingLaw(&'static str, &'static str),
     /// A collider or the self-collision set-up is invalid.
     #[error("{field}: {message}")]
     Collision {
@@ -181,6 +187,34 @@ impl ModelKind {
     }
 }
 
+/// How the `choi-ko` model's type-2 interactions read bending.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum BendingLaw {
+    /// The paper's pair law: the arc law on the chord against the rest
+    /// length, capped by the ramp `c_b (L - d)` (Eq. 11), tension-only
+    /// type-1 links, every link standing for a full cell. Its flexural
+    /// rigidity depends on the grid (material docs).
+    #[default]
+    ArcChord,
+    /// The arc law on the chord against the path through the middle
+    /// particle ([`crate::element_laws::bend_triple_with`]): bending only,
+    /// with `k_b = (8/9) B a / L`, links along a boundary standing for the
+    /// part of a cell they border, and the membrane's compression on the
+    /// type-1 links. Flexural rigidity that holds at every grid spacing.
+    ArcPath,
+}
+
+impl BendingLaw {
+    /// Name as written in scene files.
+    pub fn name(self) -> &'static str {
+        match self {
+            BendingLaw::ArcChord => "arc-chord",
+            BendingLaw::ArcPath => "arc-path",
+        }
+    }
+}
+
 /// Provot's (1995) deformation constraints: after each step, every
 /// structural and shear (type-1) link longer than `(1 + max_strain) L` is
 /// shortened back to that length by moving its free ends (split equally
@@ -201,7 +235,8 @@ impl Default for StrainLimit {
     }
 }
 
-/// A type-1 link: tension-only spring with directional damping.
+/// A type-1 link: a spring with its own compressive stiffness
+/// ([`bilinear_spring`]) and directional damping.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StretchLink {
     /// First particle.
@@ -210,26 +245,27 @@ pub struct StretchLink {
     pub j: u32,
     /// Rest length, m.
     pub rest: f64,
-    /// Stiffness, N/m.
+    /// Stiffness in tension, N/m.
     pub k_s: f64,
+    /// Stiffness in compression, N/m (Choi & Ko: the membrane's `c_b`;
+    /// Provot: `k_s`).
+    pub k_c: f64,
     /// Damping, N s/m (0 when the damping effect is off).
     pub k_d: f64,
-    /// Choi-Ko's tension-only spring (true) or Provot's linear spring.
-    pub tension_only: bool,
 }
 
 impl StretchLink {
     /// The spring law at chord `d` (m).
     #[inline]
     pub fn eval(&self, d: f64) -> ScalarLaw {
-        if self.tension_only { tension_spring(d, self.rest, self.k_s) } else { linear_spring(d, self.rest, self.k_s) }
+        bilinear_spring(d, self.rest, self.k_s, self.k_c)
     }
 }
 
 /// The law of a bending link.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum BendLaw {
-    /// Choi & Ko's buckling law.
+    /// Choi & Ko's buckling law ([`BendingLaw::ArcChord`]).
     Buckling(BucklingLaw),
     /// Provot's linear flexion spring.
     Flexion {
@@ -249,17 +285,10 @@ impl BendLaw {
             BendLaw::Flexion { rest, k } => linear_spring(d, *rest, *k),
         }
     }
-
-    /// Rest length, m.
-    pub fn rest(&self) -> f64 {
-        match self {
-            BendLaw::Buckling(b) => b.rest,
-            BendLaw::Flexion { rest, .. } => *rest,
-        }
-    }
 }
 
-/// A bending link: Choi-Ko type-2 (buckling law) or Provot flexion spring.
+/// A bending link: Choi & Ko's type-2 pair ([`BendingLaw::ArcChord`]) or
+/// Provot's flexion spring.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BendLink {
     /// First particle.
@@ -268,6 +297,14 @@ pub struct BendLink {
     pub j: u32,
     /// The law with its constants.
     pub law: BendLaw,
+}
+
+impl BendLink {
+    /// The law at chord `d` (m).
+    #[inline]
+    pub fn eval(&self, d: f64) -> ScalarLaw {
+        self.law.eval(d)
+    }
 }
 
 /// One link incident to a particle, as seen from that particle's matrix row.
@@ -335,6 +372,9 @@ impl ClothModel {
         {
             return Err(ModelError::Gravity([g.x, g.y, g.z]));
         }
+        if spec.kind != ModelKind::ChoiKo && spec.bending_law != BendingLaw::default() {
+            return Err(ModelError::BendingLaw(spec.bending_law.name(), spec.kind.name()));
+        }
         let mut mass = Vec::new();
         let mut rest_positions = Vec::new();
         let mut stretch = Vec::new();
@@ -359,9 +399,13 @@ impl ClothModel {
                 field: "size_m",
                 message: format!("{:?} m gives links of zero or non-finite length or stiffness", panel.size_m),
             };
+            // The arc-path law's mapping counts boundary links for the part of
+            // a cell they border (topology::GridLink); the paper's, a full cell.
+            let path = spec.kind == ModelKind::ChoiKo && spec.bending_law == BendingLaw::ArcPath;
+            let area = |link: &crate::topology::GridLink| if path { link.area } else { mesh.cell_area };
             for link in &mesh.sequential {
                 let rest = rest_of(link.ends);
-                let c = spec.material.link_constants(rest, mesh.cell_area);
+                let c = spec.material.link_constants(rest, area(link));
                 if degenerate(rest, &c) {
                     return Err(degenerate_err());
                 }
@@ -371,8 +415,13 @@ impl ClothModel {
                     rest,
                     // Volino's membrane replaces the springs; the links stay for damping and limits.
                     k_s: if spec.kind == ModelKind::Volino { 0.0 } else { c.k_s },
+                    k_c: match spec.kind {
+                        ModelKind::ChoiKo if path => c.c_b,
+                        ModelKind::ChoiKo => 0.0,
+                        ModelKind::Provot => c.k_s,
+                        ModelKind::Volino => 0.0,
+                    },
                     k_d: if damping { c.k_d } else { 0.0 },
-                    tension_only: spec.kind == ModelKind::ChoiKo,
                 });
             }
             if spec.kind == ModelKind::Volino {
@@ -386,16 +435,25 @@ impl ClothModel {
                 let links = if spec.kind == ModelKind::Provot { &mesh.flexion } else { &mesh.interlaced };
                 for link in links {
                     let rest = rest_of(link.ends);
-                    let c = spec.material.link_constants(rest, mesh.cell_area);
+                    let c = spec.material.link_constants(rest, area(link));
                     if degenerate(rest, &c) {
                         return Err(degenerate_err());
                     }
-                    let law = match spec.kind {
-                        ModelKind::Provot => BendLaw::Flexion { rest, k: c.k_flexion },
-                        _ => BendLaw::Buckling(BucklingLaw::new(rest, c.k_b, c.c_b)),
-                    };
-                    bend.push(BendLink { i: at(link.ends[0]), j: at(link.ends[1]), law });
-                    bend_middle.push(link.middle.map(at));
+                    let [i, j] = link.ends.map(at);
+                    match (spec.kind, link.middle) {
+                        (ModelKind::Provot, _) => {
+                            bend.push(BendLink { i, j, law: BendLaw::Flexion { rest, k: c.k_flexion } })
+                        }
+                        (_, Some(m)) if path => elements.triples.push(BendTriple {
+                            nodes: [i, at(m), j],
+                            rest,
+                            k_b: PATH_CURVATURE_FACTOR * c.k_b,
+                        }),
+                        _ => {
+                            bend.push(BendLink { i, j, law: BendLaw::Buckling(BucklingLaw::new(rest, c.k_b, c.c_b)) });
+                            bend_middle.push(link.middle.map(at));
+                        }
+                    }
                 }
             }
             triangles.extend(mesh.triangles.iter().map(|t| t.map(at)));
@@ -409,6 +467,7 @@ impl ClothModel {
         let n = mass.len();
         let (pins, pinned) = build_pins(spec, &panels, &rest_positions)?;
         clamp_bend_links(&mut bend, &bend_middle, &pinned);
+        clamp_triples(&mut elements.triples, &pinned);
         clamp_hinges(&mut elements.hinges, &rest_positions, &pinned);
         if spec.effects.wind || spec.effects.aerodynamics {
             let wind = spec.wind.as_ref().ok_or(ModelError::Wind {
@@ -624,17 +683,11 @@ impl ClothModel {
     /// matrix: 2 x 2 grid nodes per aggregate and level (fewer CG
     /// iterations than 3 x 3 for the same work on the 75 x 75 hanging
     /// cloth: 22 vs 28), down to at most 40 nodes solved densely. The
-    /// smoother is damped for the largest element (links 2, Volino's
-    /// triangles 3 and hinges 4 nodes), so the cycle is positive definite.
+    /// smoother is damped for the largest element (links 2, triangles and
+    /// Choi & Ko's triples 3, hinges 4 nodes), so the cycle is positive
+    /// definite.
     pub fn multigrid(&self) -> Multigrid {
-        let set = self.elements();
-        let nodes = if !set.hinges.is_empty() {
-            4
-        } else if !set.membranes.is_empty() {
-            3
-        } else {
-            2
-        };
+        let nodes = self.elements().largest_element().max(2);
         Multigrid::new(&self.pattern, &self.grid_aggregations(2, 40))
             .expect("grid aggregates fit the model")
             .for_element_size(nodes)
@@ -722,6 +775,18 @@ fn clamp_bend_links(bend: &mut [BendLink], middle: &[Option<u32>], pinned: &[boo
         let (Some(m), BendLaw::Buckling(law)) = (middle, &mut link.law) else { continue };
         if pinned[*m as usize] && pinned[link.i as usize] != pinned[link.j as usize] {
             *law = BucklingLaw::new(law.rest, 2.0 * law.k_b, 2.0 * law.c_b);
+        }
+    }
+}
+
+/// Type-2 triples across a clamped edge (middle particle and one end
+/// pinned, the other end free) stand for half the bending of a free one:
+/// their rigidity doubles (see [`crate::material`]).
+fn clamp_triples(triples: &mut [BendTriple], pinned: &[bool]) {
+    for t in triples {
+        let [i, m, j] = t.nodes.map(|q| pinned[q as usize]);
+        if m && i != j {
+            t.k_b *= 2.0;
         }
     }
 }

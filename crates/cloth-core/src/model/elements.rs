@@ -1,5 +1,5 @@
-//! Multi-particle elements (Volino's membrane triangles and bending hinges)
-//! and the drivers that fold them into forces and the system matrix.
+//! Multi-particle elements (Volino's membrane triangles and bending hinges,
+//! Choi & Ko's type-2 bending triples) and the drivers that fold them into forces and the system matrix.
 //!
 //! Each element adds `f_a` to its corners and `H_ab` (a PSD approximation of
 //! `d^2 E / dx_a dx_b`, so `K_ab = -H_ab`) to the blocks between them:
@@ -7,7 +7,9 @@
 //! evaluated in parallel into per-element buffers; each particle then adds
 //! its elements in a fixed order, as for links.
 
-use crate::element_laws::{ElementResponse, TriangleRest, hinge_bending_with, membrane_triangle_with};
+use crate::element_laws::{
+    ElementResponse, TriangleRest, bend_triple_with, hinge_bending_with, membrane_triangle_with,
+};
 use crate::{Mat3, Vec3};
 use cloth_linalg::{BlockPattern, ROW_CHUNK};
 use rayon::prelude::*;
@@ -33,9 +35,29 @@ pub struct HingeElement {
     pub k: f64,
 }
 
+/// A type-2 interaction of Choi & Ko's model read against the path through
+/// its middle particle ([`bend_triple_with`]): corners `(i, m, j)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BendTriple {
+    /// End, middle, end.
+    pub nodes: [u32; 3],
+    /// Rest length of the interaction (end to end along the cloth), m.
+    pub rest: f64,
+    /// Flexural rigidity of the interaction `k_b`, N m^2.
+    pub k_b: f64,
+}
+
+/// The element kinds, in the order a particle adds them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    Membrane,
+    Hinge,
+    Triple,
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct Corner {
-    hinge: bool,
+    kind: Kind,
     elem: u32,
     corner: u8,
 }
@@ -44,48 +66,62 @@ struct Corner {
 /// pattern is known, the matrix slot of every corner pair.
 #[derive(Debug, Clone, Default)]
 pub struct ElementSet {
-    /// Membrane triangles.
+    /// Membrane triangles (Volino).
     pub membranes: Vec<MembraneElement>,
-    /// Bending hinges.
+    /// Bending hinges (Volino).
     pub hinges: Vec<HingeElement>,
+    /// Type-2 bending triples (Choi & Ko).
+    pub triples: Vec<BendTriple>,
     inc_ptr: Vec<usize>,
     inc: Vec<Corner>,
     membrane_slots: Vec<[[u32; 3]; 3]>,
     hinge_slots: Vec<[[u32; 4]; 4]>,
+    triple_slots: Vec<[[u32; 3]; 3]>,
 }
 
 impl ElementSet {
-    /// Whether there is no element (the link models).
+    /// Whether there is no element (Provot's model).
     pub fn is_empty(&self) -> bool {
-        self.membranes.is_empty() && self.hinges.is_empty()
+        self.membranes.is_empty() && self.hinges.is_empty() && self.triples.is_empty()
+    }
+
+    /// Most corners of any element present (0 when empty).
+    pub fn largest_element(&self) -> usize {
+        if !self.hinges.is_empty() {
+            4
+        } else if self.membranes.is_empty() && self.triples.is_empty() {
+            0
+        } else {
+            3
+        }
+    }
+
+    fn node_lists(&self) -> impl Iterator<Item = (Kind, usize, &[u32])> {
+        let m = self.membranes.iter().enumerate().map(|(e, m)| (Kind::Membrane, e, &m.nodes[..]));
+        let h = self.hinges.iter().enumerate().map(|(e, h)| (Kind::Hinge, e, &h.nodes[..]));
+        let t = self.triples.iter().enumerate().map(|(e, t)| (Kind::Triple, e, &t.nodes[..]));
+        m.chain(h).chain(t)
     }
 
     /// Every coupled pair of particles, for the sparsity pattern.
     pub fn pairs(&self) -> Vec<(usize, usize)> {
         let mut out = Vec::new();
-        let mut add = |nodes: &[u32]| {
+        for (_, _, nodes) in self.node_lists() {
             for (a, &p) in nodes.iter().enumerate() {
                 for &q in &nodes[a + 1..] {
                     out.push((p as usize, q as usize));
                 }
             }
-        };
-        self.membranes.iter().for_each(|m| add(&m.nodes));
-        self.hinges.iter().for_each(|h| add(&h.nodes));
+        }
         out
     }
 
     /// Builds incidence and slot tables for `n` particles and `pattern`.
     pub fn index(&mut self, n: usize, pattern: &BlockPattern) {
         let mut per: Vec<Vec<Corner>> = vec![Vec::new(); n];
-        for (e, m) in self.membranes.iter().enumerate() {
-            for (a, &p) in m.nodes.iter().enumerate() {
-                per[p as usize].push(Corner { hinge: false, elem: e as u32, corner: a as u8 });
-            }
-        }
-        for (e, h) in self.hinges.iter().enumerate() {
-            for (a, &p) in h.nodes.iter().enumerate() {
-                per[p as usize].push(Corner { hinge: true, elem: e as u32, corner: a as u8 });
+        for (kind, e, nodes) in self.node_lists() {
+            for (a, &p) in nodes.iter().enumerate() {
+                per[p as usize].push(Corner { kind, elem: e as u32, corner: a as u8 });
             }
         }
         self.inc_ptr = std::iter::once(0)
@@ -95,20 +131,16 @@ impl ElementSet {
             }))
             .collect();
         self.inc = per.into_iter().flatten().collect();
-        let slot = |p: u32, q: u32| {
-            (pattern.slot(p as usize, q as usize).expect("element pair in the pattern")
-                - pattern.row_range(p as usize).start) as u32
-        };
-        self.membrane_slots = self
-            .membranes
-            .iter()
-            .map(|m| std::array::from_fn(|a| std::array::from_fn(|b| slot(m.nodes[a], m.nodes[b]))))
-            .collect();
-        self.hinge_slots = self
-            .hinges
-            .iter()
-            .map(|h| std::array::from_fn(|a| std::array::from_fn(|b| slot(h.nodes[a], h.nodes[b]))))
-            .collect();
+        fn slots<const K: usize>(nodes: &[u32; K], pattern: &BlockPattern) -> [[u32; K]; K] {
+            let slot = |p: u32, q: u32| {
+                (pattern.slot(p as usize, q as usize).expect("element pair in the pattern")
+                    - pattern.row_range(p as usize).start) as u32
+            };
+            std::array::from_fn(|a| std::array::from_fn(|b| slot(nodes[a], nodes[b])))
+        }
+        self.membrane_slots = self.membranes.iter().map(|m| slots(&m.nodes, pattern)).collect();
+        self.hinge_slots = self.hinges.iter().map(|h| slots(&h.nodes, pattern)).collect();
+        self.triple_slots = self.triples.iter().map(|t| slots(&t.nodes, pattern)).collect();
     }
 
     fn corners(&self, i: usize) -> &[Corner] {
@@ -129,24 +161,69 @@ impl<const K: usize> Default for ElementRhs<K> {
     }
 }
 
-/// Per-element scratch, sized once per model. Blocks live apart from the
-/// right-hand sides so that a forces-only evaluation writes no blocks.
+/// Per-element scratch of one kind. Blocks live apart from the right-hand
+/// sides so that a forces-only evaluation writes no blocks.
+#[derive(Debug, Clone, Default)]
+struct KindBuffers<const K: usize> {
+    rhs: Vec<ElementRhs<K>>,
+    blocks: Vec<[[Mat3; K]; K]>,
+}
+
+impl<const K: usize> KindBuffers<K> {
+    fn new(len: usize) -> Self {
+        Self { rhs: vec![ElementRhs::default(); len], blocks: vec![[[Mat3::zeros(); K]; K]; len] }
+    }
+
+    /// Evaluates `law(e, hessian)` for every element `e` with corners
+    /// `nodes(e)`, in parallel, into right-hand sides and (with a Hessian)
+    /// blocks `c_x H_ab`.
+    fn evaluate<E: Sync>(
+        &mut self,
+        elems: &[E],
+        nodes: impl Fn(&E) -> [u32; K] + Sync,
+        law: impl Fn(&E, bool) -> ElementResponse<K> + Sync,
+        c_x: f64,
+        force: f64,
+        k_times: Option<(f64, &[Vec3])>,
+    ) {
+        if c_x != 0.0 || k_times.is_some() {
+            self.rhs
+                .par_iter_mut()
+                .zip(self.blocks.par_iter_mut())
+                .zip(elems.par_iter())
+                .with_min_len(ROW_CHUNK)
+                .for_each(|((out, blocks), e)| {
+                    let r = law(e, true);
+                    *out = fold(&r, &nodes(e), force, k_times);
+                    *blocks = r.hessian.map(|row| row.map(|h| h * c_x));
+                });
+        } else {
+            self.rhs.par_iter_mut().zip(elems.par_iter()).with_min_len(ROW_CHUNK).for_each(|(out, e)| {
+                *out = fold(&law(e, false), &nodes(e), force, None);
+            });
+        }
+    }
+
+    fn energy(&self) -> f64 {
+        self.rhs.iter().map(|r| r.energy).sum()
+    }
+}
+
+/// Per-element scratch, sized once per model.
 #[derive(Debug, Clone, Default)]
 pub struct ElementBuffers {
-    membranes: Vec<ElementRhs<3>>,
-    membrane_blocks: Vec<[[Mat3; 3]; 3]>,
-    hinges: Vec<ElementRhs<4>>,
-    hinge_blocks: Vec<[[Mat3; 4]; 4]>,
+    membranes: KindBuffers<3>,
+    hinges: KindBuffers<4>,
+    triples: KindBuffers<3>,
 }
 
 impl ElementBuffers {
     /// Buffers for `set`.
     pub fn new(set: &ElementSet) -> Self {
         Self {
-            membranes: vec![ElementRhs::default(); set.membranes.len()],
-            membrane_blocks: vec![[[Mat3::zeros(); 3]; 3]; set.membranes.len()],
-            hinges: vec![ElementRhs::default(); set.hinges.len()],
-            hinge_blocks: vec![[[Mat3::zeros(); 4]; 4]; set.hinges.len()],
+            membranes: KindBuffers::new(set.membranes.len()),
+            hinges: KindBuffers::new(set.hinges.len()),
+            triples: KindBuffers::new(set.triples.len()),
         }
     }
 }
@@ -182,48 +259,42 @@ pub fn evaluate(
     k_times: Option<(f64, &[Vec3])>,
     bufs: &mut ElementBuffers,
 ) {
-    let hessian = c_x != 0.0 || k_times.is_some();
-    let scale = |h: &Mat3| h * c_x;
-    if hessian {
-        bufs.membranes
-            .par_iter_mut()
-            .zip(bufs.membrane_blocks.par_iter_mut())
-            .zip(set.membranes.par_iter())
-            .with_min_len(ROW_CHUNK)
-            .for_each(|((out, blocks), m)| {
-                let r = membrane_triangle_with(m.nodes.map(|p| x[p as usize]), &m.rest, true);
-                *out = fold(&r, &m.nodes, force, k_times);
-                *blocks = r.hessian.map(|row| row.map(|h| scale(&h)));
-            });
-        bufs.hinges
-            .par_iter_mut()
-            .zip(bufs.hinge_blocks.par_iter_mut())
-            .zip(set.hinges.par_iter())
-            .with_min_len(ROW_CHUNK)
-            .for_each(|((out, blocks), h)| {
-                let r = hinge_bending_with(h.nodes.map(|p| x[p as usize]), h.rest_angle, h.k, true);
-                *out = fold(&r, &h.nodes, force, k_times);
-                *blocks = r.hessian.map(|row| row.map(|b| scale(&b)));
-            });
-    } else {
-        bufs.membranes.par_iter_mut().zip(set.membranes.par_iter()).with_min_len(ROW_CHUNK).for_each(|(out, m)| {
-            *out = fold(&membrane_triangle_with(m.nodes.map(|p| x[p as usize]), &m.rest, false), &m.nodes, force, None);
-        });
-        bufs.hinges.par_iter_mut().zip(set.hinges.par_iter()).with_min_len(ROW_CHUNK).for_each(|(out, h)| {
-            let r = hinge_bending_with(h.nodes.map(|p| x[p as usize]), h.rest_angle, h.k, false);
-            *out = fold(&r, &h.nodes, force, None);
-        });
-    }
+    let at = |nodes: &[u32; 3]| nodes.map(|p| x[p as usize]);
+    bufs.membranes.evaluate(
+        &set.membranes,
+        |m| m.nodes,
+        |m, h| membrane_triangle_with(at(&m.nodes), &m.rest, h),
+        c_x,
+        force,
+        k_times,
+    );
+    bufs.hinges.evaluate(
+        &set.hinges,
+        |e| e.nodes,
+        |e, h| hinge_bending_with(e.nodes.map(|p| x[p as usize]), e.rest_angle, e.k, h),
+        c_x,
+        force,
+        k_times,
+    );
+    bufs.triples.evaluate(
+        &set.triples,
+        |t| t.nodes,
+        |t, h| bend_triple_with(at(&t.nodes), t.rest, t.k_b, h),
+        c_x,
+        force,
+        k_times,
+    );
 }
 
 /// Sum of the element right-hand-side terms at particle `i`.
 pub fn rhs_at(set: &ElementSet, bufs: &ElementBuffers, i: usize) -> Vec3 {
     let mut acc = Vec3::zeros();
     for c in set.corners(i) {
-        acc += if c.hinge {
-            bufs.hinges[c.elem as usize].rhs[c.corner as usize]
-        } else {
-            bufs.membranes[c.elem as usize].rhs[c.corner as usize]
+        let (e, a) = (c.elem as usize, c.corner as usize);
+        acc += match c.kind {
+            Kind::Membrane => bufs.membranes.rhs[e].rhs[a],
+            Kind::Hinge => bufs.hinges.rhs[e].rhs[a],
+            Kind::Triple => bufs.triples.rhs[e].rhs[a],
         };
     }
     acc
@@ -231,16 +302,17 @@ pub fn rhs_at(set: &ElementSet, bufs: &ElementBuffers, i: usize) -> Vec3 {
 
 /// Adds the element blocks of row `i` into `row` (the row's stored blocks).
 pub fn add_row(set: &ElementSet, bufs: &ElementBuffers, i: usize, row: &mut [Mat3]) {
+    fn add<const K: usize>(slots: &[u32; K], blocks: &[Mat3; K], row: &mut [Mat3]) {
+        for (s, b) in slots.iter().zip(blocks) {
+            row[*s as usize] += b;
+        }
+    }
     for c in set.corners(i) {
         let (e, a) = (c.elem as usize, c.corner as usize);
-        if c.hinge {
-            for (b, s) in set.hinge_slots[e][a].iter().enumerate() {
-                row[*s as usize] += bufs.hinge_blocks[e][a][b];
-            }
-        } else {
-            for (b, s) in set.membrane_slots[e][a].iter().enumerate() {
-                row[*s as usize] += bufs.membrane_blocks[e][a][b];
-            }
+        match c.kind {
+            Kind::Membrane => add(&set.membrane_slots[e][a], &bufs.membranes.blocks[e][a], row),
+            Kind::Hinge => add(&set.hinge_slots[e][a], &bufs.hinges.blocks[e][a], row),
+            Kind::Triple => add(&set.triple_slots[e][a], &bufs.triples.blocks[e][a], row),
         }
     }
 }
@@ -248,23 +320,22 @@ pub fn add_row(set: &ElementSet, bufs: &ElementBuffers, i: usize, row: &mut [Mat
 /// `sum_b blocks_ab w_b s_b` over the elements of particle `i` (with
 /// `s = m^-1/2` for the mass-scaled operator).
 pub fn apply_at(set: &ElementSet, bufs: &ElementBuffers, i: usize, w: &[Vec3], s: &[f64]) -> Vec3 {
+    fn apply<const K: usize>(nodes: &[u32; K], blocks: &[Mat3; K], w: &[Vec3], s: &[f64]) -> Vec3 {
+        nodes.iter().zip(blocks).fold(Vec3::zeros(), |acc, (&p, b)| acc + b * (w[p as usize] * s[p as usize]))
+    }
     let mut acc = Vec3::zeros();
     for c in set.corners(i) {
         let (e, a) = (c.elem as usize, c.corner as usize);
-        if c.hinge {
-            for (b, &p) in set.hinges[e].nodes.iter().enumerate() {
-                acc += bufs.hinge_blocks[e][a][b] * (w[p as usize] * s[p as usize]);
-            }
-        } else {
-            for (b, &p) in set.membranes[e].nodes.iter().enumerate() {
-                acc += bufs.membrane_blocks[e][a][b] * (w[p as usize] * s[p as usize]);
-            }
-        }
+        acc += match c.kind {
+            Kind::Membrane => apply(&set.membranes[e].nodes, &bufs.membranes.blocks[e][a], w, s),
+            Kind::Hinge => apply(&set.hinges[e].nodes, &bufs.hinges.blocks[e][a], w, s),
+            Kind::Triple => apply(&set.triples[e].nodes, &bufs.triples.blocks[e][a], w, s),
+        };
     }
     acc
 }
 
 /// Total element energy of the last [`evaluate`], J.
 pub fn energy(bufs: &ElementBuffers) -> f64 {
-    bufs.membranes.iter().map(|m| m.energy).sum::<f64>() + bufs.hinges.iter().map(|h| h.energy).sum::<f64>()
+    bufs.membranes.energy() + bufs.hinges.energy() + bufs.triples.energy()
 }

@@ -60,7 +60,7 @@ pub fn eval_link(model: &ClothModel, k: usize, x: &[Vec3]) -> LinkEval {
     } else {
         let l = &model.bend_links()[k - ns];
         let (u, d) = unit_and_length(x[l.j as usize] - x[l.i as usize]);
-        eval_with(l.law.eval(d), u, d, 0.0)
+        eval_with(l.eval(d), u, d, 0.0)
     }
 }
 
@@ -74,7 +74,7 @@ fn link_energy(model: &ClothModel, k: usize, x: &[Vec3]) -> f64 {
         l.eval((x[l.j as usize] - x[l.i as usize]).norm()).energy
     } else {
         let l = &model.bend_links()[k - ns];
-        l.law.eval((x[l.j as usize] - x[l.i as usize]).norm()).energy
+        l.eval((x[l.j as usize] - x[l.i as usize]).norm()).energy
     }
 }
 
@@ -134,7 +134,7 @@ pub fn link_force(model: &ClothModel, k: usize, x: &[Vec3], v: &[Vec3]) -> Vec3 
     } else {
         let l = &model.bend_links()[k - ns];
         let (u, d) = unit_and_length(x[l.j as usize] - x[l.i as usize]);
-        u * l.law.eval(d).phi
+        u * l.eval(d).phi
     }
 }
 

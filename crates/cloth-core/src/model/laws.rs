@@ -36,6 +36,21 @@ pub fn tension_spring(d: f64, rest: f64, k_s: f64) -> ScalarLaw {
     ScalarLaw { energy: 0.5 * k_s * e * e, phi: k_s * e, dphi: k_s }
 }
 
+/// Type-1 spring with a compressive stiffness of its own:
+/// `E = k (d - L)^2 / 2`, `phi = k (d - L)` with `k = k_s` for `d >= L` and
+/// `k = k_c` below. `k_c = 0` is Choi & Ko's tension-only type-1 spring
+/// (Eq. 2-3, [`tension_spring`]), whose type-2 ramp `c_b (L - d)` (Eq. 11)
+/// holds the membrane's compression. With the arc-path law the type-2
+/// interactions read only curvature
+/// ([`crate::element_laws::bend_triple_with`]) and the type-1 links take
+/// that ramp's role with `k_c = c_b`. `k_c = k_s` is Provot's linear
+/// spring.
+///
+/// `d`, `rest` in m; `k_s`, `k_c` in N/m.
+pub fn bilinear_spring(d: f64, rest: f64, k_s: f64, k_c: f64) -> ScalarLaw {
+    linear_spring(d, rest, if d >= rest { k_s } else { k_c })
+}
+
 /// Linear spring in tension and compression (Provot 1995):
 /// `E = k (d - L)^2 / 2`, `phi = k (d - L)`.
 pub fn linear_spring(d: f64, rest: f64, k: f64) -> ScalarLaw {
@@ -350,6 +365,9 @@ mod tests {
             assert!((fd(|x| tension_spring(x, 1.0, 50.0).energy, d, 1e-6) - s.phi).abs() < 1e-6);
             let l = linear_spring(d, 1.0, 50.0);
             assert!((fd(|x| linear_spring(x, 1.0, 50.0).energy, d, 1e-6) - l.phi).abs() < 1e-6);
+            let b = bilinear_spring(d, 1.0, 50.0, 7.0);
+            assert!((fd(|x| bilinear_spring(x, 1.0, 50.0, 7.0).energy, d, 1e-6) - b.phi).abs() < 1e-6);
+            assert_eq!(b.dphi, if d < 1.0 { 7.0 } else { 50.0 });
         }
         assert_eq!(tension_spring(0.9, 1.0, 50.0), ScalarLaw::default());
         for d in [0.001, 0.004, 0.0099] {

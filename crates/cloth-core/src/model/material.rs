@@ -3,7 +3,8 @@
 //! ## Why the mapping makes results resolution-independent
 //! A grid with spacing `dx x dy` has cells of area `A = dx dy`. Each link
 //! family (along u, along v, and the two diagonals) has one link per cell,
-//! standing for the cell's area `a = A`. A link of rest length `L` at
+//! standing for the cell's area `a = A` (less along a boundary line, where
+//! a link borders half a cell: `crate::topology::GridLink`). A link of rest length `L` at
 //! angle `theta` to a uniform strain `eps` in direction 0 is strained by
 //! `eps cos^2 theta`; summed over the four families, `sum cos^4 = 3/2` for
 //! *any* direction on a square grid. So a link stiffness
@@ -11,35 +12,39 @@
 //! per unit area, whatever the grid spacing and strain direction (exact for
 //! square cells, close for mildly rectangular ones).
 //!
-//! ## Flexural rigidity of type-2 links
+//! ## Flexural rigidity of type-2 links (`bending_law = "arc-chord"`)
 //! The same sum for curvature (normal curvature `kappa cos^2 theta`) gives
-//! `k_b = (2/3) B a / L` for the arc law `E = k_b L kappa^2 / 2`. Two known
-//! shortfalls, measured and left for issue 10: the arc law reads the
-//! curvature from the chord, and with the type-1 links keeping their length
-//! as chords it reads `kappa'^2 = (3/4) kappa^2` (three particles on a
-//! circle with chords `L / 2` have `L - d = kappa^2 L^3 / 32`, not
-//! `/ 24`), so `k_b` is 3/4 of what it should be at every resolution; and
-//! links along a free boundary stand for a full cell where they border half
-//! of one.
+//! Choi & Ko's pair law `k_b = (2/3) B a / L` (`E = k_b L kappa^2 / 2`,
+//! every link standing for a full cell). It reads its chord against the
+//! rest length and caps the force by a ramp `c_b (L - d)` (Eq. 11), so a
+//! link stores almost no moment below `kappa_s = sqrt(512 B / (C_b L^4))`,
+//! which grows as the grid is refined (22/m at `L = 1 cm` for a cotton):
+//! the 10 cm Peirce cantilever sags to 46, 60 and 77 degrees at 1, 0.5 and
+//! 0.25 cm against the exact 41.5. No ramp slope fixes that: a switch held
+//! at a fixed curvature needs `c_b` growing as `L^-6`, a membrane 10^4
+//! times stiffer in compression than in tension at 0.25 cm (tried: the
+//! linearised step chatters and Newton does not converge), because a chord
+//! measured against the rest length cannot tell compression from bending.
 //!
-//! The ramp (Choi & Ko's Eq. 11) caps the arc force by `c_b (L - d)` so the
-//! force does not jump at `d = L`; below the curvature where the two meet,
-//! `kappa_s = sqrt(512 B / (C_b L^4))` with this mapping, the link's energy
-//! grows as `kappa^4` and stores almost no moment. `kappa_s` grows as the
-//! grid is refined (22/m at `L = 1 cm` for a shirt cotton), so finer grids
-//! are softer in bending: a known limit, measured in `tests/bending.rs`
-//! (issue 10). Holding `kappa_s` fixed needs `c_b ~ k_b / (kappa_s^2 L^5)`;
-//! that ramp gets the cantilever's static shape right but a single
-//! linearised implicit step chatters across its kink on fine grids.
+//! ## The arc-path law (`bending_law = "arc-path"`)
+//! The path through the middle particle can: the type-2 interactions read
+//! curvature only (`crate::element_laws::bend_triple_with`), and the
+//! ramp's compression moves to the type-1 links, which resist compression
+//! with `k_c = c_b = (2/3) C_b a / L^2` (in the matrix without their
+//! orthogonal term, negative in compression). Three particles on a circle
+//! of curvature `kappa` with chords `L / 2` read `kappa'^2 = (3/4) kappa^2`
+//! for every family (the path is shorter than the arc), hence
+//! `k_b = (4/3)(2/3) B a / L = (8/9) B a / L` ([`PATH_CURVATURE_FACTOR`]).
+//! Links along a boundary line stand for the part of a cell they border
+//! (`crate::topology::GridLink`). The cantilever: 41.8, 41.7 and 41.9
+//! degrees at 1, 0.5 and 0.25 cm (`tests/bending.rs`, `cloth study
+//! bending`).
 //!
-//! A type-2 link whose middle particle and one end are pinned (a clamped
-//! edge) stands for half the bending of a free one: the pinned half of its
-//! span cannot bend, so its constants double. Without that the clamp line
-//! is as compliant as a cell's width of free cloth, a first-order error
-//! (5 degrees at 1 cm on the cantilever).
-//!
-//! With type-1 links only in tension, the in-plane shear modulus that
-//! results is about `E / 6` (one diagonal per cell carries shear).
+//! With either law, a type-2 interaction whose middle particle and one end
+//! are pinned (a clamped edge) stands for half the bending of a free one:
+//! the pinned half of its span cannot bend, so its constants double.
+//! Without that the clamp line is as compliant as a cell's width of free
+//! cloth, a first-order error (5 degrees at 1 cm on the cantilever).
 //!
 //! Provot's linear structural and shear springs use the same `k_s`. His
 //! flexion springs (`i+2`, `j+2` only: two families, hence no 2/3) resist
@@ -68,8 +73,10 @@ pub struct Material {
     /// Flexural rigidity (bending moment per unit width per unit curvature),
     /// N m (cotton: 1e-6 to 1e-4).
     pub flexural_rigidity_n_m: f64,
-    /// Compressive stiffness before buckling, the slope of Choi & Ko's ramp
-    /// `c_b` (Eq. 11) as a membrane property, N/m. "Of the order of k_s".
+    /// Compressive stiffness of the membrane before it buckles, N/m: the
+    /// slope of Choi & Ko's ramp `c_b` (Eq. 11) on the type-2 links, or on
+    /// the type-1 links in compression with the arc-path law (module docs);
+    /// Provot's flexion springs. "Of the order of k_s".
     pub buckling_stiffness_n_m: f64,
     /// Viscosity along links (stress per strain rate), N s/m. Used only
     /// when the scene lists the `damping` effect.
@@ -96,6 +103,10 @@ pub struct Material {
     pub poisson_ratio: Option<f64>,
 }
 
+/// The arc-path law's type-2 rigidity is `k_b` times this: its halves are
+/// chords, so it reads `kappa'^2 = (3/4) kappa^2` (module docs).
+pub const PATH_CURVATURE_FACTOR: f64 = 4.0 / 3.0;
+
 /// Per-link constants derived from a [`Material`] for one link.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LinkConstants {
@@ -103,9 +114,10 @@ pub struct LinkConstants {
     pub k_s: f64,
     /// Type-1 damping `k_d`, N s/m.
     pub k_d: f64,
-    /// Type-2 link flexural rigidity `k_b`, N m^2.
+    /// Type-2 interaction flexural rigidity `k_b`, N m^2.
     pub k_b: f64,
-    /// Type-2 ramp slope `c_b`, N/m.
+    /// Choi & Ko's ramp slope `c_b` (type-2 links, or type-1 links in
+    /// compression with the arc-path law), N/m.
     pub c_b: f64,
     /// Provot flexion spring stiffness `k_f`, N/m (axis-aligned links only).
     pub k_flexion: f64,
@@ -121,16 +133,16 @@ impl Material {
         crate::element_laws::Matrix3Voigt::orthotropic(e_u, e_v, g, nu)
     }
 
-    /// Constants for a link of rest length `rest` (m) in a grid whose cells
-    /// have area `cell_area` (m^2).
-    pub fn link_constants(&self, rest: f64, cell_area: f64) -> LinkConstants {
-        let w = 2.0 / 3.0 * cell_area;
+    /// Constants for a link of rest length `rest` (m) standing for the area
+    /// `area` (m^2) of its panel ([`crate::topology::GridLink`]).
+    pub fn link_constants(&self, rest: f64, area: f64) -> LinkConstants {
+        let w = 2.0 / 3.0 * area;
         LinkConstants {
             k_s: w * self.tensile_stiffness_n_m / (rest * rest),
             k_d: w * self.damping_n_s_m / (rest * rest),
             k_b: w * self.flexural_rigidity_n_m / rest,
             c_b: w * self.buckling_stiffness_n_m / (rest * rest),
-            k_flexion: cell_area * self.buckling_stiffness_n_m / (rest * rest),
+            k_flexion: area * self.buckling_stiffness_n_m / (rest * rest),
         }
     }
 
