@@ -767,27 +767,29 @@ fn build_pins(spec: &ModelSpec, panels: &[PanelRange], rest: &[Vec3]) -> Result<
     Ok((pins, pinned))
 }
 
-/// Type-2 links across a clamped edge (middle particle and one end pinned,
-/// the other end free) stand for half the bending of a free link: their
-/// constants double (see [`crate::material`]).
+/// Whether a type-2 interaction across `(i, m, j)` spans a clamped edge: its
+/// middle particle and one end pinned, the other end free. It then stands
+/// for half the bending of a free one (the pinned half of its span cannot
+/// bend), so its constants double (see [`crate::material`]).
+fn spans_clamp(pinned: &[bool], [i, m, j]: [u32; 3]) -> bool {
+    let [i, m, j] = [i, m, j].map(|q| pinned[q as usize]);
+    m && i != j
+}
+
+/// Doubles the constants of the paper's type-2 links that [`spans_clamp`].
 fn clamp_bend_links(bend: &mut [BendLink], middle: &[Option<u32>], pinned: &[bool]) {
     for (link, middle) in bend.iter_mut().zip(middle) {
         let (Some(m), BendLaw::Buckling(law)) = (middle, &mut link.law) else { continue };
-        if pinned[*m as usize] && pinned[link.i as usize] != pinned[link.j as usize] {
+        if spans_clamp(pinned, [link.i, *m, link.j]) {
             *law = BucklingLaw::new(law.rest, 2.0 * law.k_b, 2.0 * law.c_b);
         }
     }
 }
 
-/// Type-2 triples across a clamped edge (middle particle and one end
-/// pinned, the other end free) stand for half the bending of a free one:
-/// their rigidity doubles (see [`crate::material`]).
+/// Doubles the rigidity of the type-2 triples that [`spans_clamp`].
 fn clamp_triples(triples: &mut [BendTriple], pinned: &[bool]) {
-    for t in triples {
-        let [i, m, j] = t.nodes.map(|q| pinned[q as usize]);
-        if m && i != j {
-            t.k_b *= 2.0;
-        }
+    for t in triples.iter_mut().filter(|t| spans_clamp(pinned, t.nodes)) {
+        t.k_b *= 2.0;
     }
 }
 

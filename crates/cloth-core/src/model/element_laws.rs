@@ -221,7 +221,7 @@ pub fn bend_triple_with(x: [Vec3; 3], rest: f64, k_b: f64, hessian: bool) -> Ele
     let law = if r < 1.0 {
         crate::laws::buckling_arc(r * rest, rest, k_b)
     } else {
-        crate::laws::ScalarLaw { energy: 0.0, phi: -12.0 * k_b / (rest * rest), dphi: 7.2 * k_b / rest.powi(3) }
+        crate::laws::buckling_arc_onset(rest, k_b)
     };
     let (de, dde) = (rest * law.phi, rest * rest * law.dphi);
     let u = if d > 0.0 { c / d } else { Vec3::zeros() };

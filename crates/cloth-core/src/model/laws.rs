@@ -22,25 +22,12 @@ pub struct ScalarLaw {
     pub dphi: f64,
 }
 
-/// Tension-only linear spring, Choi & Ko (2002) Eq. 2-3 ("type 1"):
-/// `E = k_s (d - L)^2 / 2`, `phi = k_s (d - L)` for `d >= L`; zero in
-/// compression, where a linear spring's orthogonal stiffness
-/// `k_s (1 - L/d)` would be negative and unbounded.
-///
-/// `d`, `rest` in m; `k_s` in N/m.
-pub fn tension_spring(d: f64, rest: f64, k_s: f64) -> ScalarLaw {
-    if d < rest {
-        return ScalarLaw::default();
-    }
-    let e = d - rest;
-    ScalarLaw { energy: 0.5 * k_s * e * e, phi: k_s * e, dphi: k_s }
-}
-
 /// Type-1 spring with a compressive stiffness of its own:
 /// `E = k (d - L)^2 / 2`, `phi = k (d - L)` with `k = k_s` for `d >= L` and
 /// `k = k_c` below. `k_c = 0` is Choi & Ko's tension-only type-1 spring
-/// (Eq. 2-3, [`tension_spring`]), whose type-2 ramp `c_b (L - d)` (Eq. 11)
-/// holds the membrane's compression. With the arc-path law the type-2
+/// (Eq. 2-3): in compression a linear spring's orthogonal stiffness
+/// `k_s (1 - L/d)` would be negative and unbounded, and their type-2 ramp
+/// `c_b (L - d)` (Eq. 11) holds the membrane's compression. With the arc-path law the type-2
 /// interactions read only curvature
 /// ([`crate::element_laws::bend_triple_with`]) and the type-1 links take
 /// that ramp's role with `k_c = c_b`. `k_c = k_s` is Provot's linear
@@ -154,12 +141,7 @@ pub fn buckling_arc(d: f64, rest: f64, k_b: f64) -> ScalarLaw {
     let g = cos_minus_sinc(t);
     let l2 = rest * rest;
     if t < 1e-6 {
-        // Limits at d -> L: phi = -12 k_b/L^2, dphi = 7.2 k_b / L^3.
-        return ScalarLaw {
-            energy: 0.5 * k_b * rest * kappa * kappa,
-            phi: -12.0 * k_b / l2,
-            dphi: 7.2 * k_b / (l2 * rest),
-        };
+        return ScalarLaw { energy: 0.5 * k_b * rest * kappa * kappa, ..buckling_arc_onset(rest, k_b) };
     }
     // phi = (4 k_b / L^2) t^2 / g, and with dd/dt = L g / t:
     // dphi/dd = (4 k_b / L^3) t^2 (3 g + t sin t) / g^3.
@@ -168,6 +150,13 @@ pub fn buckling_arc(d: f64, rest: f64, k_b: f64) -> ScalarLaw {
         phi: 4.0 * k_b / l2 * t * t / g,
         dphi: 4.0 * k_b / (l2 * rest) * t * t * three_g_plus_t_sin(t) / (g * g * g),
     }
+}
+
+/// The limits of [`buckling_arc`] as `d -> L` from below (zero energy):
+/// `phi = -12 k_b / L^2`, `dphi = 7.2 k_b / L^3`.
+pub fn buckling_arc_onset(rest: f64, k_b: f64) -> ScalarLaw {
+    let l2 = rest * rest;
+    ScalarLaw { energy: 0.0, phi: -12.0 * k_b / l2, dphi: 7.2 * k_b / (l2 * rest) }
 }
 
 /// Choi & Ko's final type-2 law (Eq. 11): the arc force capped by a linear
@@ -361,15 +350,15 @@ mod tests {
             }
         }
         for d in [0.9, 1.0001, 1.3] {
-            let s = tension_spring(d, 1.0, 50.0);
-            assert!((fd(|x| tension_spring(x, 1.0, 50.0).energy, d, 1e-6) - s.phi).abs() < 1e-6);
+            let s = bilinear_spring(d, 1.0, 50.0, 0.0);
+            assert!((fd(|x| bilinear_spring(x, 1.0, 50.0, 0.0).energy, d, 1e-6) - s.phi).abs() < 1e-6);
             let l = linear_spring(d, 1.0, 50.0);
             assert!((fd(|x| linear_spring(x, 1.0, 50.0).energy, d, 1e-6) - l.phi).abs() < 1e-6);
             let b = bilinear_spring(d, 1.0, 50.0, 7.0);
             assert!((fd(|x| bilinear_spring(x, 1.0, 50.0, 7.0).energy, d, 1e-6) - b.phi).abs() < 1e-6);
             assert_eq!(b.dphi, if d < 1.0 { 7.0 } else { 50.0 });
         }
-        assert_eq!(tension_spring(0.9, 1.0, 50.0), ScalarLaw::default());
+        assert_eq!(bilinear_spring(0.9, 1.0, 50.0, 0.0), ScalarLaw::default());
         for d in [0.001, 0.004, 0.0099] {
             let r = repulsion(d, 0.01, 80.0);
             assert!(r.phi < 0.0, "repulsive at {d}");
@@ -414,7 +403,7 @@ mod tests {
             law(d).phi * xij / d
         };
         let laws: [(&dyn Fn(f64) -> ScalarLaw, f64); 2] =
-            [(&|d| tension_spring(d, 0.012, 80.0), 1e-6), (&|d| buckling_ramped(d, rest, 3e-6, 50.0), 1e-5)];
+            [(&|d| bilinear_spring(d, 0.012, 80.0, 0.0), 1e-6), (&|d| buckling_ramped(d, rest, 3e-6, 50.0), 1e-5)];
         for (law, tol) in laws {
             let xij = xj - xi;
             let d = xij.norm();
