@@ -17,8 +17,9 @@ struct Settled {
 }
 
 /// Runs the cantilever fixture as a 10 cm strip at 1 cm spacing with
-/// `model` for its 3 s and checks it has come to rest (every particle
-/// slower than 1e-5 m/s).
+/// `model` for its 3 s and checks it has come to rest: every particle
+/// slower than 5e-5 m/s, so that what is left of its swing (period about
+/// 0.9 s) moves the tip by less than 1e-5 m, 0.02% of its drop.
 fn settle(model: &str) -> Settled {
     settle_at(model, 0.01, &[])
 }
@@ -35,7 +36,7 @@ fn settle_at(model: &str, spacing: f64, extra: &[&str]) -> Settled {
         sim.step(cfg.dt_s).unwrap();
     }
     let speed = sim.state().v.iter().map(|v| v.norm()).fold(0.0, f64::max);
-    assert!(speed < 1e-5, "{model} {extra:?} at {spacing} m: not settled, {speed} m/s");
+    assert!(speed < 5e-5, "{model} {extra:?} at {spacing} m: not settled, {speed} m/s");
     let x = &sim.state().x;
     let [nx, ny] = strip.particles();
     Settled {
@@ -44,19 +45,6 @@ fn settle_at(model: &str, spacing: f64, extra: &[&str]) -> Settled {
         exact_chord_deg: strip.exact(sim.model()).0.chord_angle_deg(),
         rows: (0..ny).map(|j| x[j * nx + nx - 1].z).collect(),
     }
-}
-
-/// Volino's hinges at 1 cm: within 2 degrees of the elastica (measured
-/// 43.07 against 41.49), and the strip does not twist (its edges' tips
-/// level to 1e-9 m). With every cell split along the same diagonal the mesh is
-/// chiral and the tip twisted by 2.5 mm across the 2 cm width; with the
-/// clamp hinge as compliant as a free one the chord was 48.1 degrees.
-#[test]
-fn volino_cantilever_is_level_and_within_two_degrees_at_1_cm() {
-    let s = settle("volino");
-    assert!((s.chord_deg - s.exact_chord_deg).abs() < 2.0, "chord {} deg, exact {}", s.chord_deg, s.exact_chord_deg);
-    let twist = s.rows[0] - s.rows[s.rows.len() - 1];
-    assert!(twist.abs() < 1e-9, "tip twisted: rows at {:?}", s.rows);
 }
 
 /// Choi & Ko's links at 1 cm: the type-2 links across the clamp line count
@@ -79,14 +67,35 @@ fn choi_ko_cantilever_clamp_counts_half_a_link_at_1_cm() {
 /// boundary links counting a full cell it is too stiff, 38.1 and 39.7.
 #[test]
 fn arc_path_cantilever_holds_the_elastica_at_1_and_0_5_cm() {
-    let law = ["simulation.bending_law=\"arc-path\""];
-    let (coarse, fine) = (settle_at("choi-ko", 0.01, &law), settle_at("choi-ko", 0.005, &law));
+    holds_the_elastica_at_1_and_0_5_cm("choi-ko", &["simulation.bending_law=\"arc-path\""], 0.4, 1e-9, 4e-3);
+}
+
+/// Volino's bending triangles (`element_laws::curvature_stiffness`): 41.80
+/// and 41.57 degrees at 1 and 0.5 cm against the exact 41.49 (41.51 at
+/// 0.25 cm, `cloth study bending`), the tip drop at the two spacings
+/// within 0.6% of each other (measured 0.56%). The grid's diagonals all
+/// run one way (the bending triangles need it), so the strip is chiral:
+/// its tip twists by 1.6e-8 m across its 2 cm at 1 cm and 1.5e-8 m at 0.5 cm.
+/// With a hinge per edge instead (the model before issue 10: 0.8 of the
+/// rigidity against a twist) it sagged to 43.1 and 45.2 degrees.
+#[test]
+fn volino_cantilever_holds_the_elastica_at_1_and_0_5_cm() {
+    holds_the_elastica_at_1_and_0_5_cm("volino", &[], 0.4, 2e-8, 6e-3);
+}
+
+/// `model` with `extra` overrides at 1 and 0.5 cm: the chord within
+/// `chord_deg` of the elastica, the tip's rows level to `twist_m`, and the
+/// tip drops at the two spacings within `drop_change` (relative).
+fn holds_the_elastica_at_1_and_0_5_cm(model: &str, extra: &[&str], chord_deg: f64, twist_m: f64, drop_change: f64) {
+    let (coarse, fine) = (settle_at(model, 0.01, extra), settle_at(model, 0.005, extra));
     for (s, spacing) in [(&coarse, 1.0), (&fine, 0.5)] {
         let error = s.chord_deg - s.exact_chord_deg;
-        assert!(error.abs() < 0.4, "{spacing} cm: chord {} deg, exact {}", s.chord_deg, s.exact_chord_deg);
         let twist = s.rows[0] - s.rows[s.rows.len() - 1];
-        assert!(twist.abs() < 1e-9, "{spacing} cm: twisted {:?}", s.rows);
+        println!("{model} {spacing} cm: chord {} deg (exact {}), twist {twist:e} m", s.chord_deg, s.exact_chord_deg);
+        assert!(error.abs() < chord_deg, "{spacing} cm: chord {} deg, exact {}", s.chord_deg, s.exact_chord_deg);
+        assert!(twist.abs() < twist_m, "{spacing} cm: twisted {:?}", s.rows);
     }
     let change = (fine.drop / coarse.drop - 1.0).abs();
-    assert!(change < 4e-3, "tip drop {} m at 1 cm, {} m at 0.5 cm", coarse.drop, fine.drop);
+    println!("{model}: tip drop {} m at 1 cm, {} m at 0.5 cm", coarse.drop, fine.drop);
+    assert!(change < drop_change, "tip drop {} m at 1 cm, {} m at 0.5 cm", coarse.drop, fine.drop);
 }

@@ -325,10 +325,10 @@ fn smallest_cycle_eigenvalue(a: &BlockSparseMatrix, mg: &mut Multigrid) -> f64 {
 }
 
 /// The BDF2 step matrix of a narrow Volino strip (21 x 3 particles at
-/// 0.5 cm, E = 1e4 N/m, B = 1.2e-4 N m, h = 5 ms) at rest: its hinges
-/// (four-node elements) break the links' smoother damping (0.7), the
+/// 0.5 cm, E = 1e4 N/m, B = 1.2e-4 N m, h = 5 ms) at rest: its bending
+/// triangles (six-node elements) break the links' smoother damping (0.7), the
 /// cycle is indefinite and PCG stops with "preconditioner not positive
-/// definite"; damped for four-node elements (`ClothModel::multigrid`) the
+/// definite"; damped for six-node elements (`ClothModel::multigrid`) the
 /// cycle is positive definite (proof in `cloth_linalg::multigrid`) and
 /// PCG agrees with block-Jacobi.
 #[test]
@@ -361,15 +361,15 @@ fn multigrid_damped_for_its_elements_stays_positive_definite() {
     };
     let links = solve_with(model.multigrid().for_element_size(2));
     assert!(matches!(links, Err(PcgError::PreconditionerNotPositive { .. })), "{links:?}");
-    let x = solve_with(model.multigrid()).expect("the cycle damped for hinges is positive definite");
+    let x = solve_with(model.multigrid()).expect("the cycle damped for its elements is positive definite");
     let (reference, _) = solve(a, &b, &filter, PreconditionerKind::BlockJacobi);
     let err = max_rel_diff(&x, &reference);
     assert!(err < 1e-8, "multigrid vs block-Jacobi: {err:e}");
-    let (mut hinges, mut links) = (model.multigrid(), model.multigrid().for_element_size(2));
-    hinges.update(a);
+    let (mut elements, mut links) = (model.multigrid(), model.multigrid().for_element_size(2));
+    elements.update(a);
     links.update(a);
-    let (with_hinges, with_links) =
-        (smallest_cycle_eigenvalue(a, &mut hinges), smallest_cycle_eigenvalue(a, &mut links));
-    println!("smallest eigenvalue of the cycle: damped for hinges {with_hinges:e}, for links {with_links:e}");
-    assert!(with_hinges > 0.0 && with_links < 0.0);
+    let (with_elements, with_links) =
+        (smallest_cycle_eigenvalue(a, &mut elements), smallest_cycle_eigenvalue(a, &mut links));
+    println!("smallest eigenvalue of the cycle: damped for its elements {with_elements:e}, for links {with_links:e}");
+    assert!(with_elements > 0.0 && with_links < 0.0);
 }

@@ -47,7 +47,7 @@ pub use model::{
 pub use pins::{Pin, PinMotion};
 pub use sim::Simulation;
 pub use state::ClothState;
-pub use topology::{GridPanel, LinkType, PanelError, PanelMesh};
+pub use topology::{Diagonals, GridPanel, LinkType, PanelError, PanelMesh};
 pub use wind::{Wind, WindProfile};
 
 /// A 3-vector of `f64`.

@@ -177,7 +177,7 @@ impl Multigrid {
 
     /// Sets the smoother's damping for a matrix assembled from PSD element
     /// matrices of at most `nodes` nodes each (2 for links, 3 for
-    /// triangles, 4 for hinges): `omega = 0.7 * 2 / nodes`, which keeps
+    /// triangles, 6 for Volino's bending triangles): `omega = 0.7 * 2 / nodes`, which keeps
     /// the cycle positive definite (see [`OMEGA`]); the default is links.
     pub fn for_element_size(mut self, nodes: usize) -> Self {
         self.omega = OMEGA * 2.0 / nodes.max(2) as f64;

@@ -2,8 +2,8 @@
 //! effects a scene asked for, and the system matrix's sparsity pattern.
 
 use crate::colliders::{Collider, CollisionSpec, SelfCollision};
-use crate::element_laws::{TriangleRest, dihedral_angle};
-use crate::elements::{BendTriple, ElementSet, HingeElement, MembraneElement};
+use crate::element_laws::{EdgeSupport, TriangleRest, curvature_stiffness, dihedral_angle};
+use crate::elements::{BendTriple, CurvatureElement, ElementSet, MembraneElement};
 use crate::material::PATH_CURVATURE_FACTOR;
 use crate::{
     GridPanel, LinkType, Material, Pin, PinMotion, Vec3, Wind,
@@ -171,7 +171,7 @@ pub enum ModelKind {
     /// compression) and linear flexion springs on `i+2`, `j+2`.
     Provot,
     /// Volino & Magnenat-Thalmann (2001), "accurate" model: a linear
-    /// orthotropic membrane on the triangles and dihedral bending hinges;
+    /// orthotropic membrane on the triangles and a bending element per triangle;
     /// the `damping` effect acts along the type-1 links.
     Volino,
 }
@@ -383,10 +383,17 @@ impl ClothModel {
         let mut panels = Vec::new();
         let mut triangles = Vec::new();
         let mut elements = ElementSet::default();
+        let mut bending_triangles = Vec::new();
         let mut drag = Vec::new();
         let damping = spec.effects.damping;
         for (p, panel) in spec.panels.iter().enumerate() {
-            let mesh = panel.mesh().map_err(|(field, message)| ModelError::Panel { panel: p, field, message })?;
+            let diagonals =
+                if spec.kind == ModelKind::Volino { crate::Diagonals::Uniform } else { crate::Diagonals::Alternating };
+            let mesh = panel.mesh_with(diagonals).map_err(|(field, message)| ModelError::Panel {
+                panel: p,
+                field,
+                message,
+            })?;
             let offset = mass.len();
             let at = |k: u32| offset as u32 + k;
             let rest_of = |[a, b]: [u32; 2]| (mesh.positions[b as usize] - mesh.positions[a as usize]).norm();
@@ -427,10 +434,12 @@ impl ClothModel {
             if spec.kind == ModelKind::Volino {
                 let (_, v_axis, _) =
                     panel.frame().map_err(|(field, message)| ModelError::Panel { panel: p, field, message })?;
-                let elems = volino_elements(&mesh, &spec.material, v_axis, spec.effects.bending, offset as u32)
-                    .ok_or_else(degenerate_err)?;
-                elements.membranes.extend(elems.membranes);
-                elements.hinges.extend(elems.hinges);
+                let (membranes, triangles) =
+                    volino_elements(&mesh, &spec.material, v_axis, p, offset as u32).ok_or_else(degenerate_err)?;
+                elements.membranes.extend(membranes);
+                if spec.effects.bending {
+                    bending_triangles.extend(triangles);
+                }
             } else if spec.effects.bending {
                 let links = if spec.kind == ModelKind::Provot { &mesh.flexion } else { &mesh.interlaced };
                 for link in links {
@@ -468,7 +477,13 @@ impl ClothModel {
         let (pins, pinned) = build_pins(spec, &panels, &rest_positions)?;
         clamp_bend_links(&mut bend, &bend_middle, &pinned);
         clamp_triples(&mut elements.triples, &pinned);
-        clamp_hinges(&mut elements.hinges, &rest_positions, &pinned);
+        elements.curvatures =
+            curvature_elements(&bending_triangles, &rest_positions, &pinned, spec.material.flexural_rigidity_n_m)
+                .map_err(|panel| ModelError::Panel {
+                    panel,
+                    field: "size_m",
+                    message: "a bending triangle is degenerate".into(),
+                })?;
         if spec.effects.wind || spec.effects.aerodynamics {
             let wind = spec.wind.as_ref().ok_or(ModelError::Wind {
                 field: "profile",
@@ -663,7 +678,7 @@ impl ClothModel {
     pub fn has_drag(&self) -> bool {
         !self.drag.is_empty()
     }
-    /// Membrane triangles and hinges (Volino model; empty otherwise).
+    /// Membrane and bending triangles (Volino model; empty otherwise).
     pub fn elements(&self) -> &ElementSet {
         &self.elements
     }
@@ -684,7 +699,7 @@ impl ClothModel {
     /// iterations than 3 x 3 for the same work on the 75 x 75 hanging
     /// cloth: 22 vs 28), down to at most 40 nodes solved densely. The
     /// smoother is damped for the largest element (links 2, triangles and
-    /// Choi & Ko's triples 3, hinges 4 nodes), so the cycle is positive
+    /// Choi & Ko's triples 3, bending triangles 6 nodes), so the cycle is positive
     /// definite.
     pub fn multigrid(&self) -> Multigrid {
         let nodes = self.elements().largest_element().max(2);
@@ -793,72 +808,90 @@ fn clamp_triples(triples: &mut [BendTriple], pinned: &[bool]) {
     }
 }
 
-/// A hinge between a triangle whose corners are all pinned and a free one
-/// bends only on the free side: its stiffness `B |e|^2 / (A_1 + A_2)`
-/// becomes `B |e|^2 / A_free`. Without it the clamp line of Peirce's
-/// cantilever is as compliant as a cell's width of free cloth.
-fn clamp_hinges(hinges: &mut [HingeElement], rest: &[Vec3], pinned: &[bool]) {
-    let area = |t: [u32; 3]| {
-        let x = t.map(|q| rest[q as usize]);
-        0.5 * (x[1] - x[0]).cross(&(x[2] - x[0])).norm()
-    };
-    for h in hinges {
-        let [a, b, o1, o2] = h.nodes;
-        let is_pinned = |q: u32| pinned[q as usize];
-        if is_pinned(a) && is_pinned(b) && is_pinned(o1) != is_pinned(o2) {
-            let (a1, a2) = (area([a, b, o1]), area([b, a, o2]));
-            let free = if is_pinned(o1) { a2 } else { a1 };
-            h.k *= (a1 + a2) / free;
+/// A bending triangle before the pins are known: its corners and the
+/// corner across each edge (None on a free edge), as global indices.
+#[derive(Debug, Clone, Copy)]
+struct BendingTriangle {
+    panel: usize,
+    corners: [u32; 3],
+    across: [Option<u32>; 3],
+}
+
+/// Volino's bending elements, once the pins are known: a triangle whose
+/// corners are all pinned bends nowhere and has none; an edge it shares
+/// with a free triangle is a clamp there (the mid-edge slope is the
+/// clamp's: [`EdgeSupport::Clamped`]). Without that the clamp line of
+/// Peirce's cantilever is as compliant as a cell's width of free cloth.
+/// Err(panel) if a triangle of that panel is degenerate.
+fn curvature_elements(
+    triangles: &[BendingTriangle],
+    rest: &[Vec3],
+    pinned: &[bool],
+    b: f64,
+) -> Result<Vec<CurvatureElement>, usize> {
+    let is_pinned = |q: u32| pinned[q as usize];
+    let mut out = Vec::with_capacity(triangles.len());
+    for t in triangles.iter().filter(|t| !t.corners.iter().all(|&q| is_pinned(q))) {
+        let c = t.corners;
+        let support: [EdgeSupport; 3] = std::array::from_fn(|k| match t.across[k] {
+            None => EdgeSupport::Free,
+            Some(o) if is_pinned(o) && is_pinned(c[(k + 1) % 3]) && is_pinned(c[(k + 2) % 3]) => EdgeSupport::Clamped,
+            Some(_) => EdgeSupport::Shared,
+        });
+        let stiffness = curvature_stiffness(c.map(|q| rest[q as usize]), support, b).ok_or(t.panel)?;
+        if stiffness == crate::Mat3::zeros() {
+            continue;
         }
+        // A free edge's neighbour slot repeats the opposite corner (never evaluated).
+        let nodes =
+            [c[0], c[1], c[2], t.across[0].unwrap_or(c[0]), t.across[1].unwrap_or(c[1]), t.across[2].unwrap_or(c[2])];
+        let x = nodes.map(|q| rest[q as usize]);
+        let rest_angles = std::array::from_fn(|k| match t.across[k] {
+            Some(_) => dihedral_angle(&[x[(k + 1) % 3], x[(k + 2) % 3], x[k], x[3 + k]]),
+            None => 0.0,
+        });
+        out.push(CurvatureElement { nodes, rest_angles, stiffness });
     }
+    Ok(out)
 }
 
 /// Volino's elements for one panel mesh (local indices shifted by `offset`):
 /// a membrane per triangle, with rest (u, v) coordinates in the triangle's
 /// plane along the panel's weft axis `v_axis` (so warp and weft keep their
-/// directions on curved rest shapes), and, with `bending`, a hinge per
-/// interior edge with stiffness `k = B |e|^2 / (A_1 + A_2)`. On the grid's
-/// right triangles, rolling the sheet into a cylinder of curvature `kappa`
-/// about either axis then stores 0.95 of the plate energy `B kappa^2 / 2`
-/// per unit area (measured in the tests).
+/// directions on curved rest shapes), and each triangle with its
+/// neighbours for bending ([`curvature_elements`]).
 /// None if a triangle is degenerate.
 fn volino_elements(
     mesh: &crate::PanelMesh,
     material: &Material,
     v_axis: Vec3,
-    bending: bool,
+    panel: usize,
     offset: u32,
-) -> Option<ElementSet> {
+) -> Option<(Vec<MembraneElement>, Vec<BendingTriangle>)> {
     use nalgebra::Vector2;
     let c = material.membrane_stiffness();
     let p = &mesh.positions;
-    let mut set = ElementSet::default();
+    let mut membranes = Vec::with_capacity(mesh.triangles.len());
     for t in &mesh.triangles {
         let x = t.map(|k| p[k as usize]);
         let normal = (x[1] - x[0]).cross(&(x[2] - x[0]));
         let e2 = (v_axis - normal * (normal.dot(&v_axis) / normal.norm_squared())).try_normalize(1e-12)?;
         let e1 = e2.cross(&normal).try_normalize(1e-12)?;
         let uv = x.map(|q| Vector2::new((q - x[0]).dot(&e1), (q - x[0]).dot(&e2)));
-        set.membranes.push(MembraneElement { nodes: t.map(|k| k + offset), rest: TriangleRest::new(uv, c)? });
+        membranes.push(MembraneElement { nodes: t.map(|k| k + offset), rest: TriangleRest::new(uv, c)? });
     }
-    if bending {
-        // Each interior edge appears as (a, b) in one triangle and (b, a) in its neighbour.
-        let mut by_edge = std::collections::HashMap::new();
-        for (ti, t) in mesh.triangles.iter().enumerate() {
-            for k in 0..3 {
-                by_edge.insert((t[k], t[(k + 1) % 3]), (ti, t[(k + 2) % 3]));
-            }
-        }
-        let mut edges: Vec<_> = by_edge.iter().filter(|((a, b), _)| a < b).collect();
-        edges.sort_unstable_by_key(|(e, _)| **e);
-        for (&(a, b), &(t1, o1)) in edges {
-            let Some(&(t2, o2)) = by_edge.get(&(b, a)) else { continue };
-            let nodes = [a, b, o1, o2];
-            let x = nodes.map(|k| p[k as usize]);
-            let area = |t: usize| set.membranes[t].rest.area;
-            let k = material.flexural_rigidity_n_m * (x[1] - x[0]).norm_squared() / (area(t1) + area(t2));
-            set.hinges.push(HingeElement { nodes: nodes.map(|q| q + offset), rest_angle: dihedral_angle(&x), k });
-        }
-    }
-    Some(set)
+    // Each interior edge appears as (a, b) in one triangle and (b, a) in its neighbour.
+    let opposite: std::collections::HashMap<(u32, u32), u32> =
+        mesh.triangles.iter().flat_map(|t| (0..3).map(move |k| ((t[k], t[(k + 1) % 3]), t[(k + 2) % 3]))).collect();
+    let bending = mesh
+        .triangles
+        .iter()
+        .map(|t| BendingTriangle {
+            panel,
+            corners: t.map(|q| q + offset),
+            // Edge k runs from corner k+1 to corner k+2; the neighbour has it reversed.
+            across: std::array::from_fn(|k| opposite.get(&(t[(k + 2) % 3], t[(k + 1) % 3])).map(|o| o + offset)),
+        })
+        .collect();
+    Some((membranes, bending))
 }

@@ -1,4 +1,4 @@
-//! Multi-particle elements (Volino's membrane triangles and bending hinges,
+//! Multi-particle elements (Volino's membrane and bending triangles,
 //! Choi & Ko's type-2 bending triples) and the drivers that fold them into forces and the system matrix.
 //!
 //! Each element adds `f_a` to its corners and `H_ab` (a PSD approximation of
@@ -8,7 +8,7 @@
 //! its elements in a fixed order, as for links.
 
 use crate::element_laws::{
-    ElementResponse, TriangleRest, bend_triple_with, hinge_bending_with, membrane_triangle_with,
+    ElementResponse, TriangleRest, bend_triple_with, curvature_bending_with, membrane_triangle_with,
 };
 use crate::{Mat3, Vec3};
 use cloth_linalg::{BlockPattern, ROW_CHUNK};
@@ -23,16 +23,17 @@ pub struct MembraneElement {
     pub rest: TriangleRest,
 }
 
-/// A bending hinge: corners 0-1 are the shared edge, 2 and 3 the opposite
-/// corners of triangles `(0, 1, 2)` and `(1, 0, 3)`.
+/// A bending triangle ([`curvature_bending_with`]): corners 0, 1, 2, then
+/// the corners across edges 0, 1, 2 (a free edge repeats the opposite
+/// corner of the triangle; its row of `stiffness` is zero).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct HingeElement {
+pub struct CurvatureElement {
     /// Corners.
-    pub nodes: [u32; 4],
-    /// Rest dihedral angle, rad.
-    pub rest_angle: f64,
-    /// Stiffness `k` of `E = k (theta - theta_0)^2 / 2`, N m.
-    pub k: f64,
+    pub nodes: [u32; 6],
+    /// Rest dihedral angles at the three edges, rad.
+    pub rest_angles: [f64; 3],
+    /// `M` of `E = d^T M d / 2`, N m ([`crate::element_laws::curvature_stiffness`]).
+    pub stiffness: Mat3,
 }
 
 /// A type-2 interaction of Choi & Ko's model read against the path through
@@ -51,7 +52,7 @@ pub struct BendTriple {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Kind {
     Membrane,
-    Hinge,
+    Curvature,
     Triple,
 }
 
@@ -68,27 +69,27 @@ struct Corner {
 pub struct ElementSet {
     /// Membrane triangles (Volino).
     pub membranes: Vec<MembraneElement>,
-    /// Bending hinges (Volino).
-    pub hinges: Vec<HingeElement>,
+    /// Bending triangles (Volino).
+    pub curvatures: Vec<CurvatureElement>,
     /// Type-2 bending triples (Choi & Ko).
     pub triples: Vec<BendTriple>,
     inc_ptr: Vec<usize>,
     inc: Vec<Corner>,
     membrane_slots: Vec<[[u32; 3]; 3]>,
-    hinge_slots: Vec<[[u32; 4]; 4]>,
+    curvature_slots: Vec<[[u32; 6]; 6]>,
     triple_slots: Vec<[[u32; 3]; 3]>,
 }
 
 impl ElementSet {
     /// Whether there is no element (Provot's model).
     pub fn is_empty(&self) -> bool {
-        self.membranes.is_empty() && self.hinges.is_empty() && self.triples.is_empty()
+        self.membranes.is_empty() && self.curvatures.is_empty() && self.triples.is_empty()
     }
 
     /// Most corners of any element present (0 when empty).
     pub fn largest_element(&self) -> usize {
-        if !self.hinges.is_empty() {
-            4
+        if !self.curvatures.is_empty() {
+            6
         } else if self.membranes.is_empty() && self.triples.is_empty() {
             0
         } else {
@@ -98,7 +99,7 @@ impl ElementSet {
 
     fn node_lists(&self) -> impl Iterator<Item = (Kind, usize, &[u32])> {
         let m = self.membranes.iter().enumerate().map(|(e, m)| (Kind::Membrane, e, &m.nodes[..]));
-        let h = self.hinges.iter().enumerate().map(|(e, h)| (Kind::Hinge, e, &h.nodes[..]));
+        let h = self.curvatures.iter().enumerate().map(|(e, h)| (Kind::Curvature, e, &h.nodes[..]));
         let t = self.triples.iter().enumerate().map(|(e, t)| (Kind::Triple, e, &t.nodes[..]));
         m.chain(h).chain(t)
     }
@@ -139,7 +140,7 @@ impl ElementSet {
             std::array::from_fn(|a| std::array::from_fn(|b| slot(nodes[a], nodes[b])))
         }
         self.membrane_slots = self.membranes.iter().map(|m| slots(&m.nodes, pattern)).collect();
-        self.hinge_slots = self.hinges.iter().map(|h| slots(&h.nodes, pattern)).collect();
+        self.curvature_slots = self.curvatures.iter().map(|h| slots(&h.nodes, pattern)).collect();
         self.triple_slots = self.triples.iter().map(|t| slots(&t.nodes, pattern)).collect();
     }
 
@@ -213,7 +214,7 @@ impl<const K: usize> KindBuffers<K> {
 #[derive(Debug, Clone, Default)]
 pub struct ElementBuffers {
     membranes: KindBuffers<3>,
-    hinges: KindBuffers<4>,
+    curvatures: KindBuffers<6>,
     triples: KindBuffers<3>,
 }
 
@@ -222,7 +223,7 @@ impl ElementBuffers {
     pub fn new(set: &ElementSet) -> Self {
         Self {
             membranes: KindBuffers::new(set.membranes.len()),
-            hinges: KindBuffers::new(set.hinges.len()),
+            curvatures: KindBuffers::new(set.curvatures.len()),
             triples: KindBuffers::new(set.triples.len()),
         }
     }
@@ -268,10 +269,10 @@ pub fn evaluate(
         force,
         k_times,
     );
-    bufs.hinges.evaluate(
-        &set.hinges,
+    bufs.curvatures.evaluate(
+        &set.curvatures,
         |e| e.nodes,
-        |e, h| hinge_bending_with(e.nodes.map(|p| x[p as usize]), e.rest_angle, e.k, h),
+        |e, h| curvature_bending_with(e.nodes.map(|p| x[p as usize]), e.rest_angles, &e.stiffness, h),
         c_x,
         force,
         k_times,
@@ -293,7 +294,7 @@ pub fn rhs_at(set: &ElementSet, bufs: &ElementBuffers, i: usize) -> Vec3 {
         let (e, a) = (c.elem as usize, c.corner as usize);
         acc += match c.kind {
             Kind::Membrane => bufs.membranes.rhs[e].rhs[a],
-            Kind::Hinge => bufs.hinges.rhs[e].rhs[a],
+            Kind::Curvature => bufs.curvatures.rhs[e].rhs[a],
             Kind::Triple => bufs.triples.rhs[e].rhs[a],
         };
     }
@@ -311,7 +312,7 @@ pub fn add_row(set: &ElementSet, bufs: &ElementBuffers, i: usize, row: &mut [Mat
         let (e, a) = (c.elem as usize, c.corner as usize);
         match c.kind {
             Kind::Membrane => add(&set.membrane_slots[e][a], &bufs.membranes.blocks[e][a], row),
-            Kind::Hinge => add(&set.hinge_slots[e][a], &bufs.hinges.blocks[e][a], row),
+            Kind::Curvature => add(&set.curvature_slots[e][a], &bufs.curvatures.blocks[e][a], row),
             Kind::Triple => add(&set.triple_slots[e][a], &bufs.triples.blocks[e][a], row),
         }
     }
@@ -328,7 +329,7 @@ pub fn apply_at(set: &ElementSet, bufs: &ElementBuffers, i: usize, w: &[Vec3], s
         let (e, a) = (c.elem as usize, c.corner as usize);
         acc += match c.kind {
             Kind::Membrane => apply(&set.membranes[e].nodes, &bufs.membranes.blocks[e][a], w, s),
-            Kind::Hinge => apply(&set.hinges[e].nodes, &bufs.hinges.blocks[e][a], w, s),
+            Kind::Curvature => apply(&set.curvatures[e].nodes, &bufs.curvatures.blocks[e][a], w, s),
             Kind::Triple => apply(&set.triples[e].nodes, &bufs.triples.blocks[e][a], w, s),
         };
     }
@@ -337,5 +338,5 @@ pub fn apply_at(set: &ElementSet, bufs: &ElementBuffers, i: usize, w: &[Vec3], s
 
 /// Total element energy of the last [`evaluate`], J.
 pub fn energy(bufs: &ElementBuffers) -> f64 {
-    bufs.membranes.energy() + bufs.hinges.energy() + bufs.triples.energy()
+    bufs.membranes.energy() + bufs.curvatures.energy() + bufs.triples.energy()
 }

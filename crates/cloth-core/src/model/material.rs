@@ -56,8 +56,12 @@
 //! Volino's accurate model uses the continuum constants directly: the
 //! membrane's orthotropic plane-stress stiffness from the warp and weft
 //! moduli (default `E`), shear modulus (default `E / (2 (1 + nu))`) and
-//! Poisson ratio (default 0.3), and hinges of stiffness
-//! `k = B |e|^2 / (A_1 + A_2)` on the interior edges.
+//! Poisson ratio (default 0.3), and a bending element per triangle whose
+//! curvature tensor comes from the dihedral angles at its three edges,
+//! storing the plate energy `B |kappa|^2 / 2` per unit area
+//! ([`crate::element_laws::curvature_stiffness`]: exact for every quadratic
+//! deflection of the grid; Peirce's cantilever 41.80 / 41.57 / 41.51
+//! degrees at 1 / 0.5 / 0.25 cm against the exact 41.49).
 
 use serde::{Deserialize, Serialize};
 

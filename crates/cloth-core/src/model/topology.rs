@@ -104,6 +104,20 @@ pub const INTERLACED_BOUNDARY_SHARE: f64 = 0.75;
 /// Why a panel is not a valid grid: the field and the reason.
 pub type PanelError = (&'static str, String);
 
+/// How a grid panel splits its cells into triangles.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Diagonals {
+    /// Alternating like a checkerboard: the mesh has the grid's mirror
+    /// symmetries (the triangles Choi & Ko's and Provot's models collide,
+    /// catch wind and draw with).
+    Alternating,
+    /// All from corner (i, j) to (i + 1, j + 1): every two triangles that
+    /// share an edge form a parallelogram, which Volino's bending triangles
+    /// need to read every curvature, twist included, exactly
+    /// ([`crate::element_laws::curvature_stiffness`]).
+    Uniform,
+}
+
 impl GridPanel {
     /// Number of particles.
     pub fn len(&self) -> usize {
@@ -166,9 +180,14 @@ impl GridPanel {
         (self.size_m[0] / cols as f64, self.size_m[1] / (ny - 1) as f64)
     }
 
-    /// Generates positions, area shares, links and triangles. Call
-    /// [`GridPanel::validate`] first.
+    /// Generates positions, area shares, links and triangles (diagonals
+    /// alternating like a checkerboard). Call [`GridPanel::validate`] first.
     pub fn mesh(&self) -> Result<PanelMesh, PanelError> {
+        self.mesh_with(Diagonals::Alternating)
+    }
+
+    /// [`GridPanel::mesh`] with the cells split along `diagonals`.
+    pub fn mesh_with(&self, diagonals: Diagonals) -> Result<PanelMesh, PanelError> {
         self.validate()?;
         let (u, v, n) = self.frame()?;
         let [nx, ny] = self.particles;
@@ -245,11 +264,7 @@ impl GridPanel {
                 for p in [a, b, c, d] {
                     area_share[p as usize] += 0.25 * cell_area;
                 }
-                // Diagonals alternate like a checkerboard: with all of them
-                // one way the mesh is chiral, and a strip bent along u
-                // twists (the dihedral hinges couple bending and twist),
-                // which made Volino's Peirce cantilever 15% too soft.
-                if (i + j) % 2 == 0 {
+                if diagonals == Diagonals::Uniform || (i + j) % 2 == 0 {
                     triangles.push([a, b, c]);
                     triangles.push([a, c, d]);
                 } else {
