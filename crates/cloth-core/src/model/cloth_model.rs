@@ -2,7 +2,7 @@
 //! effects a scene asked for, and the system matrix's sparsity pattern.
 
 use crate::colliders::{Collider, CollisionSpec, SelfCollision};
-use crate::element_laws::{EdgeSupport, TriangleRest, curvature_stiffness, dihedral_angle};
+use crate::element_laws::{EdgeSupport, TriangleRest, curvature_stiffness, dihedral_angle, edge_hinge};
 use crate::elements::{BendTriple, CurvatureElement, ElementSet, MembraneElement};
 use crate::material::PATH_CURVATURE_FACTOR;
 use crate::{
@@ -386,9 +386,10 @@ impl ClothModel {
         let mut bending_triangles = Vec::new();
         let mut drag = Vec::new();
         let damping = spec.effects.damping;
+        // Volino's bending triangles need every adjacent pair to be a parallelogram.
+        let diagonals =
+            if spec.kind == ModelKind::Volino { crate::Diagonals::Uniform } else { crate::Diagonals::Alternating };
         for (p, panel) in spec.panels.iter().enumerate() {
-            let diagonals =
-                if spec.kind == ModelKind::Volino { crate::Diagonals::Uniform } else { crate::Diagonals::Alternating };
             let mesh = panel.mesh_with(diagonals).map_err(|(field, message)| ModelError::Panel {
                 panel: p,
                 field,
@@ -847,7 +848,7 @@ fn curvature_elements(
             [c[0], c[1], c[2], t.across[0].unwrap_or(c[0]), t.across[1].unwrap_or(c[1]), t.across[2].unwrap_or(c[2])];
         let x = nodes.map(|q| rest[q as usize]);
         let rest_angles = std::array::from_fn(|k| match t.across[k] {
-            Some(_) => dihedral_angle(&[x[(k + 1) % 3], x[(k + 2) % 3], x[k], x[3 + k]]),
+            Some(_) => dihedral_angle(&edge_hinge(k).map(|a| x[a])),
             None => 0.0,
         });
         out.push(CurvatureElement { nodes, rest_angles, stiffness });

@@ -233,12 +233,19 @@ pub fn curvature_stiffness(corners: [Vec3; 3], support: [EdgeSupport; 3], b: f64
     }))
 }
 
+/// The hinge ([`dihedral_angle`]'s corner order) of edge `k` of a bending
+/// element's six corners ([`curvature_bending_with`]): the edge's ends
+/// `k+1`, `k+2`, the triangle's corner `k`, the neighbour's corner `3+k`,
+/// so that every edge's angle is signed against the triangle's normal.
+pub fn edge_hinge(k: usize) -> [usize; 4] {
+    [(k + 1) % 3, (k + 2) % 3, k, 3 + k]
+}
+
 /// Volino's bending element: a triangle (corners 0, 1, 2) and the corners
 /// 3, 4, 5 of its neighbours across edges 0, 1, 2 (edge `k` is opposite
 /// corner `k`). Energy `E = d^T M d / 2` with `d_k = theta_k - theta_0k`
-/// the change of the dihedral angle at edge `k` ([`dihedral_angle`] of the
-/// hinge `(k+1, k+2, k, 3+k)`, so all three are signed against this
-/// triangle's normal) and `M` from [`curvature_stiffness`]; forces
+/// the change of the dihedral angle at edge `k` ([`dihedral_angle`] of
+/// [`edge_hinge`]`(k)`) and `M` from [`curvature_stiffness`]; forces
 /// `-sum_k (M d)_k grad theta_k`; matrix `J^T M J` with the rows
 /// `J_k = grad theta_k` (Gauss-Newton: PSD, exact at the rest shape).
 /// An edge whose row of `M` is zero (a free edge) is not evaluated: its
@@ -247,7 +254,7 @@ pub fn curvature_bending_with(x: [Vec3; 6], rest_angles: [f64; 3], m: &Mat3, hes
     let mut d = Vector3::zeros();
     let mut grads = [[Vec3::zeros(); 6]; 3];
     for k in (0..3).filter(|&k| m[(k, k)] != 0.0) {
-        let hinge = [(k + 1) % 3, (k + 2) % 3, k, 3 + k];
+        let hinge = edge_hinge(k);
         let corners = hinge.map(|a| x[a]);
         d[k] = dihedral_angle(&corners) - rest_angles[k];
         for (g, &a) in dihedral_gradient(&corners).iter().zip(&hinge) {

@@ -99,9 +99,9 @@ impl ElementSet {
 
     fn node_lists(&self) -> impl Iterator<Item = (Kind, usize, &[u32])> {
         let m = self.membranes.iter().enumerate().map(|(e, m)| (Kind::Membrane, e, &m.nodes[..]));
-        let h = self.curvatures.iter().enumerate().map(|(e, h)| (Kind::Curvature, e, &h.nodes[..]));
+        let c = self.curvatures.iter().enumerate().map(|(e, c)| (Kind::Curvature, e, &c.nodes[..]));
         let t = self.triples.iter().enumerate().map(|(e, t)| (Kind::Triple, e, &t.nodes[..]));
-        m.chain(h).chain(t)
+        m.chain(c).chain(t)
     }
 
     /// Every coupled pair of particles, for the sparsity pattern.
@@ -140,7 +140,7 @@ impl ElementSet {
             std::array::from_fn(|a| std::array::from_fn(|b| slot(nodes[a], nodes[b])))
         }
         self.membrane_slots = self.membranes.iter().map(|m| slots(&m.nodes, pattern)).collect();
-        self.curvature_slots = self.curvatures.iter().map(|h| slots(&h.nodes, pattern)).collect();
+        self.curvature_slots = self.curvatures.iter().map(|c| slots(&c.nodes, pattern)).collect();
         self.triple_slots = self.triples.iter().map(|t| slots(&t.nodes, pattern)).collect();
     }
 
