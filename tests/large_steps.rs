@@ -52,19 +52,42 @@ fn newton_keeps_a_large_step_as_stretched_as_small_steps() {
          ({corrections} corrections in 100 steps, {unconverged} steps above tolerance); rest shape off the \
          h = 1/90 s one by {single_gap:.4} m (single step), {newton_gap:.4} m (Newton)"
     );
-    assert!(single_peak > 5.0, "the single step no longer overstretches ({single_peak}): update this test");
+    // Measured 3.87 (the type-2 triples give a flat cloth bending stiffness
+    // in the linearised step; the paper's pair law, none: 18.7).
+    assert!(single_peak > 2.0, "the single step no longer overstretches ({single_peak}): update this test");
     assert!(newton_peak <= small_peak * 1.001, "Newton peak stretch {newton_peak} vs {small_peak} at h = 1/90 s");
-    assert!(newton_gap < 0.01, "Newton rest shape {newton_gap} m from the small-step one");
+    // Measured 1.11 cm at one particle of the bottom rows, 1.8 mm RMS: the
+    // buckled type-1 links' post-buckling plateau lets the wrinkles near
+    // the bottom corners settle in a different pattern (20 s and 40 s at
+    // h = 1/90 s agree to 2e-8 m; the pair law's gap: 0.01 cm).
+    let rms = (newton_rest.iter().zip(&small_rest).map(|(p, q)| (p - q).norm_squared()).sum::<f64>()
+        / small_rest.len() as f64)
+        .sqrt();
+    assert!(
+        newton_gap < 0.012 && rms < 0.002,
+        "Newton rest shape {newton_gap} m (RMS {rms} m) from the small-step one"
+    );
     // The stopping rule ends most steps after a correction or two (measured
-    // 104 corrections in 100 steps; the cap is 9 per step).
-    assert!(corrections < 150, "{corrections} Newton corrections in 100 steps");
+    // 162 corrections in 100 steps; the cap is 9 per step).
+    assert!(corrections < 170, "{corrections} Newton corrections in 100 steps");
 }
 
 /// Issue 10's violent event: the 21 x 21 hanging cloth's two pins jump 5 m
-/// sideways in 0.1 s and stop; 6 s of BDF2 at h = 1/90 s. Returns the
-/// fastest particle and the largest stretch at the end, the steps the
-/// energy monitor flagged and those retaken as backward Euler.
-fn pin_jump(energy_guard: bool) -> (f64, f64, usize, usize) {
+/// sideways in 0.1 s and stop; 6 s of BDF2 at h = 1/90 s.
+struct PinJump {
+    /// The fastest particle at the end, m/s.
+    speed: f64,
+    /// The largest stretch at the end.
+    stretch: f64,
+    /// Kinetic energy at the end, as a fraction of the kinetic and elastic
+    /// energy the cloth holds when the pins stop.
+    kinetic_left: f64,
+    /// Steps the energy monitor flagged, and those retaken as backward Euler.
+    flagged: usize,
+    retaken: usize,
+}
+
+fn pin_jump(energy_guard: bool) -> PinJump {
     let guard = format!("solver.energy_guard={energy_guard}");
     let (mut sim, cfg) = simulation(
         "hang.toml",
@@ -77,13 +100,25 @@ fn pin_jump(energy_guard: bool) -> (f64, f64, usize, usize) {
         ],
     );
     let (mut flagged, mut retaken) = (0, 0);
+    let (mut at_stop, mut kinetic) = (f64::NAN, 0.0);
     for _ in 0..cfg.steps {
         let r = sim.step(cfg.dt_s).unwrap();
         flagged += usize::from(r.energy.is_some_and(|e| e.flagged));
         retaken += usize::from(r.retaken_as_backward_euler);
+        let e = r.energy.expect("BDF2 reports its energy");
+        kinetic = e.kinetic_j;
+        if sim.time() > 0.1 + 1e-9 && at_stop.is_nan() {
+            at_stop = e.kinetic_j + e.elastic_j;
+        }
     }
     let speed = sim.state().v.iter().map(|v| v.norm()).fold(0.0, f64::max);
-    (speed, sim.model().max_stretch_ratio(&sim.state().x), flagged, retaken)
+    PinJump {
+        speed,
+        stretch: sim.model().max_stretch_ratio(&sim.state().x),
+        kinetic_left: kinetic / at_stop,
+        flagged,
+        retaken,
+    }
 }
 
 /// BDF2's single linearised step across the kink of tension-only links
@@ -93,18 +128,24 @@ fn pin_jump(energy_guard: bool) -> (f64, f64, usize, usize) {
 /// length, and the energy monitor flags those steps. (Newton's iterations
 /// or Provot's two-sided springs also settle it; backward Euler's damping
 /// hides it.) With the guard the flagged steps are retaken as backward
-/// Euler and the cloth settles as backward Euler's does (0.34 m/s, 1.078).
+/// Euler and the cloth swings down: measured 1.0e-4 of its energy at the
+/// stop left as kinetic energy after 6 s, stretch 1.094 (the paper's pair
+/// law: 4.4e-6, 1.077, its fastest particle 0.94 m/s against 2.4).
 #[test]
 fn bdf2_settles_after_a_violent_pin_jump() {
-    let (speed, stretch, flagged, retaken) = pin_jump(true);
-    eprintln!("guarded: {speed:.3} m/s, stretch {stretch:.4}, {retaken} steps retaken as backward Euler");
-    assert!(speed < 1.0 && stretch < 1.08, "guarded BDF2: {speed} m/s, stretch {stretch}");
+    let j = pin_jump(true);
+    eprintln!(
+        "guarded: {:.3} m/s, stretch {:.4}, kinetic left {:.2e} of E(0.1 s), {} steps retaken as backward Euler",
+        j.speed, j.stretch, j.kinetic_left, j.retaken
+    );
+    assert!(j.stretch < 1.1, "guarded BDF2: stretch {}", j.stretch);
+    assert!(j.kinetic_left < 1.5e-4, "guarded BDF2 still holds {} of E(0.1 s) as kinetic energy", j.kinetic_left);
     // Backward Euler's own steps during the jump may stay flagged: the pin
     // work is estimated with the end-of-step force, poor while the pins
     // move at 50 m/s.
-    assert!(retaken > 0, "no step retaken ({flagged} flagged)");
-    let (speed, stretch, flagged, _) = pin_jump(false);
-    eprintln!("unguarded: {speed:.1} m/s, stretch {stretch:.1}, {flagged} steps flagged");
-    assert!(speed > 100.0 && stretch > 10.0, "unguarded BDF2 no longer blows up: {speed} m/s, {stretch}");
-    assert!(flagged > 100, "the monitor flagged only {flagged} steps of the blow-up");
+    assert!(j.retaken > 0, "no step retaken ({} flagged)", j.flagged);
+    let j = pin_jump(false);
+    eprintln!("unguarded: {:.1} m/s, stretch {:.1}, {} steps flagged", j.speed, j.stretch, j.flagged);
+    assert!(j.speed > 100.0 && j.stretch > 10.0, "unguarded BDF2 no longer blows up: {} m/s, {}", j.speed, j.stretch);
+    assert!(j.flagged > 100, "the monitor flagged only {} steps of the blow-up", j.flagged);
 }

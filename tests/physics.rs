@@ -4,8 +4,8 @@
 
 use cloth_core::forces::{SystemBuffers, SystemTerms, assemble, eval_link, potential_energy, total_forces};
 use cloth_core::{
-    ClothModel, Effects, GridPanel, IntegratorKind, LinkType, Mat3, Material, ModelKind, ModelSpec, PcgParams,
-    Simulation, SolverParams, Vec3,
+    BendingLaw, ClothModel, Compression, Effects, GridPanel, IntegratorKind, LinkType, Mat3, Material, ModelKind,
+    ModelSpec, PcgParams, Simulation, SolverParams, Vec3,
 };
 use cloth_tests::{Rng, same_bits, simulation};
 
@@ -27,8 +27,18 @@ fn small_model_of(kind: ModelKind, bending: bool, damping: bool, gravity: bool) 
 }
 
 fn small_model_with(kind: ModelKind, effects: Effects) -> ClothModel {
+    small_model_spec(ModelSpec { kind, effects, ..ModelSpec::default() })
+}
+
+/// Choi & Ko's model with the paper's pair law (`arc-chord`).
+fn small_pair_law_model(bending: bool) -> ClothModel {
+    let effects = Effects { gravity: Some(Vec3::new(0.0, 0.0, -9.81)), bending, ..Effects::default() };
+    small_model_spec(ModelSpec { bending_law: Some(BendingLaw::ArcChord), effects, ..ModelSpec::default() })
+}
+
+/// The 6 x 5 test panel and material under `spec`'s model, law and effects.
+fn small_model_spec(spec: ModelSpec) -> ClothModel {
     ClothModel::build(&ModelSpec {
-        kind,
         panels: vec![GridPanel {
             particles: [6, 5],
             size_m: [0.1, 0.08],
@@ -39,8 +49,7 @@ fn small_model_with(kind: ModelKind, effects: Effects) -> ClothModel {
         }],
         material: Material { damping_n_s_m: 0.5, drag_n_s_m3: 0.3, ..Material::default() },
         pins: vec![],
-        effects,
-        ..ModelSpec::default()
+        ..spec
     })
     .unwrap()
 }
@@ -97,10 +106,11 @@ fn assert_forces_are_energy_gradient(model: &ClothModel, x: &[Vec3]) {
 
 #[test]
 fn forces_are_minus_the_energy_gradient() {
-    let model = small_model(true, false, true);
     let mut rng = Rng(1);
+    // The paper's pair law: both branches of the type-2 law and both states
+    // of the tension-only type-1 links occur.
+    let model = small_pair_law_model(true);
     let x = perturbed(&model, &mut rng, 2e-3);
-    // Both branches of the type-2 law and both states of type-1 links occur.
     let kinds: Vec<(bool, bool)> = (0..model.link_count())
         .map(|k| {
             let (i, j, t) = model.link_ends(k);
@@ -111,6 +121,32 @@ fn forces_are_minus_the_energy_gradient() {
         .collect();
     assert!(kinds.contains(&(true, true)) && kinds.contains(&(false, false)) && kinds.contains(&(false, true)));
     assert_forces_are_energy_gradient(&model, &x);
+    // The default arc-path law: type-1 links in tension and in compression,
+    // every type-2 triple bent.
+    let model = small_model(true, false, true);
+    let x = perturbed(&model, &mut rng, 2e-3);
+    assert!(compressed_links(&model, &x) > 0 && compressed_links(&model, &x) < model.link_count());
+    let triples = &model.elements().triples;
+    let straight = |t: &cloth_core::elements::BendTriple| {
+        let [i, m, j] = t.nodes.map(|n| x[n as usize]);
+        (x_dist(i, j) - x_dist(i, m) - x_dist(m, j)).abs() < 1e-12
+    };
+    assert!(!triples.is_empty() && !triples.iter().any(straight));
+    assert_forces_are_energy_gradient(&model, &x);
+}
+
+fn x_dist(a: Vec3, b: Vec3) -> f64 {
+    (b - a).norm()
+}
+
+/// How many type-1 links are shorter than at rest in `x`.
+fn compressed_links(model: &ClothModel, x: &[Vec3]) -> usize {
+    (0..model.link_count())
+        .filter(|&k| {
+            let (i, j, _) = model.link_ends(k);
+            (x[j] - x[i]).norm() < (model.rest_positions()[j] - model.rest_positions()[i]).norm()
+        })
+        .count()
 }
 
 /// Finite-difference Jacobian of the total force with respect to x (or v),
@@ -163,9 +199,10 @@ fn jacobian_error(model: &ClothModel, x: &[Vec3], v: &[Vec3], wrt_velocity: bool
 type Mat3Sum = Vec<(usize, usize, Mat3)>;
 
 /// The orthogonal term `(phi/d)(I - P)` of every compressed link (every
-/// type-2 link, and Provot's compressed springs), as blocks of df/dx: the
-/// system matrix drops it to stay positive definite.
-fn dropped_type2_terms(model: &ClothModel, x: &[Vec3]) -> Mat3Sum {
+/// type-2 link of the paper's law, type-1 links under the arc-path law, and
+/// Provot's compressed springs), as blocks of df/dx: the system matrix drops
+/// it to stay positive definite.
+fn dropped_compression_terms(model: &ClothModel, x: &[Vec3]) -> Mat3Sum {
     let mut out = Vec::new();
     for k in 0..model.link_count() {
         let (i, j, _) = model.link_ends(k);
@@ -185,19 +222,28 @@ fn dropped_type2_terms(model: &ClothModel, x: &[Vec3]) -> Mat3Sum {
 #[test]
 fn stiffness_matrix_matches_finite_differences_of_forces() {
     let mut rng = Rng(2);
-    // Type-1 only: the assembled K is the exact Jacobian.
-    let model = small_model(false, false, true);
+    let v = vec![Vec3::zeros(); 30];
+    // Type-1 only under the paper's law (tension-only links): the assembled
+    // K is the exact Jacobian.
+    let model = small_pair_law_model(false);
     let mut x = perturbed(&model, &mut rng, 2e-3);
     for p in x.iter_mut() {
         p.x *= 1.3; // stretch most type-1 links
     }
-    let v = vec![Vec3::zeros(); x.len()];
     let err = jacobian_error(&model, &x, &v, false, &vec![]);
     assert!(err < 1e-6, "type-1 Jacobian error {err:e}");
-    // With type-2 links: exact once the dropped orthogonal term is added back.
-    let model = small_model(true, false, true);
+    // Under the arc-path law the type-1 links also resist compression: exact
+    // once the orthogonal term of the compressed ones is added back.
+    let model = small_model(false, false, true);
+    let dropped = dropped_compression_terms(&model, &x);
+    assert!(!dropped.is_empty(), "some type-1 links are compressed");
+    let err = jacobian_error(&model, &x, &v, false, &dropped);
+    assert!(err < 1e-6, "type-1 Jacobian error with compression {err:e}");
+    // With the paper's type-2 links: exact once their dropped orthogonal term
+    // is added back.
+    let model = small_pair_law_model(true);
     let x = perturbed(&model, &mut rng, 2e-3);
-    let dropped = dropped_type2_terms(&model, &x);
+    let dropped = dropped_compression_terms(&model, &x);
     let err = jacobian_error(&model, &x, &v, false, &dropped);
     assert!(err < 1e-6, "type-1 + type-2 Jacobian error {err:e}");
     // And without adding it back, the difference is visible (the test can fail).
@@ -272,7 +318,13 @@ fn free_fall_matches_the_exact_discrete_trajectories() {
     let h = 0.01;
     for kind in ["backward-euler", "bdf2"] {
         let set = format!("simulation.integrator={kind}");
-        let (mut sim, cfg) = simulation("freefall.toml", &[&set]);
+        // The recurrence holds to the linear solve's tolerance: the default
+        // law has bending stiffness at rest, so the multigrid no longer
+        // solves a uniform fall in one iteration, and at the scene's 1e-10
+        // (relative to a right-hand side that carries the whole velocity)
+        // BDF2 drifts 7.5e-9 m in 50 steps. At 1e-14 the worst error is
+        // 1.6e-15 m (backward Euler) and 5.4e-13 m (BDF2).
+        let (mut sim, cfg) = simulation("freefall.toml", &[&set, "solver.rel_tol=1e-14"]);
         assert_eq!(cfg.dt_s, h);
         let z0 = sim.state().x.clone();
         // Reference recurrences on (z, v) relative to the start.
@@ -287,8 +339,8 @@ fn free_fall_matches_the_exact_discrete_trajectories() {
             };
             (z_prev, v_prev, z, v) = (z, v, z_new, v_new);
             for (p, p0) in sim.state().x.iter().zip(&z0) {
-                assert!((p.z - p0.z - z).abs() < 1e-11, "{kind} step {n}: z error {}", p.z - p0.z - z);
-                assert!((p.x - p0.x).abs() < 1e-11 && (p.y - p0.y).abs() < 1e-11);
+                assert!((p.z - p0.z - z).abs() < 1e-12, "{kind} step {n}: z error {}", p.z - p0.z - z);
+                assert!((p.x - p0.x).abs() < 1e-12 && (p.y - p0.y).abs() < 1e-12);
             }
         }
         // Both approach the analytic fall g t^2 / 2 (first order for BE).
@@ -411,7 +463,9 @@ fn sag_is_resolution_independent() {
     let (coarse, fine) = (sag(11), sag(21));
     // Linear elastic estimate: rho g H^2 / (2 E) = 0.1 * 9.81 / 40 = 2.5 cm.
     assert!(coarse > 0.01 && coarse < 0.06, "coarse sag {coarse}");
-    assert!((coarse - fine).abs() < 0.05 * fine, "sag {coarse} (11x11) vs {fine} (21x21)");
+    // Measured 3.12 and 2.96 cm (5.3%). Issue 15 replaces this test by a
+    // uniaxial strip against the continuum.
+    assert!((coarse - fine).abs() < 0.06 * fine, "sag {coarse} (11x11) vs {fine} (21x21)");
 }
 
 /// A pin on a path is a hard constraint: it follows its path exactly and
@@ -472,11 +526,18 @@ fn preconditioners_agree_on_the_trajectory() {
 /// given, and with enough of them reproduces PCG-solved backward Euler.
 #[test]
 fn fixed_cg_backward_euler_converges_to_backward_euler() {
-    let set = ["panels.0.particles=[13, 13]", "pins.0.nodes=[[0, 12], [12, 12]]", "solver.rel_tol=1e-12"];
+    // The paper's pair law: a flat cloth has no out-of-plane stiffness at
+    // rest, which the first step's check below relies on.
+    let set = [
+        "panels.0.particles=[13, 13]",
+        "pins.0.nodes=[[0, 12], [12, 12]]",
+        "solver.rel_tol=1e-12",
+        "simulation.bending_law=\"arc-chord\"",
+    ];
     let run = |kind: &str, iterations: usize| {
         let integrator = format!("simulation.integrator={kind}");
         let count = format!("solver.fixed_cg_iterations={iterations}");
-        let (mut sim, cfg) = simulation("hang.toml", &[set[0], set[1], set[2], &integrator, &count]);
+        let (mut sim, cfg) = simulation("hang.toml", &[set[0], set[1], set[2], set[3], &integrator, &count]);
         let mut reports = Vec::new();
         for _ in 0..20 {
             reports.push(sim.step(cfg.dt_s).unwrap());
@@ -490,7 +551,8 @@ fn fixed_cg_backward_euler_converges_to_backward_euler() {
         assert!(reports.iter().all(|r| r.cg_iterations <= iterations && r.force_evaluations == 1));
         if iterations < 100 {
             // The first step from rest is exact after one iteration: with
-            // mass scaling, uniform gravity is an eigenvector of the operator.
+            // mass scaling and no out-of-plane stiffness, uniform gravity is
+            // an eigenvector of the operator.
             assert_eq!(reports[0].cg_iterations, 1);
             assert!(reports[1..].iter().all(|r| r.cg_iterations == iterations), "{iterations}: stopped early");
         }
@@ -506,12 +568,12 @@ fn fixed_cg_backward_euler_converges_to_backward_euler() {
 #[test]
 fn provot_forces_and_jacobians_match_finite_differences() {
     let model = small_model_of(ModelKind::Provot, true, false, true);
-    assert!(model.stretch_links().iter().all(|l| l.k_c == l.k_s));
+    assert!(model.stretch_links().iter().all(|l| l.compression == Compression::Linear(l.k_s)));
     let mut rng = Rng(21);
     let x = perturbed(&model, &mut rng, 2e-3);
     let zero = vec![Vec3::zeros(); x.len()];
     assert_forces_are_energy_gradient(&model, &x);
-    let dropped = dropped_type2_terms(&model, &x);
+    let dropped = dropped_compression_terms(&model, &x);
     assert!(!dropped.is_empty(), "some Provot springs are compressed");
     let err = jacobian_error(&model, &x, &zero, false, &dropped);
     assert!(err < 1e-6, "Provot Jacobian error {err:e}");
@@ -587,11 +649,14 @@ fn newton_iterations_converge_the_nonlinear_step() {
         sum.sqrt()
     };
     let (one, two, four, eight) = (residual(1), residual(2), residual(4), residual(8));
-    // Measured: 5.1e-3, 4.5e-4, 1.4e-7, 7e-14 (superlinear; not quadratic
-    // because the matrix drops the type-2 orthogonal terms).
-    assert!(two < 0.2 * one, "residual {one:e} -> {two:e} after 2 iterations");
-    assert!(four < 1e-4 * one, "residual {one:e} -> {four:e} after 4 iterations");
-    assert!(eight < 1e-9 * one, "residual {one:e} -> {eight:e} after 8 iterations");
+    // Measured: 3.2e-3, 1.7e-3, 7.5e-5, 5.4e-11: slow while the iterates
+    // cross the kinks of the compressed type-1 links' buckling law (ramp to
+    // arc), then superlinear (not quadratic: the matrix leaves out their
+    // orthogonal term and takes the Gauss-Newton part of the triples'
+    // Hessian). The paper's pair law: 5.1e-3, 4.5e-4, 1.4e-7, 7e-14.
+    assert!(two < 0.6 * one, "residual {one:e} -> {two:e} after 2 iterations");
+    assert!(four < 3e-2 * one, "residual {one:e} -> {four:e} after 4 iterations");
+    assert!(eight < 2e-8 * one, "residual {one:e} -> {eight:e} after 8 iterations");
 }
 
 /// Volino's accurate model (membrane and bending triangles): forces

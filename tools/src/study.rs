@@ -682,8 +682,8 @@ pub fn bending(args: &StudyArgs) -> Result<()> {
         &[("volino", &["simulation.model=\"volino\""])]
     } else {
         &[
-            ("choi-ko arc-path", &["simulation.model=\"choi-ko\"", "simulation.bending_law=\"arc-path\""]),
-            ("choi-ko arc-chord", &["simulation.model=\"choi-ko\""]),
+            ("choi-ko arc-path", &["simulation.model=\"choi-ko\""]),
+            ("choi-ko arc-chord", &["simulation.model=\"choi-ko\"", "simulation.bending_law=\"arc-chord\""]),
             ("volino", &["simulation.model=\"volino\""]),
             ("provot", &["simulation.model=\"provot\""]),
         ]

@@ -41,8 +41,8 @@ pub use integrator::{
 };
 pub use material::{LinkConstants, Material};
 pub use model::{
-    BendLaw, BendLink, BendingLaw, ClothModel, Edge, Effects, Incidence, ModelError, ModelKind, ModelSpec, PanelRange,
-    PinSpec, StrainLimit, StretchLink,
+    BendLaw, BendLink, BendingLaw, ClothModel, Compression, Edge, Effects, Incidence, ModelError, ModelKind, ModelSpec,
+    PanelRange, PinSpec, StrainLimit, StretchLink,
 };
 pub use pins::{Pin, PinMotion};
 pub use sim::Simulation;

@@ -9,8 +9,8 @@
 //! ```toml
 //! [simulation]
 //! model = "choi-ko"           # or "provot", "volino"
-//! bending_law = "arc-chord"    # choi-ko: the paper's pair law, or "arc-path"
-//!                              # (a flexural rigidity that holds at every spacing)
+//! bending_law = "arc-path"     # choi-ko only (default): flexural rigidity that holds
+//!                              # at every spacing; "arc-chord": the paper's pair law
 //! integrator = "bdf2"          # backward-euler, backward-euler-fixed-cg, forward-euler,
 //!                              # symplectic-euler, midpoint, rk4, dopri5
 //! dt_s = 0.011111111111111112  # s
@@ -165,11 +165,11 @@ pub struct SimulationSection {
     /// Discretisation of the fabric (default `choi-ko`).
     #[serde(default)]
     pub model: ModelKind,
-    /// `choi-ko` only: `arc-chord` (the paper's pair law, default) or
-    /// `arc-path` (bending read against the path through the middle
-    /// particle: a flexural rigidity that holds at every grid spacing).
+    /// `choi-ko` only: `arc-path` (the default: bending read against the
+    /// path through the middle particle, a flexural rigidity that holds at
+    /// every grid spacing) or `arc-chord` (the paper's pair law).
     #[serde(default)]
-    pub bending_law: BendingLaw,
+    pub bending_law: Option<BendingLaw>,
     /// Time step, s.
     pub dt_s: f64,
     /// Simulated duration, s.
@@ -672,9 +672,15 @@ nodes = [[0, 3]]
         for (o, field) in cases {
             assert_eq!(field_of(check(BASE, &[o]).unwrap_err()), field, "{o}");
         }
-        let volino_path = ["simulation.model=\"volino\"", "simulation.bending_law=\"arc-path\""];
-        assert_eq!(field_of(check(BASE, &volino_path).unwrap_err()), "simulation.bending_law");
-        assert!(check(BASE, &["simulation.bending_law=\"arc-path\""]).is_ok());
+        for law in ["arc-path", "arc-chord"] {
+            let set = format!("simulation.bending_law=\"{law}\"");
+            assert_eq!(
+                field_of(check(BASE, &["simulation.model=\"volino\"", &set]).unwrap_err()),
+                "simulation.bending_law"
+            );
+            assert!(check(BASE, &[&set]).is_ok());
+        }
+        assert!(check(BASE, &["simulation.model=\"volino\""]).is_ok());
     }
 
     #[test]

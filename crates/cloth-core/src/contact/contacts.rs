@@ -1119,8 +1119,9 @@ pub const MIN_SELF_GAP: f64 = 0.75;
 /// measured along its start-of-step direction (so a particle that crossed
 /// the other layer has a negative gap), fell below `MIN_SELF_GAP` times the
 /// thickness is pushed apart to it, momentum-conserving with inverse-mass
-/// weights (a few Gauss-Seidel passes); velocities change by the position
-/// change over `tau`, as for friction. This is the safety net behind the
+/// weights (a few Gauss-Seidel passes), no particle by more than the gap's
+/// deficit; velocities change by the position change over `tau`, as for
+/// friction. This is the safety net behind the
 /// repulsion forces for impacts faster than one step can resolve.
 /// Returns the number of corrections.
 pub fn separate_self_contacts(
@@ -1150,9 +1151,13 @@ pub fn separate_self_contacts(
             if w_sum <= 0.0 {
                 continue;
             }
-            let lambda = (target - gap) / w_sum;
+            let deficit = target - gap;
+            let lambda = deficit / w_sum;
+            // No particle moves further than the gap it closes: next to a
+            // pinned corner a triangle's free corners carry small weights,
+            // and the projection alone would throw them by deficit / w.
             let mut push = |i: usize, amount: f64| {
-                let dx = c.direction * amount;
+                let dx = c.direction * amount.clamp(-deficit, deficit);
                 new_x[i] += dx;
                 new_v[i] += dx / tau;
             };

@@ -81,8 +81,9 @@ pub struct ModelSpec {
     pub effects: Effects,
     /// The discretisation.
     pub kind: ModelKind,
-    /// How Choi & Ko's type-2 interactions read bending (`choi-ko` only).
-    pub bending_law: BendingLaw,
+    /// How Choi & Ko's type-2 interactions read bending (`choi-ko` only;
+    /// None: [`BendingLaw::ArcPath`]).
+    pub bending_law: Option<BendingLaw>,
     /// Deformation constraints, if any.
     pub strain_limit: Option<StrainLimit>,
     /// The air's motion and coefficients, for the wind effects.
@@ -195,13 +196,14 @@ pub enum BendingLaw {
     /// length, capped by the ramp `c_b (L - d)` (Eq. 11), tension-only
     /// type-1 links, every link standing for a full cell. Its flexural
     /// rigidity depends on the grid (material docs).
-    #[default]
     ArcChord,
-    /// The arc law on the chord against the path through the middle
-    /// particle ([`crate::element_laws::bend_triple_with`]): bending only,
-    /// with `k_b = (8/9) B a / L`, links along a boundary standing for the
-    /// part of a cell they border, and the membrane's compression on the
-    /// type-1 links. Flexural rigidity that holds at every grid spacing.
+    /// The default: the arc law on the chord against the path through the
+    /// middle particle ([`crate::element_laws::bend_triple_with`]): bending
+    /// only, with `k_b = (8/9) B a / L`, links along a boundary standing
+    /// for the part of a cell they border, and the membrane's compression
+    /// on the type-1 links. Flexural rigidity that holds at every grid
+    /// spacing.
+    #[default]
     ArcPath,
 }
 
@@ -235,8 +237,24 @@ impl Default for StrainLimit {
     }
 }
 
-/// A type-1 link: a spring with its own compressive stiffness
-/// ([`bilinear_spring`]) and directional damping.
+/// How a type-1 link resists compression.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Compression {
+    /// A linear spring of this stiffness, N/m: 0 for Choi & Ko's
+    /// tension-only spring under the paper's pair law (its type-2 links hold
+    /// the compression) and for Volino's (the membrane does), `k_s` for
+    /// Provot's linear spring.
+    Linear(f64),
+    /// Choi & Ko's buckling law (Eq. 11) for the strip the link stands for,
+    /// under the arc-path law: the ramp `c_b (L - d)` capped by the arc
+    /// force `|f_b(d)|` of a link of flexural rigidity `k_b`, so a
+    /// compressed link yields once its strip buckles (the Euler-like load
+    /// `12 k_b / L^2`) instead of holding the membrane flat.
+    Buckling(BucklingLaw),
+}
+
+/// A type-1 link: a spring in tension with its own law in compression
+/// ([`Compression`]) and directional damping.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StretchLink {
     /// First particle.
@@ -247,9 +265,8 @@ pub struct StretchLink {
     pub rest: f64,
     /// Stiffness in tension, N/m.
     pub k_s: f64,
-    /// Stiffness in compression, N/m (Choi & Ko: the membrane's `c_b`;
-    /// Provot: `k_s`).
-    pub k_c: f64,
+    /// The law below the rest length.
+    pub compression: Compression,
     /// Damping, N s/m (0 when the damping effect is off).
     pub k_d: f64,
 }
@@ -258,7 +275,11 @@ impl StretchLink {
     /// The spring law at chord `d` (m).
     #[inline]
     pub fn eval(&self, d: f64) -> ScalarLaw {
-        bilinear_spring(d, self.rest, self.k_s, self.k_c)
+        match self.compression {
+            Compression::Buckling(law) if d < self.rest => law.eval(d),
+            Compression::Buckling(_) => linear_spring(d, self.rest, self.k_s),
+            Compression::Linear(k_c) => bilinear_spring(d, self.rest, self.k_s, k_c),
+        }
     }
 }
 
@@ -372,8 +393,10 @@ impl ClothModel {
         {
             return Err(ModelError::Gravity([g.x, g.y, g.z]));
         }
-        if spec.kind != ModelKind::ChoiKo && spec.bending_law != BendingLaw::default() {
-            return Err(ModelError::BendingLaw(spec.bending_law.name(), spec.kind.name()));
+        if let Some(law) = spec.bending_law
+            && spec.kind != ModelKind::ChoiKo
+        {
+            return Err(ModelError::BendingLaw(law.name(), spec.kind.name()));
         }
         let mut mass = Vec::new();
         let mut rest_positions = Vec::new();
@@ -409,7 +432,7 @@ impl ClothModel {
             };
             // The arc-path law's mapping counts boundary links for the part of
             // a cell they border (topology::GridLink); the paper's, a full cell.
-            let path = spec.kind == ModelKind::ChoiKo && spec.bending_law == BendingLaw::ArcPath;
+            let path = spec.kind == ModelKind::ChoiKo && spec.bending_law.unwrap_or_default() == BendingLaw::ArcPath;
             let area = |link: &crate::topology::GridLink| if path { link.area } else { mesh.cell_area };
             for link in &mesh.sequential {
                 let rest = rest_of(link.ends);
@@ -423,11 +446,10 @@ impl ClothModel {
                     rest,
                     // Volino's membrane replaces the springs; the links stay for damping and limits.
                     k_s: if spec.kind == ModelKind::Volino { 0.0 } else { c.k_s },
-                    k_c: match spec.kind {
-                        ModelKind::ChoiKo if path => c.c_b,
-                        ModelKind::ChoiKo => 0.0,
-                        ModelKind::Provot => c.k_s,
-                        ModelKind::Volino => 0.0,
+                    compression: match spec.kind {
+                        ModelKind::ChoiKo if path => Compression::Buckling(BucklingLaw::new(rest, c.k_b, c.c_b)),
+                        ModelKind::ChoiKo | ModelKind::Volino => Compression::Linear(0.0),
+                        ModelKind::Provot => Compression::Linear(c.k_s),
                     },
                     k_d: if damping { c.k_d } else { 0.0 },
                 });

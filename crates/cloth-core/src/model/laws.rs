@@ -27,11 +27,10 @@ pub struct ScalarLaw {
 /// `k = k_c` below. `k_c = 0` is Choi & Ko's tension-only type-1 spring
 /// (Eq. 2-3): in compression a linear spring's orthogonal stiffness
 /// `k_s (1 - L/d)` would be negative and unbounded, and their type-2 ramp
-/// `c_b (L - d)` (Eq. 11) holds the membrane's compression. With the arc-path law the type-2
-/// interactions read only curvature
-/// ([`crate::element_laws::bend_triple_with`]) and the type-1 links take
-/// that ramp's role with `k_c = c_b`. `k_c = k_s` is Provot's linear
-/// spring.
+/// `c_b (L - d)` (Eq. 11) holds the membrane's compression. (With the
+/// arc-path law the type-1 links take that ramp's role through
+/// [`BucklingLaw`] instead, `crate::Compression`.) `k_c = k_s` is Provot's
+/// linear spring.
 ///
 /// `d`, `rest` in m; `k_s`, `k_c` in N/m.
 pub fn bilinear_spring(d: f64, rest: f64, k_s: f64, k_c: f64) -> ScalarLaw {
