@@ -125,7 +125,8 @@ fn forces_are_minus_the_energy_gradient() {
     // every type-2 triple bent.
     let model = small_model(true, false, true);
     let x = perturbed(&model, &mut rng, 2e-3);
-    assert!(compressed_links(&model, &x) > 0 && compressed_links(&model, &x) < model.link_count());
+    let compressed = compressed_links(&model, &x);
+    assert!(compressed > 0 && compressed < model.link_count(), "{compressed} compressed links");
     let triples = &model.elements().triples;
     let straight = |t: &cloth_core::elements::BendTriple| {
         let [i, m, j] = t.nodes.map(|n| x[n as usize]);

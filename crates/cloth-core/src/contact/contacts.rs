@@ -1153,9 +1153,12 @@ pub fn separate_self_contacts(
             }
             let deficit = target - gap;
             let lambda = deficit / w_sum;
-            // No particle moves further than the gap it closes: next to a
-            // pinned corner a triangle's free corners carry small weights,
-            // and the projection alone would throw them by deficit / w.
+            // No particle moves further than the gap it closes. This binds
+            // only when the particle is pinned or more than 4 times as heavy
+            // as a corner it pushes (w (1 - w) / m_o <= 1 / m_p otherwise):
+            // then a triangle whose nearest corner is pinned moves its free
+            // corners almost alone, and with their small weights w the
+            // projection would throw them by deficit / w.
             let mut push = |i: usize, amount: f64| {
                 let dx = c.direction * amount.clamp(-deficit, deficit);
                 new_x[i] += dx;

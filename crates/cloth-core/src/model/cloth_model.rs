@@ -412,6 +412,9 @@ impl ClothModel {
         // Volino's bending triangles need every adjacent pair to be a parallelogram.
         let diagonals =
             if spec.kind == ModelKind::Volino { crate::Diagonals::Uniform } else { crate::Diagonals::Alternating };
+        // The arc-path law's mapping counts boundary links for the part of
+        // a cell they border (topology::GridLink); the paper's, a full cell.
+        let path = spec.kind == ModelKind::ChoiKo && spec.bending_law.unwrap_or_default() == BendingLaw::ArcPath;
         for (p, panel) in spec.panels.iter().enumerate() {
             let mesh = panel.mesh_with(diagonals).map_err(|(field, message)| ModelError::Panel {
                 panel: p,
@@ -430,9 +433,6 @@ impl ClothModel {
                 field: "size_m",
                 message: format!("{:?} m gives links of zero or non-finite length or stiffness", panel.size_m),
             };
-            // The arc-path law's mapping counts boundary links for the part of
-            // a cell they border (topology::GridLink); the paper's, a full cell.
-            let path = spec.kind == ModelKind::ChoiKo && spec.bending_law.unwrap_or_default() == BendingLaw::ArcPath;
             let area = |link: &crate::topology::GridLink| if path { link.area } else { mesh.cell_area };
             for link in &mesh.sequential {
                 let rest = rest_of(link.ends);
