@@ -12,6 +12,12 @@
 //!   last safety net. Friction then removes tangential velocity relative
 //!   to the solid, at most `mu |f_n| tau / m` (Coulomb), all of it when
 //!   that suffices (the static regime) ([`apply_friction`]).
+//! - Cloth-solid in Newton iterations (`solver.newton_iterations > 1`):
+//!   after the first solve the solids act as a stiff penalty energy
+//!   ([`contact_penalty`], [`penalty_contacts`]) and their friction as a
+//!   smoothed Coulomb dissipation potential ([`smoothed_friction`]), both
+//!   inside the minimisation (see the `newton` module); [`apply_friction`]
+//!   then only stops the smoothing's creep.
 //! - Cloth-solid without an assembled matrix (explicit, fixed-CG):
 //!   [`collide_after_step`].
 //! - Self-collision: particle-particle and particle-triangle repulsion
@@ -63,9 +69,10 @@ pub struct SolidContact {
     /// this one presses with [`squeeze_force`] instead of a constraint;
     /// `normal_force_n` is that force.
     pub pressed: bool,
-    /// Friction of a squeezed particle inside the implicit solve
-    /// ([`linearise_squeeze_friction`]), linearised as `f = e - C v`:
-    /// `C`, N s/m, ...
+    /// Friction inside the implicit solve, of a squeezed particle
+    /// ([`linearise_squeeze_friction`]) or of a held one in Newton
+    /// iterations ([`linearise_contact_friction`]), linearised as
+    /// `f = e - C v`: `C`, N s/m, ...
     pub solve_damping: Mat3,
     /// ... `e`, N, ...
     pub solve_constant_n: Vec3,
@@ -73,6 +80,9 @@ pub struct SolidContact {
     /// ([`squeeze_friction_forces`]); [`apply_friction`] settles the rest
     /// within the Coulomb bound.
     pub solve_friction_n: Vec3,
+    /// The bound `mu N` of the last [`linearise_contact_friction`], N (the
+    /// line search's dissipation uses the same one).
+    pub solve_limit_n: f64,
 }
 
 /// A pair of cloth pieces closer than the self-collision thickness.
@@ -445,6 +455,7 @@ fn contact(
         solve_damping: Mat3::zeros(),
         solve_constant_n: Vec3::zeros(),
         solve_friction_n: Vec3::zeros(),
+        solve_limit_n: 0.0,
     }
 }
 
@@ -782,11 +793,10 @@ pub fn constrain_contacts(
     }
 }
 
-/// Reads each contact's normal force from the unfiltered residual,
-/// `f_c = (A u - b)_i / force_coefficient` (split along both normals for
-/// a two-solid contact), and releases those that pull; the particle is
-/// then re-constrained with what remains, through `value` as in
-/// [`constrain_contacts`]. Returns how many were released.
+/// Reads each contact's normal force ([`read_normal_forces`]) and
+/// releases those that pull; the particle is then re-constrained with
+/// what remains, through `value` as in [`constrain_contacts`]. Returns
+/// how many were released.
 #[allow(clippy::too_many_arguments)]
 pub fn release_pulling(
     contacts: &mut [SolidContact],
@@ -798,7 +808,40 @@ pub fn release_pulling(
     filter: &mut ConstraintFilter,
     value: impl Fn(Vec3, usize) -> Vec3,
 ) -> usize {
+    read_normal_forces(contacts, matrix, rhs, unknown, force_coefficient);
     let mut released = 0;
+    for group in contacts.chunk_by_mut(same_particle) {
+        let mut changed = false;
+        for c in group.iter_mut().filter(|c| c.active && !c.pressed && c.normal_force_n < 0.0) {
+            (c.active, c.normal_force_n, changed) = (false, 0.0, true);
+            // Friction a Newton iterate linearised for it no longer acts.
+            (c.solve_damping, c.solve_constant_n) = (Mat3::zeros(), Vec3::zeros());
+            released += 1;
+        }
+        if changed && !group.iter().any(|c| c.active && !c.pressed) {
+            // The holding solid let go: the pressing one holds instead.
+            for c in group.iter_mut().filter(|c| c.active && c.pressed) {
+                (c.pressed, c.normal_force_n) = (false, 0.0);
+            }
+        }
+        if changed {
+            constrain_particle(group, x, filter, &value);
+        }
+    }
+    released
+}
+
+/// Each active holding contact's normal force from the unfiltered
+/// residual, `f_c = (A u - b)_i / force_coefficient` (split along both
+/// normals for a two-solid contact), into `normal_force_n` (N, negative
+/// when it pulls).
+pub fn read_normal_forces(
+    contacts: &mut [SolidContact],
+    matrix: &BlockSparseMatrix,
+    rhs: &[Vec3],
+    unknown: &[Vec3],
+    force_coefficient: f64,
+) {
     for group in contacts.chunk_by_mut(same_particle) {
         let i = group[0].particle as usize;
         let mut active = (0..group.len()).filter(|&k| group[k].active && !group[k].pressed);
@@ -816,25 +859,7 @@ pub fn release_pulling(
                 (group[a].normal_force_n, group[b].normal_force_n) = (p, q);
             }
         }
-        let mut changed = false;
-        for k in [Some(a), second].into_iter().flatten() {
-            let c = &mut group[k];
-            if c.normal_force_n < 0.0 {
-                (c.active, c.normal_force_n, changed) = (false, 0.0, true);
-                released += 1;
-            }
-        }
-        if changed && !group.iter().any(|c| c.active && !c.pressed) {
-            // The holding solid let go: the pressing one holds instead.
-            for c in group.iter_mut().filter(|c| c.active && c.pressed) {
-                (c.pressed, c.normal_force_n) = (false, 0.0);
-            }
-        }
-        if changed {
-            constrain_particle(group, x, filter, &value);
-        }
     }
-    released
 }
 
 /// Slip speed above which a squeezed particle's friction goes into the
@@ -859,6 +884,186 @@ fn sliding_friction_damping(slip: Vec3, limit_n: f64, tangent: &Mat3) -> Mat3 {
     let speed = slip.norm();
     let u = slip / speed;
     (tangent - u * u.transpose()) * (limit_n / speed)
+}
+
+/// Stiffness of a solid's penalty on a particle in Newton iterations, per
+/// unit particle mass and per `1/h^2`: a particle meets the solid this
+/// many times stiffer than its own inertia over one step (`m / h^2`). At
+/// rest under its weight it sinks `g h^2 / CONTACT_PENALTY` into the
+/// thickness: 0.4 mm at `h = 0.2 s`, a micrometre at 1/90 s. The
+/// penalty adds `(4/9) CONTACT_PENALTY` times the mass to the matrix
+/// diagonal (BDF2), which the block preconditioner takes in its stride.
+const CONTACT_PENALTY: f64 = 1e3;
+
+/// The penalty stiffness `k = CONTACT_PENALTY m / h^2` of a solid on a
+/// particle of mass `m` (kg) in a step `h` (s), N/m.
+pub fn contact_penalty_stiffness(mass_kg: f64, h: f64) -> f64 {
+    CONTACT_PENALTY * mass_kg / (h * h)
+}
+
+/// A solid's penalty on a particle at gap `g` (m) from its surface, below
+/// the contact thickness `e` (m): energy `k/2 (e - g)^2` (J), force
+/// `k (e - g)` along the outward normal (N); zero beyond `e`. A penalty in
+/// an implicit step's incremental potential, where Choi & Ko (2002, §5)
+/// hold particles with constraints (see the `newton` module for why).
+pub fn contact_penalty(gap_m: f64, thickness_m: f64, stiffness_n_m: f64) -> (f64, f64) {
+    let depth = (thickness_m - gap_m).max(0.0);
+    (0.5 * stiffness_n_m * depth * depth, stiffness_n_m * depth)
+}
+
+/// The contacts of a Newton iterate at positions `x_iter` (from `x` at the
+/// start of the step) into `bufs.solid`, in particle order: each particle
+/// (not pinned) closer than the thickness to a solid at `t_next` gets one
+/// entry per such solid, on the solid's tangent plane at the closest point
+/// of the iterate (of the start of the step, the side it came from, when
+/// the iterate is inside), with `normal_force_n` its [`contact_penalty`]
+/// force for the step `h`.
+pub fn penalty_contacts(
+    model: &ClothModel,
+    x: &[Vec3],
+    x_iter: &[Vec3],
+    t_next: f64,
+    h: f64,
+    bufs: &mut ContactBuffers,
+) {
+    let thickness = model.contact_thickness();
+    let (colliders, masses) = (model.colliders(), model.masses());
+    let solids_next = bufs.next.at(model, &bufs.external, t_next);
+    bufs.candidate.resize(x.len(), [None; 2]);
+    bufs.candidate.par_iter_mut().enumerate().for_each(|(i, cand)| {
+        *cand = [None; 2];
+        if model.is_pinned(i) {
+            return;
+        }
+        let mut found = 0;
+        for (k, (c, next)) in colliders.iter().zip(solids_next).enumerate() {
+            let Some((at, side)) = near_surface(c, next, x[i], x_iter[i], thickness, &mut 0) else {
+                continue;
+            };
+            let plane = if at.distance_m >= 0.0 { at } else { side };
+            let gap = plane.normal.dot(&(x_iter[i] - plane.point));
+            let (_, force) = contact_penalty(gap, thickness, contact_penalty_stiffness(masses[i], h));
+            if force > 0.0 && found < 2 {
+                let mut entry = contact(i, k, c, &plane, gap, 0.0, next);
+                entry.normal_force_n = force;
+                cand[found] = Some(entry);
+                found += 1;
+            }
+        }
+    });
+    bufs.solid.clear();
+    bufs.solid.extend(bufs.candidate.iter().flatten().flatten());
+}
+
+/// The penalty energy of `contacts` ([`penalty_contacts`]) with particle
+/// `i` at `x_i + beta p_i`, each on its frozen tangent plane, J.
+pub fn contact_penalty_energy(
+    contacts: &[SolidContact],
+    model: &ClothModel,
+    h: f64,
+    x: &[Vec3],
+    p: &[Vec3],
+    beta: f64,
+) -> f64 {
+    let (thickness, masses) = (model.contact_thickness(), model.masses());
+    contacts
+        .iter()
+        .map(|c| {
+            let i = c.particle as usize;
+            let gap = c.normal.dot(&(x[i] + p[i] * beta - c.point));
+            contact_penalty(gap, thickness, contact_penalty_stiffness(masses[i], h)).0
+        })
+        .sum()
+}
+
+/// Slip speed below which [`smoothed_friction`] turns viscous, m/s. A
+/// particle held by static friction creeps at most half of it while the
+/// Newton iterations run; [`apply_friction`] then stops it exactly.
+pub const FRICTION_SMOOTHING_M_S: f64 = 1e-3;
+
+/// `F0(s)` of the smoothed Coulomb dissipation potential (Li et al. 2020,
+/// "Incremental Potential Contact", §5.1), m/s: `s` for `s >= eps`,
+/// `-s^3 / (3 eps^2) + s^2 / eps + eps / 3` below (C^1 at `eps`, convex).
+fn smoothed_slip(s: f64, eps: f64) -> f64 {
+    if s >= eps { s } else { -s * s * s / (3.0 * eps * eps) + s * s / eps + eps / 3.0 }
+}
+
+/// The dissipation potential of a contact's Coulomb friction, W:
+/// `D(w) = mu N F0(|w|)` for the slip velocity `w` (m/s, in the tangent
+/// plane) with `limit = mu N` (N). Its negative gradient is
+/// [`smoothed_friction`]'s force.
+pub fn smoothed_friction_potential(slip: Vec3, limit_n: f64, eps: f64) -> f64 {
+    limit_n * smoothed_slip(slip.norm(), eps)
+}
+
+/// Coulomb friction smoothed at small slip (Li et al. 2020, §5.1):
+/// `f = -mu N f1(s) w / s`, `s = |w|`, with `f1(s) = 1` for `s >= eps`
+/// (Coulomb's sliding friction, [`sliding_friction`]) and
+/// `2 s / eps - s^2 / eps^2` below (viscous at rest: `-2 mu N w / eps`).
+/// Returns the force (N) and `C = -df/dv` within the tangent plane `P`
+/// (projector), N s/m: `mu N [f1/s (P - u u^T) + f1' u u^T]`, `u = w / s`,
+/// positive semidefinite. `limit = mu N`, N; `eps`, m/s.
+pub fn smoothed_friction(slip: Vec3, limit_n: f64, eps: f64, tangent: &Mat3) -> (Vec3, Mat3) {
+    let s = slip.norm();
+    if s >= eps {
+        return (sliding_friction(slip, limit_n), sliding_friction_damping(slip, limit_n, tangent));
+    }
+    let (f1_over_s, df1) = (2.0 / eps - s / (eps * eps), 2.0 / eps - 2.0 * s / (eps * eps));
+    let uu = if s > 0.0 { slip * slip.transpose() / (s * s) } else { Mat3::zeros() };
+    let damping = ((tangent - uu) * f1_over_s + uu * df1) * limit_n;
+    (-slip * (limit_n * f1_over_s), damping)
+}
+
+/// Whether a contact's friction is a Newton iterate's smoothed friction:
+/// active, holding (a pressed contact's friction is
+/// [`linearise_squeeze_friction`]'s), with a coefficient.
+fn holds_with_friction(c: &SolidContact) -> bool {
+    c.active && !c.pressed && c.friction > 0.0
+}
+
+/// The holding contacts' [`smoothed_friction`] linearised about the
+/// velocities `v` of a Newton iterate, each with the normal force
+/// `normal_force(contact)` (N; lagged, Li et al. 2020 §5.2):
+/// `f(v) ~ f(v_k) - C (v - v_k)`, `C` added to `damping` (N s/m) and
+/// `f(v_k) + C v_k` to `external` (N), and kept on the contact
+/// (`solve_damping`, `solve_constant_n`, `solve_limit_n`) so
+/// [`contact_friction_potential`] and [`apply_friction`] know what the
+/// solve applied.
+pub fn linearise_contact_friction(
+    contacts: &mut [SolidContact],
+    v: &[Vec3],
+    normal_force: impl Fn(&SolidContact) -> f64,
+    damping: &mut [Mat3],
+    external: &mut [Vec3],
+) {
+    for c in contacts.iter_mut().filter(|c| holds_with_friction(c)) {
+        let i = c.particle as usize;
+        let tangent = Mat3::identity() - c.normal * c.normal.transpose();
+        let slip = tangent * (v[i] - c.solid_velocity);
+        let limit = c.friction * normal_force(c).max(0.0);
+        let (force, damp) = smoothed_friction(slip, limit, FRICTION_SMOOTHING_M_S, &tangent);
+        // f(w_k) - C (w - w_k) with w = P (v - v_s) and C P = C.
+        let constant = force + damp * v[i];
+        damping[i] += damp;
+        external[i] += constant;
+        (c.solve_damping, c.solve_constant_n, c.solve_limit_n) = (damp, constant, limit);
+    }
+}
+
+/// The holding contacts' friction dissipation
+/// `sum mu N F0(|P (v + beta p - v_s)|)`, W ([`smoothed_friction_potential`]),
+/// with the bounds `mu N` of the last [`linearise_contact_friction`].
+pub fn contact_friction_potential(contacts: &[SolidContact], v: &[Vec3], p: &[Vec3], beta: f64) -> f64 {
+    contacts
+        .iter()
+        .filter(|c| holds_with_friction(c))
+        .map(|c| {
+            let i = c.particle as usize;
+            let w = v[i] + p[i] * beta - c.solid_velocity;
+            let slip = w - c.normal * c.normal.dot(&w);
+            smoothed_friction_potential(slip, c.solve_limit_n, FRICTION_SMOOTHING_M_S)
+        })
+        .sum()
 }
 
 /// Friction of squeezed particles that slide, inside the implicit solve:
@@ -936,6 +1141,7 @@ pub fn apply_friction(
     contacts: &mut [SolidContact],
     masses: &[f64],
     (tau, h): (f64, f64),
+    solved: bool,
     new_x: &mut [Vec3],
     new_v: &mut [Vec3],
 ) -> usize {
@@ -971,6 +1177,23 @@ pub fn apply_friction(
             }
         }
         if group[a].friction <= 0.0 && b.is_none_or(|b| group[b].friction <= 0.0) {
+            continue;
+        }
+        if solved && !squeezed {
+            // Newton iterations solved this friction with the rest of the
+            // cloth (the velocity change `f tau / m` would be that of the
+            // particle alone: 100 m/s at h = 0.2 s). What remains is the
+            // smoothing's creep below `FRICTION_SMOOTHING_M_S`: stopped.
+            let slip = free(new_v[i] - group[a].solid_velocity);
+            let stick = slip.norm() < FRICTION_SMOOTHING_M_S;
+            let dv = if stick { -slip } else { Vec3::zeros() };
+            new_v[i] += dv;
+            new_x[i] += dv * tau;
+            group[a].impulse_n_s += (group[a].solve_friction_n + dv * (masses[i] / tau)) * h;
+            if let Some(b) = b {
+                group[b].impulse_n_s += group[b].solve_friction_n * h;
+            }
+            sticking += usize::from(stick);
             continue;
         }
         let budget = |c: &SolidContact| c.friction * c.normal_force_n.max(0.0) * tau / masses[i];
@@ -1394,6 +1617,7 @@ mod tests {
             solve_damping: Mat3::zeros(),
             solve_constant_n: Vec3::zeros(),
             solve_friction_n: Vec3::zeros(),
+            solve_limit_n: 0.0,
         }
     }
 
@@ -1445,11 +1669,11 @@ mod tests {
         let budget = 0.5 * 2.0 * tau / mass; // 0.02 m/s
         let mut x = vec![Vec3::zeros()];
         let mut v = vec![Vec3::new(0.1 + 0.015, 0.0, -0.3)];
-        assert_eq!(apply_friction(&mut [contact], &[mass], (tau, tau), &mut x, &mut v), 1);
+        assert_eq!(apply_friction(&mut [contact], &[mass], (tau, tau), false, &mut x, &mut v), 1);
         assert!((v[0] - Vec3::new(0.1, 0.0, -0.3)).norm() < 1e-15);
         assert!((x[0] - Vec3::new(-0.015 * tau, 0.0, 0.0)).norm() < 1e-15);
         let mut v = vec![Vec3::new(0.1 + 0.05, 0.0, 0.2)];
-        assert_eq!(apply_friction(&mut [contact], &[mass], (tau, tau), &mut x, &mut v), 0);
+        assert_eq!(apply_friction(&mut [contact], &[mass], (tau, tau), false, &mut x, &mut v), 0);
         assert!((v[0] - Vec3::new(0.1 + 0.05 - budget, 0.0, 0.2)).norm() < 1e-15);
     }
 
@@ -1460,5 +1684,68 @@ mod tests {
         let (a, b) = two_direction_coefficients(&n, &m, 0.3, -0.2);
         let t = n * a + m * b;
         assert!((t.dot(&n) - 0.3).abs() < 1e-15 && (t.dot(&m) + 0.2).abs() < 1e-15);
+    }
+
+    /// The smoothed Coulomb friction is the negative gradient of its
+    /// dissipation potential, and its damping the Jacobian of the force
+    /// (central differences, both regimes and at the smoothing speed);
+    /// above it the force is Coulomb's `mu N`, below it shrinks to zero
+    /// with the slip. A force with the sliding magnitude at every slip
+    /// (the unsmoothed law) fails the first check near zero.
+    #[test]
+    fn smoothed_friction_is_the_gradient_of_its_potential() {
+        let (limit, eps) = (0.02, FRICTION_SMOOTHING_M_S);
+        let n = Vec3::new(0.2, -0.3, 1.0).normalize();
+        let tangent = Mat3::identity() - n * n.transpose();
+        let direction = tangent * Vec3::new(1.0, 0.4, 0.0);
+        let direction = direction / direction.norm();
+        let side = n.cross(&direction);
+        let (mut worst_force, mut worst_damping) = (0.0_f64, 0.0_f64);
+        for speed in [0.1 * eps, 0.5 * eps, 0.999 * eps, 1.001 * eps, 3.0 * eps, 100.0 * eps] {
+            let slip = (direction * 0.8 + side * 0.6) * speed;
+            let (force, damping) = smoothed_friction(slip, limit, eps, &tangent);
+            let d = 1e-4 * speed;
+            for axis in [direction, side] {
+                let energy = |s: Vec3| smoothed_friction_potential(s, limit, eps);
+                let gradient = (energy(slip + axis * d) - energy(slip - axis * d)) / (2.0 * d);
+                worst_force = worst_force.max((force.dot(&axis) + gradient).abs() / limit);
+                let jacobian = (smoothed_friction(slip + axis * d, limit, eps, &tangent).0
+                    - smoothed_friction(slip - axis * d, limit, eps, &tangent).0)
+                    / (2.0 * d);
+                worst_damping = worst_damping.max((damping * axis + jacobian).norm() / (limit / eps));
+            }
+            let expected = if speed >= eps { limit } else { limit * (2.0 * speed / eps - speed * speed / (eps * eps)) };
+            assert!((force.norm() - expected).abs() < 1e-15, "{speed}: |f| {} against {expected}", force.norm());
+            assert!(
+                force.dot(&n).abs() < 1e-15 && (damping * n).norm() < 1e-12 * limit / eps,
+                "not in the tangent plane"
+            );
+        }
+        eprintln!("worst force error {worst_force:.1e} (of mu N), damping error {worst_damping:.1e} (of mu N / eps)");
+        assert!(worst_force < 5e-9, "force is not -grad D: {worst_force:e}");
+        assert!(worst_damping < 6e-9, "damping is not -df/dw: {worst_damping:e}");
+        // Coulomb's constant magnitude near rest has no potential of this shape.
+        let slip = direction * (0.1 * eps);
+        let d = 1e-5 * eps;
+        let energy = |s: Vec3| smoothed_friction_potential(s, limit, eps);
+        let gradient = (energy(slip + direction * d) - energy(slip - direction * d)) / (2.0 * d);
+        assert!((sliding_friction(slip, limit).dot(&direction) + gradient).abs() > 0.5 * limit);
+    }
+
+    /// The penalty's force is the negative derivative of its energy in the
+    /// gap, zero beyond the thickness, and its stiffness scales as
+    /// `m / h^2`.
+    #[test]
+    fn contact_penalty_force_is_minus_the_energy_derivative() {
+        let (e, k) = (0.005, contact_penalty_stiffness(6.25e-5, 0.2));
+        assert!((k - 1e3 * 6.25e-5 / 0.04).abs() < 1e-12);
+        for gap in [-0.002, 0.0, 0.001, 0.004, 0.0049] {
+            let d = 1e-7;
+            let slope = (contact_penalty(gap + d, e, k).0 - contact_penalty(gap - d, e, k).0) / (2.0 * d);
+            let force = contact_penalty(gap, e, k).1;
+            assert!((force + slope).abs() < 1e-9 * k, "gap {gap}: force {force} against -dE/dg {}", -slope);
+            assert!((force - k * (e - gap)).abs() < 1e-15);
+        }
+        assert_eq!(contact_penalty(0.006, e, k), (0.0, 0.0));
     }
 }

@@ -106,7 +106,8 @@ pub struct SolverParams {
     /// Most linear solves per step of `backward-euler` and `bdf2`: 1 is
     /// Choi & Ko's and Baraff & Witkin's single linearised step; more
     /// adds Newton corrections with a line search on the incremental
-    /// potential (see [`NewtonReport`]). Default 1.
+    /// potential, solids then acting as penalties and their friction as a
+    /// dissipation potential (see [`NewtonReport`]). Default 1.
     pub newton_iterations: usize,
     /// Newton stops once the step equation's residual, as a distance
     /// (`|r_i| dx/du / m_i`, the distance a particle would still move under
@@ -632,7 +633,8 @@ fn uncommitted_step<S: Linearised>(
     }
     let (mut forces_s, mut assembly_s) = (timing.links_s, timing.gather_s + pins_s);
     // Newton iterations with a line search on the nonlinear step equation
-    // (see `newton`); collision forces stay those of the start of the step.
+    // (see `newton`): solids then act as penalties, self-collision as at the
+    // start of the step.
     let newton = if solver.newton_iterations > 1 {
         let out = crate::newton::iterate(scheme, model, state, control, h, ws, solver, &loads)?;
         report.force_evaluations += out.evaluations;
@@ -666,14 +668,15 @@ fn uncommitted_step<S: Linearised>(
     }
     let tau = scheme.response_time(h);
     let solid = &mut ws.contacts.solid;
-    if loads.squeeze_friction {
+    // Friction in the solve: squeezed particles', and the held ones' in Newton iterations.
+    if loads.squeeze_friction || newton {
         squeeze_friction_forces(solid, &ws.new_v);
     }
-    stats.sticking = apply_friction(solid, model.masses(), (tau, h), &mut ws.new_x, &mut ws.new_v);
+    stats.sticking = apply_friction(solid, model.masses(), (tau, h), newton, &mut ws.new_x, &mut ws.new_v);
     if !model.colliders().is_empty() {
         let t_next = state.time_s + h;
-        // Newton corrections move free particles after the contact set was
-        // settled: check them all then.
+        // After Newton iterations (penalties, not constraints) or an active
+        // set that ran out of passes: check every particle.
         let all = unresolved || newton;
         stats.projected = project_out(model, &state.x, t_next, &mut ws.contacts, all, &mut ws.new_x, &mut ws.new_v);
     }
@@ -746,7 +749,7 @@ pub(crate) struct StepLoads {
     /// `ws.external` holds forces (wind, self-collision).
     pub(crate) external: bool,
     /// `ws.contacts.self_stiffness` holds self-collision stiffness.
-    self_collision: bool,
+    pub(crate) self_collision: bool,
     /// `ws.contacts.friction_damping` holds friction of squeezed particles.
     pub(crate) squeeze_friction: bool,
     stats: ContactStats,
