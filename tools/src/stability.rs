@@ -669,12 +669,10 @@ fn scales(quick: bool) -> Vec<Row> {
 fn coincident_particles() -> Vec<Row> {
     let mut rows = Vec::new();
     for (variant, collapsed) in [("particles 0 and 1 on one point", 2usize), ("the whole cloth on one point", 441)] {
-        // The arc-path triples read curvature from angles, so their forces
-        // grow as 1 / l while a collapsed triple's particles move apart.
-        const COLLAPSED: &str = "arc-path triples stiffen as 1 / l near a point: the matrix loses definiteness";
-        let case = Case::new("coincident particles", variant, "finite")
-            .set("simulation.duration_s", 1)
-            .known_defect((collapsed > 2).then_some(COLLAPSED));
+        // The whole cloth on one point stopped with a matrix no longer
+        // positive definite until the type-2 paths' halves got a floor
+        // (`element_laws::SHORTEST_HALF`).
+        let case = Case::new("coincident particles", variant, "finite").set("simulation.duration_s", 1);
         let collapse = |sim: &mut Simulation| {
             let mut s = sim.snapshot();
             let p = s.x[0];

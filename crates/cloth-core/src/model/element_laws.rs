@@ -272,6 +272,11 @@ pub fn curvature_bending_with(x: [Vec3; 6], rest_angles: [f64; 3], m: &Mat3, hes
     ElementResponse { energy, forces, hessian }
 }
 
+/// Shortest length a half of a type-2 path counts as, in rest lengths
+/// ([`bend_triple_with`]): a half a hundredth of its rest length is a
+/// collapse, not a fold.
+pub const SHORTEST_HALF: f64 = 1e-2;
+
 /// Choi & Ko's circular-arc law (2002, Eq. 8-10, [`crate::laws::buckling_arc`])
 /// read against the path through the middle particle: a type-2
 /// interaction of rest length `L` across particles `(i, m, j)` (corners
@@ -303,14 +308,25 @@ pub fn curvature_bending_with(x: [Vec3; 6], rest_angles: [f64; 3], m: &Mat3, hes
 /// path no stiffness (a Hessian with `grad^2 l` alone would: it damped the
 /// fall of a fine cantilever by orders of magnitude).
 ///
+/// A half of the path shorter than [`SHORTEST_HALF`] of the rest length
+/// counts as that long (a constant: it adds nothing to the gradient and its
+/// tangent nothing to the matrix). Curvature read from a half of zero
+/// length has no direction, and its forces and stiffness grow as `1 / l`:
+/// a cloth crumpled onto one point stopped with a matrix that was no
+/// longer positive definite (`cloth study stability`).
+///
 /// `rest` in m, `k_b` in N m^2.
 pub fn bend_triple_with(x: [Vec3; 3], rest: f64, k_b: f64, hessian: bool) -> ElementResponse<3> {
     let zero = ElementResponse { energy: 0.0, forces: [Vec3::zeros(); 3], hessian: [[Mat3::zeros(); 3]; 3] };
     let (c, a, b) = (x[2] - x[0], x[1] - x[0], x[2] - x[1]);
     let (d, l1, l2) = (c.norm(), a.norm(), b.norm());
-    if !(l1 > 0.0 && l2 > 0.0) {
+    let shortest = SHORTEST_HALF * rest;
+    if !shortest.is_finite() || shortest <= 0.0 {
         return zero;
     }
+    // Each half's length and its gradient (zero once held at `shortest`).
+    let half = |v: Vec3, len: f64| if len >= shortest { (len, v / len) } else { (shortest, Vec3::zeros()) };
+    let ((l1, e1), (l2, e2)) = (half(a, l1), half(b, l2));
     let l = l1 + l2;
     let r = (d / l).min(1.0);
     // The arc law at chord r L; on a straight path its limits at d -> L.
@@ -321,7 +337,6 @@ pub fn bend_triple_with(x: [Vec3; 3], rest: f64, k_b: f64, hessian: bool) -> Ele
     };
     let (de, dde) = (rest * law.phi, rest * rest * law.dphi);
     let u = if d > 0.0 { c / d } else { Vec3::zeros() };
-    let (e1, e2) = (a / l1, b / l2);
     let q = d / (l * l);
     let grad = [-u / l + e1 * q, -(e1 - e2) * q, u / l - e2 * q];
     let forces = grad.map(|g| -g * de);
@@ -329,8 +344,10 @@ pub fn bend_triple_with(x: [Vec3; 3], rest: f64, k_b: f64, hessian: bool) -> Ele
         return ElementResponse { energy: law.energy, forces, ..zero };
     }
     // J = d (t_2 - t_1) / dx, blockwise; the projections are symmetric.
-    let p1 = (Mat3::identity() - e1 * e1.transpose()) / l1;
-    let p2 = (Mat3::identity() - e2 * e2.transpose()) / l2;
+    let tangent_change = |e: Vec3, len: f64| {
+        if e == Vec3::zeros() { Mat3::zeros() } else { (Mat3::identity() - e * e.transpose()) / len }
+    };
+    let (p1, p2) = (tangent_change(e1, l1), tangent_change(e2, l2));
     let jac = [p1, -p1 - p2, p2];
     let c_geo = -de * l1 * l2 / (l * l);
     let hessian =
@@ -402,7 +419,9 @@ mod tests {
         let (rest, k_b) = (0.02, 3e-7);
         let bent = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.0101, 0.0007, 0.0023), Vec3::new(0.0195, -0.001, 0.0012)];
         let folded = on_circle(250.0, 0.01); // turned by 2.5 rad
-        for x in [bent, folded] {
+        // A first half 0.6 % of the rest length: held at SHORTEST_HALF.
+        let collapsed = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1e-4, 5e-5, 6e-5), Vec3::new(0.0195, -0.001, 0.0012)];
+        for x in [bent, folded, collapsed] {
             let e = bend_triple_with(x, rest, k_b, true);
             let h = 1e-9;
             for k in 0..3 {
@@ -423,6 +442,33 @@ mod tests {
             }
             let net: Vec3 = e.forces.iter().sum();
             assert!(net.norm() < 1e-12 * e.forces[1].norm());
+        }
+    }
+
+    /// A half collapsing onto a point adds no stiffness beyond what a half
+    /// of `SHORTEST_HALF` rest lengths has: the matrix stays bounded (and
+    /// positive semi-definite) however short it gets; without the floor its
+    /// norm grows as `1 / l`.
+    #[test]
+    fn bend_triple_stiffness_stays_bounded_as_a_half_collapses() {
+        let (rest, k_b) = (0.02, 3e-7);
+        let norm = |l1: f64| {
+            let x = [Vec3::zeros(), Vec3::new(l1, 0.3 * l1, 0.0), Vec3::new(0.0195, -0.001, 0.0012)];
+            let h = bend_triple_with(x, rest, k_b, true).hessian;
+            let mut dense = nalgebra::DMatrix::<f64>::zeros(9, 9);
+            for (a, row) in h.iter().enumerate() {
+                for (b, block) in row.iter().enumerate() {
+                    dense.view_mut((3 * a, 3 * b), (3, 3)).copy_from(block);
+                }
+            }
+            let eig = dense.clone().symmetric_eigen().eigenvalues;
+            assert!(eig.min() > -1e-12 * eig.max(), "not semi-definite at {l1}: {}", eig.min());
+            dense.norm()
+        };
+        let at_floor = norm(0.95 * SHORTEST_HALF * rest);
+        for l1 in [1e-4, 1e-6, 1e-9].map(|f| f * rest) {
+            // Only the other half's tangent turns a little (measured: 1 %).
+            assert!(norm(l1) < 1.02 * at_floor, "{l1}: {} vs {at_floor}", norm(l1));
         }
     }
 
