@@ -695,23 +695,29 @@ nodes = [[0, 3]]
 
     #[test]
     fn every_effect_is_listed_and_named_as_in_scene_files() {
-        let in_all = |e: EffectName| match e {
-            // Exhaustive: a new effect must be added here and to ALL.
-            EffectName::Gravity
-            | EffectName::Damping
-            | EffectName::Bending
-            | EffectName::StrainLimit
-            | EffectName::Drag
-            | EffectName::Wind
-            | EffectName::Aerodynamics => EffectName::ALL.contains(&e),
+        // Exhaustive: a new effect fails to compile here until it is given
+        // a slot, and then this test until it is in ALL.
+        let slot = |e: EffectName| match e {
+            EffectName::Gravity => 0,
+            EffectName::Damping => 1,
+            EffectName::Bending => 2,
+            EffectName::StrainLimit => 3,
+            EffectName::Drag => 4,
+            EffectName::Wind => 5,
+            EffectName::Aerodynamics => 6,
         };
+        // ALL holds each effect once: one per slot, none twice.
+        let mut seen = [false; 7];
         for e in EffectName::ALL {
-            assert!(in_all(e));
+            assert!(!std::mem::replace(&mut seen[slot(e)], true), "{e:?} twice in ALL");
+        }
+        assert!(seen.iter().all(|&s| s), "an effect missing from ALL: {seen:?}");
+        // Names are distinct and parse back.
+        for e in EffectName::ALL {
             let parsed: toml::Table = toml::from_str(&format!("e = \"{}\"", e.name())).unwrap();
             let back: EffectName = parsed["e"].clone().try_into().unwrap();
             assert_eq!(back, e);
         }
-        assert_eq!(EffectName::ALL.len(), 7);
     }
 
     #[test]

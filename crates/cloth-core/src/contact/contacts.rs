@@ -1590,11 +1590,21 @@ mod tests {
                 assert!((fd - bufs.self_force[i][axis]).abs() < 1e-6, "particle {i} axis {axis}: {fd}");
             }
         }
-        // The kept stiffness: u^T S u = k_r per unit weight^2; nothing orthogonal.
-        for c in bufs.self_pairs.iter().filter(|c| c.repels && c.distance_m < sc.thickness_m && c.weights[1] == 0.0) {
-            let s = bufs.self_stiffness[c.particle as usize];
-            assert!((c.direction.transpose() * s * c.direction)[0] >= sc.stiffness_n_m - 1e-9);
+        // The kept stiffness, summed from the pairs as documented: each
+        // touching pair adds `w^2 k_r u u^T` to each of its particles (weight
+        // 1 for the particle, the barycentric weights for the others), with
+        // nothing orthogonal to `u` (that part, `phi / d`, is negative).
+        let mut expected = vec![Mat3::zeros(); x.len()];
+        for c in bufs.self_pairs.iter().filter(|c| c.repels && c.distance_m < sc.thickness_m) {
+            let uu = c.direction * c.direction.transpose() * sc.stiffness_n_m;
+            expected[c.particle as usize] += uu;
+            for (&o, &w) in c.others.iter().zip(&c.weights) {
+                expected[o as usize] += uu * (w * w);
+            }
         }
+        let worst = (0..x.len()).map(|i| (bufs.self_stiffness[i] - expected[i]).norm()).fold(0.0, f64::max);
+        assert!(worst < 1e-12 * sc.stiffness_n_m, "self-collision stiffness off the pairs' sum by {worst:e}");
+        assert!(expected.iter().filter(|s| s.norm() > 0.0).count() > 8, "too few particles touch");
     }
 
     /// Particle 0 held on solid 0 at the origin: outward `normal`, the
