@@ -122,19 +122,23 @@ fn order(kind: IntegratorKind, steps: &[usize], reference: &[Vec3]) -> (f64, Vec
 fn every_integrator_converges_at_its_order() {
     let (reference, min_stretch) = run(IntegratorKind::Rk4, 8000, 1e6);
     assert!(min_stretch > 1.0, "links went slack ({min_stretch}): the problem is not smooth");
+    // Measured orders: 1.001, 0.999, 0.999, 0.999, 2.003, 2.004, 4.000,
+    // 4.961; each window sits just outside. Dopri5 advancing with its
+    // embedded fourth-order solution measures 4.0 and fails.
     let cases: [(IntegratorKind, &[usize], f64, f64); 8] = [
-        (IntegratorKind::ForwardEuler, &[100, 200, 400, 800], 0.85, 1.2),
-        (IntegratorKind::SymplecticEuler, &[100, 200, 400, 800], 0.85, 1.2),
-        (IntegratorKind::BackwardEuler, &[100, 200, 400, 800], 0.85, 1.2),
+        (IntegratorKind::ForwardEuler, &[100, 200, 400, 800], 0.98, 1.02),
+        (IntegratorKind::SymplecticEuler, &[100, 200, 400, 800], 0.98, 1.02),
+        (IntegratorKind::BackwardEuler, &[100, 200, 400, 800], 0.98, 1.02),
         // With enough iterations the fixed-CG variant is backward Euler.
-        (IntegratorKind::BackwardEulerFixedCg, &[100, 200, 400, 800], 0.85, 1.2),
-        (IntegratorKind::Midpoint, &[50, 100, 200, 400], 1.8, 2.3),
-        (IntegratorKind::Bdf2, &[50, 100, 200, 400], 1.8, 2.3),
-        (IntegratorKind::Rk4, &[10, 20, 40, 80], 3.7, 4.4),
-        (IntegratorKind::Dopri5, &[10, 20, 40], 4.0, 6.0),
+        (IntegratorKind::BackwardEulerFixedCg, &[100, 200, 400, 800], 0.98, 1.02),
+        (IntegratorKind::Midpoint, &[50, 100, 200, 400], 1.98, 2.03),
+        (IntegratorKind::Bdf2, &[50, 100, 200, 400], 1.98, 2.03),
+        (IntegratorKind::Rk4, &[10, 20, 40, 80], 3.98, 4.02),
+        (IntegratorKind::Dopri5, &[10, 20, 40], 4.9, 5.05),
     ];
     for (kind, steps, lo, hi) in cases {
         let (slope, errors) = order(kind, steps, &reference);
+        eprintln!("{kind:?}: order {slope:.3}, errors {errors:?}");
         assert!((lo..hi).contains(&slope), "{kind:?}: order {slope:.2}, errors {errors:?}");
     }
 }
@@ -154,6 +158,11 @@ fn adaptive_steps_meet_tighter_tolerances_with_more_work() {
         assert!(report.rejected_steps >= 1, "tolerance {tolerance}: {report:?}");
         assert_eq!(report.force_evaluations, 7 * (report.substeps + report.rejected_steps));
         let error = max_error(&sim.state().x, &reference);
+        // The error follows the tolerance: measured 2.5e-2, 2.9e-2 and
+        // 6.5e-2 of it (2, 3 and 6 substeps). An estimate 100x too small
+        // or too large breaks this window.
+        let ratio = error / tolerance;
+        assert!((0.02..0.1).contains(&ratio), "tolerance {tolerance}: error {error} ({ratio:.3} of it)");
         assert!(error < last_error / 5.0, "tolerance {tolerance}: error {error} vs {last_error}");
         assert!(report.force_evaluations > last_evals);
         assert!((sim.time() - T).abs() < 1e-15);
