@@ -103,29 +103,31 @@ fn min_unlinked_point_triangle(model: &ClothModel, x: &[Vec3]) -> f64 {
 }
 
 /// The fold fixture: the cloth lands on the ground and falls over onto
-/// itself; at no step are two particles that share no link, or a particle
-/// and a triangle not linked to it, closer than half the self-collision
-/// thickness, and the layers really do touch (self contacts are found).
+/// itself; at no step are two particles that share no link closer than
+/// the separation's floor (`MIN_SELF_GAP`, 0.75 of the self-collision
+/// thickness; measured exactly 7.50 mm at 10 mm), or a particle and a
+/// triangle not linked to it closer than 0.71 of it (measured 7.16 mm),
+/// and the layers really do touch (self contacts are found). Checked at
+/// every step.
 #[test]
 fn folded_cloth_never_passes_through_itself() {
     let (mut sim, cfg) = simulation("fold.toml", &[]);
     let thickness = sim.model().self_collision().unwrap().thickness_m;
     let (mut closest, mut to_triangle, mut self_contacts_max) = (f64::INFINITY, f64::INFINITY, 0);
-    for step in 0..cfg.steps {
+    for _ in 0..cfg.steps {
         let r = sim.step(cfg.dt_s).unwrap();
         self_contacts_max = self_contacts_max.max(r.contacts.self_contacts);
         closest = closest.min(min_unlinked_distance(sim.model(), &sim.state().x));
-        if step % 5 == 4 {
-            to_triangle = to_triangle.min(min_unlinked_point_triangle(sim.model(), &sim.state().x));
-        }
+        to_triangle = to_triangle.min(min_unlinked_point_triangle(sim.model(), &sim.state().x));
     }
     eprintln!(
         "fold: closest unlinked pair {closest:.5} m, particle-triangle {to_triangle:.5} m \
          (thickness {thickness} m), {self_contacts_max} self contacts"
     );
     assert!(self_contacts_max > 20, "the cloth never folded onto itself");
-    assert!(closest >= 0.5 * thickness, "particles {closest} m apart, thickness {thickness} m");
-    assert!(to_triangle >= 0.5 * thickness, "particle {to_triangle} m from a triangle, thickness {thickness} m");
+    let floor = 0.75 * thickness;
+    assert!(closest >= floor * (1.0 - 1e-9), "particles {closest} m apart, thickness {thickness} m");
+    assert!(to_triangle >= 0.71 * thickness, "particle {to_triangle} m from a triangle, thickness {thickness} m");
 }
 
 /// Runs `steps` steps; returns the deepest penetration seen at any step
