@@ -40,10 +40,12 @@
 //! Coulomb's law smoothed below a slip of
 //! [`crate::contacts::FRICTION_SMOOTHING_M_S`] as a dissipation potential
 //! `(c_f / b) mu N F0(|w|)` (Li et al. 2020, IPC §5), its normal force `N`
-//! frozen at the iterate. Applied after the solve instead, as at small
-//! steps, static friction at `h = 0.2 s` moves a held particle back by the
-//! whole distance its free neighbours have slid past it: links 5x their
-//! rest length after one step.
+//! frozen (Li et al.'s lagging): first the constraint forces of the
+//! linearised solve, then, once the iterations converge with those, the
+//! penalty forces of that iterate, checked again. Applied after the
+//! solve instead, as at small steps, static friction at `h = 0.2 s` moves
+//! a held particle back by the whole distance its free neighbours have
+//! slid past it: links 5x their rest length after one step.
 //!
 //! Stopping rule: the residual as a distance, `max_i |S_i r_i| a / m_i`
 //! over the free directions `S_i` (m): the distance particle `i` would
