@@ -793,10 +793,11 @@ pub fn constrain_contacts(
     }
 }
 
-/// Reads each contact's normal force ([`read_normal_forces`]) and
-/// releases those that pull; the particle is then re-constrained with
-/// what remains, through `value` as in [`constrain_contacts`]. Returns
-/// how many were released.
+/// Reads each contact's normal force from the unfiltered residual,
+/// `f_c = (A u - b)_i / force_coefficient` (split along both normals for
+/// a two-solid contact), and releases those that pull; the particle is
+/// then re-constrained with what remains, through `value` as in
+/// [`constrain_contacts`]. Returns how many were released.
 #[allow(clippy::too_many_arguments)]
 pub fn release_pulling(
     contacts: &mut [SolidContact],
@@ -808,40 +809,7 @@ pub fn release_pulling(
     filter: &mut ConstraintFilter,
     value: impl Fn(Vec3, usize) -> Vec3,
 ) -> usize {
-    read_normal_forces(contacts, matrix, rhs, unknown, force_coefficient);
     let mut released = 0;
-    for group in contacts.chunk_by_mut(same_particle) {
-        let mut changed = false;
-        for c in group.iter_mut().filter(|c| c.active && !c.pressed && c.normal_force_n < 0.0) {
-            (c.active, c.normal_force_n, changed) = (false, 0.0, true);
-            // Friction a Newton iterate linearised for it no longer acts.
-            (c.solve_damping, c.solve_constant_n) = (Mat3::zeros(), Vec3::zeros());
-            released += 1;
-        }
-        if changed && !group.iter().any(|c| c.active && !c.pressed) {
-            // The holding solid let go: the pressing one holds instead.
-            for c in group.iter_mut().filter(|c| c.active && c.pressed) {
-                (c.pressed, c.normal_force_n) = (false, 0.0);
-            }
-        }
-        if changed {
-            constrain_particle(group, x, filter, &value);
-        }
-    }
-    released
-}
-
-/// Each active holding contact's normal force from the unfiltered
-/// residual, `f_c = (A u - b)_i / force_coefficient` (split along both
-/// normals for a two-solid contact), into `normal_force_n` (N, negative
-/// when it pulls).
-pub fn read_normal_forces(
-    contacts: &mut [SolidContact],
-    matrix: &BlockSparseMatrix,
-    rhs: &[Vec3],
-    unknown: &[Vec3],
-    force_coefficient: f64,
-) {
     for group in contacts.chunk_by_mut(same_particle) {
         let i = group[0].particle as usize;
         let mut active = (0..group.len()).filter(|&k| group[k].active && !group[k].pressed);
@@ -859,7 +827,25 @@ pub fn read_normal_forces(
                 (group[a].normal_force_n, group[b].normal_force_n) = (p, q);
             }
         }
+        let mut changed = false;
+        for k in [Some(a), second].into_iter().flatten() {
+            let c = &mut group[k];
+            if c.normal_force_n < 0.0 {
+                (c.active, c.normal_force_n, changed) = (false, 0.0, true);
+                released += 1;
+            }
+        }
+        if changed && !group.iter().any(|c| c.active && !c.pressed) {
+            // The holding solid let go: the pressing one holds instead.
+            for c in group.iter_mut().filter(|c| c.active && c.pressed) {
+                (c.pressed, c.normal_force_n) = (false, 0.0);
+            }
+        }
+        if changed {
+            constrain_particle(group, x, filter, &value);
+        }
     }
+    released
 }
 
 /// Slip speed above which a squeezed particle's friction goes into the
