@@ -85,6 +85,41 @@ pub struct SolidContact {
     pub solve_limit_n: f64,
 }
 
+impl SolidContact {
+    /// A contact of `particle` held on solid `collider` at the surface
+    /// `point` (m) with outward `normal`, the solid moving at
+    /// `solid_velocity` (m/s), Coulomb `friction`: active, on the surface
+    /// (no distance or travel), no force or impulse yet, nothing in the
+    /// solve.
+    pub fn new(
+        particle: usize,
+        collider: usize,
+        point: Vec3,
+        normal: Vec3,
+        solid_velocity: Vec3,
+        friction: f64,
+    ) -> Self {
+        Self {
+            particle: particle as u32,
+            collider: collider as u32,
+            point,
+            distance_m: 0.0,
+            normal,
+            normal_travel_m: 0.0,
+            solid_velocity,
+            friction,
+            normal_force_n: 0.0,
+            impulse_n_s: Vec3::zeros(),
+            active: true,
+            pressed: false,
+            solve_damping: Mat3::zeros(),
+            solve_constant_n: Vec3::zeros(),
+            solve_friction_n: Vec3::zeros(),
+            solve_limit_n: 0.0,
+        }
+    }
+}
+
 /// A pair of cloth pieces closer than the self-collision thickness.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SelfContact {
@@ -439,24 +474,8 @@ fn contact(
     travel: f64,
     next: &SolidPose,
 ) -> SolidContact {
-    SolidContact {
-        particle: i as u32,
-        collider: k as u32,
-        point: s.point,
-        distance_m: distance,
-        normal: s.normal,
-        normal_travel_m: travel,
-        solid_velocity: next.velocity_at(s.point),
-        friction: c.friction,
-        normal_force_n: 0.0,
-        impulse_n_s: Vec3::zeros(),
-        active: true,
-        pressed: false,
-        solve_damping: Mat3::zeros(),
-        solve_constant_n: Vec3::zeros(),
-        solve_friction_n: Vec3::zeros(),
-        solve_limit_n: 0.0,
-    }
+    let held = SolidContact::new(i, k, s.point, s.normal, next.velocity_at(s.point), c.friction);
+    SolidContact { distance_m: distance, normal_travel_m: travel, ..held }
 }
 
 /// When `to` (a particle's new position) is closer than `limit` to solid
@@ -1537,6 +1556,20 @@ mod tests {
         (model, x)
     }
 
+    /// The two sheets 6 mm apart, the top one shifted so particles sit over
+    /// triangle interiors too, at rest, with their self-collision pairs.
+    fn overlapping_sheets() -> (ClothModel, SelfCollision, Vec<Vec3>, ContactBuffers, ContactStats) {
+        let (model, mut x) = two_sheets(0.006);
+        for p in &mut x[9..] {
+            *p += Vec3::new(0.006, 0.004, 0.0);
+        }
+        let sc = *model.self_collision().unwrap();
+        let v = vec![Vec3::zeros(); x.len()];
+        let mut bufs = ContactBuffers::default();
+        let stats = detect_self_contacts(&model, &sc, &x, &v, 0.01, &mut bufs).unwrap();
+        (model, sc, x, bufs, stats)
+    }
+
     fn energy(model: &ClothModel, bufs: &ContactBuffers, x: &[Vec3]) -> f64 {
         let sc = model.self_collision().unwrap();
         let p = |c: &SelfContact| {
@@ -1552,15 +1585,7 @@ mod tests {
     /// diagonal stiffness is the derivative along the repelling direction.
     #[test]
     fn self_repulsion_is_conservative_and_momentum_free() {
-        let (model, mut x) = two_sheets(0.006);
-        // Shift the top sheet so particles sit over triangle interiors too.
-        for p in &mut x[9..] {
-            *p += Vec3::new(0.006, 0.004, 0.0);
-        }
-        let sc = *model.self_collision().unwrap();
-        let v = vec![Vec3::zeros(); x.len()];
-        let mut bufs = ContactBuffers::default();
-        let stats = detect_self_contacts(&model, &sc, &x, &v, 0.01, &mut bufs).unwrap();
+        let (model, sc, x, bufs, stats) = overlapping_sheets();
         assert!(stats.self_contacts > 4, "{stats:?}");
         assert!(bufs.self_pairs.iter().any(|c| c.weights[1] > 0.0), "no particle-triangle pair");
         let total: Vec3 = bufs.self_force.iter().sum();
@@ -1603,14 +1628,7 @@ mod tests {
     /// (8.7e-4 m, 8.7e-2 m/s).
     #[test]
     fn self_separation_conserves_momentum_and_restores_the_gap() {
-        let (model, mut x) = two_sheets(0.006);
-        for p in &mut x[9..] {
-            *p += Vec3::new(0.006, 0.004, 0.0);
-        }
-        let sc = *model.self_collision().unwrap();
-        let v = vec![Vec3::zeros(); x.len()];
-        let mut bufs = ContactBuffers::default();
-        detect_self_contacts(&model, &sc, &x, &v, 0.01, &mut bufs).unwrap();
+        let (model, sc, x, bufs, _) = overlapping_sheets();
         // The step brought the top sheet 4 mm down and set everything moving.
         let mut new_x = x.clone();
         let mut new_v: Vec<Vec3> =
@@ -1642,24 +1660,7 @@ mod tests {
     /// solid moving at `solid_velocity` (m/s), Coulomb `friction`, normal
     /// force `normal_force_n` (N).
     fn touching(normal: Vec3, solid_velocity: Vec3, friction: f64, normal_force_n: f64) -> SolidContact {
-        SolidContact {
-            particle: 0,
-            collider: 0,
-            point: Vec3::zeros(),
-            distance_m: 0.0,
-            normal,
-            normal_travel_m: 0.0,
-            solid_velocity,
-            friction,
-            normal_force_n,
-            impulse_n_s: Vec3::zeros(),
-            active: true,
-            pressed: false,
-            solve_damping: Mat3::zeros(),
-            solve_constant_n: Vec3::zeros(),
-            solve_friction_n: Vec3::zeros(),
-            solve_limit_n: 0.0,
-        }
+        SolidContact { normal_force_n, ..SolidContact::new(0, 0, Vec3::zeros(), normal, solid_velocity, friction) }
     }
 
     /// The squeezed particle's friction in the solve, `e - C v`, is the

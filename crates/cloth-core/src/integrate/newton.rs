@@ -506,24 +506,9 @@ mod tests {
                 let gap = e * (0.5 + 0.4 * noise(seed));
                 let slow = (i / 3) % 2 == 1;
                 let slip = Vec3::new(noise(seed), noise(seed), noise(seed)) * if slow { 3e-4 } else { 0.3 };
-                SolidContact {
-                    particle: i as u32,
-                    collider: 0,
-                    point: x[i] - normal * gap,
-                    distance_m: gap,
-                    normal,
-                    normal_travel_m: 0.0,
-                    solid_velocity: v[i] - slip,
-                    friction: 0.4,
-                    normal_force_n: contact_penalty(gap, e, contact_penalty_stiffness(model.masses()[i], h)).1,
-                    impulse_n_s: Vec3::zeros(),
-                    active: true,
-                    pressed: false,
-                    solve_damping: Mat3::zeros(),
-                    solve_constant_n: Vec3::zeros(),
-                    solve_friction_n: Vec3::zeros(),
-                    solve_limit_n: 0.0,
-                }
+                let held = SolidContact::new(i, 0, x[i] - normal * gap, normal, v[i] - slip, 0.4);
+                let normal_force_n = contact_penalty(gap, e, contact_penalty_stiffness(model.masses()[i], h)).1;
+                SolidContact { distance_m: gap, normal_force_n, ..held }
             })
             .collect()
     }
