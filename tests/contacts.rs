@@ -304,3 +304,113 @@ fn a_drape_at_large_steps_stays_out_of_the_solid() {
     assert!(contacts > 50);
     assert!(stretch < 1.15, "final stretch {stretch}");
 }
+
+/// Thin solids are not crossed: a cloth falling onto a 1 cm slab moves
+/// about 1.1 cm per step when it arrives, so some predicted end-of-step
+/// positions lie past the slab's mid-plane, nearer its underside; the
+/// contact's normal comes from the side each particle is on now, so
+/// every particle stays above the slab at every step (measured: dropped
+/// from 6 cm, predictions to 2.1 mm below the mid-plane, every particle
+/// at least 3.99 mm above the top). Mutant: the normal from the
+/// prediction's closest point sends them through. (Dropped from 10 cm,
+/// 1.55 cm per step, the predictions pass the whole slab and the cloth
+/// tunnels: no continuous collision detection; README.)
+#[test]
+fn a_cloth_falling_onto_a_thin_slab_stays_above_it() {
+    let (height, half) = (0.06, 0.005);
+    let (mut sim, cfg) = simulation(
+        "drape-cube.toml",
+        &[
+            "panels.0.particles=[21, 21]",
+            "panels.0.size_m=[0.5, 0.5]",
+            &format!("panels.0.origin_m=[-0.25, -0.25, {height}]"),
+            "simulation.duration_s=0.5",
+            &format!("colliders.0.shape={{ kind = \"cuboid\", half_extents_m = [0.3, 0.3, {half}] }}"),
+            "colliders.0.rotation_deg=[0.0, 0.0, 0.0]",
+            "colliders.0.position_m=[0.0, 0.0, 0.0]",
+        ],
+    );
+    let (mut lowest, mut deepest_prediction) = (f64::INFINITY, f64::INFINITY);
+    for _ in 0..cfg.steps {
+        let s = sim.state();
+        // The prediction contacts are found from: x + h (2 v - v_prev).
+        let predicted = s.x.iter().zip(&s.v).zip(&s.v_prev).map(|((x, v), vp)| (x + cfg.dt_s * (2.0 * v - vp)).z);
+        deepest_prediction = predicted.fold(deepest_prediction, f64::min);
+        sim.step(cfg.dt_s).unwrap();
+        lowest = sim.state().x.iter().map(|p| p.z).fold(lowest, f64::min);
+    }
+    println!("deepest prediction {deepest_prediction:.5} m (slab {:.3} to {half:.3}); lowest {lowest:.5} m", -half);
+    assert!(deepest_prediction < 0.0, "no prediction past the mid-plane: {deepest_prediction}");
+    assert!(lowest - half > 0.0039, "a particle went to {lowest} m: into or through the slab");
+}
+
+/// A crease between two solids: a cloth dropped into a V-groove of two
+/// slabs tilted 35 degrees each way (overlapping along the valley). A
+/// particle in the valley touches both; each prescribes its own normal,
+/// so it is held in both directions: no particle deeper than 0.5 mm in
+/// either slab at any step, and at the end the valley holds particles in
+/// contact with both, at the thickness from each face (measured: 14
+/// particles, 4.78 to 5.34 mm from the faces). Mutant: one contact per particle (the deepest): none is
+/// held by both (the last projection still keeps them out).
+#[test]
+fn a_cloth_in_a_v_groove_is_held_by_both_solids() {
+    let scene = r#"
+[simulation]
+integrator = "bdf2"
+dt_s = 0.011111111111111112
+duration_s = 1.5
+effects = ["gravity", "bending", "damping"]
+
+[solver]
+rel_tol = 1e-3
+max_iter = 500
+
+[material]
+areal_density_kg_m2 = 0.1
+tensile_stiffness_n_m = 200.0
+flexural_rigidity_n_m = 1e-5
+buckling_stiffness_n_m = 200.0
+damping_n_s_m = 0.02
+
+[[panels]]
+particles = [21, 21]
+size_m = [0.4, 0.4]
+origin_m = [-0.2, -0.2, 0.25]
+
+[collision]
+thickness_m = 0.005
+
+[[colliders]]
+shape = { kind = "cuboid", half_extents_m = [0.3, 0.3, 0.05] }
+rotation_deg = [-35.0, 0.0, 0.0]
+position_m = [0.0, -0.2581, 0.1197]
+friction = 0.3
+
+[[colliders]]
+shape = { kind = "cuboid", half_extents_m = [0.3, 0.3, 0.05] }
+rotation_deg = [35.0, 0.0, 0.0]
+position_m = [0.0, 0.2581, 0.1197]
+friction = 0.3
+"#;
+    let (model, cfg) = cloth_core::scene::Scene::parse(scene, &[]).unwrap().build().unwrap();
+    let mut sim = cfg.simulation(model);
+    let (deepest, _) = deepest_penetration(&mut sim, cfg.dt_s, cfg.steps);
+    let mut on_both = std::collections::BTreeMap::<u32, [bool; 2]>::new();
+    for c in sim.contacts() {
+        on_both.entry(c.particle).or_default()[c.collider as usize] = true;
+    }
+    let both: Vec<u32> = on_both.iter().filter(|(_, s)| s[0] && s[1]).map(|(&p, _)| p).collect();
+    // Distance of a crease particle from each slab's top face (planes through the valley line).
+    let (sin, cos) = 35f64.to_radians().sin_cos();
+    let normals = [Vec3::new(0.0, sin, cos), Vec3::new(0.0, -sin, cos)];
+    let x = &sim.state().x;
+    let gaps = both.iter().flat_map(|&p| normals.map(|n| x[p as usize].dot(&n)));
+    let (nearest, farthest) = gaps.fold((f64::INFINITY, 0.0_f64), |(lo, hi), g| (lo.min(g), hi.max(g)));
+    println!(
+        "deepest {deepest:.2e} m; {} particles on both slabs, {nearest:.5} to {farthest:.5} m from their faces",
+        both.len()
+    );
+    assert!(deepest <= 5e-4, "a particle was {deepest} m inside a slab");
+    assert!(both.len() >= 12, "only {} particles in the crease", both.len());
+    assert!(nearest > 0.0047 && farthest < 0.0054, "crease particles {nearest} to {farthest} m from the faces");
+}

@@ -515,6 +515,11 @@ fn centre_of_mass(m: &[f64], x: &[Vec3]) -> Vec3 {
 /// 1e-4` the centre drifts 1.6 mm in 2 s with `choi-ko`; at 1e-10, 5e-8 m
 /// with `volino`, all of it taken in the first steps).
 fn released_from_ten_times(quick: bool) -> Vec<Row> {
+    // Measured: backward Euler's provot cloth comes to rest at 1.5 s (kinetic
+    // energy 1e-18 J at 6 s) with 6.1 J locked in and links at 1.515: linear
+    // springs pass through zero length, so part of the grid turns inside out
+    // and holds the rest in a fold no force undoes. BDF2 ends at 1.32.
+    const PROVOT_FOLD: &str = "provot's grid folds through itself and stays at rest in a stressed fold";
     let models: &[&str] = if quick { &["choi-ko"] } else { &["choi-ko", "provot", "volino"] };
     let mut rows = Vec::new();
     for model in models {
@@ -528,7 +533,8 @@ fn released_from_ten_times(quick: bool) -> Vec<Row> {
             .integrator(integrator)
             .model(model)
             .set("simulation.effects", "[\"bending\", \"damping\"]")
-            .set("solver.rel_tol", 1e-12);
+            .set("solver.rel_tol", 1e-12)
+            .known_defect((*model == "provot" && *integrator == "backward-euler").then_some(PROVOT_FOLD));
             let stretch_tenfold = |sim: &mut Simulation| {
                 let mut s = sim.snapshot();
                 let centre = centre_of_mass(sim.model().masses(), &s.x);
@@ -813,10 +819,10 @@ friction = 0.3
 master = "iterated"
 "#;
     // Measured: with the ball kept off the cloth nothing is gained; with
-    // contact the iterated master gains up to 22% (ratio 1) and 5% (1e3)
-    // of the energy in play at h = 5 ms, 2-7% at 1 ms, the staggered one
-    // more. Where (the contact impulses' exchange, rapier's own contact
-    // solve) is not yet found.
+    // contact the iterated master gains 42% (ratio 1e-3: the light ball is
+    // thrown up), 3.7% (1) and 6.7% (1e3) of the energy in play at h = 5 ms,
+    // the staggered one more. Where (the contact impulses' exchange,
+    // rapier's own contact solve) is not yet found.
     const COUPLING_GAIN: &str = "two-way contact gains energy, not yet diagnosed";
     let cloth_mass = 0.1 * 0.36;
     let ratios: &[f64] = if quick { &[1e-3] } else { &[1e-3, 1.0, 1e3] };
@@ -828,7 +834,7 @@ master = "iterated"
             "finite; total energy never > 1e-4 of the energy in play above its lowest",
         )
         .set("bodies.0.mass_kg", format!("{:e}", ratio * cloth_mass))
-        .known_defect((ratio >= 1.0).then_some(COUPLING_GAIN));
+        .known_defect(Some(COUPLING_GAIN));
         let built = CoupledScene::parse(SCENE, &case.overrides).and_then(|s| s.build());
         let mut run = match built {
             Ok(run) => run,

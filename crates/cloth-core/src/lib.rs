@@ -39,7 +39,7 @@ pub use integrator::{
     BackwardEuler, Bdf2, Integrator, IntegratorKind, NewtonReport, SolverParams, StageTimes, StepError, StepReport,
     Workspace,
 };
-pub use material::{LinkConstants, Material};
+pub use material::{BendConstants, Compressive, Lattice, Material, Membrane};
 pub use model::{
     BendLaw, BendLink, BendingLaw, ClothModel, Compression, Edge, Effects, Incidence, ModelError, ModelKind, ModelSpec,
     PanelRange, PinSpec, StrainLimit, StretchLink,

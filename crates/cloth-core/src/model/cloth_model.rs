@@ -4,7 +4,7 @@
 use crate::colliders::{Collider, CollisionSpec, SelfCollision};
 use crate::element_laws::{EdgeSupport, TriangleRest, curvature_stiffness, dihedral_angle, edge_hinge};
 use crate::elements::{BendTriple, CurvatureElement, ElementSet, MembraneElement};
-use crate::material::PATH_CURVATURE_FACTOR;
+use crate::material::{Compressive, Lattice, Membrane, PATH_CURVATURE_FACTOR};
 use crate::{
     GridPanel, LinkType, Material, Pin, PinMotion, Vec3, Wind,
     laws::{BucklingLaw, ScalarLaw, bilinear_spring, linear_spring},
@@ -381,7 +381,8 @@ pub struct ClothModel {
 
 impl ClothModel {
     /// Validates `spec` and builds the model: particle masses from areal
-    /// density, links with constants from [`Material::link_constants`],
+    /// density, links with constants from [`Material::lattice_membrane`]
+    /// and [`Material::bend_constants`],
     /// rest lengths from the initial shape, pins, and the sparsity pattern.
     pub fn build(spec: &ModelSpec) -> Result<Self, ModelError> {
         if spec.panels.is_empty() {
@@ -397,6 +398,22 @@ impl ClothModel {
             && spec.kind != ModelKind::ChoiKo
         {
             return Err(ModelError::BendingLaw(law.name(), spec.kind.name()));
+        }
+        if spec.kind != ModelKind::Volino {
+            let m = &spec.material;
+            let orthotropic = [
+                ("warp_stiffness_n_m", m.warp_stiffness_n_m),
+                ("weft_stiffness_n_m", m.weft_stiffness_n_m),
+                ("poisson_ratio", m.poisson_ratio),
+            ];
+            if let Some((field, _)) = orthotropic.iter().find(|(_, v)| v.is_some()) {
+                let message = format!(
+                    "only the volino model's membrane is orthotropic; {}'s lattice takes \
+                     tensile_stiffness_n_m and shear_modulus_n_m (its Poisson ratio follows from them)",
+                    spec.kind.name()
+                );
+                return Err(ModelError::Material { field, message });
+            }
         }
         let mut mass = Vec::new();
         let mut rest_positions = Vec::new();
@@ -415,6 +432,23 @@ impl ClothModel {
         // The arc-path law's mapping counts boundary links for the part of
         // a cell they border (topology::GridLink); the paper's, a full cell.
         let path = spec.kind == ModelKind::ChoiKo && spec.bending_law.unwrap_or_default() == BendingLaw::ArcPath;
+        let compressive = compressive_response(spec, path);
+        // Provot's flexion springs take this share of the axis links' stiffness (`crate::material` docs).
+        let flexion_share = if spec.kind == ModelKind::Provot && spec.effects.bending {
+            let (c_b, e) = (spec.material.buckling_stiffness_n_m, spec.material.tensile_stiffness_n_m);
+            c_b / (e + c_b)
+        } else {
+            0.0
+        };
+        let material_err = |(field, message)| ModelError::Material { field, message };
+        let membrane = match spec.kind {
+            ModelKind::Volino => {
+                let nu = spec.material.poisson_ratio.unwrap_or(crate::material::DEFAULT_POISSON_RATIO);
+                let damping = spec.material.damping_lattice(nu).map_err(material_err)?;
+                Membrane { stiffness: Lattice { axis: 0.0, diagonal: 0.0 }, damping, lateral_contraction: nu }
+            }
+            _ => spec.material.lattice_membrane(compressive).map_err(material_err)?,
+        };
         for (p, panel) in spec.panels.iter().enumerate() {
             let mesh = panel.mesh_with(diagonals).map_err(|(field, message)| ModelError::Panel {
                 panel: p,
@@ -424,10 +458,7 @@ impl ClothModel {
             let offset = mass.len();
             let at = |k: u32| offset as u32 + k;
             let rest_of = |[a, b]: [u32; 2]| (mesh.positions[b as usize] - mesh.positions[a as usize]).norm();
-            let degenerate = |rest: f64, c: &crate::LinkConstants| {
-                let values = [rest, c.k_s, c.k_d, c.k_b, c.c_b];
-                !(rest > 0.0 && values.iter().all(|v| v.is_finite()))
-            };
+            let degenerate = |rest: f64, values: &[f64]| !(rest > 0.0 && values.iter().all(|v| v.is_finite()));
             let degenerate_err = || ModelError::Panel {
                 panel: p,
                 field: "size_m",
@@ -436,8 +467,12 @@ impl ClothModel {
             let area = |link: &crate::topology::GridLink| if path { link.area } else { mesh.cell_area };
             for link in &mesh.sequential {
                 let rest = rest_of(link.ends);
-                let c = spec.material.link_constants(rest, area(link));
-                if degenerate(rest, &c) {
+                // Every model's membrane lattice counts boundary links for the part of a cell they border.
+                let share = if link.diagonal { 0.0 } else { flexion_share };
+                let k_s = (1.0 - share) * membrane.stiffness.link(link.diagonal, rest, link.area);
+                let k_d = membrane.damping.link(link.diagonal, rest, link.area);
+                let k_b = spec.material.bend_constants(rest, area(link)).k_b;
+                if degenerate(rest, &[k_s, k_d, k_b]) {
                     return Err(degenerate_err());
                 }
                 stretch.push(StretchLink {
@@ -445,13 +480,15 @@ impl ClothModel {
                     j: at(link.ends[1]),
                     rest,
                     // Volino's membrane replaces the springs; the links stay for damping and limits.
-                    k_s: if spec.kind == ModelKind::Volino { 0.0 } else { c.k_s },
+                    k_s: if spec.kind == ModelKind::Volino { 0.0 } else { k_s },
                     compression: match spec.kind {
-                        ModelKind::ChoiKo if path => Compression::Buckling(BucklingLaw::new(rest, c.k_b, c.c_b)),
+                        ModelKind::ChoiKo if path => {
+                            Compression::Buckling(BucklingLaw::new(rest, k_b, compressive.ratio * k_s))
+                        }
                         ModelKind::ChoiKo | ModelKind::Volino => Compression::Linear(0.0),
-                        ModelKind::Provot => Compression::Linear(c.k_s),
+                        ModelKind::Provot => Compression::Linear(k_s),
                     },
-                    k_d: if damping { c.k_d } else { 0.0 },
+                    k_d: if damping { k_d } else { 0.0 },
                 });
             }
             if spec.kind == ModelKind::Volino {
@@ -467,14 +504,15 @@ impl ClothModel {
                 let links = if spec.kind == ModelKind::Provot { &mesh.flexion } else { &mesh.interlaced };
                 for link in links {
                     let rest = rest_of(link.ends);
-                    let c = spec.material.link_constants(rest, area(link));
-                    if degenerate(rest, &c) {
+                    let c = spec.material.bend_constants(rest, area(link));
+                    if degenerate(rest, &[c.k_b, c.c_b]) {
                         return Err(degenerate_err());
                     }
                     let [i, j] = link.ends.map(at);
                     match (spec.kind, link.middle) {
                         (ModelKind::Provot, _) => {
-                            bend.push(BendLink { i, j, law: BendLaw::Flexion { rest, k: c.k_flexion } })
+                            let k = flexion_share * membrane.stiffness.link(false, rest, link.area);
+                            bend.push(BendLink { i, j, law: BendLaw::Flexion { rest, k } })
                         }
                         (_, Some(m)) if path => elements.triples.push(BendTriple {
                             nodes: [i, at(m), j],
@@ -765,6 +803,23 @@ impl ClothModel {
     /// Offset of the diagonal block within row `i`.
     pub fn diag_local(&self, i: usize) -> usize {
         self.diag_local[i] as usize
+    }
+}
+
+/// How a lattice model's links resist compression before they buckle
+/// (`crate::material` docs, "Three lattices"): the arc-path law's type-1
+/// links with the ramp `c_b = (C_b / E) k_s`; Provot's linear springs
+/// (his flexion springs share the axis links' stiffness); the arc-chord
+/// law's type-2 ramps only (`(2/3) C_b` per area along
+/// each axis, `C_b / 3` on each diagonal family).
+fn compressive_response(spec: &ModelSpec, path: bool) -> Compressive {
+    let (c_b, e) = (spec.material.buckling_stiffness_n_m, spec.material.tensile_stiffness_n_m);
+    let bending = spec.effects.bending;
+    match spec.kind {
+        ModelKind::ChoiKo if path => Compressive { ratio: c_b / e, ..Compressive::default() },
+        ModelKind::ChoiKo if bending => Compressive { ratio: 0.0, axis: 2.0 / 3.0 * c_b, diagonal: c_b / 3.0 },
+        ModelKind::Provot => Compressive { ratio: 1.0, ..Compressive::default() },
+        ModelKind::ChoiKo | ModelKind::Volino => Compressive::default(),
     }
 }
 

@@ -86,6 +86,8 @@ pub struct GridLink {
     pub area: f64,
     /// For links spanning two cells, the particle halfway between the ends.
     pub middle: Option<u32>,
+    /// Whether the link runs along a cell diagonal (else along u or v).
+    pub diagonal: bool,
 }
 
 /// Share of a cell that a type-2 link along a boundary line stands for.
@@ -245,7 +247,7 @@ impl GridPanel {
                             let axis = di == 0 || dj == 0;
                             let share = if axis && on_boundary(i, j, dj == 0) { boundary_share } else { 1.0 };
                             let middle = if step == 2 { neighbour(i, j, di / 2, dj / 2) } else { None };
-                            out.push(GridLink { ends: [a, b], area: share * cell_area, middle });
+                            out.push(GridLink { ends: [a, b], area: share * cell_area, middle, diagonal: !axis });
                         }
                     }
                 }
