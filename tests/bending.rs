@@ -44,7 +44,7 @@ fn settle_at(model: &str, spacing: f64, extra: &[&str]) -> Settled {
 }
 
 /// Choi & Ko's pair law (`bending_law = "arc-chord"`) at 1 cm: the type-2 links across the clamp line count
-/// double: 4.7 degrees from the elastica (46.17 against 41.49; 9.9 degrees
+/// double: 4.9 degrees from the elastica (46.37 against 41.49; 9.9 degrees
 /// when they counted as free links).
 /// Still soft: the ramp's soft zone and the 3/4 of `k_b` (material docs).
 #[test]
@@ -55,10 +55,10 @@ fn paper_law_cantilever_clamp_counts_half_a_link_at_1_cm() {
 }
 
 /// Choi & Ko's arc law read against the path through the middle particle
-/// (`bending_law = "arc-path"`, the default): 41.82 and 41.69 degrees at 1 and 0.5 cm
-/// against the exact 41.49 (41.88 at 0.25 cm, `cloth study bending`), and
+/// (`bending_law = "arc-path"`, the default): 41.81 and 41.68 degrees at 1 and 0.5 cm
+/// against the exact 41.49 (41.86 at 0.25 cm, `cloth study bending`), and
 /// the tip drop at the two spacings within 0.4% of each other (measured
-/// 0.38%), untwisted. The paper's pair law gives 46.2 and 59.6 degrees;
+/// 0.38%), untwisted. The paper's pair law gives 46.4 and 60.1 degrees;
 /// without the path's 4/3 on `k_b` the strip sags to 48.7 and 48.5; with
 /// boundary links counting a full cell it is too stiff, 38.1 and 39.7.
 #[test]

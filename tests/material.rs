@@ -65,9 +65,13 @@ fn sag(model: (ModelKind, Option<BendingLaw>), particles: [usize; 2], material: 
 
 /// The static sag of the bottom row (mean, m) of a hanging grid of
 /// `particles`.
-fn static_sag(model: ClothModel, [nu, nv]: [usize; 2]) -> f64 {
+fn static_sag(model: ClothModel, particles: [usize; 2]) -> f64 {
     let rest = model.rest_positions().to_vec();
-    let x = settle(model);
+    bottom_sag(&rest, &settle(model), particles)
+}
+
+/// Mean drop of the bottom row of a grid of `particles` from `rest` to `x`, m.
+fn bottom_sag(rest: &[Vec3], x: &[Vec3], [nu, nv]: [usize; 2]) -> f64 {
     (0..nu).map(|i| rest[(nv - 1) * nu + i].z - x[(nv - 1) * nu + i].z).sum::<f64>() / nu as f64
 }
 
@@ -352,8 +356,8 @@ fn a_hanging_cylinder_sags_as_the_strip_and_stays_round() {
         .unwrap();
         let rest = model.rest_positions().to_vec();
         let x = settle(model);
-        let [nu, nv] = particles;
-        let s = (0..nu).map(|i| rest[(nv - 1) * nu + i].z - x[(nv - 1) * nu + i].z).sum::<f64>() / nu as f64;
+        let s = bottom_sag(&rest, &x, particles);
+        let nu = particles[0];
         // Every ring: radii about the axis (x = y = 0) and the ring's centre.
         let (mut out_of_round, mut off_axis) = (0.0f64, 0.0f64);
         for ring in x.chunks(nu) {

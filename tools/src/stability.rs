@@ -819,10 +819,11 @@ friction = 0.3
 master = "iterated"
 "#;
     // Measured: with the ball kept off the cloth nothing is gained; with
-    // contact the iterated master gains 42% (ratio 1e-3: the light ball is
-    // thrown up), 3.7% (1) and 6.7% (1e3) of the energy in play at h = 5 ms,
-    // the staggered one more. Where (the contact impulses' exchange,
-    // rapier's own contact solve) is not yet found.
+    // contact the iterated master gains 3.7% (1) and 6.7% (1e3) of the
+    // energy in play at h = 5 ms, the staggered one more. Where (the
+    // contact impulses' exchange, rapier's own contact solve) is not yet
+    // found. (The light ball's 42%, thrown up by an unconverged pass's
+    // impulse, is fixed: `cloth_rapier::coupling`; it now rises 0.)
     const COUPLING_GAIN: &str = "two-way contact gains energy, not yet diagnosed";
     let cloth_mass = 0.1 * 0.36;
     let ratios: &[f64] = if quick { &[1e-3] } else { &[1e-3, 1.0, 1e3] };
@@ -834,7 +835,7 @@ master = "iterated"
             "finite; total energy never > 1e-4 of the energy in play above its lowest",
         )
         .set("bodies.0.mass_kg", format!("{:e}", ratio * cloth_mass))
-        .known_defect(Some(COUPLING_GAIN));
+        .known_defect((ratio >= 1.0).then_some(COUPLING_GAIN));
         let built = CoupledScene::parse(SCENE, &case.overrides).and_then(|s| s.build());
         let mut run = match built {
             Ok(run) => run,

@@ -168,6 +168,39 @@ fn free_fall(scene: &Path, overrides: &[String], pool: &rayon::ThreadPool) -> Re
     Ok((run, fall))
 }
 
+/// The free-fall fixture's areal density d (kg/m^2), link length l (m)
+/// and step h (s): `E = K d l^2 / h^2`.
+const FREEFALL_D: f64 = 0.1;
+const FREEFALL_L: f64 = 0.05;
+const FREEFALL_H: f64 = 0.01;
+
+/// One free fall (`scene`: `fixtures/scenes/freefall.toml`, gravity only, jittered)
+/// of `model` with `method`'s overrides at condition coefficient `k`.
+fn free_fall_case(
+    scene: &Path,
+    model: &str,
+    method: &[&str],
+    k: f64,
+    pool: &rayon::ThreadPool,
+) -> Result<(RunStats, Option<f64>)> {
+    let e = k * FREEFALL_D * FREEFALL_L * FREEFALL_L / (FREEFALL_H * FREEFALL_H);
+    let mut o: Vec<String> = method.iter().map(|s| s.to_string()).collect();
+    o.extend([
+        format!("simulation.model={model}"),
+        format!("material.tensile_stiffness_n_m={e}"),
+        format!("material.buckling_stiffness_n_m={e}"),
+        "simulation.effects=[\"gravity\"]".into(),
+        "simulation.initial_jitter_m=1e-4".into(),
+        "simulation.duration_s=0.6".into(),
+    ]);
+    free_fall(scene, &o, pool)
+}
+
+/// Whether a fall time's relative error counts as accurate in the study.
+fn accurate(rel_error: Option<f64>) -> bool {
+    rel_error.is_some_and(|v| v.abs() <= ACCURATE)
+}
+
 /// Volino's free-fall test: fall time against the condition coefficient
 /// `K = E d^-1 l^-2 h^2`, per method and model.
 pub fn freefall(args: &StudyArgs) -> Result<()> {
@@ -181,8 +214,6 @@ pub fn freefall(args: &StudyArgs) -> Result<()> {
     let methods: Vec<&Method> =
         if args.quick { METHODS.iter().skip(1).step_by(4).collect() } else { METHODS.iter().collect() };
     let models: &[&str] = if args.quick { &["provot"] } else { &["provot", "choi-ko", "volino"] };
-    // d = 0.1 kg/m^2, l = 0.05 m, h = 0.01 s (the fixture): E = K d l^2 / h^2.
-    let (d, l, h) = (0.1, 0.05, 0.01);
     let mut csv = String::from(
         "model,method,K,E_n_m,stable,fall_time_s,fall_time_rel_error,max_stretch,force_evaluations,cg_iterations,wall_s\n",
     );
@@ -212,17 +243,8 @@ pub fn freefall(args: &StudyArgs) -> Result<()> {
             let (mut stable_k, mut accurate_k, mut evals_k1) = (None, None, None);
             let mut points = Vec::new();
             for &k in &ks {
-                let e = k * d * l * l / (h * h);
-                let mut o: Vec<String> = method.overrides.iter().map(|s| s.to_string()).collect();
-                o.extend([
-                    format!("simulation.model={model}"),
-                    format!("material.tensile_stiffness_n_m={e}"),
-                    format!("material.buckling_stiffness_n_m={e}"),
-                    "simulation.effects=[\"gravity\"]".into(),
-                    "simulation.initial_jitter_m=1e-4".into(),
-                    "simulation.duration_s=0.6".into(),
-                ]);
-                let (r, fall_time_s) = free_fall(&scene, &o, &pool)?;
+                let e = k * FREEFALL_D * FREEFALL_L * FREEFALL_L / (FREEFALL_H * FREEFALL_H);
+                let (r, fall_time_s) = free_fall_case(&scene, model, method.overrides, k, &pool)?;
                 let rel = fall_time_s.map(|t| (t - EXACT_FALL_S) / EXACT_FALL_S);
                 let _ = writeln!(
                     csv,
@@ -245,7 +267,7 @@ pub fn freefall(args: &StudyArgs) -> Result<()> {
                 if r.stable && stable_k.is_none_or(|s: f64| s < k) {
                     stable_k = Some(k);
                 }
-                if r.stable && rel.is_some_and(|v| v.abs() <= ACCURATE) {
+                if r.stable && accurate(rel) {
                     accurate_k = Some(k);
                 }
                 if k == 1.0 {
@@ -868,4 +890,32 @@ pub fn stability(args: &StudyArgs) -> Result<()> {
         unexpected.join("\n")
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The README's fixed-iteration limits (Volino & Magnenat-Thalmann's
+    /// free fall, `choi-ko`): backward Euler with n = 1, 2, 4, 8 CG
+    /// iterations falls within 2% of the exact time up to K = 1, 4, 8, 32,
+    /// and not at twice that (measured by `cloth study freefall`). Volino
+    /// found roughly n^2 times larger K for n times more iterations.
+    #[test]
+    fn fixed_cg_backward_euler_is_accurate_up_to_the_readme_limits() {
+        let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenes/freefall.toml");
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+        for (n, limit) in [(1, 1.0), (2, 4.0), (4, 8.0), (8, 32.0)] {
+            let iterations = format!("solver.fixed_cg_iterations={n}");
+            let method = ["simulation.integrator=backward-euler-fixed-cg", iterations.as_str()];
+            let error = |k: f64| {
+                let (r, fall) = free_fall_case(&scene, "choi-ko", &method, k, &pool).unwrap();
+                fall.filter(|_| r.stable).map(|t| (t - EXACT_FALL_S) / EXACT_FALL_S)
+            };
+            let (at, beyond) = (error(limit), error(2.0 * limit));
+            println!("{n} CG: K = {limit}: {at:?}, K = {}: {beyond:?}", 2.0 * limit);
+            assert!(accurate(at), "{n} CG iterations at K = {limit}: {at:?}");
+            assert!(!accurate(beyond), "{n} CG iterations at K = {}: {beyond:?}", 2.0 * limit);
+        }
+    }
 }

@@ -170,17 +170,12 @@ fn mass_ratios_from_1e_3_to_1e3_stay_stable_with_the_iterated_master() {
             if master == "iterated" {
                 assert!(failed.is_none(), "{failed:?}");
                 assert!(b.linvel().length().is_finite());
-                if ratio == 1e-3 {
-                    // Known defect (`cloth study stability`, "coupled ball"):
-                    // since the arc-path law the 36 mg ball is thrown up
-                    // (measured: its own energy 29x its start, to z = 3.1 m;
-                    // the whole run's stays below its start, the cloth's sag
-                    // hides it). When this fails, the defect is fixed: move
-                    // the ratio to the check below.
-                    assert!(ball_gain > 1.0, "ratio {ratio}: the known gain is gone ({ball_gain:e}): update this test");
-                } else {
-                    assert!(gain < 1e-3, "ratio {ratio}: energy grew by {gain:e} of the start");
-                }
+                assert!(gain < 1e-3, "ratio {ratio}: energy grew by {gain:e} of the start");
+                // The whole run's energy hides a light ball's (the cloth's
+                // sag dominates it): check the ball's own too. Measured
+                // -1.2e-4 at every ratio; before unconverged steps kept the
+                // cloth's side (`coupling.rs`), the 1e-3 ball reached 29x.
+                assert!(ball_gain < 1e-3, "ratio {ratio}: the ball's energy grew by {ball_gain:e} of its start");
             }
         }
     }
