@@ -38,8 +38,8 @@
 //! `r = C_b / E` (the default `C_b = E` makes the membrane linear before it
 //! buckles, `K1 = 0.746 E`, `K2 = G`; the old mapping `k = (2/3) E a / L^2`
 //! on every link was the uniaxial *strain* modulus, 11% soft in uniaxial
-//! stress, and with `C_b = E / 10` the bottom of a hanging strip moved 39%
-//! too far). `provot`: linear springs, `r = 1`; his flexion springs (`i+2`,
+//! stress, and with `E = 20 N/m`, `C_b = E / 10` the bottom of a hanging
+//! strip moved 35% too far). `provot`: linear springs, `r = 1`; his flexion springs (`i+2`,
 //! `j+2`) are linear too, so they are part of the membrane: they take the
 //! share `C_b / (E + C_b)` of the axis stiffness `K1` and the structural
 //! springs the rest (half each at `C_b = E`). Their resistance to bending
@@ -68,12 +68,13 @@
 //! and `K1d = D - K2d (1 - nu_s)` on the axes, so a strip stretching at
 //! `e11'` while its stiffness contracts it at `nu_s e11'` meets the stress
 //! `D e11'` (`nu_s` the lattice's contraction, Volino's Poisson ratio for
-//! his links, which carry his damping: 1% slower decay, from a membrane
-//! that contracts by 0.3 against a damping lattice's own 0.34).
+//! his links, which carry his damping; his strip's decay measures 1.1%
+//! slow, cause not isolated).
 //!
 //! ## Flexural rigidity of type-2 links (`bending_law = "arc-chord"`)
-//! The same sum for curvature (normal curvature `kappa cos^2 theta`) gives
-//! Choi & Ko's pair law `k_b = (2/3) B a / L` (`E = k_b L kappa^2 / 2`,
+//! Over the four link families `sum cos^4 theta = 3/2` for any direction
+//! on a square grid; for curvature (normal curvature `kappa cos^2 theta`,
+//! each family standing for the whole area) that gives Choi & Ko's pair law `k_b = (2/3) B a / L` (`E = k_b L kappa^2 / 2`,
 //! every link standing for a full cell). It reads its chord against the
 //! rest length and caps the force by a ramp `c_b (L - d)` (Eq. 11), so a
 //! link stores almost no moment below `kappa_s = sqrt(512 B / (C_b L^4))`,
