@@ -344,8 +344,9 @@ fn a_cloth_falling_onto_a_thin_slab_stays_above_it() {
     assert!(lowest - half > 0.0039, "a particle went to {lowest} m: into or through the slab");
 }
 
-/// A crease between two solids: a cloth dropped into a V-groove of two
-/// slabs tilted 35 degrees each way (overlapping along the valley). A
+/// A crease between two solids (`v-groove.toml`): a cloth dropped into a
+/// V-groove of two slabs tilted 35 degrees each way (overlapping along
+/// the valley). A
 /// particle in the valley touches both; each prescribes its own normal,
 /// so it is held in both directions: no particle deeper than 0.5 mm in
 /// either slab at any step, and at the end the valley holds particles in
@@ -354,46 +355,7 @@ fn a_cloth_falling_onto_a_thin_slab_stays_above_it() {
 /// held by both (the last projection still keeps them out).
 #[test]
 fn a_cloth_in_a_v_groove_is_held_by_both_solids() {
-    let scene = r#"
-[simulation]
-integrator = "bdf2"
-dt_s = 0.011111111111111112
-duration_s = 1.5
-effects = ["gravity", "bending", "damping"]
-
-[solver]
-rel_tol = 1e-3
-max_iter = 500
-
-[material]
-areal_density_kg_m2 = 0.1
-tensile_stiffness_n_m = 200.0
-flexural_rigidity_n_m = 1e-5
-buckling_stiffness_n_m = 200.0
-damping_n_s_m = 0.02
-
-[[panels]]
-particles = [21, 21]
-size_m = [0.4, 0.4]
-origin_m = [-0.2, -0.2, 0.25]
-
-[collision]
-thickness_m = 0.005
-
-[[colliders]]
-shape = { kind = "cuboid", half_extents_m = [0.3, 0.3, 0.05] }
-rotation_deg = [-35.0, 0.0, 0.0]
-position_m = [0.0, -0.2581, 0.1197]
-friction = 0.3
-
-[[colliders]]
-shape = { kind = "cuboid", half_extents_m = [0.3, 0.3, 0.05] }
-rotation_deg = [35.0, 0.0, 0.0]
-position_m = [0.0, 0.2581, 0.1197]
-friction = 0.3
-"#;
-    let (model, cfg) = cloth_core::scene::Scene::parse(scene, &[]).unwrap().build().unwrap();
-    let mut sim = cfg.simulation(model);
+    let (mut sim, cfg) = simulation("v-groove.toml", &[]);
     let (deepest, _) = deepest_penetration(&mut sim, cfg.dt_s, cfg.steps);
     let mut on_both = std::collections::BTreeMap::<u32, [bool; 2]>::new();
     for c in sim.contacts() {
