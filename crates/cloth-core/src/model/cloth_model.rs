@@ -429,7 +429,7 @@ impl ClothModel {
         // Volino's bending triangles need every adjacent pair to be a parallelogram.
         let diagonals =
             if spec.kind == ModelKind::Volino { crate::Diagonals::Uniform } else { crate::Diagonals::Alternating };
-        // The arc-path law's mapping counts boundary links for the part of
+        // In bending, the arc-path law counts boundary links for the part of
         // a cell they border (topology::GridLink); the paper's, a full cell.
         let path = spec.kind == ModelKind::ChoiKo && spec.bending_law.unwrap_or_default() == BendingLaw::ArcPath;
         let compressive = compressive_response(spec, path);
