@@ -67,7 +67,8 @@ fn a_yank_leaves_the_box_slipping_at_coulomb_s_rate() {
     let (run, fast) = run(4.0, 0.35);
     let left = fast.iter().rposition(|s| s.on_cloth).unwrap();
     let (t_l, x_l) = (fast[left].t, fast[left].x);
-    let (mass, h) = (0.5, 0.002);
+    let boxed = run.bodies.iter().find(|b| b.name == "box").unwrap().handle;
+    let (mass, h) = (run.world.bodies[boxed].mass(), run.config.dt_s);
     let pushed: f64 = fast[..=left].iter().map(|s| s.side_impulse * (t_l - s.t) / mass).sum();
     let coulomb = fast[..=left].iter().map(|s| mu_box * s.normal_force * h * (t_l - s.t) / mass).sum::<f64>() + pushed;
     let resting = 0.5 * mu_box * g * t_l * t_l;

@@ -445,7 +445,8 @@ impl ClothModel {
             ModelKind::Volino => {
                 let nu = spec.material.poisson_ratio.unwrap_or(crate::material::DEFAULT_POISSON_RATIO);
                 let damping = spec.material.damping_lattice(nu).map_err(material_err)?;
-                Membrane { stiffness: Lattice { axis: 0.0, diagonal: 0.0 }, damping, lateral_contraction: nu }
+                // His membrane elements replace the springs: a lattice of zero stiffness.
+                Membrane { stiffness: Lattice { axis: 0.0, diagonal: 0.0 }, damping }
             }
             _ => spec.material.lattice_membrane(compressive).map_err(material_err)?,
         };
@@ -479,8 +480,8 @@ impl ClothModel {
                     i: at(link.ends[0]),
                     j: at(link.ends[1]),
                     rest,
-                    // Volino's membrane replaces the springs; the links stay for damping and limits.
-                    k_s: if spec.kind == ModelKind::Volino { 0.0 } else { k_s },
+                    // Zero for Volino: his links stay for damping and limits.
+                    k_s,
                     compression: match spec.kind {
                         ModelKind::ChoiKo if path => {
                             Compression::Buckling(BucklingLaw::new(rest, k_b, compressive.ratio * k_s))

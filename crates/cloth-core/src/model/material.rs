@@ -222,16 +222,13 @@ pub struct Compressive {
     pub diagonal: f64,
 }
 
-/// A lattice model's membrane: tension and damping lattices and the
-/// lateral contraction under uniaxial tension.
+/// A lattice model's membrane: tension and damping lattices.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Membrane {
     /// Stiffness in tension, N/m.
     pub stiffness: Lattice,
     /// Damping, N s/m.
     pub damping: Lattice,
-    /// `-e22 / e11` under uniaxial tension along u.
-    pub lateral_contraction: f64,
 }
 
 /// Bending constants derived from a [`Material`] for one link
@@ -298,8 +295,9 @@ impl Material {
             ));
         }
         let stiffness = Lattice { axis: k1, diagonal: k2 };
+        // `-e22 / e11` under uniaxial tension along u.
         let lateral_contraction = k2 / (c.ratio * k1 + c.axis + k2);
-        Ok(Membrane { stiffness, damping: self.damping_lattice(lateral_contraction)?, lateral_contraction })
+        Ok(Membrane { stiffness, damping: self.damping_lattice(lateral_contraction)? })
     }
 
     /// The damping lattice of a membrane that contracts by `lateral` under
