@@ -756,7 +756,7 @@ pub fn csv(rows: &[Row]) -> String {
             "{},{},{},{},{},{},{:.4},{:.3e},{:.1},{:.3},{holds},{}\n",
             quote(r.case),
             quote(&r.variant),
-            r.integrator,
+            quote(&r.integrator),
             r.model,
             quote(&r.requirement),
             quote(&r.outcome),
@@ -818,15 +818,34 @@ friction = 0.3
 [coupling]
 master = "iterated"
 "#;
-    // Measured: with the ball kept off the cloth nothing is gained; with
-    // contact the iterated master gains 3.7% (1) and 6.7% (1e3) of the
-    // energy in play at h = 5 ms, the staggered one more. Where (the
-    // contact impulses' exchange, rapier's own contact solve) is not yet
-    // found. (The light ball's 42%, thrown up by an unconverged pass's
-    // impulse, is fixed: `cloth_rapier::coupling`; it now rises 0.)
-    const COUPLING_GAIN: &str = "two-way contact gains energy, not yet diagnosed";
+    // Measured (rise over the energy in play, h = 5 ms): 0 at 1e-3; 3.7%,
+    // 16%, 6.7% at 1, 10, 1e3 (23% at 100, outside the suite). With the
+    // ball kept off the cloth
+    // nothing is gained. Two causes, found by printing each step's energies
+    // and each coupling pass's guess and impulse:
+    // - the cloth's single linearised step gains energy in converged
+    //   coupled steps when the ball stretches the tension-only links far
+    //   within a step (as in the violent-pins case); with Newton steps
+    //   (`solver.newton_iterations = 30`) converged steps never gain (1e3:
+    //   6.7% -> 0.2%);
+    // - coupled steps that do not converge (contacts switching with the
+    //   guess: a taut cloth launches the ball at 11 m/s if it rises at
+    //   1.63 m/s and loses it at 2.2 m/s) keep the best pass, and a body
+    //   heavier than the cloth takes that pass's impulses, computed for a
+    //   cloth step that did not converge either: Newton's contact penalty
+    //   at depth `d` gives `1e3 m d / h` per particle (0.2 N s at the
+    //   thickness), and a 108 g ball (ratio 3, Newton) leaves at 9 m/s.
+    //   Choosing the fallback pass by the energy it makes instead
+    //   (`J . (end - guess)`) was tried: mixed, not kept.
+    // What it takes: the body's degrees of freedom inside the cloth's
+    // implicit solve (monolithic), or a Robin interface with the cloth's
+    // contact stiffness, instead of a fixed point in the bodies' velocities.
+    // (The light ball's 42%, thrown up by an unconverged pass's impulse, is
+    // fixed: `cloth_rapier::coupling`; it now rises 0.)
+    const COUPLING_GAIN: &str =
+        "the single linearised step under violent stretch; unconverged coupled steps keep a wrong impulse";
     let cloth_mass = 0.1 * 0.36;
-    let ratios: &[f64] = if quick { &[1e-3] } else { &[1e-3, 1.0, 1e3] };
+    let ratios: &[f64] = if quick { &[1e-3] } else { &[1e-3, 1.0, 10.0, 1e3] };
     let mut rows = Vec::new();
     for &ratio in ratios {
         let case = Case::new(

@@ -9,6 +9,8 @@
 //!   (any parry shape rapier accepts, meshes included) of fixed, kinematic
 //!   and dynamic bodies; contact impulses (friction included) and the pull
 //!   on attached pins go back to the bodies.
+//! - [`Rig`] is a character rig read from URDF and posed by forward
+//!   kinematics ([`rig`]).
 //! - [`RapierUnit`] is a rapier world as a co-simulation unit for
 //!   `cloth-cosim`'s masters.
 //!
@@ -18,6 +20,7 @@
 pub mod cloth_set;
 pub mod convert;
 pub mod coupling;
+pub mod rig;
 pub mod scene;
 pub mod unit;
 pub mod world;
@@ -26,6 +29,7 @@ pub use cloth_set::{Attachment, ClothBuilder, ClothHandle, ClothSet, CoupledClot
 pub use coupling::{CouplingReport, IteratedCoupling, Master};
 pub use rapier3d_f64;
 pub use rapier3d_f64::prelude::PhysicsWorld;
+pub use rig::{JointKind, JointValue, Rig, RigError, RigOptions, RigPose, UpAxis};
 pub use scene::{CoupledRun, CoupledScene};
 pub use unit::RapierUnit;
 pub use world::{CollideWith, Momentum, WorldSnapshot, WorldSolid, bodies_momentum, import_colliders};
