@@ -350,7 +350,7 @@ impl Rig {
             };
             return Err(invalid("robot", &robot.name, "joint", message));
         };
-        // Parent before child: breadth first from the root.
+        // Parent before child: a depth-first walk from the root.
         let mut ordered = Vec::with_capacity(joints.len());
         let mut frontier = vec![root];
         while let Some(link) = frontier.pop() {
