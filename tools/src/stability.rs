@@ -820,9 +820,9 @@ master = "iterated"
 "#;
     // Measured (rise over the energy in play, h = 5 ms): 0 at 1e-3; 3.7%,
     // 16%, 6.7% at 1, 10, 1e3 (23% at 100, outside the suite). With the
-    // ball kept off the cloth
-    // nothing is gained. Two causes, found by printing each step's energies
-    // and each coupling pass's guess and impulse:
+    // ball kept off the cloth nothing is gained. Two causes, found by
+    // printing each step's energies and each coupling pass's guess and
+    // impulse:
     // - the cloth's single linearised step gains energy in converged
     //   coupled steps when the ball stretches the tension-only links far
     //   within a step (as in the violent-pins case); with Newton steps

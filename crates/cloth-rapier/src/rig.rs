@@ -17,6 +17,7 @@
 //! Joint limits are read but not enforced: a driven rig follows its
 //! motion, which is the authority on where the character is.
 
+use cloth_collide::ShapeSpec;
 use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion};
 use std::path::{Path, PathBuf};
 
@@ -50,36 +51,17 @@ impl Default for RigOptions {
     }
 }
 
-/// A collision shape of a link, in the link's frame, m.
+/// A collision shape of a link, in its shape frame, m.
 #[derive(Debug, Clone, PartialEq)]
 pub enum RigGeometry {
-    /// A box of these half extents.
-    Cuboid {
-        /// Half extents along the shape frame's axes, m.
-        half_extents: Vec3,
-    },
-    /// A cylinder along the shape frame's Z axis (URDF's convention).
-    Cylinder {
-        /// Radius, m.
-        radius: f64,
-        /// Half its length, m.
-        half_length: f64,
-    },
-    /// A capsule along the shape frame's Z axis: a cylinder of `half_length`
-    /// with hemispherical caps (URDF 1.1's `length` is the cylinder's).
-    Capsule {
-        /// Radius, m.
-        radius: f64,
-        /// Half the length of its cylindrical part, m.
-        half_length: f64,
-    },
-    /// A ball.
-    Ball {
-        /// Radius, m.
-        radius: f64,
-    },
+    /// A box, cylinder, capsule or ball as the cloth's solids take them
+    /// (cylinders and capsules along the shape frame's Z, URDF's
+    /// convention; a capsule's `length` in URDF 1.1 is its cylinder's).
+    Solid(ShapeSpec),
     /// A triangle mesh file, resolved against the rig file's folder, with
-    /// its per-axis scale (the rig's scale included).
+    /// its per-axis scale (the rig's scale included). Kept apart from
+    /// [`ShapeSpec::Mesh`], which reads OBJ at one scale: URDF meshes scale
+    /// per axis and come in other formats.
     Mesh {
         /// The mesh file.
         path: PathBuf,
@@ -471,23 +453,20 @@ fn geometry(g: &urdf_rs::Geometry, scale: f64, dir: &Path) -> Result<RigGeometry
     Ok(match g {
         urdf_rs::Geometry::Box { size } => {
             let s = size.0;
-            RigGeometry::Cuboid {
-                half_extents: Vec3::new(
-                    positive("box.size", s[0])?,
-                    positive("box.size", s[1])?,
-                    positive("box.size", s[2])?,
-                ) / 2.0,
-            }
+            let half = |v: f64| positive("box.size", v).map(|v| v / 2.0);
+            RigGeometry::Solid(ShapeSpec::Cuboid { half_extents_m: [half(s[0])?, half(s[1])?, half(s[2])?] })
         }
-        urdf_rs::Geometry::Cylinder { radius, length } => RigGeometry::Cylinder {
-            radius: positive("cylinder.radius", *radius)?,
-            half_length: positive("cylinder.length", *length)? / 2.0,
-        },
-        urdf_rs::Geometry::Capsule { radius, length } => RigGeometry::Capsule {
-            radius: positive("capsule.radius", *radius)?,
-            half_length: positive("capsule.length", *length)? / 2.0,
-        },
-        urdf_rs::Geometry::Sphere { radius } => RigGeometry::Ball { radius: positive("sphere.radius", *radius)? },
+        urdf_rs::Geometry::Cylinder { radius, length } => RigGeometry::Solid(ShapeSpec::Cylinder {
+            half_length_m: positive("cylinder.length", *length)? / 2.0,
+            radius_m: positive("cylinder.radius", *radius)?,
+        }),
+        urdf_rs::Geometry::Capsule { radius, length } => RigGeometry::Solid(ShapeSpec::Capsule {
+            half_length_m: positive("capsule.length", *length)? / 2.0,
+            radius_m: positive("capsule.radius", *radius)?,
+        }),
+        urdf_rs::Geometry::Sphere { radius } => {
+            RigGeometry::Solid(ShapeSpec::Ball { radius_m: positive("sphere.radius", *radius)? })
+        }
         urdf_rs::Geometry::Mesh { filename, scale: mesh_scale } => {
             if filename.starts_with("package://") {
                 return Err((

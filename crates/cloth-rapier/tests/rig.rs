@@ -2,6 +2,7 @@
 //! forms real files come in (Y up, a scale, CRLF, no inertials), and
 //! errors that name the file, the link or joint and the field.
 
+use cloth_collide::ShapeSpec;
 use cloth_rapier::rig::RigGeometry;
 use cloth_rapier::{JointValue, Rig, RigError, RigOptions, UpAxis};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
@@ -74,7 +75,7 @@ fn forward_kinematics_places_each_link_where_the_joints_put_it() {
     // The arm's cylinder lies along its link frame's Z, 0.25 out along X.
     let arm = &rig.links[rig.link("arm").unwrap()];
     assert_eq!(arm.shapes.len(), 1);
-    assert_eq!(arm.shapes[0].geometry, RigGeometry::Cylinder { radius: 0.05, half_length: 0.25 });
+    assert_eq!(arm.shapes[0].geometry, RigGeometry::Solid(ShapeSpec::Cylinder { half_length_m: 0.25, radius_m: 0.05 }));
 }
 
 #[test]
@@ -115,15 +116,16 @@ fn the_mannequin_has_human_proportions() {
                 (f.translation.z - z, f.translation.z + z)
             };
             let (lo, hi) = match &s.geometry {
-                RigGeometry::Cuboid { half_extents } => {
-                    let z = (f.rotation.to_rotation_matrix().matrix().abs() * half_extents).z;
+                RigGeometry::Solid(ShapeSpec::Cuboid { half_extents_m }) => {
+                    let half = Vector3::from(*half_extents_m);
+                    let z = (f.rotation.to_rotation_matrix().matrix().abs() * half).z;
                     (f.translation.z - z, f.translation.z + z)
                 }
-                RigGeometry::Capsule { radius, half_length } | RigGeometry::Cylinder { radius, half_length } => {
-                    reach(*half_length, *radius)
-                }
-                RigGeometry::Ball { radius } => reach(0.0, *radius),
-                RigGeometry::Mesh { .. } => unreachable!("the mannequin has no meshes"),
+                RigGeometry::Solid(
+                    ShapeSpec::Capsule { half_length_m, radius_m } | ShapeSpec::Cylinder { half_length_m, radius_m },
+                ) => reach(*half_length_m, *radius_m),
+                RigGeometry::Solid(ShapeSpec::Ball { radius_m }) => reach(0.0, *radius_m),
+                other => unreachable!("the mannequin has no {other:?}"),
             };
             low = low.min(lo);
             high = high.max(hi);
