@@ -1,9 +1,8 @@
 //! Collisions with numbers: friction on an incline against Coulomb's law,
 //! no penetration of solids, no self-intersection in a fold.
 
-use cloth_collide::closest_point_on_triangle;
-use cloth_core::{ClothModel, Simulation, Vec3};
-use cloth_tests::simulation;
+use cloth_core::{Simulation, Vec3};
+use cloth_tests::{min_unlinked_distance, min_unlinked_point_triangle, simulation};
 
 /// Overrides that tilt the incline fixture's plane (and the cloth lying 5
 /// mm above it) to `deg` degrees, with friction `mu`.
@@ -70,36 +69,6 @@ fn incline_holds_below_the_friction_angle_and_slides_at_coulombs_rate_above() {
             assert!(error.abs() <= tolerance, "{integrator} {deg} deg, mu {mu}: a = {a}, {expected}");
         }
     }
-}
-
-/// Closest pair of particles not sharing a link, m (brute force).
-fn min_unlinked_distance(model: &ClothModel, x: &[Vec3]) -> f64 {
-    let mut best = f64::INFINITY;
-    for i in 0..x.len() {
-        for j in i + 1..x.len() {
-            if model.incidence(i).iter().all(|inc| inc.other as usize != j) {
-                best = best.min((x[i] - x[j]).norm());
-            }
-        }
-    }
-    best
-}
-
-/// Closest particle to a triangle that neither contains it nor has a
-/// corner linked to it, m (brute force).
-fn min_unlinked_point_triangle(model: &ClothModel, x: &[Vec3]) -> f64 {
-    let linked = |a: usize, b: usize| a == b || model.incidence(a).iter().any(|inc| inc.other as usize == b);
-    let mut best = f64::INFINITY;
-    for (p, xp) in x.iter().enumerate() {
-        for tri in model.triangles() {
-            if tri.iter().any(|&c| linked(p, c as usize)) {
-                continue;
-            }
-            let [a, b, c] = tri.map(|k| x[k as usize]);
-            best = best.min((closest_point_on_triangle(*xp, a, b, c).0 - xp).norm());
-        }
-    }
-    best
 }
 
 /// The fold fixture: the cloth lands on the ground and falls over onto

@@ -1,5 +1,6 @@
 //! Helpers shared by the workspace-level tests.
 
+use cloth_collide::closest_point_on_triangle;
 use cloth_core::scene::{RunConfig, Scene};
 use cloth_core::{ClothModel, Simulation, Vec3};
 use std::path::PathBuf;
@@ -44,4 +45,34 @@ impl Rng {
     pub fn vec3(&mut self) -> Vec3 {
         Vec3::new(self.uniform(), self.uniform(), self.uniform())
     }
+}
+
+/// Closest pair of particles not sharing a link, m (brute force).
+pub fn min_unlinked_distance(model: &ClothModel, x: &[Vec3]) -> f64 {
+    let mut best = f64::INFINITY;
+    for i in 0..x.len() {
+        for j in i + 1..x.len() {
+            if model.incidence(i).iter().all(|inc| inc.other as usize != j) {
+                best = best.min((x[i] - x[j]).norm());
+            }
+        }
+    }
+    best
+}
+
+/// Closest particle to a triangle that neither contains it nor has a
+/// corner linked to it, m (brute force).
+pub fn min_unlinked_point_triangle(model: &ClothModel, x: &[Vec3]) -> f64 {
+    let linked = |a: usize, b: usize| a == b || model.incidence(a).iter().any(|inc| inc.other as usize == b);
+    let mut best = f64::INFINITY;
+    for (p, xp) in x.iter().enumerate() {
+        for tri in model.triangles() {
+            if tri.iter().any(|&c| linked(p, c as usize)) {
+                continue;
+            }
+            let [a, b, c] = tri.map(|k| x[k as usize]);
+            best = best.min((closest_point_on_triangle(*xp, a, b, c).0 - xp).norm());
+        }
+    }
+    best
 }

@@ -171,7 +171,7 @@ impl SolidShape {
             }
             ShapeSpec::Mesh { obj, scale } => {
                 let scale = positive("scale", *scale)?;
-                (load_mesh(&base_dir.join(obj), scale)?, identity)
+                (load_mesh(&base_dir.join(obj), Vec3::repeat(scale))?, identity)
             }
             ShapeSpec::HalfSpace { normal } => {
                 let n = finite3("normal", normal)?;
@@ -182,6 +182,15 @@ impl SolidShape {
             }
         };
         Ok(Self { shape, local })
+    }
+
+    /// A closed, consistently oriented triangle mesh from the OBJ file at
+    /// `path`, its vertices scaled per axis by `scale` (each finite and > 0).
+    pub fn obj_mesh(path: &Path, scale: Vec3) -> Result<Self, ShapeError> {
+        for k in 0..3 {
+            positive(["scale[0]", "scale[1]", "scale[2]"][k], scale[k])?;
+        }
+        Ok(Self { shape: load_mesh(path, scale)?, local: Pose::IDENTITY })
     }
 
     /// Wraps a shape built elsewhere (a rapier collider's), placed at
@@ -249,11 +258,11 @@ fn spans_volume(points: &[[f64; 3]]) -> bool {
     extent > 0.0 && off_line(&p2) > tiny && off_plane(&p3) > tiny
 }
 
-fn load_mesh(path: &Path, scale: f64) -> Result<SharedShape, ShapeError> {
+fn load_mesh(path: &Path, scale: Vec3) -> Result<SharedShape, ShapeError> {
     let fail = |message: String| ShapeError::Mesh { path: path.to_path_buf(), message };
     let text = std::fs::read_to_string(path).map_err(|e| fail(e.to_string()))?;
     let mesh = parse_obj(&text).map_err(|e: ObjError| fail(e.to_string()))?;
-    let vertices = mesh.vertices.iter().map(|v| to_parry(v * scale)).collect();
+    let vertices = mesh.vertices.iter().map(|v| to_parry(v.component_mul(&scale))).collect();
     // ORIENTED: pseudo-normals tell inside from outside, so points that
     // crossed the surface are pushed back out, not through.
     let flags = TriMeshFlags::ORIENTED | TriMeshFlags::MERGE_DUPLICATE_VERTICES;

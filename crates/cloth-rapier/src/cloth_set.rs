@@ -76,6 +76,9 @@ pub enum CouplingError {
     /// The handle names no cloth of this set.
     #[error("no cloth with this handle")]
     NoSuchCloth,
+    /// A rig could not be posed (a motion value that is not finite).
+    #[error("rig: {0}")]
+    Rig(#[from] crate::rig::RigError),
     /// A cloth step failed (the world and every cloth are back at the start of the step).
     #[error("cloth {cloth} at t = {time_s} s: {message}")]
     Cloth {

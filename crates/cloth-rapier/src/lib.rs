@@ -10,17 +10,24 @@
 //!   and dynamic bodies; contact impulses (friction included) and the pull
 //!   on attached pins go back to the bodies.
 //! - [`Rig`] is a character rig read from URDF and posed by forward
-//!   kinematics ([`rig`]).
+//!   kinematics ([`rig`]); [`motion`] plays BVH ([`bvh`]) or keyframe
+//!   clips on it (retargeted, interpolated, looped, blended in from rest);
+//!   [`character::RigBodies`] puts its links in a world as kinematic
+//!   bodies; a scene's `[rig]` section ([`rig_scene`]) does all three.
 //! - [`RapierUnit`] is a rapier world as a co-simulation unit for
 //!   `cloth-cosim`'s masters.
 //!
 //! rapier's math is glam (through its `math` re-exports); the cloth's is
 //! nalgebra. [`convert`] converts at the boundary. Units are SI.
 
+pub mod bvh;
+pub mod character;
 pub mod cloth_set;
 pub mod convert;
 pub mod coupling;
+pub mod motion;
 pub mod rig;
+pub mod rig_scene;
 pub mod scene;
 pub mod unit;
 pub mod world;

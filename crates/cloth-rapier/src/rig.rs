@@ -23,8 +23,9 @@ use std::path::{Path, PathBuf};
 
 type Vec3 = nalgebra::Vector3<f64>;
 
-/// Which axis of the file points up.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// Which axis of the file points up (`"z"` or `"y"` in scene files).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum UpAxis {
     /// Z up, as URDF and the cloth's world (no change).
     #[default]
@@ -45,6 +46,16 @@ pub struct RigOptions {
     pub scale: f64,
 }
 
+impl UpAxis {
+    /// The turn that takes this up axis to the world's Z.
+    pub fn turn(self) -> UnitQuaternion<f64> {
+        match self {
+            UpAxis::Z => UnitQuaternion::identity(),
+            UpAxis::Y => UnitQuaternion::from_axis_angle(&Vec3::x_axis(), std::f64::consts::FRAC_PI_2),
+        }
+    }
+}
+
 impl Default for RigOptions {
     fn default() -> Self {
         Self { up_axis: UpAxis::Z, scale: 1.0 }
@@ -58,10 +69,10 @@ pub enum RigGeometry {
     /// (cylinders and capsules along the shape frame's Z, URDF's
     /// convention; a capsule's `length` in URDF 1.1 is its cylinder's).
     Solid(ShapeSpec),
-    /// A triangle mesh file, resolved against the rig file's folder, with
-    /// its per-axis scale (the rig's scale included). Kept apart from
-    /// [`ShapeSpec::Mesh`], which reads OBJ at one scale: URDF meshes scale
-    /// per axis and come in other formats.
+    /// A closed triangle mesh from an OBJ file, resolved against the rig
+    /// file's folder, with its per-axis scale (the rig's scale included).
+    /// Kept apart from [`ShapeSpec::Mesh`], which scales alike on every
+    /// axis: URDF meshes scale per axis.
     Mesh {
         /// The mesh file.
         path: PathBuf,
@@ -344,11 +355,7 @@ impl Rig {
         if ordered.len() != joints.len() {
             return Err(invalid("robot", &robot.name, "joint", "the joints form a cycle".into()));
         }
-        let up = match options.up_axis {
-            UpAxis::Z => UnitQuaternion::identity(),
-            UpAxis::Y => UnitQuaternion::from_axis_angle(&Vec3::x_axis(), std::f64::consts::FRAC_PI_2),
-        };
-        Ok(Self { name: robot.name, links, joints: ordered, root, up })
+        Ok(Self { name: robot.name, links, joints: ordered, root, up: options.up_axis.turn() })
     }
 
     /// The pose with every joint at zero and the root at the origin.
@@ -478,6 +485,12 @@ fn geometry(g: &urdf_rs::Geometry, scale: f64, dir: &Path) -> Result<RigGeometry
             let scale =
                 Vec3::new(positive("mesh.scale", s[0])?, positive("mesh.scale", s[1])?, positive("mesh.scale", s[2])?);
             let path = dir.join(filename.strip_prefix("file://").unwrap_or(filename));
+            if !path.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj")) {
+                return Err((
+                    "mesh.filename".into(),
+                    format!("{filename:?}: only OBJ meshes are read (export STL or Collada meshes as OBJ)"),
+                ));
+            }
             if !path.is_file() {
                 return Err(("mesh.filename".into(), format!("{} does not exist", path.display())));
             }

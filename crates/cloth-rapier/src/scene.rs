@@ -31,12 +31,14 @@
 //! accept_unconverged = true   # keep the best pass when contacts keep switching
 //! ```
 //!
-//! The rapier world steps with the scene's `dt_s` and, with the `gravity`
-//! effect, its gravity (else none).
+//! A `[rig]` section adds a URDF character driven by a motion (see
+//! [`crate::rig_scene`]). The rapier world steps with the scene's `dt_s`
+//! and, with the `gravity` effect, its gravity (else none).
 
 use crate::cloth_set::{ClothBuilder, ClothHandle, ClothSet, CouplingError};
 use crate::convert::{pose_to_rapier, vec_to_rapier};
 use crate::coupling::{CouplingReport, IteratedCoupling, Master};
+use crate::rig_scene::{RigSection, SceneRig};
 use cloth_collide::{BodyPose, ShapeSpec, SolidShape};
 use cloth_core::scene::{RunConfig, Scene, SceneError, SceneErrorKind};
 use cloth_core::{PinMotion, Vec3};
@@ -203,6 +205,8 @@ struct Extensions {
     attachments: Vec<AttachmentSpec>,
     #[serde(default)]
     coupling: CouplingSection,
+    #[serde(default)]
+    rig: Option<RigSection>,
 }
 
 /// A scene with rigid bodies.
@@ -216,14 +220,16 @@ pub struct CoupledScene {
     pub attachments: Vec<AttachmentSpec>,
     /// `[coupling]`.
     pub coupling: CouplingSection,
+    /// `[rig]`.
+    pub rig: Option<RigSection>,
 }
 
 /// The top-level keys this module reads.
-const KEYS: [&str; 3] = ["bodies", "attachments", "coupling"];
+const KEYS: [&str; 4] = ["bodies", "attachments", "coupling", "rig"];
 
-/// Whether scene text declares rigid bodies (a `[[bodies]]` table).
+/// Whether scene text declares rigid bodies (a `[[bodies]]` table or a `[rig]`).
 pub fn has_bodies(text: &str) -> bool {
-    toml::from_str::<toml::Table>(text).is_ok_and(|t| t.contains_key("bodies"))
+    toml::from_str::<toml::Table>(text).is_ok_and(|t| t.contains_key("bodies") || t.contains_key("rig"))
 }
 
 /// A body of a built scene.
@@ -248,6 +254,8 @@ pub struct CoupledRun {
     pub cloth: ClothHandle,
     /// The bodies, in scene order.
     pub bodies: Vec<SceneBody>,
+    /// The character, if the scene has a `[rig]`.
+    pub rig: Option<SceneRig>,
     /// The master.
     pub master: Master,
     /// Time step, steps, integrator and solver.
@@ -274,7 +282,7 @@ impl CoupledScene {
     pub fn parse(text: &str, overrides: &[String]) -> Result<Self, SceneErrorKind> {
         let (scene, rest) = Scene::parse_with_extensions(text, overrides, &KEYS)?;
         let ext: Extensions = rest.try_into().map_err(|e: toml::de::Error| SceneErrorKind::Parse(e.to_string()))?;
-        Ok(Self { scene, bodies: ext.bodies, attachments: ext.attachments, coupling: ext.coupling })
+        Ok(Self { scene, bodies: ext.bodies, attachments: ext.attachments, coupling: ext.coupling, rig: ext.rig })
     }
 
     /// Checks every field and builds the world and the cloth.
@@ -294,6 +302,16 @@ impl CoupledScene {
                 add_body(&mut world, b, &self.scene.base_dir).map_err(|(f, m)| invalid(field(&f), m))?;
             bodies.push(SceneBody { name: b.name.clone(), handle, spec: b.clone(), anchor });
         }
+        let rig = match &self.rig {
+            Some(section) => {
+                let built = section.build(&mut world, &self.scene.base_dir).map_err(|(f, m)| invalid(f, m))?;
+                if let Some(b) = bodies.iter().find(|b| built.rig.link(&b.name).is_some()) {
+                    return Err(invalid("bodies".into(), format!("{:?} is also a link of the rig", b.name)));
+                }
+                Some(built)
+            }
+            None => None,
+        };
         self.check_coupling()?;
         let mut builder = ClothBuilder::new(model.clone()).integrator(config.integrator).solver(config.solver);
         for (k, a) in self.attachments.iter().enumerate() {
@@ -301,7 +319,9 @@ impl CoupledScene {
             let body = bodies
                 .iter()
                 .find(|b| b.name == a.body)
-                .ok_or_else(|| invalid(field("body"), format!("no body named {:?}", a.body)))?;
+                .map(|b| b.handle)
+                .or_else(|| rig.as_ref().and_then(|r| r.body(&a.body)))
+                .ok_or_else(|| invalid(field("body"), format!("no body or rig link named {:?}", a.body)))?;
             let pins: Vec<usize> = (0..model.pins().len()).filter(|&p| model.pins()[p].spec == a.pins).collect();
             if pins.is_empty() {
                 return Err(invalid(field("pins"), format!("no [[pins]] entry {}", a.pins)));
@@ -313,7 +333,7 @@ impl CoupledScene {
                 ));
             }
             for p in pins {
-                builder = builder.attach(p, body.handle);
+                builder = builder.attach(p, body);
             }
         }
         let mut cloths = ClothSet::new();
@@ -327,7 +347,7 @@ impl CoupledScene {
             let own = cloths.get_mut(cloth).expect("just inserted").simulation_mut();
             own.restore(&jittered).map_err(|e| invalid("simulation.initial_jitter_m".into(), e.to_string()))?;
         }
-        Ok(CoupledRun { world, cloths, cloth, bodies, master: self.coupling.master(), config })
+        Ok(CoupledRun { world, cloths, cloth, bodies, rig, master: self.coupling.master(), config })
     }
 
     fn check_coupling(&self) -> Result<(), SceneErrorKind> {
@@ -441,8 +461,8 @@ impl CoupledRun {
         self.step_with(&master)
     }
 
-    /// Steps cloth and bodies once with `master`: kinematic bodies are sent
-    /// to their path's pose at the end of the step first.
+    /// Steps cloth and bodies once with `master`: kinematic bodies and the
+    /// rig's links are sent to their poses at the end of the step first.
     pub fn step_with(&mut self, master: &Master) -> Result<CouplingReport, CouplingError> {
         let h = self.config.dt_s;
         let t_end = self.cloths[self.cloth].simulation().time() + h;
@@ -454,6 +474,9 @@ impl CoupledRun {
             };
             let rb = &mut self.world.bodies[b.handle];
             rb.set_next_kinematic_position(pose_to_rapier(&pose));
+        }
+        if let Some(rig) = &mut self.rig {
+            rig.drive(&mut self.world, t_end)?;
         }
         self.cloths.step(&mut self.world, master)
     }

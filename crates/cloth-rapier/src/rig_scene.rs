@@ -1,0 +1,193 @@
+//! The `[rig]` section of a scene: a URDF character as kinematic rapier
+//! bodies, driven by a BVH or keyframe motion (see [`crate::motion`]).
+//!
+//! ```toml
+//! [rig]
+//! urdf = "../rigs/mannequin.urdf"   # relative to the scene file
+//! up_axis = "z"                     # the URDF's up axis: "z" or "y"
+//! scale = 1.0                       # metres per URDF length unit
+//! friction = 0.3                    # Coulomb coefficient, cloth on every link
+//! position_m = [0.0, 0.0, 0.0]      # where the character stands
+//! rotation_deg = [0.0, 0.0, 0.0]    # about x, then y, then z (fixed axes)
+//! settle_s = 0.5                    # at the rest pose first (the garment settles)
+//! blend_s = 0.3                     # then blends into the motion's first pose
+//! looping = true                    # loop the motion, carrying the root's displacement
+//! motion = { kind = "bvh", file = "../motions/walk.bvh", root = "Hips",
+//!            joints = { hip_l = "LeftUpLeg", knee_l = "LeftLeg" }, up_axis = "y", scale = 0.01 }
+//! # or { kind = "keyframes", file = "../motions/wave.toml" }, or { kind = "rest" } (default)
+//! ```
+//!
+//! `[[attachments]]` may name a link (`body = "pelvis"`): the pins then
+//! follow it. Link names must differ from `[[bodies]]` names.
+
+use crate::bvh::Bvh;
+use crate::character::RigBodies;
+use crate::motion::{BvhMap, Clip, Playback, RigMotion, rotation_xyz_deg};
+use crate::rig::{Rig, RigOptions, RigPose, UpAxis};
+use nalgebra::{Isometry3, Translation3};
+use rapier3d_f64::prelude::PhysicsWorld;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// What moves the rig.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum RigMotionSpec {
+    /// The rest pose throughout.
+    #[default]
+    Rest,
+    /// A BVH file retargeted through a name table.
+    Bvh {
+        /// The BVH file, relative to the scene file.
+        file: PathBuf,
+        /// The BVH joint that places the rig's root link.
+        root: String,
+        /// Rig joint -> BVH joint.
+        joints: BTreeMap<String, String>,
+        /// The BVH's up axis (default "y", as motion capture).
+        #[serde(default = "y_up")]
+        up_axis: UpAxis,
+        /// Metres per BVH length unit (default 1; 0.01 for centimetres).
+        #[serde(default = "one")]
+        scale: f64,
+    },
+    /// A keyframe file of joint values.
+    Keyframes {
+        /// The file, relative to the scene file.
+        file: PathBuf,
+    },
+}
+
+fn y_up() -> UpAxis {
+    UpAxis::Y
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+fn yes() -> bool {
+    true
+}
+
+fn default_friction() -> f64 {
+    0.3
+}
+
+/// `[rig]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RigSection {
+    /// The URDF file, relative to the scene file.
+    pub urdf: PathBuf,
+    /// The URDF's up axis.
+    #[serde(default)]
+    pub up_axis: UpAxis,
+    /// Metres per URDF length unit.
+    #[serde(default = "one")]
+    pub scale: f64,
+    /// Cloth-link Coulomb coefficient (default 0.3).
+    #[serde(default = "default_friction")]
+    pub friction: f64,
+    /// Where the character stands, m.
+    #[serde(default)]
+    pub position_m: [f64; 3],
+    /// Its heading: about x, then y, then z (fixed axes), degrees.
+    #[serde(default)]
+    pub rotation_deg: [f64; 3],
+    /// Time at rest before the motion, s.
+    #[serde(default)]
+    pub settle_s: f64,
+    /// Time to blend into the motion, s.
+    #[serde(default)]
+    pub blend_s: f64,
+    /// Loop the motion (default true).
+    #[serde(default = "yes")]
+    pub looping: bool,
+    /// The motion.
+    #[serde(default)]
+    pub motion: RigMotionSpec,
+}
+
+/// A rig built into a world.
+#[derive(Debug, Clone)]
+pub struct SceneRig {
+    /// The rig.
+    pub rig: Rig,
+    /// Its link bodies.
+    pub bodies: RigBodies,
+    /// What moves it.
+    pub motion: RigMotion,
+}
+
+impl SceneRig {
+    /// The rig's pose at `t`, s.
+    pub fn pose_at(&self, t: f64) -> RigPose {
+        self.motion.pose_at(t)
+    }
+
+    /// Sends the link bodies to their poses at `t` (the end of the next step).
+    pub fn drive(&mut self, world: &mut PhysicsWorld, t: f64) -> Result<(), crate::RigError> {
+        let pose = self.motion.pose_at(t);
+        self.bodies.drive(&self.rig, world, &pose)
+    }
+
+    /// The body of the link named `name`.
+    pub fn body(&self, name: &str) -> Option<rapier3d_f64::prelude::RigidBodyHandle> {
+        self.rig.link(name).map(|l| self.bodies.handles[l])
+    }
+}
+
+impl RigSection {
+    /// Reads the rig and its motion (paths against `base_dir`) and adds the
+    /// links to `world` at the pose of time 0. Errors as (field, message).
+    pub fn build(&self, world: &mut PhysicsWorld, base_dir: &Path) -> Result<SceneRig, (String, String)> {
+        let field = |f: &str| format!("rig.{f}");
+        for (name, v) in [("position_m", self.position_m), ("rotation_deg", self.rotation_deg)] {
+            if !v.iter().all(|c| c.is_finite()) {
+                return Err((field(name), format!("must be finite, got {v:?}")));
+            }
+        }
+        for (name, v) in [("settle_s", self.settle_s), ("blend_s", self.blend_s)] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err((field(name), format!("must be finite and >= 0, got {v}")));
+            }
+        }
+        if !(self.friction.is_finite() && self.friction >= 0.0) {
+            return Err((field("friction"), format!("must be finite and >= 0, got {}", self.friction)));
+        }
+        let urdf = base_dir.join(&self.urdf);
+        let rig = Rig::load(&urdf, RigOptions { up_axis: self.up_axis, scale: self.scale })
+            .map_err(|e| (field("urdf"), e.to_string()))?;
+        let (clip, file) = match &self.motion {
+            RigMotionSpec::Rest => (Clip { times_s: vec![0.0], poses: vec![rig.rest_pose()] }, urdf.clone()),
+            RigMotionSpec::Keyframes { file } => {
+                let path = base_dir.join(file);
+                (Clip::load_keyframes(&path, &rig).map_err(|e| (field("motion.file"), e.to_string()))?, path)
+            }
+            RigMotionSpec::Bvh { file, root, joints, up_axis, scale } => {
+                let path = base_dir.join(file);
+                let bvh = Bvh::load(&path).map_err(|e| (field("motion.file"), e.to_string()))?;
+                let map = BvhMap { root: root.clone(), joints: joints.clone(), up_axis: *up_axis, scale: *scale };
+                (Clip::from_bvh(&bvh, &path, &rig, &map).map_err(|e| (field("motion"), e.to_string()))?, path)
+            }
+        };
+        let playback = Playback {
+            settle_s: self.settle_s,
+            blend_s: self.blend_s,
+            looping: self.looping && clip.duration_s() > 0.0,
+            placement: Isometry3::from_parts(
+                Translation3::from(nalgebra::Vector3::from(self.position_m)),
+                rotation_xyz_deg(self.rotation_deg),
+            ),
+        };
+        if self.looping && self.motion != RigMotionSpec::Rest && clip.duration_s() <= 0.0 {
+            return Err((field("looping"), "a motion of one pose cannot loop: set looping = false".into()));
+        }
+        let motion = RigMotion::new(clip, &rig, playback, &file).map_err(|e| (field("motion"), e.to_string()))?;
+        let bodies = RigBodies::insert(&rig, world, &motion.pose_at(0.0), self.friction, &urdf)
+            .map_err(|e| (field("urdf"), e.to_string()))?;
+        Ok(SceneRig { rig, bodies, motion })
+    }
+}
