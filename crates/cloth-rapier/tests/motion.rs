@@ -279,3 +279,36 @@ fn playback_rests_blends_and_loops_carrying_the_root() {
     let turned = motion.pose_at(2.0 * period).root.rotation * motion.pose_at(0.0).root.rotation.inverse();
     assert!(turned.angle_to(&about(Vector3::z(), 180.0)) < 1e-9, "{:?}", turned.euler_angles());
 }
+
+/// A `[rig]` section's mistakes are errors naming the field, and the
+/// file where the mistake is in another file.
+#[test]
+fn rig_scene_errors_name_the_field_and_the_file() {
+    let scenes = fixture("scenes", "");
+    let text = std::fs::read_to_string(fixture("scenes", "skirt-walk.toml")).unwrap();
+    let build = |text: &str, overrides: &[&str]| {
+        let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+        let mut scene = cloth_rapier::CoupledScene::parse(text, &overrides)?;
+        scene.scene.base_dir = scenes.clone();
+        scene.build().map(|_| ())
+    };
+    build(&text, &[]).unwrap();
+    let cases: [(String, &[&str], &str); 8] = [
+        (text.replace("friction = 0.3", "friction = 0.3\ncolour = 1"), &[], "colour"),
+        (text.clone(), &["rig.urdf=\"../rigs/nobody.urdf\""], "rig.urdf"),
+        (text.clone(), &["rig.settle_s=-1.0"], "rig.settle_s"),
+        (text.clone(), &["rig.friction=nan"], "rig.friction"),
+        (text.replace("knee_l = \"LeftLeg\"", "knee_l = \"LeftKnee\""), &[], "joints.knee_l"),
+        (text.replace("walk.bvh", "missing.bvh"), &[], "missing.bvh"),
+        (text.replace("body = \"pelvis\"", "body = \"hips\""), &[], "no body or rig link named \"hips\""),
+        (
+            text.replace("[[attachments]]", "[[bodies]]\nname = \"pelvis\"\nkind = \"fixed\"\nshape = { kind = \"ball\", radius_m = 0.1 }\n\n[[attachments]]"),
+            &[],
+            "also a link of the rig",
+        ),
+    ];
+    for (text, overrides, expected) in cases {
+        let err = build(&text, overrides).unwrap_err().to_string();
+        assert!(err.contains(expected), "{err:?} should mention {expected:?}");
+    }
+}
