@@ -279,11 +279,11 @@ pub struct BvhMap {
     pub scale: f64,
 }
 
-fn y_up() -> UpAxis {
+pub(crate) fn y_up() -> UpAxis {
     UpAxis::Y
 }
 
-fn unit_scale() -> f64 {
+pub(crate) fn unit_scale() -> f64 {
     1.0
 }
 

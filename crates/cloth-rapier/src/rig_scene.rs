@@ -22,7 +22,7 @@
 
 use crate::bvh::Bvh;
 use crate::character::RigBodies;
-use crate::motion::{BvhMap, Clip, Playback, RigMotion, rotation_xyz_deg};
+use crate::motion::{BvhMap, Clip, Playback, RigMotion, rotation_xyz_deg, unit_scale, y_up};
 use crate::rig::{Rig, RigOptions, RigPose, UpAxis};
 use nalgebra::{Isometry3, Translation3};
 use rapier3d_f64::prelude::PhysicsWorld;
@@ -49,7 +49,7 @@ pub enum RigMotionSpec {
         #[serde(default = "y_up")]
         up_axis: UpAxis,
         /// Metres per BVH length unit (default 1; 0.01 for centimetres).
-        #[serde(default = "one")]
+        #[serde(default = "unit_scale")]
         scale: f64,
     },
     /// A keyframe file of joint values.
@@ -57,14 +57,6 @@ pub enum RigMotionSpec {
         /// The file, relative to the scene file.
         file: PathBuf,
     },
-}
-
-fn y_up() -> UpAxis {
-    UpAxis::Y
-}
-
-fn one() -> f64 {
-    1.0
 }
 
 fn yes() -> bool {
@@ -85,7 +77,7 @@ pub struct RigSection {
     #[serde(default)]
     pub up_axis: UpAxis,
     /// Metres per URDF length unit.
-    #[serde(default = "one")]
+    #[serde(default = "unit_scale")]
     pub scale: f64,
     /// Cloth-link Coulomb coefficient (default 0.3).
     #[serde(default = "default_friction")]
