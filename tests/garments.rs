@@ -9,9 +9,13 @@ use cloth_rapier::convert::{pose_from_rapier, vec_from_rapier};
 use cloth_rapier::{CoupledRun, CoupledScene};
 use cloth_tests::{fixture, min_unlinked_point_triangle, same_bits};
 
-fn skirt(overrides: &[&str]) -> CoupledRun {
+fn build(scene: &str, overrides: &[&str]) -> CoupledRun {
     let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
-    CoupledScene::load(&fixture("skirt-walk.toml"), &overrides).unwrap().build().unwrap()
+    CoupledScene::load(&fixture(scene), &overrides).unwrap().build().unwrap()
+}
+
+fn skirt(overrides: &[&str]) -> CoupledRun {
+    build("skirt-walk.toml", overrides)
 }
 
 /// Every link body is where forward kinematics of the motion puts it at
@@ -55,8 +59,7 @@ struct Worn {
 }
 
 fn wear(scene: &str) -> Worn {
-    let overrides: Vec<String> = Vec::new();
-    let mut run = CoupledScene::load(&fixture(scene), &overrides).unwrap().build().unwrap();
+    let mut run = build(scene, &[]);
     let pelvis = run.rig.as_ref().unwrap().body("pelvis").unwrap();
     let thickness = run.cloths[run.cloth].simulation().model().self_collision().unwrap().thickness_m;
     let (mut deepest, mut stretch, mut closest): (f64, f64, f64) = (0.0, 0.0, f64::INFINITY);

@@ -264,13 +264,18 @@ impl Bvh {
 
     /// Every joint's origin in the file's frame at `frame` (file units), into `out`.
     pub fn global_positions(&self, frame: usize, out: &mut Vec<Vec3>) {
-        let mut turn = Vec::new();
-        self.global_rotations(frame, &mut turn);
+        let mut turns = Vec::new();
+        self.global_rotations(frame, &mut turns);
+        self.positions_from(frame, &turns, out);
+    }
+
+    /// Every joint's origin at `frame` given its [`Bvh::global_rotations`] `turns`, into `out`.
+    pub fn positions_from(&self, frame: usize, turns: &[UnitQuaternion<f64>], out: &mut Vec<Vec3>) {
         out.clear();
         for j in &self.joints {
             let at = match j.parent {
                 None => self.root_position(frame),
-                Some(p) => out[p] + turn[p] * j.offset,
+                Some(p) => out[p] + turns[p] * j.offset,
             };
             out.push(at);
         }

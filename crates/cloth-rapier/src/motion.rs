@@ -30,6 +30,7 @@
 
 use crate::bvh::Bvh;
 use crate::rig::{JointKind, JointValue, Rig, RigPose, UpAxis};
+use cloth_core::colliders::rotation_from_degrees;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -62,12 +63,6 @@ pub struct Clip {
     pub times_s: Vec<f64>,
     /// One pose per time.
     pub poses: Vec<RigPose>,
-}
-
-/// The rotation about x, then y, then z (fixed axes) by `deg` degrees.
-pub fn rotation_xyz_deg(deg: [f64; 3]) -> UnitQuaternion<f64> {
-    let [x, y, z] = deg.map(f64::to_radians);
-    UnitQuaternion::from_euler_angles(x, y, z)
 }
 
 /// The shorter spherical interpolation from `a` (w = 0) to `b` (w = 1).
@@ -167,7 +162,7 @@ impl Clip {
             let mut pose = rig.rest_pose();
             pose.root = Isometry3::from_parts(
                 Translation3::from(Vec3::from(key.root_position_m)),
-                rotation_xyz_deg(key.root_rotation_deg),
+                rotation_from_degrees(key.root_rotation_deg),
             );
             for (name, value) in &key.joints {
                 let field = field(&format!("joints.{name}"));
@@ -215,7 +210,7 @@ impl Clip {
         let mut poses = Vec::with_capacity(bvh.frames());
         for frame in 0..bvh.frames() {
             bvh.global_rotations(frame, &mut turns);
-            bvh.global_positions(frame, &mut places);
+            bvh.positions_from(frame, &turns, &mut places);
             // The BVH's orientations and positions in the world (Z up, m).
             let world_turn = |b: usize| up * turns[b] * up.inverse();
             let mut pose = rig.rest_pose();
@@ -334,7 +329,7 @@ fn joint_value(kind: JointKind, value: &toml::Value) -> Result<JointValue, Strin
         JointKind::Fixed => return Err("a fixed joint takes no value".into()),
         JointKind::Revolute { .. } | JointKind::Continuous => JointValue::Angle(number()?.to_radians()),
         JointKind::Prismatic { .. } => JointValue::Offset(number()?),
-        JointKind::Spherical => JointValue::Rotation(rotation_xyz_deg(triple(value)?)),
+        JointKind::Spherical => JointValue::Rotation(rotation_from_degrees(triple(value)?)),
         JointKind::Floating => {
             let f: FloatingValue =
                 value.clone().try_into().map_err(|e| format!("needs {{ position_m, rotation_deg }}: {e}"))?;
@@ -343,7 +338,7 @@ fn joint_value(kind: JointKind, value: &toml::Value) -> Result<JointValue, Strin
             }
             JointValue::Motion(Isometry3::from_parts(
                 Translation3::from(Vec3::from(f.position_m)),
-                rotation_xyz_deg(f.rotation_deg),
+                rotation_from_degrees(f.rotation_deg),
             ))
         }
     })

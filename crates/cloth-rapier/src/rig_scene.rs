@@ -22,8 +22,9 @@
 
 use crate::bvh::Bvh;
 use crate::character::RigBodies;
-use crate::motion::{BvhMap, Clip, Playback, RigMotion, rotation_xyz_deg, unit_scale, y_up};
+use crate::motion::{BvhMap, Clip, Playback, RigMotion, unit_scale, y_up};
 use crate::rig::{Rig, RigOptions, RigPose, UpAxis};
+use cloth_core::colliders::rotation_from_degrees;
 use nalgebra::{Isometry3, Translation3};
 use rapier3d_f64::prelude::PhysicsWorld;
 use serde::{Deserialize, Serialize};
@@ -165,18 +166,20 @@ impl RigSection {
                 (Clip::from_bvh(&bvh, &path, &rig, &map).map_err(|e| (field("motion"), e.to_string()))?, path)
             }
         };
+        // The rest "motion" is one pose: nothing to loop.
+        let looping = self.looping && self.motion != RigMotionSpec::Rest;
+        if looping && clip.duration_s() <= 0.0 {
+            return Err((field("looping"), "a motion of one pose cannot loop: set looping = false".into()));
+        }
         let playback = Playback {
             settle_s: self.settle_s,
             blend_s: self.blend_s,
-            looping: self.looping && clip.duration_s() > 0.0,
+            looping,
             placement: Isometry3::from_parts(
                 Translation3::from(nalgebra::Vector3::from(self.position_m)),
-                rotation_xyz_deg(self.rotation_deg),
+                rotation_from_degrees(self.rotation_deg),
             ),
         };
-        if self.looping && self.motion != RigMotionSpec::Rest && clip.duration_s() <= 0.0 {
-            return Err((field("looping"), "a motion of one pose cannot loop: set looping = false".into()));
-        }
         let motion = RigMotion::new(clip, &rig, playback, &file).map_err(|e| (field("motion"), e.to_string()))?;
         let bodies = RigBodies::insert(&rig, world, &motion.pose_at(0.0), self.friction, &urdf)
             .map_err(|e| (field("urdf"), e.to_string()))?;

@@ -40,6 +40,7 @@ use crate::convert::{pose_to_rapier, vec_to_rapier};
 use crate::coupling::{CouplingReport, IteratedCoupling, Master};
 use crate::rig_scene::{RigSection, SceneRig};
 use cloth_collide::{BodyPose, ShapeSpec, SolidShape};
+use cloth_core::colliders::rotation_from_degrees;
 use cloth_core::scene::{RunConfig, Scene, SceneError, SceneErrorKind};
 use cloth_core::{PinMotion, Vec3};
 use cloth_cosim::Relaxation;
@@ -372,13 +373,6 @@ impl CoupledScene {
     }
 }
 
-fn rotation_from_degrees(deg: &[f64; 3]) -> UnitQuaternion<f64> {
-    let [rx, ry, rz] = deg.map(f64::to_radians);
-    UnitQuaternion::from_axis_angle(&Vec3::z_axis(), rz)
-        * UnitQuaternion::from_axis_angle(&Vec3::y_axis(), ry)
-        * UnitQuaternion::from_axis_angle(&Vec3::x_axis(), rx)
-}
-
 /// Adds one body with its collider; errors name the field (relative to the entry).
 fn add_body(
     world: &mut PhysicsWorld,
@@ -440,7 +434,7 @@ fn add_body(
         (_, Some(m)) => collider = collider.mass(m),
         (d, None) => collider = collider.density(d.unwrap_or(1000.0)),
     }
-    let anchor = BodyPose { position: Vec3::from(b.position_m), rotation: rotation_from_degrees(&b.rotation_deg) };
+    let anchor = BodyPose { position: Vec3::from(b.position_m), rotation: rotation_from_degrees(b.rotation_deg) };
     let builder = match b.kind {
         BodyKind::Dynamic => RigidBodyBuilder::dynamic()
             .linvel(vec_to_rapier(Vec3::from(b.velocity_m_s)))

@@ -9,6 +9,15 @@ use nalgebra::UnitQuaternion;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
+/// The scene files' orientation (`rotation_deg`): rotations about x, then
+/// y, then z (fixed axes) by `deg` degrees, `Rz Ry Rx`.
+pub fn rotation_from_degrees(deg: [f64; 3]) -> UnitQuaternion<f64> {
+    let [rx, ry, rz] = deg.map(f64::to_radians);
+    UnitQuaternion::from_axis_angle(&Vec3::z_axis(), rz)
+        * UnitQuaternion::from_axis_angle(&Vec3::y_axis(), ry)
+        * UnitQuaternion::from_axis_angle(&Vec3::x_axis(), rx)
+}
+
 /// One solid, `[[colliders]]` in a scene.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -187,11 +196,8 @@ impl CollisionSpec {
                 ));
             }
             let friction = non_negative(field("friction"), c.friction)?;
-            let [rx, ry, rz] = c.rotation_deg.map(f64::to_radians);
-            let rotation = UnitQuaternion::from_axis_angle(&Vec3::z_axis(), rz)
-                * UnitQuaternion::from_axis_angle(&Vec3::y_axis(), ry)
-                * UnitQuaternion::from_axis_angle(&Vec3::x_axis(), rx);
-            let anchor = BodyPose { position: Vec3::from(c.position_m), rotation };
+            let anchor =
+                BodyPose { position: Vec3::from(c.position_m), rotation: rotation_from_degrees(c.rotation_deg) };
             let spin_rad_s = Vec3::from(c.spin_deg_s.map(f64::to_radians));
             out.push(Collider { shape, anchor, motion: c.motion.clone(), spin_rad_s, friction, yielding: false });
         }
