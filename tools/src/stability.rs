@@ -583,7 +583,8 @@ fn shaken(quick: bool) -> Vec<Row> {
 
 /// A ball of radius 15 cm at 3 m/s through a curtain (1 m x 1 m,
 /// vertical, hanging from its top edge) low enough for the hem to slip
-/// under it, friction 0.3; at Choi & Ko's step and at 1 ms.
+/// under it, friction 0.3; at Choi & Ko's step, single solve and Newton,
+/// and at 1 ms.
 fn ball_through_curtain(quick: bool) -> Vec<Row> {
     let top: Vec<String> = (0..21).map(|i| format!("[{i}, 20]")).collect();
     let extra = format!(
@@ -592,17 +593,32 @@ fn ball_through_curtain(quick: bool) -> Vec<Row> {
          friction = 0.3\nmotion = {{ kind = \"linear\", velocity_m_s = [0.0, 3.0, 0.0] }}\n",
         top.join(", ")
     );
-    // Contacts are particle-solid only: in a step the ball travels 3.3 cm
-    // (two thirds of a link), a particle on its leading face held by
-    // friction stays there while its neighbour slips over the top, and
-    // the link between them then straddles the ball: the curtain is cut
-    // and the held particle dragged along. Edge-solid contacts would
-    // stop it. At 1 ms the neighbours slide off together.
-    const CUT: &str = "particle-solid contacts only: a link straddles the ball";
+    // The single linearised step at 1/90 s fails twice over (measured on
+    // this scene; it was first put down to particle-solid contacts, but no
+    // link crosses the ball at the worst step):
+    // - Friction after the solve judges Coulomb's bound by the particle
+    //   alone (the velocity change `mu N tau / m`), while the normal force
+    //   it reads from the solve carries the tension of the links wrapped
+    //   round the ball. The particle at the ball's front pole is held there
+    //   while the cloth below it folds up and over it: its link stretches
+    //   to 2.0 (BDF2) and, with backward Euler, to 16.6 by the end (held
+    //   all run). Friction 0: 1.35 and 1.23; 0.1: 1.21.
+    // - A link at rest has no transverse stiffness in a linearised step,
+    //   so where the ball's rim hits a row the particle beside it stays
+    //   while the hit one moves 3.3 cm (two thirds of a link): 1.35 even
+    //   without friction.
+    // Newton steps (friction inside the minimisation, Coulomb's bound
+    // against the whole cloth's response) hold: 1.11 (BDF2), 1.06
+    // (backward Euler). At 1 ms the single step holds too.
+    const HELD: &str = "single linearised step: after-solve friction holds a particle at the ball's pole";
     let steps: &[f64] = if quick { &[1e-3] } else { &[1.0 / 90.0, 1e-3] };
     let mut rows = Vec::new();
     for &h in steps {
-        for integrator in integrators(quick) {
+        let mut variants: Vec<(&str, usize)> = integrators(quick).iter().map(|&i| (i, 1)).collect();
+        if h > 1e-3 {
+            variants.extend(integrators(quick).iter().map(|&i| (i, 10)));
+        }
+        for (integrator, newton) in variants {
             rows.push(
                 Case::new(
                     "ball through a curtain",
@@ -611,9 +627,10 @@ fn ball_through_curtain(quick: bool) -> Vec<Row> {
                 )
                 .extra(extra.clone())
                 .integrator(integrator)
-                .known_defect((h > 1e-3).then_some(CUT))
+                .known_defect((h > 1e-3 && newton == 1).then_some(HELD))
                 .set("simulation.dt_s", format!("{h:e}"))
                 .set("simulation.duration_s", 0.8)
+                .set("solver.newton_iterations", newton)
                 .set("panels.0.origin_m", "[-0.5, 0.0, 0.0]")
                 .set("panels.0.u_axis", "[1.0, 0.0, 0.0]")
                 .set("panels.0.v_axis", "[0.0, 0.0, 1.0]")
