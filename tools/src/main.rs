@@ -1,5 +1,6 @@
 //! `cloth`: run and validate cloth scenes.
 
+mod bench;
 mod output;
 mod run;
 mod study;
@@ -67,6 +68,23 @@ enum Command {
         #[arg(long, global = true)]
         quick: bool,
     },
+    /// Benchmarks against the papers' own tables.
+    Bench {
+        #[command(subcommand)]
+        bench: BenchKind,
+        /// Output directory for Markdown and JSON.
+        #[arg(long, global = true, default_value = "docs/results")]
+        out: PathBuf,
+        /// Worker threads.
+        #[arg(long, global = true, default_value_t = 2)]
+        threads: usize,
+        /// Runs per scene; the median by wall time is reported.
+        #[arg(long, global = true, default_value_t = 3)]
+        repeat: usize,
+        /// Simulated time per run, s (default: each scene's own).
+        #[arg(long, global = true, value_name = "S")]
+        duration: Option<f64>,
+    },
     /// Check a scene without running it.
     Validate {
         /// Scene file (TOML).
@@ -75,6 +93,13 @@ enum Command {
         #[arg(long = "set", value_name = "KEY=VALUE")]
         overrides: Vec<String>,
     },
+}
+
+#[derive(Subcommand)]
+enum BenchKind {
+    /// Choi & Ko's Table 1: garments on a walking character at the paper's
+    /// particle counts, CPU s per 30 Hz frame beside the paper's.
+    Table1,
 }
 
 #[derive(Subcommand)]
@@ -102,6 +127,9 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Run { scene, out, overrides, frames, threads, quiet } => {
             run::run(&run::RunArgs { scene, out, overrides, frames, threads, quiet })
+        }
+        Command::Bench { bench: BenchKind::Table1, out, threads, repeat, duration } => {
+            bench::table1(&bench::BenchArgs { out, threads, repeat, duration_s: duration })
         }
         Command::Validate { scene, overrides } => run::validate(&scene, &overrides),
         Command::Time { scene, overrides, threads, repeat } => run::time(&scene, &overrides, threads, repeat),

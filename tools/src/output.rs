@@ -52,6 +52,9 @@ pub struct Summary {
     pub dt_s: f64,
     pub sim_time_s: f64,
     pub wall_s: f64,
+    /// Processor time of the steps, all threads, s (Linux, to 10 ms; absent elsewhere).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cpu_s: Option<f64>,
     /// Median wall time of one step, s.
     pub step_wall_s_median: f64,
     /// Force evaluations (implicit methods: one force and Jacobian evaluation per step).
@@ -77,6 +80,10 @@ pub struct Summary {
     pub min_z_m: f64,
     pub max_speed_m_s: f64,
     pub finite: bool,
+    /// Solids the cloth can touch (colliders, rapier bodies' colliders, rig links).
+    pub solids: usize,
+    /// Triangles of the mesh solids among them (Choi & Ko's Table 1 column).
+    pub solid_triangles: usize,
     /// Most cloth-solid contacts held in one step.
     pub contacts_max: usize,
     /// Deepest any particle was inside a solid, over all steps and the final state, m.

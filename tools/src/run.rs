@@ -103,7 +103,7 @@ pub fn validate(path: &Path, overrides: &[String]) -> Result<()> {
 /// Runs a scene to its end (or its first error), writing OBJ frames every
 /// `frames.0` steps into `frames.1`; returns the summary (with `error` set
 /// when a step failed).
-fn simulate(
+pub(crate) fn simulate(
     scene_path: &Path,
     overrides: &[String],
     threads: usize,
@@ -139,6 +139,7 @@ fn simulate(
     let mut peak_stretch = runner.sim().model().max_stretch_ratio(&runner.sim().state().x);
     let mut error = None;
     let wall = Instant::now();
+    let cpu_start = process_cpu_s();
     let write_frame = |sim: &Simulation, stages: &mut StageWall| -> Result<()> {
         if let Some((every, dir)) = &frames
             && sim.state().steps.is_multiple_of(*every)
@@ -185,6 +186,7 @@ fn simulate(
     }
     bar.finish_and_clear();
     let wall_s = wall.elapsed().as_secs_f64();
+    let cpu_s = cpu_start.zip(process_cpu_s()).map(|(start, end)| end - start);
     let sim = runner.sim();
     let state = sim.state();
     let model = sim.model();
@@ -203,6 +205,7 @@ fn simulate(
         dt_s: cfg.dt_s,
         sim_time_s: state.time_s,
         wall_s,
+        cpu_s,
         step_wall_s_median: step_walls.get(step_walls.len() / 2).copied().unwrap_or(0.0),
         force_evaluations_total: evaluations,
         substeps_total: substeps,
@@ -218,6 +221,8 @@ fn simulate(
         min_z_m: state.x.iter().map(|p| p.z).fold(f64::INFINITY, f64::min),
         max_speed_m_s: state.v.iter().map(|v| v.norm()).fold(0.0, f64::max),
         finite: error.is_none() && state.first_non_finite().is_none(),
+        solids: model.colliders().len(),
+        solid_triangles: model.colliders().iter().map(|c| c.shape.triangle_count()).sum(),
         contacts_max: contacts.contacts_max,
         max_penetration_m: contacts.max_penetration_m.max(sim.max_penetration()),
         self_contacts_max: contacts.self_contacts_max,
@@ -453,4 +458,17 @@ pub fn time(scene: &Path, overrides: &[String], threads: usize, repeat: usize) -
         per_step(median(&|r| r.stage_wall_s.self_collision)),
     );
     Ok(())
+}
+
+/// Processor time this process has used, all threads, s: user plus system
+/// time from `/proc/self/stat` (fields 14 and 15, in Linux's fixed 100
+/// ticks per second). `None` where that file is not there.
+fn process_cpu_s() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // The command name (field 2) is in parentheses and may hold spaces.
+    let after_name = &stat[stat.rfind(')')? + 1..];
+    let mut fields = after_name.split_whitespace().skip(11);
+    let user: f64 = fields.next()?.parse().ok()?;
+    let system: f64 = fields.next()?.parse().ok()?;
+    Some((user + system) / 100.0)
 }

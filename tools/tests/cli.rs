@@ -238,3 +238,66 @@ fn collision_work_happens_only_when_the_scene_declares_it() {
     assert_eq!(folding["hash_builds_total"], folding["steps"], "one hash build per step");
     assert!(folding["stage_wall_s"]["self_collision"].as_f64().unwrap() > 0.0);
 }
+
+#[test]
+fn bench_table1_prints_the_skirt_beside_the_paper() {
+    let out = out_dir("table1");
+    let status = cloth()
+        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+        .args(["bench", "table1", "--duration", "0.1", "--repeat", "1", "--out"])
+        .arg(&out)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let rows: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("table1.json")).unwrap()).unwrap();
+    let rows = rows.as_array().unwrap();
+    let garments: Vec<&str> = rows.iter().map(|r| r["garment"].as_str().unwrap()).collect();
+    assert_eq!(garments, ["one-piece", "top", "skirt"]);
+    // Garments not built yet say so and still show the paper's rows.
+    for r in &rows[..2] {
+        assert!(r["measured"].is_null() && r["missing"].as_str().unwrap().starts_with("not built"));
+        assert!(!r["paper"].as_array().unwrap().is_empty());
+    }
+    let skirt = &rows[2];
+    let (m, paper) = (&skirt["measured"], &skirt["paper"][0]);
+    // The paper's particle count, on the mannequin's 15 links (primitives, no triangles).
+    assert_eq!(m["particles"], paper["particles"]);
+    assert_eq!(paper["particles"], 3456);
+    assert_eq!((m["solids"].as_u64(), m["solid_triangles"].as_u64()), (Some(15), Some(0)));
+    // 0.1 s at 1/90 s: 9 steps, three per 30 Hz frame.
+    assert_eq!(m["steps"], 9);
+    let frames = m["frames"].as_f64().unwrap();
+    assert!((frames - 3.0).abs() < 1e-9, "{frames}");
+    // The stages add up to the frame's wall time; the ratio is the paper's
+    // CPU time over ours.
+    let wall = m["wall_ms_per_frame"].as_f64().unwrap();
+    let stages: f64 = m["stages_ms_per_frame"].as_object().unwrap().values().map(|v| v.as_f64().unwrap()).sum();
+    assert!((stages - wall).abs() < 1e-9 * wall, "{stages} vs {wall}");
+    if let Some(cpu) = m["cpu_s_per_frame"].as_f64() {
+        let speedup = skirt["speedup"][0].as_f64().unwrap();
+        assert!((speedup * cpu - 3.01).abs() < 1e-9, "{speedup} x {cpu}");
+    }
+    let md = std::fs::read_to_string(out.join("table1.md")).unwrap();
+    assert!(md.contains("| skirt | 3456 | 15 (0) |"), "{md}");
+}
+
+#[test]
+fn bench_table1_refuses_bad_options() {
+    let refusals = [
+        ("--repeat", "0", "--repeat must be at least 1"),
+        ("--duration", "0", "--duration must be finite and > 0 s, got 0"),
+        ("--duration", "NaN", "--duration must be finite and > 0 s, got NaN"),
+    ];
+    for (flag, value, message) in refusals {
+        let output = cloth()
+            .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+            .args(["bench", "table1", flag, value, "--out"])
+            .arg(out_dir("table1-bad"))
+            .output()
+            .unwrap();
+        assert!(!output.status.success(), "{flag} {value}");
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(stderr.contains(message), "{flag} {value}: {stderr}");
+    }
+}

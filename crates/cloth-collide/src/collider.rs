@@ -212,6 +212,12 @@ impl SolidShape {
         Pose::from_parts(to_parry(body.position), rotation) * self.local
     }
 
+    /// Triangles of a mesh solid (0 for the primitive shapes): what Choi &
+    /// Ko's Table 1 counts as "triangles of solid".
+    pub fn triangle_count(&self) -> usize {
+        self.shape.as_trimesh().map_or(0, |mesh| mesh.indices().len())
+    }
+
     /// The world bounding box `(min, max)` at `body`, m (infinite for a half-space).
     pub fn aabb(&self, body: &BodyPose) -> (Vec3, Vec3) {
         let b = self.shape.compute_aabb(&self.pose(body));
@@ -279,6 +285,17 @@ mod tests {
 
     fn sd(spec: &ShapeSpec, body: &BodyPose, p: Vec3) -> SurfacePoint {
         SolidShape::build(spec, Path::new(".")).unwrap().closest(body, p)
+    }
+
+    #[test]
+    fn meshes_count_their_triangles_and_primitives_none() {
+        // The pillow fixture lists 64 triangles (its poles) and 448 quads,
+        // each split in two: 960.
+        let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/meshes");
+        let pillow = ShapeSpec::Mesh { obj: "pillow.obj".into(), scale: 1.0 };
+        assert_eq!(SolidShape::build(&pillow, &fixtures).unwrap().triangle_count(), 960);
+        let ball = ShapeSpec::Ball { radius_m: 0.5 };
+        assert_eq!(SolidShape::build(&ball, &fixtures).unwrap().triangle_count(), 0);
     }
 
     #[test]
