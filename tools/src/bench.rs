@@ -6,7 +6,7 @@
 //! Each garment of ours runs its scene at the paper's particle count on
 //! the walking mannequin and is printed beside the paper's row.
 
-use crate::output::Summary;
+use crate::output::{StageWall, Summary};
 use crate::run::simulate;
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
@@ -86,34 +86,16 @@ pub struct Measured {
     pub cpu_s_per_frame: Option<f64>,
     /// Cloth-solid and self-collision time over the wall time.
     pub collision_share: f64,
-    /// Where a frame's wall time goes, ms: the cloth's stages, and the
-    /// rest (rig, rapier, coupling, bookkeeping).
-    pub stages_ms_per_frame: StageSplit,
+    /// Where a frame's wall time goes, s: the cloth's stages ...
+    pub stages_s_per_frame: StageWall,
+    /// ... and the rest (driving the rig, rapier's step, the coupling).
+    pub other_s_per_frame: f64,
     /// Mean CG iterations per step.
     pub cg_per_step: f64,
     /// Largest link stretch at any step.
     pub peak_stretch: f64,
     /// Deepest a particle was inside a solid, m.
     pub max_penetration_m: f64,
-}
-
-/// Wall time per frame by stage, ms.
-#[derive(Debug, Serialize)]
-pub struct StageSplit {
-    /// Interaction laws on links (forces and Jacobian blocks).
-    pub forces: f64,
-    /// Matrix and right-hand side gather, pin constraints.
-    pub assembly: f64,
-    /// PCG.
-    pub solve: f64,
-    /// State update, friction, finiteness checks.
-    pub update: f64,
-    /// Cloth-solid contacts.
-    pub collision: f64,
-    /// Self-collision.
-    pub self_collision: f64,
-    /// Everything else: driving the rig, rapier's step, the coupling.
-    pub other: f64,
 }
 
 /// A garment's row: measured, or why not, beside the paper's rows.
@@ -196,19 +178,8 @@ fn measure(scene: &Path, overrides: &[&str], args: &BenchArgs) -> Result<Measure
     runs.sort_by(|a, b| a.wall_s.total_cmp(&b.wall_s));
     let s = &runs[runs.len() / 2];
     let frames = s.sim_time_s * FRAME_RATE_HZ;
-    let st = &s.stage_wall_s;
-    let collision = st.collision + st.self_collision;
-    let per_frame = |seconds: f64| seconds / frames * 1e3;
-    let cloth = st.forces + st.assembly + st.solve + st.update + collision;
-    let stages = StageSplit {
-        forces: per_frame(st.forces),
-        assembly: per_frame(st.assembly),
-        solve: per_frame(st.solve),
-        update: per_frame(st.update),
-        collision: per_frame(st.collision),
-        self_collision: per_frame(st.self_collision),
-        other: per_frame(s.wall_s - cloth),
-    };
+    let stages = s.stage_wall_s.scaled(1.0 / frames);
+    let collision = s.stage_wall_s.collision + s.stage_wall_s.self_collision;
     Ok(Measured {
         scene: std::iter::once(scene.display().to_string())
             .chain(set.iter().map(|o| format!("--set '{o}'")))
@@ -223,7 +194,8 @@ fn measure(scene: &Path, overrides: &[&str], args: &BenchArgs) -> Result<Measure
         wall_ms_per_frame: s.wall_s / frames * 1e3,
         cpu_s_per_frame: s.cpu_s.map(|c| c / frames),
         collision_share: collision / s.wall_s,
-        stages_ms_per_frame: stages,
+        other_s_per_frame: s.wall_s / frames - stages.total(),
+        stages_s_per_frame: stages,
         cg_per_step: s.cg_iterations_mean,
         peak_stretch: s.peak_stretch_ratio,
         max_penetration_m: s.max_penetration_m,
@@ -273,7 +245,7 @@ fn markdown(rows: &[Table1Row], threads: usize) -> String {
     }
     for r in rows {
         if let Some(m) = &r.measured {
-            let t = &m.stages_ms_per_frame;
+            let t = m.stages_s_per_frame.scaled(1e3);
             md.push_str(&format!(
                 "\n{}: `{}`, {} steps. A frame's wall time, ms: forces {:.1}, assembly {:.1}, solve {:.1}, \
                  update {:.1}, collision {:.1}, self-collision {:.1}, other (rig, rapier, coupling) {:.1}.\n",
@@ -286,7 +258,7 @@ fn markdown(rows: &[Table1Row], threads: usize) -> String {
                 t.update,
                 t.collision,
                 t.self_collision,
-                t.other
+                m.other_s_per_frame * 1e3
             ));
         }
     }

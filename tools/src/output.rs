@@ -36,6 +36,26 @@ pub struct StageWall {
     pub output: f64,
 }
 
+impl StageWall {
+    /// Every stage times `factor` (per step, per frame...).
+    pub fn scaled(&self, factor: f64) -> StageWall {
+        StageWall {
+            forces: self.forces * factor,
+            assembly: self.assembly * factor,
+            solve: self.solve * factor,
+            update: self.update * factor,
+            collision: self.collision * factor,
+            self_collision: self.self_collision * factor,
+            output: self.output * factor,
+        }
+    }
+
+    /// All stages together, s.
+    pub fn total(&self) -> f64 {
+        self.forces + self.assembly + self.solve + self.update + self.collision + self.self_collision + self.output
+    }
+}
+
 /// `summary.json`.
 #[derive(Debug, Serialize)]
 pub struct Summary {
