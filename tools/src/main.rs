@@ -1,6 +1,7 @@
 //! `cloth`: run and validate cloth scenes.
 
 mod bench;
+mod fmu;
 mod output;
 mod run;
 mod study;
@@ -85,6 +86,11 @@ enum Command {
         #[arg(long, global = true, value_name = "S")]
         duration: Option<f64>,
     },
+    /// The cloth as an FMI 3.0 co-simulation FMU.
+    Fmu {
+        #[command(subcommand)]
+        fmu: FmuKind,
+    },
     /// Check a scene without running it.
     Validate {
         /// Scene file (TOML).
@@ -92,6 +98,26 @@ enum Command {
         /// Overrides, as for `run`.
         #[arg(long = "set", value_name = "KEY=VALUE")]
         overrides: Vec<String>,
+    },
+}
+
+#[derive(Subcommand)]
+enum FmuKind {
+    /// Package SCENE as NAME.fmu: modelDescription.xml from the cloth
+    /// unit's variables, the shared library, the scene under resources/.
+    Build {
+        /// Scene file (TOML).
+        scene: PathBuf,
+        /// The .fmu to write.
+        #[arg(long)]
+        out: PathBuf,
+        /// Overrides, as for `run` (carried into the FMU).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        overrides: Vec<String>,
+        /// The FMU's binary (default: libcloth_fmu.so beside this
+        /// executable, from `cargo build --release -p cloth-fmu`).
+        #[arg(long)]
+        library: Option<PathBuf>,
     },
 }
 
@@ -130,6 +156,9 @@ fn main() -> ExitCode {
         }
         Command::Bench { bench: BenchKind::Table1, out, threads, repeat, duration } => {
             bench::table1(&bench::BenchArgs { out, threads, repeat, duration_s: duration })
+        }
+        Command::Fmu { fmu: FmuKind::Build { scene, out, overrides, library } } => {
+            fmu::build(&scene, &overrides, library.as_deref(), &out)
         }
         Command::Validate { scene, overrides } => run::validate(&scene, &overrides),
         Command::Time { scene, overrides, threads, repeat } => run::time(&scene, &overrides, threads, repeat),

@@ -1,0 +1,171 @@
+//! `modelDescription.xml` (FMI 3.0) generated from a unit's variables.
+
+use crate::MODEL_IDENTIFIER;
+use cloth_cosim::{Causality, Variable};
+use std::fmt::Write;
+
+/// What the model description says besides the variables.
+#[derive(Debug, Clone)]
+pub struct FmuInfo {
+    /// `modelName` (the scene file's stem).
+    pub model_name: String,
+    /// `instantiationToken`, checked by `fmi3InstantiateCoSimulation`.
+    pub token: String,
+    /// One line on what the FMU is.
+    pub description: String,
+    /// The scene's time step: `DefaultExperiment stepSize`, s.
+    pub step_s: f64,
+    /// The scene's duration: `DefaultExperiment stopTime`, s.
+    pub stop_s: f64,
+}
+
+/// Base-unit exponents of the SI units the cloth's variables use
+/// (`kg`, `m`, `s`, `rad`).
+fn base_units(unit: &str) -> Option<[i32; 4]> {
+    Some(match unit {
+        "m" => [0, 1, 0, 0],
+        "m/s" => [0, 1, -1, 0],
+        "N" => [1, 1, -2, 0],
+        "N.m" => [1, 2, -2, 0],
+        "rad" => [0, 0, 0, 1],
+        "rad/s" => [0, 0, -1, 1],
+        "s" => [0, 0, 1, 0],
+        _ => return None,
+    })
+}
+
+/// Escapes `&`, `<`, `>` and `"` for an XML attribute.
+fn escape(text: &str) -> String {
+    text.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+}
+
+/// Formats a start value so that it reads back as the same `f64`.
+fn number(x: f64) -> String {
+    format!("{x:?}")
+}
+
+/// The model description of an FMU whose unit has `variables` (value
+/// reference `k + 1` for variable `k`; 0 is `time`). Every output is an
+/// `InitialUnknown` (computed from the initial state). Dimensionless
+/// variables (unit `"1"` or `""`) carry no unit.
+pub fn model_description(variables: &[Variable], info: &FmuInfo) -> String {
+    let mut units: Vec<&str> = Vec::new();
+    for v in variables {
+        if base_units(v.unit).is_some() && !units.contains(&v.unit) {
+            units.push(v.unit);
+        }
+    }
+    units.insert(0, "s");
+    units.dedup();
+    let mut x = String::new();
+    let _ = writeln!(x, r#"<?xml version="1.0" encoding="UTF-8"?>"#);
+    let _ = writeln!(
+        x,
+        r#"<fmiModelDescription fmiVersion="3.0" modelName="{}" description="{}" instantiationToken="{}" generationTool="cloth-fmu {}" variableNamingConvention="structured">"#,
+        escape(&info.model_name),
+        escape(&info.description),
+        escape(&info.token),
+        env!("CARGO_PKG_VERSION"),
+    );
+    let _ = writeln!(
+        x,
+        r#"  <CoSimulation modelIdentifier="{MODEL_IDENTIFIER}" canHandleVariableCommunicationStepSize="true" canGetAndSetFMUState="true" canSerializeFMUState="true" hasEventMode="false"/>"#
+    );
+    let _ = writeln!(x, "  <UnitDefinitions>");
+    for unit in &units {
+        let [kg, m, s, rad] = base_units(unit).expect("listed units have base units");
+        let mut attrs = String::new();
+        for (name, e) in [("kg", kg), ("m", m), ("s", s), ("rad", rad)] {
+            if e != 0 {
+                let _ = write!(attrs, r#" {name}="{e}""#);
+            }
+        }
+        let _ = writeln!(x, r#"    <Unit name="{}"><BaseUnit{attrs}/></Unit>"#, escape(unit));
+    }
+    let _ = writeln!(x, "  </UnitDefinitions>");
+    let _ = writeln!(x, r#"  <LogCategories>"#);
+    for (name, what) in [
+        ("logEvents", "initialisation, steps, states"),
+        ("logStatusError", "calls that failed: why"),
+        ("logStatusDiscard", "steps the cloth could not take: why"),
+    ] {
+        let _ = writeln!(x, r#"    <Category name="{name}" description="{what}"/>"#);
+    }
+    let _ = writeln!(x, r#"  </LogCategories>"#);
+    let _ = writeln!(
+        x,
+        r#"  <DefaultExperiment startTime="0.0" stopTime="{}" stepSize="{}"/>"#,
+        number(info.stop_s),
+        number(info.step_s)
+    );
+    let _ = writeln!(x, "  <ModelVariables>");
+    let _ = writeln!(
+        x,
+        r#"    <Float64 name="time" valueReference="0" causality="independent" variability="continuous" unit="s" description="simulation time"/>"#
+    );
+    for (k, v) in variables.iter().enumerate() {
+        let causality = match v.causality {
+            Causality::Parameter => "parameter",
+            Causality::Input => "input",
+            Causality::Output => "output",
+        };
+        let variability = if v.causality == Causality::Parameter { "fixed" } else { "continuous" };
+        let unit = if base_units(v.unit).is_some() { format!(r#" unit="{}""#, escape(v.unit)) } else { String::new() };
+        let start =
+            if v.causality == Causality::Output { String::new() } else { format!(r#" start="{}""#, number(v.start)) };
+        let _ = writeln!(
+            x,
+            r#"    <Float64 name="{}" valueReference="{}" causality="{causality}" variability="{variability}"{unit}{start} description="{}"/>"#,
+            escape(&v.name),
+            k + 1,
+            escape(&v.description)
+        );
+    }
+    let _ = writeln!(x, "  </ModelVariables>");
+    let _ = writeln!(x, "  <ModelStructure>");
+    let outputs: Vec<usize> =
+        variables.iter().enumerate().filter(|(_, v)| v.causality == Causality::Output).map(|(k, _)| k + 1).collect();
+    for vr in &outputs {
+        let _ = writeln!(x, r#"    <Output valueReference="{vr}"/>"#);
+    }
+    for vr in &outputs {
+        let _ = writeln!(x, r#"    <InitialUnknown valueReference="{vr}"/>"#);
+    }
+    let _ = writeln!(x, "  </ModelStructure>");
+    let _ = writeln!(x, "</fmiModelDescription>");
+    x
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn variables_units_and_structure() {
+        let vars = vec![
+            Variable::new("pin0.target.x", Causality::Input, "m", "pin <x> & \"y\"").with_start(0.25),
+            Variable::new("solid0.torque.z", Causality::Output, "N.m", "torque"),
+            Variable::new("max_stretch", Causality::Output, "1", "ratio"),
+        ];
+        let info = FmuInfo {
+            model_name: "hang".into(),
+            token: "{abc}".into(),
+            description: "a cloth".into(),
+            step_s: 1.0 / 90.0,
+            stop_s: 2.0,
+        };
+        let xml = model_description(&vars, &info);
+        assert!(xml.contains(
+            r#"<Float64 name="pin0.target.x" valueReference="1" causality="input" variability="continuous" unit="m" start="0.25" description="pin &lt;x&gt; &amp; &quot;y&quot;"/>"#
+        ));
+        assert!(xml.contains(r#"<Float64 name="max_stretch" valueReference="3" causality="output" variability="continuous" description="ratio"/>"#));
+        assert!(xml.contains(r#"<Unit name="N.m"><BaseUnit kg="1" m="2" s="-2"/></Unit>"#));
+        assert!(xml.contains(r#"stepSize="0.011111111111111112""#));
+        // Outputs are listed, and listed as initial unknowns; inputs are not.
+        for vr in [2, 3] {
+            assert!(xml.contains(&format!(r#"<Output valueReference="{vr}"/>"#)));
+            assert!(xml.contains(&format!(r#"<InitialUnknown valueReference="{vr}"/>"#)));
+        }
+        assert!(!xml.contains(r#"<Output valueReference="1"/>"#));
+    }
+}

@@ -1,0 +1,149 @@
+//! The `.fmu` archive: `modelDescription.xml`, the shared library under
+//! `binaries/x86_64-linux/`, the scene and its overrides under
+//! `resources/`.
+
+use crate::description::{FmuInfo, model_description};
+use crate::{MODEL_IDENTIFIER, OVERRIDES_FILE, SCENE_FILE};
+use cloth_core::scene::{Scene, SceneError};
+use cloth_cosim::{ClothUnit, Unit};
+use std::path::{Path, PathBuf};
+
+/// Why an FMU could not be built or instantiated.
+#[derive(Debug, thiserror::Error)]
+pub enum FmuError {
+    /// The scene does not load or build (the message names file and field).
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    /// A scene the FMU cannot carry yet.
+    #[error("{file}: {field}: {message}")]
+    Unsupported {
+        /// The scene file.
+        file: PathBuf,
+        /// The field.
+        field: String,
+        /// Why.
+        message: String,
+    },
+    /// Reading or writing a file.
+    #[error("{path}: {message}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+}
+
+fn io(path: &Path) -> impl Fn(std::io::Error) -> FmuError + '_ {
+    move |e| FmuError::Io { path: path.to_path_buf(), message: e.to_string() }
+}
+
+/// The `instantiationToken` of an FMU carrying `scene` (its text) with
+/// `overrides`: a 128-bit FNV-1a digest written as a GUID, so that an
+/// instance refuses a model description from another build.
+pub fn instantiation_token(scene: &str, overrides: &[String]) -> String {
+    let mut bytes = scene.as_bytes().to_vec();
+    for o in overrides {
+        bytes.push(b'\n');
+        bytes.extend_from_slice(o.as_bytes());
+    }
+    let mut hash: u128 = 0x6c62_272e_07bb_0142_62b8_2175_6295_c58d;
+    for b in bytes {
+        hash ^= u128::from(b);
+        hash = hash.wrapping_mul(0x0000_0000_0100_0000_0000_0000_0000_013B);
+    }
+    let h = format!("{hash:032x}");
+    format!("{{{}-{}-{}-{}-{}}}", &h[0..8], &h[8..12], &h[12..16], &h[16..20], &h[20..32])
+}
+
+/// The scene text and the overrides an FMU carries under `resources`.
+pub(crate) fn read_resources(resources: &Path) -> Result<(String, Vec<String>), FmuError> {
+    let scene_path = resources.join(SCENE_FILE);
+    let scene = std::fs::read_to_string(&scene_path).map_err(io(&scene_path))?;
+    let overrides_path = resources.join(OVERRIDES_FILE);
+    let overrides = std::fs::read_to_string(&overrides_path).map_err(io(&overrides_path))?;
+    Ok((scene, overrides.lines().filter(|l| !l.trim().is_empty()).map(str::to_string).collect()))
+}
+
+/// The scene at `path` with `overrides`, checked for what an FMU can carry:
+/// no files besides the scene (OBJ meshes), no rigid bodies or rigs (those
+/// are `cloth-rapier`'s; the scene parser already refuses their keys).
+fn load_scene(path: &Path, overrides: &[String]) -> Result<Scene, FmuError> {
+    let scene = Scene::parse_file(path, overrides)?;
+    for (k, c) in scene.colliders.iter().enumerate() {
+        if matches!(c.shape, cloth_core::ShapeSpec::Mesh { .. }) {
+            return Err(FmuError::Unsupported {
+                file: path.to_path_buf(),
+                field: format!("colliders[{k}].shape"),
+                message: "mesh solids are not carried into an FMU yet (only the scene file is)".into(),
+            });
+        }
+    }
+    Ok(scene)
+}
+
+/// The cloth unit of the scene at `path` with `overrides`, named `name`.
+pub(crate) fn unit_from_scene(path: &Path, overrides: &[String], name: &str) -> Result<ClothUnit, FmuError> {
+    let scene = load_scene(path, overrides)?;
+    let (model, cfg) = scene.build().map_err(|kind| SceneError { file: path.to_path_buf(), kind })?;
+    Ok(ClothUnit::new(name, cfg.simulation(model)))
+}
+
+/// What [`build_fmu`] wrote.
+#[derive(Debug, Clone)]
+pub struct BuiltFmu {
+    /// The archive.
+    pub path: PathBuf,
+    /// Its model description.
+    pub model_description: String,
+    /// Inputs and outputs, by name.
+    pub inputs: Vec<String>,
+    /// See `inputs`.
+    pub outputs: Vec<String>,
+}
+
+/// Writes the FMU of the scene at `scene` with `overrides` to `out`, with
+/// the shared library at `library` (this crate's `cdylib`) as its binary.
+pub fn build_fmu(scene: &Path, overrides: &[String], library: &Path, out: &Path) -> Result<BuiltFmu, FmuError> {
+    let text = std::fs::read_to_string(scene).map_err(io(scene))?;
+    let parsed = load_scene(scene, overrides)?;
+    let unit = unit_from_scene(scene, overrides, "cloth")?;
+    let binary = std::fs::read(library).map_err(io(library))?;
+    let token = instantiation_token(&text, overrides);
+    let model_name = scene.file_stem().map_or("cloth".into(), |s| s.to_string_lossy().into_owned());
+    let info = FmuInfo {
+        model_name: model_name.clone(),
+        token,
+        description: format!("cloth scene {model_name} (Choi & Ko 2002 implicit cloth), co-simulation"),
+        step_s: parsed.simulation.dt_s,
+        stop_s: parsed.simulation.duration_s,
+    };
+    let variables = unit.variables();
+    let xml = model_description(variables, &info);
+    let overrides_text: String = overrides.iter().map(|o| format!("{o}\n")).collect();
+    let entries = vec![
+        ("modelDescription.xml".to_string(), xml.clone().into_bytes()),
+        (format!("binaries/x86_64-linux/{MODEL_IDENTIFIER}.so"), binary),
+        (format!("resources/{SCENE_FILE}"), text.into_bytes()),
+        (format!("resources/{OVERRIDES_FILE}"), overrides_text.into_bytes()),
+    ];
+    if entries.iter().map(|(_, d)| d.len() as u64).sum::<u64>() > u64::from(u32::MAX) {
+        return Err(FmuError::Io { path: out.to_path_buf(), message: "larger than a ZIP without ZIP64 holds".into() });
+    }
+    std::fs::write(out, crate::zip::write_stored(&entries)).map_err(io(out))?;
+    let names =
+        |c: cloth_cosim::Causality| variables.iter().filter(|v| v.causality == c).map(|v| v.name.clone()).collect();
+    Ok(BuiltFmu {
+        path: out.to_path_buf(),
+        model_description: xml,
+        inputs: names(cloth_cosim::Causality::Input),
+        outputs: names(cloth_cosim::Causality::Output),
+    })
+}
+
+/// The entries of an FMU archive written by [`build_fmu`] (name, bytes).
+pub fn read_fmu(path: &Path) -> Result<Vec<(String, Vec<u8>)>, FmuError> {
+    let bytes = std::fs::read(path).map_err(io(path))?;
+    crate::zip::read_stored(&bytes)
+        .ok_or_else(|| FmuError::Io { path: path.to_path_buf(), message: "not an archive written by build_fmu".into() })
+}
