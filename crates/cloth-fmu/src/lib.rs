@@ -9,6 +9,8 @@
 //! - [`description`]: `modelDescription.xml` generated from the unit's
 //!   variables.
 //! - [`package`]: the `.fmu` archive (`cloth fmu build`).
+//! - [`import`]: an FMU loaded as a `cloth-cosim` unit ([`import::FmuUnit`]),
+//!   so a master co-simulates FMUs and native units together.
 //!
 //! Value references: 0 is `time` (the independent variable); the unit's
 //! variable `k` is `k + 1`.
@@ -20,6 +22,7 @@
 
 pub mod api;
 pub mod description;
+pub mod import;
 mod instance;
 pub mod package;
 mod zip;

@@ -1,0 +1,358 @@
+//! An FMI 3.0 co-simulation FMU as a [`Unit`] of `cloth-cosim`'s master,
+//! so an FMU and native units can be co-simulated together.
+//!
+//! The archive is unpacked into a temporary directory, its binary loaded
+//! (`binaries/x86_64-linux/<modelIdentifier>.so`), instantiated with its
+//! resources and taken to step mode. Variables are the `Float64` ones of
+//! `modelDescription.xml` (not `time`). States are kept as the FMU's
+//! serialised bytes (`Send`, independent of the instance). Archives are
+//! read by this crate's ZIP reader, so FMUs this crate wrote (stored
+//! entries) load; others may not.
+
+use crate::api::{LogMessage, Status, ValueReference};
+use crate::package::{FmuError, read_fmu};
+use cloth_cosim::unit::settable;
+use cloth_cosim::{Causality, StepOutcome, Unit, UnitError, UnitState, ValueRef, Variable};
+use std::ffi::{CStr, CString, c_char, c_void};
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+type Instantiate = unsafe extern "C" fn(
+    *const c_char,
+    *const c_char,
+    *const c_char,
+    bool,
+    bool,
+    bool,
+    bool,
+    *const ValueReference,
+    usize,
+    *mut c_void,
+    Option<LogMessage>,
+    *const c_void,
+) -> *mut c_void;
+type EnterInit = unsafe extern "C" fn(*mut c_void, bool, f64, f64, bool, f64) -> Status;
+type Simple = unsafe extern "C" fn(*mut c_void) -> Status;
+type GetF64 = unsafe extern "C" fn(*mut c_void, *const ValueReference, usize, *mut f64, usize) -> Status;
+type SetF64 = unsafe extern "C" fn(*mut c_void, *const ValueReference, usize, *const f64, usize) -> Status;
+type DoStep = unsafe extern "C" fn(*mut c_void, f64, f64, bool, *mut bool, *mut bool, *mut bool, *mut f64) -> Status;
+type StateOut = unsafe extern "C" fn(*mut c_void, *mut *mut c_void) -> Status;
+type StateIn = unsafe extern "C" fn(*mut c_void, *mut c_void) -> Status;
+type StateSize = unsafe extern "C" fn(*mut c_void, *mut c_void, *mut usize) -> Status;
+type Serialize = unsafe extern "C" fn(*mut c_void, *mut c_void, *mut u8, usize) -> Status;
+type Deserialize = unsafe extern "C" fn(*mut c_void, *const u8, usize, *mut *mut c_void) -> Status;
+type Free = unsafe extern "C" fn(*mut c_void);
+
+/// The FMI functions the unit calls, resolved once.
+struct Functions {
+    instantiate: Instantiate,
+    enter_initialization: EnterInit,
+    exit_initialization: Simple,
+    terminate: Simple,
+    free_instance: Free,
+    get_float64: GetF64,
+    set_float64: SetF64,
+    do_step: DoStep,
+    get_state: StateOut,
+    set_state: StateIn,
+    free_state: StateOut,
+    state_size: StateSize,
+    serialize: Serialize,
+    deserialize: Deserialize,
+}
+
+/// Messages the FMU logged, newest last.
+type Log = Mutex<Vec<String>>;
+
+unsafe extern "C" fn collect(env: *mut c_void, _status: Status, _category: *const c_char, message: *const c_char) {
+    if env.is_null() || message.is_null() {
+        return;
+    }
+    // SAFETY: `env` is the `Log` this unit owns (boxed, alive while the
+    // instance is); `message` a NUL-terminated string from the FMU.
+    let (log, text) = unsafe { (&*(env as *const Log), CStr::from_ptr(message).to_string_lossy().into_owned()) };
+    if let Ok(mut log) = log.lock() {
+        log.push(text);
+    }
+}
+
+/// The serialised state of an [`FmuUnit`].
+struct FmuBytes(Vec<u8>);
+
+/// An FMU as a co-simulation unit.
+pub struct FmuUnit {
+    name: String,
+    vars: Vec<Variable>,
+    vrs: Vec<ValueReference>,
+    f: Functions,
+    instance: *mut c_void,
+    log: Box<Log>,
+    dir: PathBuf,
+    // Dropped last: the functions above point into it.
+    _library: libloading::Library,
+}
+
+// SAFETY: the instance is used only through `&mut self` (or `&self` for
+// reads the FMU does not mutate), never from two threads at once; the
+// library and the log are `Send`.
+unsafe impl Send for FmuUnit {}
+
+/// An attribute of an XML start tag (`name="value"`), unescaped.
+fn attribute(tag: &str, name: &str) -> Option<String> {
+    let start = tag.find(&format!(" {name}=\""))? + name.len() + 3;
+    let end = start + tag[start..].find('"')?;
+    Some(tag[start..end].replace("&quot;", "\"").replace("&lt;", "<").replace("&gt;", ">").replace("&amp;", "&"))
+}
+
+/// The SI units this crate writes, as the `'static` names variables carry.
+fn known_unit(unit: Option<String>) -> &'static str {
+    match unit.as_deref() {
+        Some("m") => "m",
+        Some("m/s") => "m/s",
+        Some("N") => "N",
+        Some("N.m") => "N.m",
+        Some("rad") => "rad",
+        Some("rad/s") => "rad/s",
+        Some("s") => "s",
+        _ => "",
+    }
+}
+
+impl FmuUnit {
+    /// Unpacks the FMU at `path`, loads and instantiates it as `name`, and
+    /// takes it to step mode at time 0.
+    pub fn load(path: &Path, name: &str) -> Result<Self, FmuError> {
+        let bad = |message: String| FmuError::Io { path: path.to_path_buf(), message };
+        let entries = read_fmu(path)?;
+        let xml = entries
+            .iter()
+            .find(|(n, _)| n == "modelDescription.xml")
+            .and_then(|(_, d)| String::from_utf8(d.clone()).ok())
+            .ok_or_else(|| bad("no modelDescription.xml".into()))?;
+        let root =
+            &xml[xml.find("<fmiModelDescription").ok_or_else(|| bad("not an FMI model description".into()))?..];
+        let token = attribute(root, "instantiationToken").ok_or_else(|| bad("no instantiationToken".into()))?;
+        let cs = &xml[xml.find("<CoSimulation").ok_or_else(|| bad("not a co-simulation FMU".into()))?..];
+        let identifier = attribute(cs, "modelIdentifier").ok_or_else(|| bad("no modelIdentifier".into()))?;
+        let (mut vars, mut vrs) = (Vec::new(), Vec::new());
+        for element in xml.split("<Float64 ").skip(1) {
+            let tag = format!(" {}", &element[..element.find("/>").unwrap_or(element.len())]);
+            let field = |n: &str| attribute(&tag, n).ok_or_else(|| bad(format!("a Float64 variable without {n}")));
+            let causality = match field("causality")?.as_str() {
+                "input" => Causality::Input,
+                "output" => Causality::Output,
+                "parameter" => Causality::Parameter,
+                _ => continue, // time, locals
+            };
+            let vr =
+                field("valueReference")?.parse().map_err(|_| bad("a valueReference that is not a number".into()))?;
+            let start =
+                attribute(&tag, "start").map_or(Ok(0.0), |s| s.parse().map_err(|_| bad(format!("start {s}"))))?;
+            let unit = known_unit(attribute(&tag, "unit"));
+            let description = attribute(&tag, "description").unwrap_or_default();
+            vars.push(Variable::new(field("name")?, causality, unit, description).with_start(start));
+            vrs.push(vr);
+        }
+        // Unpack next to nothing else: a directory of its own.
+        static COUNT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+        let n = COUNT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let dir = std::env::temp_dir().join(format!("cloth-fmu-unit-{}-{n}", std::process::id()));
+        for (entry, data) in &entries {
+            let target = dir.join(entry);
+            if entry.split('/').any(|part| part == "..") {
+                return Err(bad(format!("entry {entry} leaves the archive")));
+            }
+            std::fs::create_dir_all(target.parent().unwrap_or(&dir)).map_err(|e| bad(e.to_string()))?;
+            std::fs::write(&target, data).map_err(|e| bad(e.to_string()))?;
+        }
+        let binary = dir.join("binaries/x86_64-linux").join(format!("{identifier}.so"));
+        // SAFETY: loading runs the library's initialisers; this is an FMU's
+        // binary, which FMI requires to be loadable this way.
+        let library = unsafe { libloading::Library::new(&binary) }
+            .map_err(|e| bad(format!("loading {}: {e}", binary.display())))?;
+        // SAFETY: the symbols have the types of fmi3FunctionTypes.h; the
+        // pointers stay valid while `library` is loaded (it is dropped last).
+        let f = unsafe {
+            macro_rules! get {
+                ($name:literal) => {
+                    *library.get(concat!($name, "\0").as_bytes()).map_err(|e| bad(format!("{}: {e}", $name)))?
+                };
+            }
+            Functions {
+                instantiate: get!("fmi3InstantiateCoSimulation"),
+                enter_initialization: get!("fmi3EnterInitializationMode"),
+                exit_initialization: get!("fmi3ExitInitializationMode"),
+                terminate: get!("fmi3Terminate"),
+                free_instance: get!("fmi3FreeInstance"),
+                get_float64: get!("fmi3GetFloat64"),
+                set_float64: get!("fmi3SetFloat64"),
+                do_step: get!("fmi3DoStep"),
+                get_state: get!("fmi3GetFMUState"),
+                set_state: get!("fmi3SetFMUState"),
+                free_state: get!("fmi3FreeFMUState"),
+                state_size: get!("fmi3SerializedFMUStateSize"),
+                serialize: get!("fmi3SerializeFMUState"),
+                deserialize: get!("fmi3DeserializeFMUState"),
+            }
+        };
+        let log: Box<Log> = Box::new(Mutex::new(Vec::new()));
+        let c = |s: &str| CString::new(s).map_err(|_| bad(format!("{s:?} holds a NUL")));
+        let (c_name, c_token) = (c(name)?, c(&token)?);
+        let c_resources = c(&format!("{}/", dir.join("resources").display()))?;
+        let env = &*log as *const Log as *mut c_void;
+        // SAFETY: valid strings and callback; `env` outlives the instance.
+        let instance = unsafe {
+            (f.instantiate)(
+                c_name.as_ptr(),
+                c_token.as_ptr(),
+                c_resources.as_ptr(),
+                false,
+                false,
+                false,
+                false,
+                std::ptr::null(),
+                0,
+                env,
+                Some(collect),
+                std::ptr::null(),
+            )
+        };
+        let mut unit = Self { name: name.into(), vars, vrs, f, instance, log, dir, _library: library };
+        if instance.is_null() {
+            return Err(bad(format!("instantiation failed: {}", unit.last_message())));
+        }
+        // SAFETY: a live instance.
+        let entered = unsafe { (unit.f.enter_initialization)(instance, false, 0.0, 0.0, false, 0.0) };
+        let exited = unsafe { (unit.f.exit_initialization)(instance) };
+        if entered != Status::Ok || exited != Status::Ok {
+            let message = unit.last_message();
+            unit.vars.clear();
+            return Err(bad(format!("initialisation failed: {message}")));
+        }
+        Ok(unit)
+    }
+
+    /// The FMU's last logged message ("" when none).
+    fn last_message(&self) -> String {
+        self.log.lock().ok().and_then(|l| l.last().cloned()).unwrap_or_default()
+    }
+
+    fn failed(&self, what: &str) -> UnitError {
+        UnitError::StepFailed {
+            unit: self.name.clone(),
+            time_s: f64::NAN,
+            message: format!("{what}: {}", self.last_message()),
+        }
+    }
+
+    fn bad_state(&self, what: &str) -> UnitError {
+        UnitError::BadState { unit: self.name.clone(), message: format!("{what}: {}", self.last_message()) }
+    }
+}
+
+impl Drop for FmuUnit {
+    fn drop(&mut self) {
+        if !self.instance.is_null() {
+            // SAFETY: a live instance, freed once.
+            unsafe {
+                (self.f.terminate)(self.instance);
+                (self.f.free_instance)(self.instance);
+            }
+            self.instance = std::ptr::null_mut();
+        }
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
+impl Unit for FmuUnit {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn variables(&self) -> &[Variable] {
+        &self.vars
+    }
+
+    fn set(&mut self, vr: ValueRef, value: f64) -> Result<(), UnitError> {
+        let var = settable(&self.name, &self.vars, vr, value)?;
+        // SAFETY: a live instance, one value.
+        let status = unsafe { (self.f.set_float64)(self.instance, &self.vrs[vr], 1, &value, 1) };
+        if status != Status::Ok {
+            return Err(UnitError::InvalidValue {
+                unit: self.name.clone(),
+                name: var.name.clone(),
+                value,
+                message: self.last_message(),
+            });
+        }
+        Ok(())
+    }
+
+    fn get(&self, vr: ValueRef) -> Result<f64, UnitError> {
+        let reference = *self.vrs.get(vr).ok_or(UnitError::NoSuchVariable {
+            unit: self.name.clone(),
+            vr,
+            count: self.vars.len(),
+        })?;
+        let mut value = f64::NAN;
+        // SAFETY: a live instance, one value.
+        let status = unsafe { (self.f.get_float64)(self.instance, &reference, 1, &mut value, 1) };
+        if status != Status::Ok {
+            return Err(self.failed(&format!("reading {}", self.vars[vr].name)));
+        }
+        Ok(value)
+    }
+
+    fn do_step(&mut self, t: f64, h: f64) -> Result<StepOutcome, UnitError> {
+        let (mut event, mut terminate, mut early, mut last) = (false, false, false, t);
+        // SAFETY: a live instance, writable flags.
+        let status =
+            unsafe { (self.f.do_step)(self.instance, t, h, false, &mut event, &mut terminate, &mut early, &mut last) };
+        match status {
+            Status::Ok | Status::Warning => Ok(StepOutcome::Completed),
+            Status::Discard => Ok(StepOutcome::Discarded { last_time_s: last, reason: self.last_message() }),
+            _ => Err(UnitError::StepFailed { unit: self.name.clone(), time_s: t, message: self.last_message() }),
+        }
+    }
+
+    fn get_state(&self) -> UnitState {
+        let mut state: *mut c_void = std::ptr::null_mut();
+        let mut size = 0usize;
+        // SAFETY: a live instance; the state is made, read and freed here.
+        let bytes = unsafe {
+            let ok = (self.f.get_state)(self.instance, &mut state) == Status::Ok
+                && (self.f.state_size)(self.instance, state, &mut size) == Status::Ok;
+            let mut bytes = vec![0u8; if ok { size } else { 0 }];
+            let ok = ok && (self.f.serialize)(self.instance, state, bytes.as_mut_ptr(), size) == Status::Ok;
+            (self.f.free_state)(self.instance, &mut state);
+            if ok { bytes } else { Vec::new() }
+        };
+        // An empty state (the FMU refused) is refused in turn by set_state.
+        UnitState(Box::new(FmuBytes(bytes)))
+    }
+
+    fn set_state(&mut self, state: &UnitState) -> Result<(), UnitError> {
+        let FmuBytes(bytes) = state.downcast::<FmuBytes>(&self.name, "FMU")?;
+        let mut restored: *mut c_void = std::ptr::null_mut();
+        // SAFETY: a live instance; the state is made, set and freed here.
+        unsafe {
+            if (self.f.deserialize)(self.instance, bytes.as_ptr(), bytes.len(), &mut restored) != Status::Ok {
+                return Err(self.bad_state("deserialising"));
+            }
+            let status = (self.f.set_state)(self.instance, restored);
+            (self.f.free_state)(self.instance, &mut restored);
+            if status != Status::Ok {
+                return Err(self.bad_state("setting the state"));
+            }
+        }
+        Ok(())
+    }
+
+    fn serialize_state(&self, state: &UnitState) -> Result<Vec<u8>, UnitError> {
+        Ok(state.downcast::<FmuBytes>(&self.name, "FMU")?.0.clone())
+    }
+
+    fn deserialize_state(&self, bytes: &[u8]) -> Result<UnitState, UnitError> {
+        Ok(UnitState(Box::new(FmuBytes(bytes.to_vec()))))
+    }
+}

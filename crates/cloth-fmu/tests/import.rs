@@ -1,0 +1,128 @@
+//! An FMU as a co-simulation unit: the cloth FMU and a native unit
+//! co-simulated together by `cloth-cosim`'s masters, as the same cloth
+//! unit native.
+
+use cloth_cosim::oscillator::{MassUnit, Oscillator};
+use cloth_cosim::{ClothUnit, CoSimulation, Connection, InputOverStep, IteratedParams, Master, Port, Unit};
+use cloth_fmu::import::FmuUnit;
+use std::path::{Path, PathBuf};
+
+/// The hang fixture's cloth, 11 x 11, flat at z = 0, held at the middle
+/// of one edge by one pin driven from outside.
+const OVERRIDES: [&str; 5] = [
+    "panels.0.particles=[11, 11]",
+    "panels.0.origin_m=[-0.5, -0.5, 0.0]",
+    "pins.0.nodes=[[5, 10]]",
+    "pins.0.motion={ kind = \"external\" }",
+    "solver.rel_tol=1e-10",
+];
+
+fn scene() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/scenes/hang.toml")
+}
+
+fn overrides() -> Vec<String> {
+    OVERRIDES.iter().map(|s| s.to_string()).collect()
+}
+
+/// This crate's shared library, where cargo put it for the tests.
+fn library() -> PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    let deps = exe.parent().unwrap();
+    [deps.join("libcloth_fmu.so"), deps.parent().unwrap().join("libcloth_fmu.so")]
+        .into_iter()
+        .find(|p| p.is_file())
+        .expect("libcloth_fmu.so beside the test binary")
+}
+
+fn fmu(name: &str) -> PathBuf {
+    let out = std::env::temp_dir().join(format!("cloth-fmu-import-{}-{name}.fmu", std::process::id()));
+    cloth_fmu::build_fmu(&scene(), &overrides(), &library(), &out).unwrap();
+    out
+}
+
+fn native() -> ClothUnit {
+    let scene = cloth_core::scene::Scene::parse_file(&scene(), &overrides()).unwrap();
+    let (model, cfg) = scene.build().unwrap();
+    ClothUnit::new("cloth", cfg.simulation(model))
+}
+
+/// The cloth hanging from a 0.5 kg mass on a 50 N/m spring (unit A of the
+/// oscillator: input the force on it, output its position): the pin
+/// follows the mass, the mass feels the pin's reaction.
+fn spring_and_cloth(cloth: Box<dyn Unit>, master: Master) -> CoSimulation {
+    let osc = Oscillator { m1: 0.5, k1: 50.0, ..Oscillator::default() };
+    let mass = MassUnit::force_driven(&osc, 0.0, 10);
+    let pin_z = cloth.find("pin0.target.z").unwrap();
+    let reaction_z = cloth.find("pin0.reaction.z").unwrap();
+    let (x1, force) = (mass.find("x1").unwrap(), mass.find("F").unwrap());
+    let connections = vec![
+        Connection { from: Port { unit: 1, var: x1 }, to: Port { unit: 0, var: pin_z } },
+        Connection { from: Port { unit: 0, var: reaction_z }, to: Port { unit: 1, var: force } },
+    ];
+    CoSimulation::new(vec![cloth, Box::new(mass)], connections, master).unwrap()
+}
+
+#[test]
+fn the_fmu_is_the_native_unit_under_every_master() {
+    let path = fmu("masters");
+    let h = 1.0 / 90.0;
+    // FMI 3.0 co-simulation has no input derivatives: the iterated master
+    // hands the FMU its guess of the end value (pin targets are end values).
+    let iterated = IteratedParams { inputs: InputOverStep::EndValue, ..IteratedParams::default() };
+    for master in [Master::GaussSeidel(Default::default()), Master::Iterated(iterated)] {
+        let mut with_fmu = spring_and_cloth(Box::new(FmuUnit::load(&path, "cloth").unwrap()), master.clone());
+        let mut with_native = spring_and_cloth(Box::new(native()), master.clone());
+        let outputs = |c: &CoSimulation| -> Vec<u64> {
+            (0..2)
+                .flat_map(|u| {
+                    let unit = c.unit(u);
+                    (0..unit.variables().len()).map(move |v| unit.get(v).unwrap().to_bits()).collect::<Vec<_>>()
+                })
+                .collect()
+        };
+        for _ in 0..45 {
+            with_fmu.step(h).unwrap();
+            with_native.step(h).unwrap();
+            assert_eq!(outputs(&with_fmu), outputs(&with_native), "{master:?}");
+        }
+        // The cloth's weight pulls the mass down its spring.
+        let x1 = with_fmu.unit(1).get(with_fmu.unit(1).find("x1").unwrap()).unwrap();
+        println!("{master:?}: the mass at {x1} m after 0.5 s");
+        assert!(x1 < -0.005, "{x1}");
+    }
+}
+
+#[test]
+fn states_of_an_fmu_unit_replay_and_bad_files_are_refused() {
+    let path = fmu("states");
+    let mut unit = FmuUnit::load(&path, "cloth").unwrap();
+    let h = 1.0 / 90.0;
+    for n in 0..3 {
+        unit.do_step(n as f64 * h, h).unwrap();
+    }
+    let state = unit.get_state();
+    let bytes = unit.serialize_state(&state).unwrap();
+    let run = |unit: &mut FmuUnit| -> Vec<u64> {
+        for n in 3..6 {
+            unit.do_step(n as f64 * h, h).unwrap();
+        }
+        (0..unit.variables().len()).map(|v| unit.get(v).unwrap().to_bits()).collect()
+    };
+    let first = run(&mut unit);
+    unit.set_state(&state).unwrap();
+    assert_eq!(run(&mut unit), first);
+    let restored = unit.deserialize_state(&bytes).unwrap();
+    unit.set_state(&restored).unwrap();
+    assert_eq!(run(&mut unit), first);
+    // Bytes that are not a state: refused with the FMU's own reason.
+    let junk = unit.deserialize_state(&bytes[..bytes.len() / 2]).unwrap();
+    let e = unit.set_state(&junk).unwrap_err().to_string();
+    assert!(e.contains("not a serialised state"), "{e}");
+    // An output cannot be set; the FMU's reason is in the error.
+    let reaction = unit.find("pin0.reaction.z").unwrap();
+    assert!(unit.set(reaction, 1.0).unwrap_err().to_string().contains("outputs cannot be set"));
+    // Not an FMU.
+    let scene_path = scene();
+    assert!(FmuUnit::load(&scene_path, "x").is_err());
+}
