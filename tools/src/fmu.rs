@@ -3,9 +3,8 @@
 use anyhow::{Context, Result, bail};
 use std::path::{Path, PathBuf};
 
-/// The FMU's shared library: `library` when given, else
-/// `libcloth_fmu.so` beside this executable (or in its `deps/`, where
-/// `cargo test` leaves it).
+/// The FMU's shared library: `library` when given, else the newer
+/// `libcloth_fmu.so` beside this executable or in its `deps/`.
 fn find_library(library: Option<&Path>) -> Result<PathBuf> {
     if let Some(path) = library {
         return Ok(path.to_path_buf());
@@ -13,10 +12,15 @@ fn find_library(library: Option<&Path>) -> Result<PathBuf> {
     let exe = std::env::current_exe().context("locating the cloth executable")?;
     let dir = exe.parent().context("the cloth executable has no directory")?;
     let name = format!("lib{}.so", cloth_fmu::MODEL_IDENTIFIER);
-    for candidate in [dir.join(&name), dir.join("deps").join(&name)] {
-        if candidate.is_file() {
-            return Ok(candidate);
-        }
+    // Building cloth-fmu on its own leaves one copy beside the executable,
+    // building the tools another in deps/: take the newer.
+    let modified = |p: &PathBuf| std::fs::metadata(p).and_then(|m| m.modified()).ok();
+    let newest = [dir.join(&name), dir.join("deps").join(&name)]
+        .into_iter()
+        .filter_map(|p| modified(&p).map(|t| (t, p)))
+        .max_by_key(|(t, _)| *t);
+    if let Some((_, path)) = newest {
+        return Ok(path);
     }
     bail!("no {name} beside {}: build it with `cargo build --release -p cloth-fmu`, or give --library", exe.display())
 }

@@ -2,8 +2,9 @@
 
 Usage: python fmpy_check.py CLOTH_EXE WORKDIR
 
-Builds FMUs from two fixtures with `cloth fmu build` (the hanging cloth
-with its pins as inputs, the flag with its wind as an input) and checks,
+Builds FMUs from three fixtures with `cloth fmu build` (the hanging cloth
+with its pins as inputs, the flag with its wind as an input, the drape on
+an OBJ pillow) and checks,
 with FMPy as the independent importer:
 - validate_fmu reports no problem;
 - simulate_fmu with an input signal matches `cloth run` of the same scene
@@ -88,7 +89,10 @@ def compare(name, result, summary):
 
 hang = build("hang.toml", HANG_FMU, "hang")
 flag = build("flag.toml", FLAG_FMU, "flag")
-for name, path in [("hang", hang), ("flag", flag)]:
+# A scene with an OBJ solid (the pillow travels under resources/meshes/).
+MESH = ["panels.0.particles=[21, 21]", *COMMON]
+mesh = build("drape-mesh.toml", MESH, "mesh")
+for name, path in [("hang", hang), ("flag", flag), ("mesh", mesh)]:
     problems = validate_fmu(path)
     check(f"{name}: validate_fmu", problems == [], repr(problems))
 
@@ -112,6 +116,9 @@ names = ["wind.velocity.x", "wind.velocity.y", "wind.velocity.z"]
 signal = np.array([(0.0, 2.0, 0.5, 0.0), (T, 8.0, 0.5, 0.0)], dtype=[("time", np.float64)] + [(n, np.float64) for n in names])
 result = simulate_fmu(flag, stop_time=T, output_interval=H, input=signal)
 compare("flag", result, run_summary("flag.toml", FLAG_RUN, "flag"))
+
+# The drape on the pillow: no inputs.
+compare("mesh", simulate_fmu(mesh, stop_time=T, output_interval=H), run_summary("drape-mesh.toml", MESH, "mesh"))
 
 # States and their serialisation, through FMPy's own calls.
 md = read_model_description(flag)

@@ -1,6 +1,6 @@
 //! The `.fmu` archive: `modelDescription.xml`, the shared library under
-//! `binaries/x86_64-linux/`, the scene and its overrides under
-//! `resources/`.
+//! `binaries/x86_64-linux/`, the scene, its overrides and the OBJ files of
+//! its mesh solids under `resources/`.
 
 use crate::description::{FmuInfo, model_description};
 use crate::{MODEL_IDENTIFIER, OVERRIDES_FILE, SCENE_FILE};
@@ -14,16 +14,6 @@ pub enum FmuError {
     /// The scene does not load or build (the message names file and field).
     #[error(transparent)]
     Scene(#[from] SceneError),
-    /// A scene the FMU cannot carry yet.
-    #[error("{file}: {field}: {message}")]
-    Unsupported {
-        /// The scene file.
-        file: PathBuf,
-        /// The field.
-        field: String,
-        /// Why.
-        message: String,
-    },
     /// Reading or writing a file.
     #[error("{path}: {message}")]
     Io {
@@ -65,21 +55,39 @@ pub(crate) fn read_resources(resources: &Path) -> Result<(String, Vec<String>), 
     Ok((scene, overrides.lines().filter(|l| !l.trim().is_empty()).map(str::to_string).collect()))
 }
 
-/// The scene at `path` with `overrides`, checked for what an FMU can carry:
-/// no files besides the scene (OBJ meshes), no rigid bodies or rigs (those
-/// are `cloth-rapier`'s; the scene parser already refuses their keys).
+/// The scene at `path` with `overrides` (rigid bodies and rigs are
+/// `cloth-rapier`'s: the scene parser refuses their keys).
 fn load_scene(path: &Path, overrides: &[String]) -> Result<Scene, FmuError> {
-    let scene = Scene::parse_file(path, overrides)?;
+    Ok(Scene::parse_file(path, overrides)?)
+}
+
+/// An archive entry: its path in the archive and its bytes.
+type Entry = (String, Vec<u8>);
+
+/// The OBJ files of the scene's mesh solids, to carry under
+/// `resources/meshes/`: `(entry name, bytes)`, and the overrides that
+/// point the scene at them there.
+fn meshes(scene_path: &Path, scene: &Scene) -> Result<(Vec<Entry>, Vec<String>), FmuError> {
+    let (mut entries, mut overrides) = (Vec::new(), Vec::new());
+    let base = scene_path.parent().unwrap_or(Path::new("."));
     for (k, c) in scene.colliders.iter().enumerate() {
-        if matches!(c.shape, cloth_core::ShapeSpec::Mesh { .. }) {
-            return Err(FmuError::Unsupported {
-                file: path.to_path_buf(),
-                field: format!("colliders[{k}].shape"),
-                message: "mesh solids are not carried into an FMU yet (only the scene file is)".into(),
-            });
+        if let cloth_core::ShapeSpec::Mesh { obj, .. } = &c.shape {
+            let source = base.join(obj);
+            let stem: String = obj
+                .file_name()
+                .map(|n| {
+                    n.to_string_lossy()
+                        .chars()
+                        .map(|c| if c.is_ascii_alphanumeric() || ".-_".contains(c) { c } else { '_' })
+                        .collect()
+                })
+                .unwrap_or_default();
+            let name = format!("meshes/{k}-{stem}");
+            entries.push((format!("resources/{name}"), std::fs::read(&source).map_err(io(&source))?));
+            overrides.push(format!("colliders.{k}.shape.obj=\"{name}\""));
         }
     }
-    Ok(scene)
+    Ok((entries, overrides))
 }
 
 /// The cloth unit of the scene at `path` with `overrides`, named `name`.
@@ -109,7 +117,10 @@ pub fn build_fmu(scene: &Path, overrides: &[String], library: &Path, out: &Path)
     let parsed = load_scene(scene, overrides)?;
     let unit = unit_from_scene(scene, overrides, "cloth")?;
     let binary = std::fs::read(library).map_err(io(library))?;
-    let token = instantiation_token(&text, overrides);
+    let (mesh_entries, mesh_overrides) = meshes(scene, &parsed)?;
+    // The FMU's scene reads its meshes from resources/meshes/.
+    let overrides: Vec<String> = overrides.iter().cloned().chain(mesh_overrides).collect();
+    let token = instantiation_token(&text, &overrides);
     let model_name = scene.file_stem().map_or("cloth".into(), |s| s.to_string_lossy().into_owned());
     let info = FmuInfo {
         model_name: model_name.clone(),
@@ -121,12 +132,13 @@ pub fn build_fmu(scene: &Path, overrides: &[String], library: &Path, out: &Path)
     let variables = unit.variables();
     let xml = model_description(variables, &info);
     let overrides_text: String = overrides.iter().map(|o| format!("{o}\n")).collect();
-    let entries = vec![
+    let mut entries = vec![
         ("modelDescription.xml".to_string(), xml.clone().into_bytes()),
         (format!("binaries/x86_64-linux/{MODEL_IDENTIFIER}.so"), binary),
         (format!("resources/{SCENE_FILE}"), text.into_bytes()),
         (format!("resources/{OVERRIDES_FILE}"), overrides_text.into_bytes()),
     ];
+    entries.extend(mesh_entries);
     if entries.iter().map(|(_, d)| d.len() as u64).sum::<u64>() > u64::from(u32::MAX) {
         return Err(FmuError::Io { path: out.to_path_buf(), message: "larger than a ZIP without ZIP64 holds".into() });
     }
@@ -142,7 +154,7 @@ pub fn build_fmu(scene: &Path, overrides: &[String], library: &Path, out: &Path)
 }
 
 /// The entries of an FMU archive written by [`build_fmu`] (name, bytes).
-pub fn read_fmu(path: &Path) -> Result<Vec<(String, Vec<u8>)>, FmuError> {
+pub fn read_fmu(path: &Path) -> Result<Vec<Entry>, FmuError> {
     let bytes = std::fs::read(path).map_err(io(path))?;
     crate::zip::read_stored(&bytes)
         .ok_or_else(|| FmuError::Io { path: path.to_path_buf(), message: "not an archive written by build_fmu".into() })

@@ -126,3 +126,30 @@ fn states_of_an_fmu_unit_replay_and_bad_files_are_refused() {
     let scene_path = scene();
     assert!(FmuUnit::load(&scene_path, "x").is_err());
 }
+
+/// A scene with an OBJ solid: the mesh travels in the FMU (under
+/// `resources/meshes/`) and the cloth drapes on it there as it does native.
+#[test]
+fn a_mesh_solid_travels_in_the_fmu() {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/scenes/drape-mesh.toml");
+    let overrides = vec!["panels.0.particles=[21, 21]".to_string()];
+    let out = std::env::temp_dir().join(format!("cloth-fmu-import-{}-mesh.fmu", std::process::id()));
+    let built = cloth_fmu::build_fmu(&scene, &overrides, &library(), &out).unwrap();
+    let entries = cloth_fmu::package::read_fmu(&built.path).unwrap();
+    let pillow = std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/meshes/pillow.obj")).unwrap();
+    assert!(entries.iter().any(|(name, data)| name == "resources/meshes/0-pillow.obj" && *data == pillow));
+    let mut fmu = FmuUnit::load(&built.path, "cloth").unwrap();
+    let native = cloth_core::scene::Scene::parse_file(&scene, &overrides).unwrap();
+    let (model, cfg) = native.build().unwrap();
+    let mut native = ClothUnit::new("cloth", cfg.simulation(model));
+    let h = cfg.dt_s;
+    for n in 0..30 {
+        fmu.do_step(n as f64 * h, h).unwrap();
+        native.do_step(n as f64 * h, h).unwrap();
+    }
+    let bits = |u: &dyn Unit| -> Vec<u64> { (0..u.variables().len()).map(|v| u.get(v).unwrap().to_bits()).collect() };
+    assert_eq!(bits(&fmu), bits(&native));
+    // The cloth has landed on the pillow and presses it down.
+    let pressed = fmu.get(fmu.find("solid0.force.z").unwrap()).unwrap();
+    assert!(pressed < -0.1, "{pressed} N");
+}
