@@ -6,6 +6,7 @@ mod output;
 mod run;
 mod study;
 mod svg;
+mod view;
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
@@ -91,6 +92,19 @@ enum Command {
         #[command(subcommand)]
         fmu: FmuKind,
     },
+    /// Serve a page on localhost that plays a run's frames (`cloth run
+    /// --frames N`): the cloth with both faces lit, the scene's solids,
+    /// orbit/zoom/pan, play/pause/scrub.
+    View {
+        /// The run's output directory.
+        out: PathBuf,
+        /// Port on 127.0.0.1 (0: any free one; the address is printed).
+        #[arg(long, default_value_t = 8090)]
+        port: u16,
+        /// Stop after this many seconds (default: serve until stopped).
+        #[arg(long, value_name = "S")]
+        seconds: Option<f64>,
+    },
     /// Check a scene without running it.
     Validate {
         /// Scene file (TOML).
@@ -160,6 +174,7 @@ fn main() -> ExitCode {
         Command::Fmu { fmu: FmuKind::Build { scene, out, overrides, library } } => {
             fmu::build(&scene, &overrides, library.as_deref(), &out)
         }
+        Command::View { out, port, seconds } => view::view(&out, port, seconds),
         Command::Validate { scene, overrides } => run::validate(&scene, &overrides),
         Command::Time { scene, overrides, threads, repeat } => run::time(&scene, &overrides, threads, repeat),
         Command::Study { study, out, threads, quick } => {

@@ -140,18 +140,20 @@ pub(crate) fn simulate(
     let mut error = None;
     let wall = Instant::now();
     let cpu_start = process_cpu_s();
-    let write_frame = |sim: &Simulation, stages: &mut StageWall| -> Result<()> {
+    let mut solid_poses = SolidPoses::default();
+    let write_frame = |sim: &Simulation, stages: &mut StageWall, poses: &mut SolidPoses| -> Result<()> {
         if let Some((every, dir)) = &frames
             && sim.state().steps.is_multiple_of(*every)
         {
             let t = Instant::now();
             let path = dir.join(format!("frame_{:05}.obj", sim.state().steps));
             write_obj(&path, sim.model(), &sim.state().x).with_context(|| format!("writing {}", path.display()))?;
+            poses.add(sim);
             stages.output += t.elapsed().as_secs_f64();
         }
         Ok(())
     };
-    write_frame(runner.sim(), &mut stages)?;
+    write_frame(runner.sim(), &mut stages, &mut solid_poses)?;
     for _ in 0..cfg.steps {
         let t = Instant::now();
         let result = pool.install(|| runner.step(cfg.dt_s, &mut coupling));
@@ -181,10 +183,15 @@ pub(crate) fn simulate(
                 break;
             }
         }
-        write_frame(runner.sim(), &mut stages)?;
+        write_frame(runner.sim(), &mut stages, &mut solid_poses)?;
         bar.inc(1);
     }
     bar.finish_and_clear();
+    if let Some((_, dir)) = &frames {
+        let path = dir.join(SOLIDS_FILE);
+        std::fs::write(&path, solid_poses.to_json(runner.sim().model())?)
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
     let wall_s = wall.elapsed().as_secs_f64();
     let cpu_s = cpu_start.zip(process_cpu_s()).map(|(start, end)| end - start);
     let sim = runner.sim();
@@ -471,4 +478,53 @@ fn process_cpu_s() -> Option<f64> {
     let user: f64 = fields.next()?.parse().ok()?;
     let system: f64 = fields.next()?.parse().ok()?;
     Some((user + system) / 100.0)
+}
+
+/// Beside the OBJ frames: the solids of the scene as triangle meshes in
+/// their own frames, and where each was at every written frame (for
+/// `cloth view`).
+pub const SOLIDS_FILE: &str = "solids.json";
+
+/// Solid poses at the written frames.
+#[derive(Default)]
+struct SolidPoses {
+    /// Per frame: its step and each solid's position and orientation
+    /// (`[x, y, z, qw, qx, qy, qz]`, m).
+    frames: Vec<(u64, Vec<[f64; 7]>)>,
+}
+
+impl SolidPoses {
+    fn add(&mut self, sim: &Simulation) {
+        let poses = (0..sim.model().colliders().len())
+            .filter_map(|k| sim.solid_pose(k))
+            .map(|p| {
+                let q = p.rotation.quaternion();
+                [p.position.x, p.position.y, p.position.z, q.w, q.i, q.j, q.k]
+            })
+            .collect();
+        self.frames.push((sim.state().steps, poses));
+    }
+
+    /// `{"solids": [{"vertices": [x, y, z, ...], "triangles": [a, b, c, ...]}],
+    /// "frames": [{"step": n, "poses": [[x, y, z, qw, qx, qy, qz], ...]}]}`.
+    fn to_json(&self, model: &ClothModel) -> Result<String> {
+        let identity = cloth_core::BodyPose {
+            position: cloth_core::Vec3::zeros(),
+            rotation: nalgebra::UnitQuaternion::identity(),
+        };
+        let solids: Vec<serde_json::Value> = model
+            .colliders()
+            .iter()
+            .map(|c| {
+                let (vertices, triangles) = c.shape.surface_mesh(&identity);
+                serde_json::json!({
+                    "vertices": vertices.iter().flat_map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(),
+                    "triangles": triangles.iter().flatten().collect::<Vec<_>>(),
+                })
+            })
+            .collect();
+        let frames: Vec<serde_json::Value> =
+            self.frames.iter().map(|(step, poses)| serde_json::json!({ "step": step, "poses": poses })).collect();
+        Ok(serde_json::to_string(&serde_json::json!({ "solids": solids, "frames": frames }))?)
+    }
 }

@@ -218,6 +218,51 @@ impl SolidShape {
         self.shape.as_trimesh().map_or(0, |mesh| mesh.indices().len())
     }
 
+    /// A triangle mesh of the surface with the solid at `body`, for
+    /// drawing: world vertices (m) and triangles, wound outward. Round
+    /// shapes are tessellated (24 around); a half-space is a 10 m square of
+    /// its plane centred at the frame origin.
+    pub fn surface_mesh(&self, body: &BodyPose) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+        let s = &self.shape;
+        let (vertices, triangles) = if let Some(b) = s.as_ball() {
+            b.to_trimesh(24, 12)
+        } else if let Some(c) = s.as_cuboid() {
+            c.to_trimesh()
+        } else if let Some(c) = s.as_capsule() {
+            c.to_trimesh(24, 6)
+        } else if let Some(c) = s.as_cylinder() {
+            c.to_trimesh(24)
+        } else if let Some(c) = s.as_convex_polyhedron() {
+            c.to_trimesh()
+        } else if let Some(m) = s.as_trimesh() {
+            (m.vertices().to_vec(), m.indices().to_vec())
+        } else if let Some(h) = s.as_halfspace() {
+            let n = from_parry(h.normal);
+            let u = n.cross(&if n.x.abs() < 0.9 { Vec3::x() } else { Vec3::y() }).normalize() * 5.0;
+            let v = n.cross(&u);
+            // Wound so that (b - a) x (c - a) = 4 |u|^2 n: outward.
+            let pose = self.pose(body);
+            let corners = [-u - v, u - v, u + v, -u + v].map(|c| from_parry(pose.transform_point(to_parry(c))));
+            return (corners.to_vec(), vec![[0, 1, 2], [0, 2, 3]]);
+        } else {
+            (Vec::new(), Vec::new())
+        };
+        let pose = self.pose(body);
+        let vertices: Vec<Vec3> = vertices.into_iter().map(|p| from_parry(pose.transform_point(p))).collect();
+        // parry's tessellations do not all wind the same way: turn each
+        // face whose normal points into the solid.
+        let triangles = triangles
+            .into_iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|k| vertices[k as usize]);
+                let normal = (b - a).cross(&(c - a));
+                let inward = normal.dot(&self.closest(body, (a + b + c) / 3.0).normal) < 0.0;
+                if inward { [t[0], t[2], t[1]] } else { t }
+            })
+            .collect();
+        (vertices, triangles)
+    }
+
     /// The world bounding box `(min, max)` at `body`, m (infinite for a half-space).
     pub fn aabb(&self, body: &BodyPose) -> (Vec3, Vec3) {
         let b = self.shape.compute_aabb(&self.pose(body));
@@ -285,6 +330,46 @@ mod tests {
 
     fn sd(spec: &ShapeSpec, body: &BodyPose, p: Vec3) -> SurfacePoint {
         SolidShape::build(spec, Path::new(".")).unwrap().closest(body, p)
+    }
+
+    #[test]
+    fn surface_meshes_lie_on_the_surface() {
+        let body = BodyPose {
+            position: Vec3::new(0.3, -0.2, 1.0),
+            rotation: UnitQuaternion::from_euler_angles(0.3, -0.4, 0.9),
+        };
+        let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/meshes");
+        for spec in [
+            ShapeSpec::Ball { radius_m: 0.5 },
+            ShapeSpec::Cuboid { half_extents_m: [0.1, 0.2, 0.3] },
+            ShapeSpec::Capsule { half_length_m: 0.4, radius_m: 0.1 },
+            ShapeSpec::Cylinder { half_length_m: 0.4, radius_m: 0.1 },
+            ShapeSpec::Mesh { obj: "pillow.obj".into(), scale: 1.0 },
+            ShapeSpec::HalfSpace { normal: [0.0, 1.0, 1.0] },
+        ] {
+            let shape = SolidShape::build(&spec, &fixtures).unwrap();
+            let (vertices, triangles) = shape.surface_mesh(&body);
+            assert!(!triangles.is_empty(), "{spec:?}");
+            // Every vertex on the surface (tessellated round shapes: their
+            // vertices are on it exactly too).
+            let off = vertices.iter().map(|p| shape.closest(&body, *p).distance_m.abs()).fold(0.0, f64::max);
+            assert!(off < 1e-9, "{spec:?}: {off}");
+            // Outward winding: each face's normal along the surface's
+            // outward normal nearest its centre (degenerate faces aside).
+            let mut inward = 0;
+            for t in &triangles {
+                let [a, b, c] = t.map(|k| vertices[k as usize]);
+                let normal = (b - a).cross(&(c - a));
+                if normal.norm() > 1e-12 {
+                    let outward = match spec {
+                        ShapeSpec::HalfSpace { .. } => body.rotation * Vec3::new(0.0, 1.0, 1.0).normalize(),
+                        _ => shape.closest(&body, (a + b + c) / 3.0).normal,
+                    };
+                    inward += usize::from(normal.normalize().dot(&outward) <= 0.0);
+                }
+            }
+            assert_eq!(inward, 0, "{spec:?}: {inward} of {} faces wind inward", triangles.len());
+        }
     }
 
     #[test]

@@ -138,6 +138,18 @@ impl Simulation {
         max_penetration(&self.model, &self.control, &self.state.x, self.state.time_s)
     }
 
+    /// Where solid `index` is now: on its scene path, or, driven from
+    /// outside, where its last motion took it (its start pose before any).
+    /// `None` for no such solid.
+    pub fn solid_pose(&self, index: usize) -> Option<crate::BodyPose> {
+        let collider = self.model.colliders().get(index)?;
+        let t = self.state.time_s;
+        Some(match self.control.solid_motions().get(index).copied().flatten() {
+            Some(motion) if collider.is_external() => motion.pose_at(t),
+            _ => collider.pose(t),
+        })
+    }
+
     /// A copy of the complete state (history included), for rollback.
     pub fn snapshot(&self) -> ClothState {
         self.state.clone()
