@@ -61,9 +61,16 @@ fn run_writes_summary_and_frames() {
     for stage in ["forces", "assembly", "solve", "update"] {
         assert!(s["stage_wall_s"][stage].as_f64().unwrap() >= 0.0, "{stage}");
     }
-    // Frames 0 and 5 (steps 0..=9 every 5th), each a valid OBJ of 121 vertices.
-    let frames: Vec<_> = std::fs::read_dir(out.join("frames")).unwrap().map(|e| e.unwrap().path()).collect();
-    assert_eq!(frames.len(), 2, "{frames:?}");
+    // Frames 0 and 5 (steps 0..=9 every 5th), each a valid OBJ of 121
+    // vertices, and solids.json (no solids here, two frames of poses).
+    let mut files: Vec<String> =
+        std::fs::read_dir(out.join("frames")).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
+    files.sort();
+    assert_eq!(files, ["frame_00000.obj", "frame_00005.obj", "solids.json"]);
+    let solids: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("frames/solids.json")).unwrap()).unwrap();
+    assert_eq!(solids["solids"].as_array().map(Vec::len), Some(0));
+    assert_eq!(solids["frames"].as_array().map(Vec::len), Some(2));
     let obj = std::fs::read_to_string(out.join("frames/frame_00005.obj")).unwrap();
     assert_eq!(obj.lines().filter(|l| l.starts_with("v ")).count(), 121);
     assert_eq!(obj.lines().filter(|l| l.starts_with("f ")).count(), 200);

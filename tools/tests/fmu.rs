@@ -1,5 +1,7 @@
 //! `cloth fmu build` and the FMU in an independent importer (FMPy).
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -80,11 +82,7 @@ fn fmu_build_names_what_it_cannot_carry() {
 /// elsewhere the test says it did not run, and fails under CI without it.
 #[test]
 fn fmpy_validates_simulates_and_restores_the_fmus() {
-    let Some(python) = std::env::var_os("FMPY_PYTHON") else {
-        assert!(std::env::var_os("CI").is_none(), "CI must set FMPY_PYTHON (.ci/run installs FMPy 0.3.32)");
-        println!("FMPY_PYTHON not set: the FMPy checks did not run (see .ci/run)");
-        return;
-    };
+    let Some(python) = common::outside_tool("FMPY_PYTHON", "FMPy 0.3.32") else { return };
     let output = Command::new(python)
         .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fmpy_check.py"))
         .arg(env!("CARGO_BIN_EXE_cloth"))
