@@ -2,6 +2,7 @@
 
 mod bench;
 mod fmu;
+mod live;
 mod output;
 mod run;
 mod study;
@@ -105,6 +106,25 @@ enum Command {
         #[arg(long, value_name = "S")]
         seconds: Option<f64>,
     },
+    /// Run a scene live: the simulation paced to real time in the server,
+    /// the viewer page showing it as it computes and setting the wind
+    /// (scenes whose wind is `profile = { kind = "external" }`).
+    Live {
+        /// Scene file (TOML), cloth only.
+        scene: PathBuf,
+        /// Overrides, as for `run`.
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        overrides: Vec<String>,
+        /// Port on 127.0.0.1 (0: any free one; the address is printed).
+        #[arg(long, default_value_t = 8091)]
+        port: u16,
+        /// Stop after this many seconds (default: run until stopped).
+        #[arg(long, value_name = "S")]
+        seconds: Option<f64>,
+        /// Worker threads of the simulation.
+        #[arg(long, default_value_t = 2)]
+        threads: usize,
+    },
     /// Check a scene without running it.
     Validate {
         /// Scene file (TOML).
@@ -175,6 +195,9 @@ fn main() -> ExitCode {
             fmu::build(&scene, &overrides, library.as_deref(), &out)
         }
         Command::View { out, port, seconds } => view::view(&out, port, seconds),
+        Command::Live { scene, overrides, port, seconds, threads } => {
+            live::live(&scene, &overrides, port, seconds, threads)
+        }
         Command::Validate { scene, overrides } => run::validate(&scene, &overrides),
         Command::Time { scene, overrides, threads, repeat } => run::time(&scene, &overrides, threads, repeat),
         Command::Study { study, out, threads, quick } => {

@@ -508,23 +508,27 @@ impl SolidPoses {
     /// `{"solids": [{"vertices": [x, y, z, ...], "triangles": [a, b, c, ...]}],
     /// "frames": [{"step": n, "poses": [[x, y, z, qw, qx, qy, qz], ...]}]}`.
     fn to_json(&self, model: &ClothModel) -> Result<String> {
-        let identity = cloth_core::BodyPose {
-            position: cloth_core::Vec3::zeros(),
-            rotation: nalgebra::UnitQuaternion::identity(),
-        };
-        let solids: Vec<serde_json::Value> = model
-            .colliders()
-            .iter()
-            .map(|c| {
-                let (vertices, triangles) = c.shape.surface_mesh(&identity);
-                serde_json::json!({
-                    "vertices": vertices.iter().flat_map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(),
-                    "triangles": triangles.iter().flatten().collect::<Vec<_>>(),
-                })
-            })
-            .collect();
+        let solids = solid_meshes_json(model);
         let frames: Vec<serde_json::Value> =
             self.frames.iter().map(|(step, poses)| serde_json::json!({ "step": step, "poses": poses })).collect();
         Ok(serde_json::to_string(&serde_json::json!({ "solids": solids, "frames": frames }))?)
     }
+}
+
+/// The model's solids as triangle meshes in their own frames:
+/// `[{"vertices": [x, y, z, ...], "triangles": [a, b, c, ...]}, ...]`.
+pub(crate) fn solid_meshes_json(model: &ClothModel) -> serde_json::Value {
+    let identity =
+        cloth_core::BodyPose { position: cloth_core::Vec3::zeros(), rotation: nalgebra::UnitQuaternion::identity() };
+    model
+        .colliders()
+        .iter()
+        .map(|c| {
+            let (vertices, triangles) = c.shape.surface_mesh(&identity);
+            serde_json::json!({
+                "vertices": vertices.iter().flat_map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(),
+                "triangles": triangles.iter().flatten().collect::<Vec<_>>(),
+            })
+        })
+        .collect()
 }

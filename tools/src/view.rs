@@ -12,7 +12,8 @@ use std::net::{TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-const PAGE: &str = include_str!("viewer.html");
+/// The viewer page (also `cloth live`'s).
+pub(crate) const PAGE: &str = include_str!("viewer.html");
 
 /// Longest request head read, bytes.
 const MAX_HEAD: usize = 16 * 1024;
@@ -59,7 +60,7 @@ fn frame_file(out: &Path, name: &str) -> Option<PathBuf> {
     ok.then(|| out.join("frames").join(name)).filter(|p| p.is_file())
 }
 
-fn respond(stream: &mut TcpStream, status: &str, kind: &str, body: &[u8]) -> std::io::Result<()> {
+pub(crate) fn respond(stream: &mut TcpStream, status: &str, kind: &str, body: &[u8]) -> std::io::Result<()> {
     write!(
         stream,
         "HTTP/1.1 {status}\r\nContent-Type: {kind}\r\nContent-Length: {}\r\nCache-Control: no-store\r\nConnection: close\r\n\r\n",
@@ -69,8 +70,9 @@ fn respond(stream: &mut TcpStream, status: &str, kind: &str, body: &[u8]) -> std
     stream.flush()
 }
 
-/// Answers one request.
-fn serve(stream: &mut TcpStream, out: &Path) -> std::io::Result<()> {
+/// The method and target of the request on `stream` (its head read to
+/// the end, at most `MAX_HEAD` bytes), or `None` when there is none.
+pub(crate) fn read_request(stream: &mut TcpStream) -> std::io::Result<Option<(String, String)>> {
     stream.set_read_timeout(Some(Duration::from_secs(5)))?;
     let mut reader = BufReader::new(stream.try_clone()?);
     let mut request = String::new();
@@ -83,7 +85,17 @@ fn serve(stream: &mut TcpStream, out: &Path) -> std::io::Result<()> {
         line.clear();
     }
     let mut parts = request.split_whitespace();
-    let (method, target) = (parts.next().unwrap_or(""), parts.next().unwrap_or(""));
+    Ok(match (parts.next(), parts.next()) {
+        (Some(method), Some(target)) => Some((method.to_string(), target.to_string())),
+        _ => None,
+    })
+}
+
+/// Answers one request.
+fn serve(stream: &mut TcpStream, out: &Path) -> std::io::Result<()> {
+    let Some((method, target)) = read_request(stream)? else {
+        return respond(stream, "400 Bad Request", "text/plain", b"bad request\n");
+    };
     if method != "GET" {
         return respond(stream, "405 Method Not Allowed", "text/plain", b"GET only\n");
     }

@@ -148,3 +148,100 @@ fn chromium_draws_the_cloth_and_the_ball() {
         assert!(all > 0.3 * total && cloth > 0.2 * total && ball > 0.1 * total, "frame {frame}: {title}");
     }
 }
+
+/// A running `cloth live`; stopped when dropped.
+fn live(scene: &str, extra: &[&str]) -> Server {
+    let mut child = cloth()
+        .arg("live")
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenes").join(scene))
+        .args(extra)
+        .args(["--port", "0", "--seconds", "120"])
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+    let address = line.trim().rsplit("http://").next().unwrap().trim_end_matches('/').to_string();
+    Server { child, address }
+}
+
+/// `/live.json` once the simulation has passed `t` seconds.
+fn live_state_after(server: &Server, t: f64) -> serde_json::Value {
+    let started = std::time::Instant::now();
+    loop {
+        let (status, body) = server.request("GET", "/live.json");
+        assert_eq!(status, 200);
+        let state: serde_json::Value = serde_json::from_slice(&body).unwrap();
+        assert!(state["error"].is_null(), "{}", state["error"]);
+        if state["time_s"].as_f64().unwrap() > t {
+            return state;
+        }
+        assert!(started.elapsed().as_secs() < 60, "the simulation did not reach {t} s");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+}
+
+/// Mean y of the particles, m.
+fn mean_y(state: &serde_json::Value) -> f64 {
+    let p = state["positions"].as_array().unwrap();
+    p.iter().skip(1).step_by(3).map(|y| y.as_f64().unwrap()).sum::<f64>() / (p.len() / 3) as f64
+}
+
+const FLAG_LIVE: [&str; 4] = ["--set", "wind.profile={ kind = \"external\" }", "--set", "panels.0.particles=[16, 11]"];
+
+/// A wind set through the server reaches the running simulation: in still
+/// air the flag hangs in its plane (mean y 0); blown along +y at 8 m/s
+/// for 0.5 s it swings that way.
+#[test]
+fn a_wind_set_live_blows_the_flag() {
+    let server = live("flag.toml", &FLAG_LIVE);
+    let still = live_state_after(&server, 0.3);
+    assert_eq!(still["wind_m_s"], serde_json::json!([0.0, 0.0, 0.0]));
+    let (status, body) = server.request("GET", "/wind?x=0&y=8&z=0");
+    assert_eq!((status, String::from_utf8_lossy(&body).trim()), (200, r#"{"wind_m_s":[0.0,8.0,0.0]}"#));
+    let blown = live_state_after(&server, still["time_s"].as_f64().unwrap() + 0.5);
+    assert_eq!(blown["wind_m_s"], serde_json::json!([0.0, 8.0, 0.0]));
+    let (before, after) = (mean_y(&still), mean_y(&blown));
+    println!("mean y {before:.4} m in still air, {after:.4} m after 0.5 s of 8 m/s along y");
+    assert!(before.abs() < 1e-9 && after > 0.05, "{before} -> {after}");
+    // Bad winds are refused and change nothing.
+    for query in ["x=500", "x=nan", "w=1", "x"] {
+        assert_eq!(server.request("GET", &format!("/wind?{query}")).0, 400, "{query}");
+    }
+    assert_eq!(live_state_after(&server, 0.0)["wind_m_s"], serde_json::json!([0.0, 8.0, 0.0]));
+}
+
+#[test]
+fn live_refuses_what_it_cannot_drive() {
+    // A scene whose wind is not external: no wind control.
+    let server = live("drape-sphere.toml", &["--set", "panels.0.particles=[11, 11]"]);
+    assert_eq!(server.request("GET", "/wind?x=1").0, 409);
+    // Rigid bodies are cloth-rapier's: not live yet.
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenes/hammock.toml");
+    let output = cloth().arg("live").arg(scene).args(["--seconds", "1"]).output().unwrap();
+    assert!(!output.status.success());
+    assert!(String::from_utf8_lossy(&output.stderr).contains("cloth-only scenes"));
+}
+
+/// The live page in headless Chromium sets the wind from its own query
+/// (as the pad does), waits for the cloth to feel it and draws it.
+#[test]
+fn chromium_sets_the_wind_live_and_draws_the_flag() {
+    let Some(chromium) = common::outside_tool("CHROMIUM", "chromium-headless-shell") else { return };
+    let server = live("flag.toml", &FLAG_LIVE);
+    let dom = Command::new(&chromium)
+        .args(["--no-sandbox", "--use-gl=swiftshader", "--enable-unsafe-swiftshader", "--window-size=800,600"])
+        .args(["--virtual-time-budget=30000", "--dump-dom"])
+        .arg(format!("http://{}/?check&wind=0,8,0", server.address))
+        .output()
+        .unwrap();
+    let dom = String::from_utf8_lossy(&dom.stdout);
+    let title = dom.split("<title>").nth(1).and_then(|t| t.split("</title>").next()).unwrap_or("");
+    println!("{title}");
+    assert!(title.contains("; wind 0,8,0;"), "{title}");
+    let cloth: f64 =
+        title.split("cloth ").nth(1).and_then(|t| t.split(';').next()).and_then(|n| n.parse().ok()).unwrap_or(0.0);
+    assert!(cloth > 1000.0, "{title}");
+    // The server agrees: the wind the page set is the one the steps use.
+    assert_eq!(live_state_after(&server, 0.0)["wind_m_s"], serde_json::json!([0.0, 8.0, 0.0]));
+}
