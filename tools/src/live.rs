@@ -8,7 +8,7 @@
 //! `/wind?x=..&y=..&z=..` the air velocity from now on (m/s, finite,
 //! at most 100 m/s).
 
-use crate::run::solid_meshes_json;
+use crate::run::{solid_meshes_json, solid_poses};
 use crate::view::{read_request, respond};
 use anyhow::{Context, Result, bail};
 use cloth_core::scene::{Scene, SceneError};
@@ -66,7 +66,7 @@ pub fn live(scene: &Path, overrides: &[String], port: u16, seconds: Option<f64>,
         rate: 0.0,
         wind_applied: [0.0; 3],
         wind_requested: [0.0; 3],
-        poses: poses(&sim),
+        poses: solid_poses(&sim),
         error: None,
     }));
     let listener = TcpListener::bind(("127.0.0.1", port)).with_context(|| format!("binding 127.0.0.1:{port}"))?;
@@ -104,16 +104,6 @@ fn flat(sim: &Simulation) -> Vec<f64> {
     sim.state().x.iter().flat_map(|p| [p.x, p.y, p.z]).collect()
 }
 
-fn poses(sim: &Simulation) -> Vec<[f64; 7]> {
-    (0..sim.model().colliders().len())
-        .filter_map(|k| sim.solid_pose(k))
-        .map(|p| {
-            let q = p.rotation.quaternion();
-            [p.position.x, p.position.y, p.position.z, q.w, q.i, q.j, q.k]
-        })
-        .collect()
-}
-
 /// Steps `sim` by `h` for ever, never ahead of the wall clock, publishing
 /// each state; stops at the first step error (published).
 fn simulate(mut sim: Simulation, h: f64, external_wind: bool, shared: &Mutex<Shared>) {
@@ -136,7 +126,7 @@ fn simulate(mut sim: Simulation, h: f64, external_wind: bool, shared: &Mutex<Sha
         s.positions = flat(&sim);
         (s.time_s, s.steps, s.rate) = (sim.time(), sim.state().steps, sim.time() / wall.max(1e-9));
         s.wind_applied = if external_wind { wind } else { [0.0; 3] };
-        s.poses = poses(&sim);
+        s.poses = solid_poses(&sim);
         drop(s);
         // Real time at most: wait until the wall clock reaches the cloth.
         let ahead = sim.time() - start.elapsed().as_secs_f64();

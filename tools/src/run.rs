@@ -495,14 +495,7 @@ struct SolidPoses {
 
 impl SolidPoses {
     fn add(&mut self, sim: &Simulation) {
-        let poses = (0..sim.model().colliders().len())
-            .filter_map(|k| sim.solid_pose(k))
-            .map(|p| {
-                let q = p.rotation.quaternion();
-                [p.position.x, p.position.y, p.position.z, q.w, q.i, q.j, q.k]
-            })
-            .collect();
-        self.frames.push((sim.state().steps, poses));
+        self.frames.push((sim.state().steps, solid_poses(sim)));
     }
 
     /// `{"solids": [{"vertices": [x, y, z, ...], "triangles": [a, b, c, ...]}],
@@ -529,6 +522,17 @@ pub(crate) fn solid_meshes_json(model: &ClothModel) -> serde_json::Value {
                 "vertices": vertices.iter().flat_map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(),
                 "triangles": triangles.iter().flatten().collect::<Vec<_>>(),
             })
+        })
+        .collect()
+}
+
+/// Where each solid of `sim` is now: `[x, y, z, qw, qx, qy, qz]` (m).
+pub(crate) fn solid_poses(sim: &Simulation) -> Vec<[f64; 7]> {
+    (0..sim.model().colliders().len())
+        .filter_map(|k| sim.solid_pose(k))
+        .map(|p| {
+            let q = p.rotation.quaternion();
+            [p.position.x, p.position.y, p.position.z, q.w, q.i, q.j, q.k]
         })
         .collect()
 }

@@ -46,18 +46,31 @@ struct Server {
 }
 
 impl Server {
+    /// `cloth view out`.
     fn start(out: &Path) -> Self {
-        let mut child = cloth()
-            .arg("view")
-            .arg(out)
-            .args(["--port", "0", "--seconds", "120"])
-            .stdout(Stdio::piped())
-            .spawn()
-            .unwrap();
+        Self::spawn(cloth().arg("view").arg(out))
+    }
+
+    /// The server `command` starts on any free port, found in the line it
+    /// prints first.
+    fn spawn(command: &mut Command) -> Self {
+        let mut child = command.args(["--port", "0", "--seconds", "120"]).stdout(Stdio::piped()).spawn().unwrap();
         let mut line = String::new();
         BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
         let address = line.trim().rsplit("http://").next().unwrap().trim_end_matches('/').to_string();
         Server { child, address }
+    }
+
+    /// The title of page `query` after headless Chromium loaded and ran it.
+    fn title_in_chromium(&self, chromium: &std::ffi::OsStr, query: &str) -> String {
+        let dom = Command::new(chromium)
+            .args(["--no-sandbox", "--use-gl=swiftshader", "--enable-unsafe-swiftshader", "--window-size=800,600"])
+            .args(["--virtual-time-budget=30000", "--dump-dom"])
+            .arg(format!("http://{}/?{query}", self.address))
+            .output()
+            .unwrap();
+        let dom = String::from_utf8_lossy(&dom.stdout);
+        dom.split("<title>").nth(1).and_then(|t| t.split("</title>").next()).unwrap_or("").to_string()
     }
 
     /// Status code and body of `method path`.
@@ -128,14 +141,7 @@ fn chromium_draws_the_cloth_and_the_ball() {
     let out = drape_run("browser");
     let server = Server::start(&out);
     for frame in ["0", "last"] {
-        let dom = Command::new(&chromium)
-            .args(["--no-sandbox", "--use-gl=swiftshader", "--enable-unsafe-swiftshader", "--window-size=800,600"])
-            .args(["--virtual-time-budget=20000", "--dump-dom"])
-            .arg(format!("http://{}/?check&frame={frame}", server.address))
-            .output()
-            .unwrap();
-        let dom = String::from_utf8_lossy(&dom.stdout);
-        let title = dom.split("<title>").nth(1).and_then(|t| t.split("</title>").next()).unwrap_or("");
+        let title = server.title_in_chromium(&chromium, &format!("check&frame={frame}"));
         // "drawn A of T; cloth B; solids C"
         let counts: Vec<f64> = title
             .split(|c: char| !c.is_ascii_digit())
@@ -151,18 +157,8 @@ fn chromium_draws_the_cloth_and_the_ball() {
 
 /// A running `cloth live`; stopped when dropped.
 fn live(scene: &str, extra: &[&str]) -> Server {
-    let mut child = cloth()
-        .arg("live")
-        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenes").join(scene))
-        .args(extra)
-        .args(["--port", "0", "--seconds", "120"])
-        .stdout(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
-    let address = line.trim().rsplit("http://").next().unwrap().trim_end_matches('/').to_string();
-    Server { child, address }
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenes").join(scene);
+    Server::spawn(cloth().arg("live").arg(scene).args(extra))
 }
 
 /// `/live.json` once the simulation has passed `t` seconds.
@@ -229,14 +225,7 @@ fn live_refuses_what_it_cannot_drive() {
 fn chromium_sets_the_wind_live_and_draws_the_flag() {
     let Some(chromium) = common::outside_tool("CHROMIUM", "chromium-headless-shell") else { return };
     let server = live("flag.toml", &FLAG_LIVE);
-    let dom = Command::new(&chromium)
-        .args(["--no-sandbox", "--use-gl=swiftshader", "--enable-unsafe-swiftshader", "--window-size=800,600"])
-        .args(["--virtual-time-budget=30000", "--dump-dom"])
-        .arg(format!("http://{}/?check&wind=0,8,0", server.address))
-        .output()
-        .unwrap();
-    let dom = String::from_utf8_lossy(&dom.stdout);
-    let title = dom.split("<title>").nth(1).and_then(|t| t.split("</title>").next()).unwrap_or("");
+    let title = server.title_in_chromium(&chromium, "check&wind=0,8,0");
     println!("{title}");
     assert!(title.contains("; wind 0,8,0;"), "{title}");
     let cloth: f64 =

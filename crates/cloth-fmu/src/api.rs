@@ -19,6 +19,10 @@ pub type ValueReference = u32;
 
 const VERSION: &CStr = c"3.0";
 
+/// Every phase: where logging, reset, unsupported calls and FMU states are
+/// allowed.
+const ANY: [Phase; 4] = [Phase::Instantiated, Phase::Initialization, Phase::Step, Phase::Terminated];
+
 /// Runs `body` on the instance behind `instance` when `phase` allows
 /// `function` there; logs and returns `fmi3Error` otherwise, on an error
 /// and on a panic.
@@ -58,7 +62,6 @@ fn call(
 
 /// Logs that `function` is not supported by this FMU.
 fn unsupported(instance: *mut c_void, function: &str, why: &str) -> Status {
-    const ANY: [Phase; 4] = [Phase::Instantiated, Phase::Initialization, Phase::Step, Phase::Terminated];
     call(instance, function, &ANY, |_| Err(format!("not supported: {why}")))
 }
 
@@ -124,7 +127,6 @@ pub unsafe extern "C" fn fmi3SetDebugLogging(
     _n_categories: usize,
     _categories: *const *const c_char,
 ) -> Status {
-    const ANY: [Phase; 4] = [Phase::Instantiated, Phase::Initialization, Phase::Step, Phase::Terminated];
     call(instance, "fmi3SetDebugLogging", &ANY, |inst| {
         inst.logging_on = logging_on;
         Ok(Status::Ok)
@@ -306,7 +308,6 @@ pub unsafe extern "C" fn fmi3Terminate(instance: *mut c_void) -> Status {
 /// `instance` is null or from `fmi3InstantiateCoSimulation`.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi3Reset(instance: *mut c_void) -> Status {
-    const ANY: [Phase; 4] = [Phase::Instantiated, Phase::Initialization, Phase::Step, Phase::Terminated];
     call(instance, "fmi3Reset", &ANY, |inst| inst.reset().map(|()| Status::Ok))
 }
 
@@ -487,9 +488,6 @@ pub unsafe extern "C" fn fmi3SetClock(
     no_such(instance, "fmi3SetClock", n_value_references, "Clock", &WRITABLE)
 }
 
-/// Phases in which the FMU state may be got, set or serialised.
-const STATEFUL: [Phase; 4] = [Phase::Instantiated, Phase::Initialization, Phase::Step, Phase::Terminated];
-
 /// `fmi3GetFMUState`: a copy of the cloth's state (into `*state`, reusing
 /// it when not null).
 ///
@@ -497,7 +495,7 @@ const STATEFUL: [Phase; 4] = [Phase::Instantiated, Phase::Initialization, Phase:
 /// `state` points to null or to a state this instance made.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi3GetFMUState(instance: *mut c_void, state: *mut *mut c_void) -> Status {
-    call(instance, "fmi3GetFMUState", &STATEFUL, |inst| {
+    call(instance, "fmi3GetFMUState", &ANY, |inst| {
         if state.is_null() {
             return Err("FMUState is null".into());
         }
@@ -520,7 +518,7 @@ pub unsafe extern "C" fn fmi3GetFMUState(instance: *mut c_void, state: *mut *mut
 /// `state` is null or a state this instance made and not freed.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi3SetFMUState(instance: *mut c_void, state: *mut c_void) -> Status {
-    call(instance, "fmi3SetFMUState", &STATEFUL, |inst| {
+    call(instance, "fmi3SetFMUState", &ANY, |inst| {
         if state.is_null() {
             return Err("FMUState is null".into());
         }
@@ -537,7 +535,7 @@ pub unsafe extern "C" fn fmi3SetFMUState(instance: *mut c_void, state: *mut c_vo
 /// `state` points to null or to a state this instance made.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi3FreeFMUState(instance: *mut c_void, state: *mut *mut c_void) -> Status {
-    call(instance, "fmi3FreeFMUState", &STATEFUL, |_| {
+    call(instance, "fmi3FreeFMUState", &ANY, |_| {
         if state.is_null() {
             return Err("FMUState is null".into());
         }
@@ -575,7 +573,7 @@ pub unsafe extern "C" fn fmi3SerializedFMUStateSize(
     state: *mut c_void,
     size: *mut usize,
 ) -> Status {
-    call(instance, "fmi3SerializedFMUStateSize", &STATEFUL, |inst| {
+    call(instance, "fmi3SerializedFMUStateSize", &ANY, |inst| {
         // SAFETY: the caller's contract.
         let bytes = unsafe { serialized(inst, state)? };
         let size = unsafe { size.as_mut() }.ok_or("size is null")?;
@@ -596,7 +594,7 @@ pub unsafe extern "C" fn fmi3SerializeFMUState(
     serialized_state: *mut u8,
     size: usize,
 ) -> Status {
-    call(instance, "fmi3SerializeFMUState", &STATEFUL, |inst| {
+    call(instance, "fmi3SerializeFMUState", &ANY, |inst| {
         // SAFETY: the caller's contract.
         let bytes = unsafe { serialized(inst, state)? };
         if bytes.len() != size {
@@ -618,7 +616,7 @@ pub unsafe extern "C" fn fmi3DeserializeFMUState(
     size: usize,
     state: *mut *mut c_void,
 ) -> Status {
-    call(instance, "fmi3DeserializeFMUState", &STATEFUL, |inst| {
+    call(instance, "fmi3DeserializeFMUState", &ANY, |inst| {
         // SAFETY: the caller's contract.
         let bytes = unsafe { slice(serialized_state, size, "serializedState")? };
         let restored = inst.unit.deserialize_state(bytes).map_err(|e| e.to_string())?;

@@ -19,19 +19,22 @@ pub struct FmuInfo {
     pub stop_s: f64,
 }
 
-/// Base-unit exponents of the SI units the cloth's variables use
-/// (`kg`, `m`, `s`, `rad`).
-fn base_units(unit: &str) -> Option<[i32; 4]> {
-    Some(match unit {
-        "m" => [0, 1, 0, 0],
-        "m/s" => [0, 1, -1, 0],
-        "N" => [1, 1, -2, 0],
-        "N.m" => [1, 2, -2, 0],
-        "rad" => [0, 0, 0, 1],
-        "rad/s" => [0, 0, -1, 1],
-        "s" => [0, 0, 1, 0],
-        _ => return None,
-    })
+/// The SI units the cloth's variables use, with their base-unit exponents
+/// (`kg`, `m`, `s`, `rad`). The model description declares them; an
+/// imported FMU's unit names are mapped back to these.
+pub(crate) const UNITS: [(&str, [i32; 4]); 7] = [
+    ("s", [0, 0, 1, 0]),
+    ("m", [0, 1, 0, 0]),
+    ("m/s", [0, 1, -1, 0]),
+    ("N", [1, 1, -2, 0]),
+    ("N.m", [1, 2, -2, 0]),
+    ("rad", [0, 0, 0, 1]),
+    ("rad/s", [0, 0, -1, 1]),
+];
+
+/// The table's entry of `unit`, if it has one.
+pub(crate) fn known_unit(unit: &str) -> Option<(&'static str, [i32; 4])> {
+    UNITS.iter().find(|(name, _)| *name == unit).copied()
 }
 
 /// Escapes `&`, `<`, `>` and `"` for an XML attribute.
@@ -49,14 +52,13 @@ fn number(x: f64) -> String {
 /// `InitialUnknown` (computed from the initial state). Dimensionless
 /// variables (unit `"1"` or `""`) carry no unit.
 pub fn model_description(variables: &[Variable], info: &FmuInfo) -> String {
-    let mut units: Vec<&str> = Vec::new();
-    for v in variables {
-        if base_units(v.unit).is_some() && !units.contains(&v.unit) {
-            units.push(v.unit);
+    // `s` first (time's unit), then the variables' in order of appearance.
+    let mut units: Vec<(&str, [i32; 4])> = vec![UNITS[0]];
+    for unit in variables.iter().filter_map(|v| known_unit(v.unit)) {
+        if !units.contains(&unit) {
+            units.push(unit);
         }
     }
-    units.insert(0, "s");
-    units.dedup();
     let mut x = String::new();
     let _ = writeln!(x, r#"<?xml version="1.0" encoding="UTF-8"?>"#);
     let _ = writeln!(
@@ -72,8 +74,7 @@ pub fn model_description(variables: &[Variable], info: &FmuInfo) -> String {
         r#"  <CoSimulation modelIdentifier="{MODEL_IDENTIFIER}" canHandleVariableCommunicationStepSize="true" canGetAndSetFMUState="true" canSerializeFMUState="true" hasEventMode="false"/>"#
     );
     let _ = writeln!(x, "  <UnitDefinitions>");
-    for unit in &units {
-        let [kg, m, s, rad] = base_units(unit).expect("listed units have base units");
+    for &(unit, [kg, m, s, rad]) in &units {
         let mut attrs = String::new();
         for (name, e) in [("kg", kg), ("m", m), ("s", s), ("rad", rad)] {
             if e != 0 {
@@ -110,7 +111,7 @@ pub fn model_description(variables: &[Variable], info: &FmuInfo) -> String {
             Causality::Output => "output",
         };
         let variability = if v.causality == Causality::Parameter { "fixed" } else { "continuous" };
-        let unit = if base_units(v.unit).is_some() { format!(r#" unit="{}""#, escape(v.unit)) } else { String::new() };
+        let unit = if known_unit(v.unit).is_some() { format!(r#" unit="{}""#, escape(v.unit)) } else { String::new() };
         let start =
             if v.causality == Causality::Output { String::new() } else { format!(r#" start="{}""#, number(v.start)) };
         let _ = writeln!(

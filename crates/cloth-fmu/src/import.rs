@@ -10,6 +10,7 @@
 //! entries) load; others may not.
 
 use crate::api::{LogMessage, Status, ValueReference};
+use crate::description::known_unit;
 use crate::package::{FmuError, read_fmu};
 use cloth_cosim::unit::settable;
 use cloth_cosim::{Causality, StepOutcome, Unit, UnitError, UnitState, ValueRef, Variable};
@@ -104,20 +105,6 @@ fn attribute(tag: &str, name: &str) -> Option<String> {
     Some(tag[start..end].replace("&quot;", "\"").replace("&lt;", "<").replace("&gt;", ">").replace("&amp;", "&"))
 }
 
-/// The SI units this crate writes, as the `'static` names variables carry.
-fn known_unit(unit: Option<String>) -> &'static str {
-    match unit.as_deref() {
-        Some("m") => "m",
-        Some("m/s") => "m/s",
-        Some("N") => "N",
-        Some("N.m") => "N.m",
-        Some("rad") => "rad",
-        Some("rad/s") => "rad/s",
-        Some("s") => "s",
-        _ => "",
-    }
-}
-
 impl FmuUnit {
     /// Unpacks the FMU at `path`, loads and instantiates it as `name`, and
     /// takes it to step mode at time 0.
@@ -148,7 +135,8 @@ impl FmuUnit {
                 field("valueReference")?.parse().map_err(|_| bad("a valueReference that is not a number".into()))?;
             let start =
                 attribute(&tag, "start").map_or(Ok(0.0), |s| s.parse().map_err(|_| bad(format!("start {s}"))))?;
-            let unit = known_unit(attribute(&tag, "unit"));
+            // Variables carry `'static` unit names: this crate's own units.
+            let unit = attribute(&tag, "unit").and_then(|u| known_unit(&u)).map_or("", |(name, _)| name);
             let description = attribute(&tag, "description").unwrap_or_default();
             vars.push(Variable::new(field("name")?, causality, unit, description).with_start(start));
             vrs.push(vr);

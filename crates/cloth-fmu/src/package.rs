@@ -92,7 +92,11 @@ fn meshes(scene_path: &Path, scene: &Scene) -> Result<(Vec<Entry>, Vec<String>),
 
 /// The cloth unit of the scene at `path` with `overrides`, named `name`.
 pub(crate) fn unit_from_scene(path: &Path, overrides: &[String], name: &str) -> Result<ClothUnit, FmuError> {
-    let scene = load_scene(path, overrides)?;
+    unit_of(&load_scene(path, overrides)?, path, name)
+}
+
+/// The cloth unit of `scene` (read from `path`), named `name`.
+fn unit_of(scene: &Scene, path: &Path, name: &str) -> Result<ClothUnit, FmuError> {
     let (model, cfg) = scene.build().map_err(|kind| SceneError { file: path.to_path_buf(), kind })?;
     Ok(ClothUnit::new(name, cfg.simulation(model)))
 }
@@ -115,7 +119,7 @@ pub struct BuiltFmu {
 pub fn build_fmu(scene: &Path, overrides: &[String], library: &Path, out: &Path) -> Result<BuiltFmu, FmuError> {
     let text = std::fs::read_to_string(scene).map_err(io(scene))?;
     let parsed = load_scene(scene, overrides)?;
-    let unit = unit_from_scene(scene, overrides, "cloth")?;
+    let unit = unit_of(&parsed, scene, "cloth")?;
     let binary = std::fs::read(library).map_err(io(library))?;
     let (mesh_entries, mesh_overrides) = meshes(scene, &parsed)?;
     // The FMU's scene reads its meshes from resources/meshes/.
