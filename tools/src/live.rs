@@ -1,19 +1,22 @@
 //! `cloth live SCENE`: the simulation runs in the server, paced to real
 //! time, and the viewer page shows it as it computes; the page sets the
-//! wind (scenes whose wind is `profile = { kind = "external" }`).
+//! wind (scenes whose wind is `profile = { kind = "external" }`) and holds
+//! the cloth where the mouse drags it. Cloth-only scenes and scenes with
+//! rapier bodies or a rig alike (the bodies are drawn where they are).
 //!
 //! Requests (127.0.0.1 only, one thread per connection): `/` the page,
 //! `/run.json` the cloth's triangles and solids, `/live.json` the latest
 //! state (positions, time, achieved rate, wind, solid poses),
 //! `/wind?x=..&y=..&z=..` the air velocity from now on (m/s, finite,
-//! at most 100 m/s).
+//! at most 100 m/s), `/hold?particle=i&x=..&y=..&z=..` holds free
+//! particle `i` at that point (m) until `/release?particle=i` (or
+//! `/release`: every held particle) lets it go.
 
-use crate::run::{solid_meshes_json, solid_poses};
+use crate::run::{CouplingTotals, Runner, solid_meshes_json, solid_poses};
 use crate::view::{read_request, respond};
-use anyhow::{Context, Result, bail};
-use cloth_core::scene::{Scene, SceneError};
+use anyhow::{Context, Result};
 use cloth_core::wind::WindProfile;
-use cloth_core::{Simulation, Vec3};
+use cloth_core::{ControlError, Simulation, Vec3};
 use std::io::Write;
 use std::net::{TcpListener, TcpStream};
 use std::path::Path;
@@ -37,38 +40,42 @@ struct Shared {
     wind_requested: [f64; 3],
     /// Solid poses `[x, y, z, qw, qx, qy, qz]`.
     poses: Vec<[f64; 7]>,
+    /// The particles the page holds and where, m, sorted by particle.
+    holds_requested: Vec<(usize, [f64; 3])>,
+    /// The holds the last step used: particle, target (m) and the pull
+    /// the cloth exerts on the hand (N).
+    holds_applied: Vec<(usize, [f64; 3], [f64; 3])>,
     /// Why the simulation stopped, if it did.
     error: Option<String>,
 }
 
 /// Runs `scene` live and serves it on 127.0.0.1:`port`.
 pub fn live(scene: &Path, overrides: &[String], port: u16, seconds: Option<f64>, threads: usize) -> Result<()> {
-    let text = std::fs::read_to_string(scene).with_context(|| format!("reading {}", scene.display()))?;
-    if cloth_rapier::scene::has_bodies(&text) {
-        bail!("{}: cloth live runs cloth-only scenes so far (no [[bodies]] or [rig])", scene.display());
-    }
-    let parsed = Scene::parse_file(scene, overrides)?;
-    let (model, cfg) = parsed.build().map_err(|kind| SceneError { file: scene.into(), kind })?;
-    let external_wind = model.wind().is_some_and(|w| w.profile == WindProfile::External);
-    let sim = cfg.simulation(model);
+    let (_, cfg, runner) = Runner::load(scene, overrides)?;
+    let sim = runner.sim();
+    let external_wind = sim.model().wind().is_some_and(|w| w.profile == WindProfile::External);
     let run_json = serde_json::to_string(&serde_json::json!({
         "live": true,
         "scene": scene.display().to_string(),
         "dt_s": cfg.dt_s,
         "wind_control": external_wind,
+        "pinned": (0..sim.model().particle_count()).filter(|&i| sim.model().is_pinned(i)).collect::<Vec<_>>(),
         "triangles": sim.model().triangles().iter().flatten().collect::<Vec<_>>(),
         "solids": solid_meshes_json(sim.model()),
     }))?;
     let shared = Arc::new(Mutex::new(Shared {
-        positions: flat(&sim),
+        positions: flat(sim),
         time_s: 0.0,
         steps: 0,
         rate: 0.0,
         wind_applied: [0.0; 3],
         wind_requested: [0.0; 3],
-        poses: solid_poses(&sim),
+        poses: solid_poses(sim),
+        holds_requested: Vec::new(),
+        holds_applied: Vec::new(),
         error: None,
     }));
+    let pinned: Vec<bool> = (0..sim.model().particle_count()).map(|i| sim.model().is_pinned(i)).collect();
     let listener = TcpListener::bind(("127.0.0.1", port)).with_context(|| format!("binding 127.0.0.1:{port}"))?;
     let address = listener.local_addr()?;
     println!("running {} live at http://{address}/", scene.display());
@@ -78,7 +85,7 @@ pub fn live(scene: &Path, overrides: &[String], port: u16, seconds: Option<f64>,
     {
         let shared = Arc::clone(&shared);
         let h = cfg.dt_s;
-        std::thread::spawn(move || pool.install(|| simulate(sim, h, external_wind, &shared)));
+        std::thread::spawn(move || pool.install(|| simulate(runner, h, external_wind, &shared)));
     }
     listener.set_nonblocking(true)?;
     loop {
@@ -87,9 +94,9 @@ pub fn live(scene: &Path, overrides: &[String], port: u16, seconds: Option<f64>,
         }
         match listener.accept() {
             Ok((stream, _)) => {
-                let (shared, run_json) = (Arc::clone(&shared), run_json.clone());
+                let (shared, run_json, pinned) = (Arc::clone(&shared), run_json.clone(), pinned.clone());
                 std::thread::spawn(move || {
-                    if let Err(e) = serve(stream, &shared, &run_json, external_wind) {
+                    if let Err(e) = serve(stream, &shared, &run_json, external_wind, &pinned) {
                         eprintln!("request failed: {e}");
                     }
                 });
@@ -106,27 +113,31 @@ fn flat(sim: &Simulation) -> Vec<f64> {
 
 /// Steps `sim` by `h` for ever, never ahead of the wall clock, publishing
 /// each state; stops at the first step error (published).
-fn simulate(mut sim: Simulation, h: f64, external_wind: bool, shared: &Mutex<Shared>) {
+fn simulate(mut runner: Runner, h: f64, external_wind: bool, shared: &Mutex<Shared>) {
     let start = Instant::now();
+    let mut coupling = CouplingTotals::default();
     loop {
-        let wind = shared.lock().map(|s| s.wind_requested).unwrap_or([0.0; 3]);
-        if external_wind && let Err(e) = sim.set_wind(Vec3::from(wind)) {
+        let Ok((wind, holds)) = shared.lock().map(|s| (s.wind_requested, s.holds_requested.clone())) else { return };
+        if let Err(e) = apply_inputs(runner.sim_mut(), external_wind.then_some(wind), &holds) {
             if let Ok(mut s) = shared.lock() {
                 s.error = Some(e.to_string());
             }
             return;
         }
-        let result = sim.step(h);
+        let result = runner.step(h, &mut coupling);
+        let sim = runner.sim();
         let wall = start.elapsed().as_secs_f64();
         let Ok(mut s) = shared.lock() else { return };
         if let Err(e) = result {
             s.error = Some(format!("t = {:.4} s: {e}", sim.time()));
             return;
         }
-        s.positions = flat(&sim);
+        s.positions = flat(sim);
         (s.time_s, s.steps, s.rate) = (sim.time(), sim.state().steps, sim.time() / wall.max(1e-9));
         s.wind_applied = if external_wind { wind } else { [0.0; 3] };
-        s.poses = solid_poses(&sim);
+        s.poses = solid_poses(sim);
+        s.holds_applied =
+            holds.iter().map(|&(i, target)| (i, target, sim.hold_reaction(i).unwrap_or_default().into())).collect();
         drop(s);
         // Real time at most: wait until the wall clock reaches the cloth.
         let ahead = sim.time() - start.elapsed().as_secs_f64();
@@ -136,19 +147,57 @@ fn simulate(mut sim: Simulation, h: f64, external_wind: bool, shared: &Mutex<Sha
     }
 }
 
-/// The wind a `/wind?x=..&y=..&z=..` query asks for.
-fn parse_wind(query: &str) -> Result<[f64; 3], String> {
-    let mut wind = [0.0; 3];
+/// Sets the page's wind (when the scene's is external) and makes the held
+/// particles exactly `holds`.
+fn apply_inputs(sim: &mut Simulation, wind: Option<[f64; 3]>, holds: &[(usize, [f64; 3])]) -> Result<(), ControlError> {
+    if let Some(wind) = wind {
+        sim.set_wind(Vec3::from(wind))?;
+    }
+    let gone: Vec<usize> =
+        sim.control().holds().iter().map(|h| h.0).filter(|i| !holds.iter().any(|h| h.0 == *i)).collect();
+    for i in gone {
+        sim.let_go(i);
+    }
+    holds.iter().try_for_each(|&(i, target)| sim.hold(i, Vec3::from(target)))
+}
+
+/// The numbers of a query `key=value&...`, each key one of `keys` (at
+/// most once; a missing one is 0), finite.
+fn parse_numbers<const N: usize>(query: &str, keys: [&str; N]) -> Result<[f64; N], String> {
+    let mut values = [0.0; N];
+    let mut seen = [false; N];
     for pair in query.split('&').filter(|p| !p.is_empty()) {
         let (key, value) = pair.split_once('=').ok_or_else(|| format!("{pair}: expected key=value"))?;
-        let axis =
-            ["x", "y", "z"].iter().position(|a| *a == key).ok_or_else(|| format!("{key}: expected x, y or z"))?;
+        let k = keys.iter().position(|a| *a == key).ok_or_else(|| format!("{key}: expected one of {keys:?}"))?;
+        if std::mem::replace(&mut seen[k], true) {
+            return Err(format!("{key}: given twice"));
+        }
         let v: f64 = value.parse().map_err(|_| format!("{key} = {value}: not a number"))?;
         if !v.is_finite() {
             return Err(format!("{key} = {value}: must be finite"));
         }
-        wind[axis] = v;
+        values[k] = v;
     }
+    Ok(values)
+}
+
+/// The particle index of a query's `particle=i`, which must be a free
+/// particle of the model (`pinned` per particle).
+fn parse_particle(value: f64, pinned: &[bool]) -> Result<usize, (&'static str, String)> {
+    let bad = "400 Bad Request";
+    if value.fract() != 0.0 || value < 0.0 || value >= pinned.len() as f64 {
+        return Err((bad, format!("particle = {value}: expected 0 to {}", pinned.len().saturating_sub(1))));
+    }
+    let i = value as usize;
+    if pinned[i] {
+        return Err(("409 Conflict", format!("particle {i} is pinned by the scene")));
+    }
+    Ok(i)
+}
+
+/// The wind a `/wind?x=..&y=..&z=..` query asks for.
+fn parse_wind(query: &str) -> Result<[f64; 3], String> {
+    let wind = parse_numbers(query, ["x", "y", "z"])?;
     let speed = Vec3::from(wind).norm();
     if speed > MAX_WIND_M_S {
         return Err(format!("{speed} m/s: at most {MAX_WIND_M_S} m/s"));
@@ -156,7 +205,30 @@ fn parse_wind(query: &str) -> Result<[f64; 3], String> {
     Ok(wind)
 }
 
-fn serve(mut stream: TcpStream, shared: &Mutex<Shared>, run_json: &str, external_wind: bool) -> std::io::Result<()> {
+/// Farthest from the origin the page may hold a particle, m.
+const MAX_HOLD_M: f64 = 1e3;
+
+/// The hold a `/hold?particle=i&x=..&y=..&z=..` query asks for.
+fn parse_hold(query: &str, pinned: &[bool]) -> Result<(usize, [f64; 3]), (&'static str, String)> {
+    let bad = "400 Bad Request";
+    if !query.split('&').any(|p| p.starts_with("particle=")) {
+        return Err((bad, "particle: missing".into()));
+    }
+    let [particle, x, y, z] = parse_numbers(query, ["particle", "x", "y", "z"]).map_err(|e| (bad, e))?;
+    if Vec3::new(x, y, z).norm() > MAX_HOLD_M {
+        return Err((bad, format!("[{x}, {y}, {z}]: at most {MAX_HOLD_M} m from the origin")));
+    }
+    Ok((parse_particle(particle, pinned)?, [x, y, z]))
+}
+
+fn serve(
+    mut stream: TcpStream,
+    shared: &Mutex<Shared>,
+    run_json: &str,
+    external_wind: bool,
+    pinned: &[bool],
+) -> std::io::Result<()> {
+    let lock = || shared.lock().map_err(|_| std::io::Error::other("simulation thread panicked"));
     let Some((method, target)) = read_request(&mut stream)? else {
         return respond(&mut stream, "400 Bad Request", "text/plain", b"bad request\n");
     };
@@ -169,7 +241,12 @@ fn serve(mut stream: TcpStream, shared: &Mutex<Shared>, run_json: &str, external
         "/run.json" => respond(&mut stream, "200 OK", "application/json", run_json.as_bytes()),
         "/live.json" => {
             let body = {
-                let s = shared.lock().map_err(|_| std::io::Error::other("simulation thread panicked"))?;
+                let s = lock()?;
+                let holds: Vec<_> = s
+                    .holds_applied
+                    .iter()
+                    .map(|(i, t, f)| serde_json::json!({ "particle": i, "target_m": t, "pull_n": f }))
+                    .collect();
                 serde_json::json!({
                     "time_s": s.time_s,
                     "steps": s.steps,
@@ -177,6 +254,7 @@ fn serve(mut stream: TcpStream, shared: &Mutex<Shared>, run_json: &str, external
                     "wind_m_s": s.wind_applied,
                     "positions": s.positions,
                     "poses": s.poses,
+                    "holds": holds,
                     "error": s.error,
                 })
                 .to_string()
@@ -203,6 +281,33 @@ fn serve(mut stream: TcpStream, shared: &Mutex<Shared>, run_json: &str, external
             }
             Err(e) => respond(&mut stream, "400 Bad Request", "text/plain", format!("{e}\n").as_bytes()),
         },
+        "/hold" => match parse_hold(query, pinned) {
+            Ok((i, target)) => {
+                let mut s = lock()?;
+                match s.holds_requested.binary_search_by_key(&i, |h| h.0) {
+                    Ok(k) => s.holds_requested[k].1 = target,
+                    Err(k) => s.holds_requested.insert(k, (i, target)),
+                }
+                drop(s);
+                let body = serde_json::json!({ "particle": i, "target_m": target }).to_string();
+                respond(&mut stream, "200 OK", "application/json", body.as_bytes())
+            }
+            Err((status, e)) => respond(&mut stream, status, "text/plain", format!("{e}\n").as_bytes()),
+        },
+        "/release" => {
+            let which = match parse_numbers(query, ["particle"]) {
+                Ok(_) if query.is_empty() => None,
+                Ok([p]) => Some(p),
+                Err(e) => return respond(&mut stream, "400 Bad Request", "text/plain", format!("{e}\n").as_bytes()),
+            };
+            let mut s = lock()?;
+            let before = s.holds_requested.len();
+            s.holds_requested.retain(|h| which.is_some_and(|p| h.0 as f64 != p));
+            let released = before - s.holds_requested.len();
+            drop(s);
+            let body = serde_json::json!({ "released": released }).to_string();
+            respond(&mut stream, "200 OK", "application/json", body.as_bytes())
+        }
         _ => respond(&mut stream, "404 Not Found", "text/plain", b"not found\n"),
     }
 }

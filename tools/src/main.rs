@@ -1,7 +1,9 @@
 //! `cloth`: run and validate cloth scenes.
 
 mod bench;
+mod export;
 mod fmu;
+mod gltf;
 mod live;
 mod output;
 mod run;
@@ -106,6 +108,16 @@ enum Command {
         #[arg(long, value_name = "S")]
         seconds: Option<f64>,
     },
+    /// Write a recorded run (`cloth run --frames N`) as one binary glTF
+    /// file: the cloth's motion as morph targets, the solids' as keyed
+    /// poses, the frame times (Blender: File > Import > glTF 2.0).
+    Export {
+        /// The run's output directory.
+        out: PathBuf,
+        /// Where to write (default OUT/run.glb).
+        #[arg(long, value_name = "FILE")]
+        to: Option<PathBuf>,
+    },
     /// Run a scene live: the simulation paced to real time in the server,
     /// the viewer page showing it as it computes and setting the wind
     /// (scenes whose wind is `profile = { kind = "external" }`).
@@ -195,6 +207,9 @@ fn main() -> ExitCode {
             fmu::build(&scene, &overrides, library.as_deref(), &out)
         }
         Command::View { out, port, seconds } => view::view(&out, port, seconds),
+        Command::Export { out, to } => export::export(&out, to.as_deref()).map(|path| {
+            println!("wrote {}", path.display());
+        }),
         Command::Live { scene, overrides, port, seconds, threads } => {
             live::live(&scene, &overrides, port, seconds, threads)
         }

@@ -26,15 +26,16 @@ fn load(path: &Path, overrides: &[String]) -> Result<(Scene, ClothModel, RunConf
     Ok((scene, model, cfg))
 }
 
-/// A cloth alone, or a cloth coupled with rapier bodies (a scene with `[[bodies]]`).
-enum Runner {
+/// A cloth alone, or a cloth coupled with rapier bodies (a scene with
+/// `[[bodies]]` or a `[rig]`).
+pub(crate) enum Runner {
     Alone(Box<Simulation>),
     Coupled(Box<CoupledRun>),
 }
 
 impl Runner {
     /// Loads `path`: with `[[bodies]]` a coupled run, else a cloth alone.
-    fn load(path: &Path, overrides: &[String]) -> Result<(Scene, RunConfig, Runner)> {
+    pub(crate) fn load(path: &Path, overrides: &[String]) -> Result<(Scene, RunConfig, Runner)> {
         let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
         if !has_bodies(&text) {
             let (scene, model, cfg) = load(path, overrides)?;
@@ -45,14 +46,26 @@ impl Runner {
         Ok((coupled.scene, run.config, Runner::Coupled(Box::new(run))))
     }
 
-    fn sim(&self) -> &Simulation {
+    pub(crate) fn sim(&self) -> &Simulation {
         match self {
             Runner::Alone(sim) => sim,
             Runner::Coupled(run) => run.cloths[run.cloth].simulation(),
         }
     }
 
-    fn step(&mut self, h: f64, totals: &mut CouplingTotals) -> Result<StepReport, String> {
+    /// The cloth's simulation, to set its inputs (wind, held particles)
+    /// between steps; stepped only through [`Runner::step`].
+    pub(crate) fn sim_mut(&mut self) -> &mut Simulation {
+        match self {
+            Runner::Alone(sim) => sim,
+            Runner::Coupled(run) => {
+                run.cloths.get_mut(run.cloth).expect("the scene's own cloth handle").simulation_mut()
+            }
+        }
+    }
+
+    /// One step of `h` (a coupled run steps by its scene's step).
+    pub(crate) fn step(&mut self, h: f64, totals: &mut CouplingTotals) -> Result<StepReport, String> {
         match self {
             Runner::Alone(sim) => sim.step(h).map_err(|e| e.to_string()),
             Runner::Coupled(run) => {
@@ -66,7 +79,7 @@ impl Runner {
 
 /// Coupling counters over a run.
 #[derive(Default)]
-struct CouplingTotals {
+pub(crate) struct CouplingTotals {
     passes: u64,
     passes_max: usize,
     unconverged: u64,

@@ -18,36 +18,62 @@ pub(crate) const PAGE: &str = include_str!("viewer.html");
 /// Longest request head read, bytes.
 const MAX_HEAD: usize = 16 * 1024;
 
+/// What `cloth run --frames N` left in its output directory.
+pub(crate) struct Recorded {
+    /// The summary's scene path.
+    pub scene: serde_json::Value,
+    /// The run's step, s.
+    pub dt_s: f64,
+    /// The frames in order: step and file name under `frames/`.
+    pub frames: Vec<(u64, String)>,
+    /// `frames/`.
+    pub dir: PathBuf,
+}
+
+impl Recorded {
+    /// Reads `out/summary.json` and lists `out/frames/frame_NNNNN.obj`.
+    pub(crate) fn read(out: &Path) -> Result<Self> {
+        let summary_path = out.join("summary.json");
+        let summary: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(&summary_path).with_context(|| format!("reading {}", summary_path.display()))?,
+        )
+        .with_context(|| format!("{} is not a summary", summary_path.display()))?;
+        let dt_s = summary["dt_s"].as_f64().context("summary.json: no dt_s")?;
+        let dir = out.join("frames");
+        let mut frames: Vec<(u64, String)> = std::fs::read_dir(&dir)
+            .with_context(|| format!("reading {} (run with --frames N)", dir.display()))?
+            .filter_map(|e| e.ok()?.file_name().into_string().ok())
+            .filter_map(|name| {
+                let step = name.strip_prefix("frame_")?.strip_suffix(".obj")?.parse().ok()?;
+                Some((step, name))
+            })
+            .collect();
+        frames.sort();
+        if frames.is_empty() {
+            bail!("no frames in {} (run with --frames N)", dir.display());
+        }
+        Ok(Self { scene: summary["scene"].clone(), dt_s, frames, dir })
+    }
+
+    /// The solids file, when the run wrote one.
+    pub(crate) fn solids_file(&self) -> Option<PathBuf> {
+        Some(self.dir.join(SOLIDS_FILE)).filter(|p| p.is_file())
+    }
+}
+
 /// What `/run.json` says: the frames in order and the run's step.
 fn run_json(out: &Path) -> Result<String> {
-    let summary_path = out.join("summary.json");
-    let summary: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(&summary_path).with_context(|| format!("reading {}", summary_path.display()))?,
-    )
-    .with_context(|| format!("{} is not a summary", summary_path.display()))?;
-    let dt = summary["dt_s"].as_f64().context("summary.json: no dt_s")?;
-    let dir = out.join("frames");
-    let mut frames: Vec<(u64, String)> = std::fs::read_dir(&dir)
-        .with_context(|| format!("reading {} (run with --frames N)", dir.display()))?
-        .filter_map(|e| e.ok()?.file_name().into_string().ok())
-        .filter_map(|name| {
-            let step = name.strip_prefix("frame_")?.strip_suffix(".obj")?.parse().ok()?;
-            Some((step, name))
-        })
-        .collect();
-    frames.sort();
-    if frames.is_empty() {
-        bail!("no frames in {} (run with --frames N)", dir.display());
-    }
-    let frames: Vec<serde_json::Value> = frames
+    let run = Recorded::read(out)?;
+    let frames: Vec<serde_json::Value> = run
+        .frames
         .iter()
-        .map(|(step, name)| serde_json::json!({ "file": name, "step": step, "time_s": *step as f64 * dt }))
+        .map(|(step, name)| serde_json::json!({ "file": name, "step": step, "time_s": *step as f64 * run.dt_s }))
         .collect();
     Ok(serde_json::to_string(&serde_json::json!({
-        "scene": summary["scene"],
-        "dt_s": dt,
+        "scene": run.scene,
+        "dt_s": run.dt_s,
         "frames": frames,
-        "solids": dir.join(SOLIDS_FILE).is_file(),
+        "solids": run.solids_file().is_some(),
     }))?)
 }
 

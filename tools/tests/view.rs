@@ -5,6 +5,7 @@
 
 mod common;
 
+use cloth_core::Vec3;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
 use std::path::{Path, PathBuf};
@@ -208,15 +209,29 @@ fn a_wind_set_live_blows_the_flag() {
 }
 
 #[test]
-fn live_refuses_what_it_cannot_drive() {
+fn live_refuses_a_wind_it_cannot_set() {
     // A scene whose wind is not external: no wind control.
     let server = live("drape-sphere.toml", &["--set", "panels.0.particles=[11, 11]"]);
     assert_eq!(server.request("GET", "/wind?x=1").0, 409);
-    // Rigid bodies are cloth-rapier's: not live yet.
-    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenes/hammock.toml");
-    let output = cloth().arg("live").arg(scene).args(["--seconds", "1"]).output().unwrap();
-    assert!(!output.status.success());
-    assert!(String::from_utf8_lossy(&output.stderr).contains("cloth-only scenes"));
+}
+
+/// A scene with rapier bodies runs live too: the hammock's ball, coupled
+/// both ways, falls onto the cloth and the page gets its pose (the posts
+/// stay where they are).
+#[test]
+fn a_rapier_scene_runs_live() {
+    let server = live("hammock.toml", &[]);
+    let start = live_state_after(&server, 0.0);
+    let later = live_state_after(&server, 0.6);
+    let z = |state: &serde_json::Value| -> Vec<f64> {
+        state["poses"].as_array().unwrap().iter().map(|p| p[2].as_f64().unwrap()).collect()
+    };
+    let (before, after) = (z(&start), z(&later));
+    println!("solid heights {before:?} -> {after:?} m");
+    let drops: Vec<f64> = before.iter().zip(&after).map(|(b, a)| b - a).collect();
+    assert_eq!(drops.len(), 3, "two posts and the ball");
+    assert_eq!(drops.iter().filter(|d| d.abs() < 1e-12).count(), 2, "{drops:?}");
+    assert!(drops.iter().any(|d| *d > 0.1), "{drops:?}");
 }
 
 /// The live page in headless Chromium sets the wind from its own query
@@ -233,4 +248,65 @@ fn chromium_sets_the_wind_live_and_draws_the_flag() {
     assert!(cloth > 1000.0, "{title}");
     // The server agrees: the wind the page set is the one the steps use.
     assert_eq!(live_state_after(&server, 0.0)["wind_m_s"], serde_json::json!([0.0, 8.0, 0.0]));
+}
+
+/// The first three numbers after `key ` in a check title.
+fn point_after(title: &str, key: &str) -> Vec3 {
+    let text = title.split(key).nth(1).and_then(|t| t.split([';', ' ']).next()).unwrap_or("");
+    let v: Vec<f64> = text.split(',').filter_map(|c| c.parse().ok()).collect();
+    assert_eq!(v.len(), 3, "{key} in {title}");
+    Vec3::new(v[0], v[1], v[2])
+}
+
+/// Holds and releases through the server: refusals first (a pinned
+/// particle: 409; no particle, out of range, not finite: 400), then a
+/// held particle of the flag goes where it is held and the server reports
+/// the pull on the hand; released, it is free again.
+#[test]
+fn a_particle_held_live_goes_where_it_is_held() {
+    let server = live("flag.toml", &FLAG_LIVE);
+    // 16 x 11 particles; particle 0 is on the pole, 15 the free bottom corner.
+    for (query, status) in
+        [("particle=0&x=0&y=0&z=1", 409), ("x=1", 400), ("particle=176&x=0", 400), ("particle=15&x=nan", 400)]
+    {
+        assert_eq!(server.request("GET", &format!("/hold?{query}")).0, status, "{query}");
+    }
+    let start = live_state_after(&server, 0.2);
+    assert_eq!(start["holds"], serde_json::json!([]));
+    let (status, _) = server.request("GET", "/hold?particle=15&x=1.2&y=0.3&z=1.1");
+    assert_eq!(status, 200);
+    let held = live_state_after(&server, start["time_s"].as_f64().unwrap() + 0.3);
+    let at: Vec<f64> = held["positions"].as_array().unwrap()[45..48].iter().map(|c| c.as_f64().unwrap()).collect();
+    let pull = &held["holds"][0]["pull_n"];
+    println!("held at {at:?}, pull {pull} N");
+    assert_eq!(held["holds"][0]["particle"], 15);
+    assert!((Vec3::new(at[0], at[1], at[2]) - Vec3::new(1.2, 0.3, 1.1)).norm() < 1e-12, "{at:?}");
+    assert!(pull.as_array().unwrap().iter().any(|f| f.as_f64().unwrap().abs() > 1e-3), "{pull}");
+    let (status, body) = server.request("GET", "/release?particle=15");
+    assert_eq!((status, String::from_utf8_lossy(&body).trim()), (200, r#"{"released":1}"#));
+    let free = live_state_after(&server, held["time_s"].as_f64().unwrap() + 0.3);
+    let y = free["positions"][46].as_f64().unwrap();
+    println!("released: y {y:.4} m");
+    assert_eq!(free["holds"], serde_json::json!([]));
+    assert!((y - 0.3).abs() > 1e-3, "{y}");
+}
+
+/// The live page in headless Chromium grabs the flag under the middle of
+/// the canvas, drags it up and to the right, and the server moves that
+/// particle there; released from the page, the server holds nothing.
+#[test]
+fn chromium_grabs_the_flag_and_lets_it_go() {
+    let Some(chromium) = common::outside_tool("CHROMIUM", "chromium-headless-shell") else { return };
+    let server = live("flag.toml", &FLAG_LIVE);
+    let title = server.title_in_chromium(&chromium, "check&grab=0.5,0.5,0.7,0.3&release");
+    println!("{title}");
+    let (from, target, at) = (point_after(&title, "from "), point_after(&title, "to "), point_after(&title, "at "));
+    let particle: usize = title.split("held ").nth(1).and_then(|t| t.split(' ').next()).unwrap().parse().unwrap();
+    assert!(!particle.is_multiple_of(16), "{particle}: a pole particle");
+    // Dragged up and to the right on screen: well away from where it was.
+    assert!((target - from).norm() > 0.05 && target.z > from.z, "{from} -> {target}");
+    // The server had the particle exactly where the page held it.
+    assert!((at - target).norm() < 1e-9, "{at} vs {target}");
+    assert!(title.contains("; released at "), "{title}");
+    assert_eq!(live_state_after(&server, 0.0)["holds"], serde_json::json!([]));
 }

@@ -6,6 +6,8 @@
 //!   `motion` is `{ kind = "external" }`): its pose at the start of the step
 //!   and its linear and angular velocity over the step ([`SolidMotion`]);
 //! - the position at the end of the step of each externally driven pin;
+//! - particles held by hand ([`Control::hold`]): any free particle, moved
+//!   to a target as if pinned until let go (a mouse grabbing the cloth);
 //! - external forces per particle, N, held constant over the step.
 //!
 //! Outputs (read after a step): per solid, the impulse and angular impulse
@@ -119,6 +121,20 @@ pub enum ControlError {
         /// The pin.
         index: usize,
     },
+    /// No particle with this index.
+    #[error("particle {index}: the model has {count} particles")]
+    NoSuchParticle {
+        /// The index given.
+        index: usize,
+        /// Particles in the model.
+        count: usize,
+    },
+    /// The particle is pinned by the scene; only free particles are held.
+    #[error("particle {index}: pinned by the scene, so it cannot be held")]
+    ParticlePinned {
+        /// The particle.
+        index: usize,
+    },
     /// The model has no wind, or its wind follows a profile from the scene.
     #[error("wind: the model's air velocity is not external; declare [wind] profile = {{ kind = \"external\" }}")]
     WindNotExternal,
@@ -144,6 +160,8 @@ pub enum ControlError {
 pub struct Control {
     solids: Vec<Option<SolidMotion>>,
     pins: Vec<Option<Vec3>>,
+    /// Held particles and their targets, sorted by particle.
+    holds: Vec<(usize, Vec3)>,
     forces: Vec<Vec3>,
     has_forces: bool,
     wind: Option<Vec3>,
@@ -155,6 +173,7 @@ impl Control {
         Self {
             solids: vec![None; model.colliders().len()],
             pins: vec![None; model.pins().len()],
+            holds: Vec::new(),
             forces: Vec::new(),
             has_forces: false,
             wind: None,
@@ -195,6 +214,40 @@ impl Control {
         }
         self.pins[index] = Some(position);
         Ok(())
+    }
+
+    /// Holds free particle `particle` and moves it to `target` (m) by the
+    /// end of the next step, on a straight line from where it is; it stays
+    /// held there, as if pinned, until moved again or let go
+    /// ([`Control::let_go`]). Particles pinned by the scene are refused.
+    pub fn hold(&mut self, model: &ClothModel, particle: usize, target: Vec3) -> Result<(), ControlError> {
+        let count = model.particle_count();
+        if particle >= count {
+            return Err(ControlError::NoSuchParticle { index: particle, count });
+        }
+        if model.is_pinned(particle) {
+            return Err(ControlError::ParticlePinned { index: particle });
+        }
+        if !target.iter().all(|c| c.is_finite()) {
+            return Err(ControlError::NonFinite { what: format!("particle {particle} hold target") });
+        }
+        match self.holds.binary_search_by_key(&particle, |h| h.0) {
+            Ok(k) => self.holds[k].1 = target,
+            Err(k) => self.holds.insert(k, (particle, target)),
+        }
+        Ok(())
+    }
+
+    /// Lets held particle `particle` go (it keeps its velocity); whether
+    /// it was held.
+    pub fn let_go(&mut self, particle: usize) -> bool {
+        let found = self.holds.binary_search_by_key(&particle, |h| h.0);
+        found.map(|k| self.holds.remove(k)).is_ok()
+    }
+
+    /// The held particles and their targets (m), sorted by particle.
+    pub fn holds(&self) -> &[(usize, Vec3)] {
+        &self.holds
     }
 
     /// Sets external forces on every particle, N, constant over each step
@@ -265,9 +318,12 @@ impl Control {
     }
 }
 
-/// Where each pin is during one step from `t0` to `t0 + h`: its scene path,
-/// or, for an external pin, the straight line from its particle's position
-/// `x0` to the target (held in place without one).
+/// Where each prescribed particle is during one step from `t0` to
+/// `t0 + h`: first the model's pins (index `k` = the pin's index), on their
+/// scene path or, for an external pin, on the straight line from its
+/// particle's position `x0` to the target (held in place without one); then
+/// the control's held particles (`k = pins + j` for hold `j`), on the
+/// straight line to their target.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct PinPaths<'a> {
     model: &'a ClothModel,
@@ -282,30 +338,46 @@ impl<'a> PinPaths<'a> {
         Self { model, control, x0, t0, h }
     }
 
-    /// The model the pins belong to.
-    pub(crate) fn model(&self) -> &'a ClothModel {
-        self.model
+    /// How many particles are prescribed: pins, then held particles.
+    pub(crate) fn count(&self) -> usize {
+        self.model.pins().len() + self.control.holds.len()
     }
 
-    /// Velocity of external pin `k` over the step, m/s.
-    fn external_velocity(&self, k: usize) -> Vec3 {
-        let start = self.x0[self.model.pins()[k].particle];
-        self.control.pin_target(k).map_or(Vec3::zeros(), |target| (target - start) / self.h)
+    /// The particle of prescribed entry `k`.
+    pub(crate) fn particle(&self, k: usize) -> usize {
+        let pins = self.model.pins();
+        pins.get(k).map_or_else(|| self.control.holds[k - pins.len()].0, |p| p.particle)
     }
 
-    /// Position of pin `k` at time `t` (s), m.
+    /// The particles of every entry, in entry order.
+    pub(crate) fn particles(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..self.count()).map(|k| self.particle(k))
+    }
+
+    /// Velocity of entry `k` moving on a straight line to its target over
+    /// the step (or resting without one), m/s.
+    fn straight_velocity(&self, k: usize) -> Vec3 {
+        let pins = self.model.pins().len();
+        let target = if k < pins { self.control.pin_target(k) } else { Some(self.control.holds[k - pins].1) };
+        target.map_or(Vec3::zeros(), |target| (target - self.x0[self.particle(k)]) / self.h)
+    }
+
+    /// Whether entry `k` follows a scene path (else a straight line to a target).
+    fn on_scene_path(&self, k: usize) -> bool {
+        self.model.pins().get(k).is_some_and(|p| !p.is_external())
+    }
+
+    /// Position of entry `k` at time `t` (s), m.
     pub(crate) fn position(&self, k: usize, t: f64) -> Vec3 {
-        let pin = &self.model.pins()[k];
-        if pin.is_external() {
-            self.x0[pin.particle] + self.external_velocity(k) * (t - self.t0)
+        if self.on_scene_path(k) {
+            self.model.pins()[k].position(t)
         } else {
-            pin.position(t)
+            self.x0[self.particle(k)] + self.straight_velocity(k) * (t - self.t0)
         }
     }
 
-    /// Velocity of pin `k` at time `t` (s), m/s.
+    /// Velocity of entry `k` at time `t` (s), m/s.
     pub(crate) fn velocity(&self, k: usize, t: f64) -> Vec3 {
-        let pin = &self.model.pins()[k];
-        if pin.is_external() { self.external_velocity(k) } else { pin.velocity(t) }
+        if self.on_scene_path(k) { self.model.pins()[k].velocity(t) } else { self.straight_velocity(k) }
     }
 }

@@ -3,7 +3,7 @@
 //!
 //! `gain = dE + D - W` with `E = kinetic + elastic + gravitational`, `D`
 //! the dissipation of link dampers and drag over the step and `W` the work
-//! of pins and external forces (wind, the control's forces, self-collision
+//! of pins, held particles and external forces (wind, the control's forces, self-collision
 //! repulsion). A stable implicit step has `gain <= 0` up to the per-step
 //! fluctuation of a multistep method (BDF2's energy is not monotone step by
 //! step); a step is flagged when `gain` exceeds
@@ -62,7 +62,9 @@ pub(crate) struct StepEnergy<'a> {
     pub x: &'a [Vec3],
     pub new_x: &'a [Vec3],
     pub new_v: &'a [Vec3],
-    /// Force of each pin on its particle over the step, N.
+    /// The step's pinned and held particles.
+    pub pins: crate::control::PinPaths<'a>,
+    /// Force of each pin (and hold) on its particle over the step, N.
     pub pin_forces: &'a [Vec3],
     /// External forces of the step, N (when present).
     pub external: Option<&'a [Vec3]>,
@@ -75,7 +77,7 @@ impl StepEnergy<'_> {
     /// The balance; `after` is [`mechanical`] of the new state.
     pub(crate) fn report(&self, model: &ClothModel, after: (f64, f64, f64)) -> EnergyReport {
         let dx = |i: usize| self.new_x[i] - self.x[i];
-        let pin_work: f64 = model.pins().iter().zip(self.pin_forces).map(|(p, f)| f.dot(&dx(p.particle))).sum();
+        let pin_work: f64 = self.pins.particles().zip(self.pin_forces).map(|(i, f)| f.dot(&dx(i))).sum();
         let external_work = self.external.map_or(0.0, |f| (0..f.len()).map(|i| f[i].dot(&dx(i))).sum());
         let v = self.new_v;
         let mut rate: f64 = (0..v.len()).map(|i| model.drag(i) * v[i].norm_squared()).sum();

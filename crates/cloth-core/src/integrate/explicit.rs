@@ -107,11 +107,11 @@ impl ExplicitBuffers {
     }
 }
 
-/// Sets pinned particles to their path at time `t`.
+/// Sets pinned and held particles to their path at time `t`.
 fn impose_pins(paths: &PinPaths<'_>, t: f64, x: &mut [Vec3], v: &mut [Vec3]) {
-    for (k, pin) in paths.model().pins().iter().enumerate() {
-        x[pin.particle] = paths.position(k, t);
-        v[pin.particle] = paths.velocity(k, t);
+    for k in 0..paths.count() {
+        let i = paths.particle(k);
+        (x[i], v[i]) = (paths.position(k, t), paths.velocity(k, t));
     }
 }
 
@@ -173,9 +173,9 @@ pub(crate) fn rk_step(
         kx.copy_from_slice(&bufs.vs);
         kv.iter_mut().zip(&bufs.force).zip(masses).for_each(|((a, f), m)| *a = f / *m);
         // The force the pins must cancel, quadrature-weighted like the step.
-        for (pin, applied) in model.pins().iter().zip(&mut bufs.pin_impulse) {
-            *applied -= bufs.force[pin.particle] * (h * tab.b[s]);
-            kv[pin.particle] = Vec3::zeros();
+        for (i, applied) in pins.particles().zip(&mut bufs.pin_impulse) {
+            *applied -= bufs.force[i] * (h * tab.b[s]);
+            kv[i] = Vec3::zeros();
         }
     }
     let t_update = Instant::now();
@@ -226,8 +226,8 @@ pub(crate) fn symplectic_euler_step(
         bufs.v_new[i] = v[i] + bufs.force[i] * (h / masses[i]);
         bufs.x_new[i] = x[i] + bufs.v_new[i] * h;
     }
-    for (pin, applied) in model.pins().iter().zip(&mut bufs.pin_impulse) {
-        *applied = -bufs.force[pin.particle] * h;
+    for (i, applied) in pins.particles().zip(&mut bufs.pin_impulse) {
+        *applied = -bufs.force[i] * h;
     }
     impose_pins(&pins, t + h, &mut bufs.x_new, &mut bufs.v_new);
     stages_time.update_s += t_update.elapsed().as_secs_f64();
@@ -322,8 +322,12 @@ impl crate::Integrator for Explicit {
         crate::integrator::reject_self_collision(model, self.0)?;
         let mut report = StepReport { converged: true, substeps: 1, ..Default::default() };
         let mut next_dt = 0.0;
-        let bufs = ws.explicit.get_or_insert_with(|| ExplicitBuffers::new(model, DOPRI5.c.len()));
         let pins = PinPaths::new(model, control, &state.x, state.time_s, h);
+        // Held particles come and go: one entry per prescribed particle.
+        ws.pin_forces.resize(pins.count(), Vec3::zeros());
+        let bufs = ws.explicit.get_or_insert_with(|| ExplicitBuffers::new(model, DOPRI5.c.len()));
+        bufs.pin_impulse.resize(pins.count(), Vec3::zeros());
+        bufs.pin_total.resize(pins.count(), Vec3::zeros());
         let start = Start { x: &state.x, v: &state.v, t: state.time_s, pins, control };
         match self.0 {
             K::SymplecticEuler => {
@@ -351,8 +355,7 @@ impl crate::Integrator for Explicit {
         // What the pin gave its particle: its momentum change less the
         // other forces' impulse, as a mean force over the step.
         let masses = model.masses();
-        for ((pin, f), other) in model.pins().iter().zip(&mut ws.pin_forces).zip(&bufs.pin_total) {
-            let i = pin.particle;
+        for ((i, f), other) in pins.particles().zip(&mut ws.pin_forces).zip(&bufs.pin_total) {
             *f = ((bufs.v_new[i] - state.v[i]) * masses[i] + other) / h;
         }
         std::mem::swap(&mut ws.new_x, &mut bufs.x_new);

@@ -665,10 +665,12 @@ fn uncommitted_step<S: Linearised>(
         false
     };
     let t_update = Instant::now();
-    // The force each pin exerts: its row of the unfiltered residual (after
-    // Newton the system is assembled at the final iterate: `rhs = -r`).
-    for (pin, f) in model.pins().iter().zip(&mut ws.pin_forces) {
-        let i = pin.particle;
+    // The force each pin (and hold) exerts: its row of the unfiltered
+    // residual (after Newton the system is assembled at the final iterate:
+    // `rhs = -r`).
+    let pins = PinPaths::new(model, control, &state.x, state.time_s, h);
+    ws.pin_forces.resize(pins.count(), Vec3::zeros());
+    for (i, f) in pins.particles().zip(&mut ws.pin_forces) {
         let residual =
             if newton { -ws.system.rhs[i] } else { ws.system.matrix.row_times(i, &ws.unknown) - ws.system.rhs[i] };
         *f = residual / force_coefficient;
@@ -700,6 +702,7 @@ fn uncommitted_step<S: Linearised>(
         x: &state.x,
         new_x: &ws.new_x,
         new_v: &ws.new_v,
+        pins,
         pin_forces: &ws.pin_forces,
         external: loads.external.then_some(&ws.external[..]),
         h,
@@ -882,10 +885,11 @@ pub(crate) fn constrain_pins(
     filter.clear();
     let t_next = state.time_s + h;
     let paths = PinPaths::new(model, control, &state.x, state.time_s, h);
-    for (k, pin) in model.pins().iter().enumerate() {
-        let z = value(paths.position(k, t_next), pin.particle);
+    for k in 0..paths.count() {
+        let i = paths.particle(k);
+        let z = value(paths.position(k, t_next), i);
         // A non-finite prescribed value is caught as a non-finite state below.
-        let _ = filter.set(pin.particle, Constraint::Fixed, z);
+        let _ = filter.set(i, Constraint::Fixed, z);
     }
 }
 

@@ -6,7 +6,7 @@
 //! mass part, and CG runs exactly `SolverParams::fixed_cg_iterations`
 //! iterations with the product computed link by link, never assembled.
 
-use crate::control::Control;
+use crate::control::{Control, PinPaths};
 use crate::{
     ClothModel, ClothState, SolverParams, Vec3, Workspace,
     forces::{apply_scaled_operator, assemble_matrix_free},
@@ -91,11 +91,12 @@ impl crate::Integrator for BackwardEulerFixedCg {
             }
             Err(other) => unreachable!("fixed-iteration CG reports only curvature and finiteness: {other}"),
         };
-        if !model.pins().is_empty() {
+        let pins = PinPaths::new(model, control, &state.x, state.time_s, h);
+        if pins.count() > 0 {
             // Pin forces from the unfiltered residual, one more operator product.
             apply_scaled_operator(model, system, inv_sqrt_mass, &ws.unknown, &mut ws.aux);
-            for (pin, f) in model.pins().iter().zip(&mut ws.pin_forces) {
-                let i = pin.particle;
+            ws.pin_forces.resize(pins.count(), Vec3::zeros());
+            for (i, f) in pins.particles().zip(&mut ws.pin_forces) {
                 *f = (ws.aux[i] - mf.scaled_rhs[i]) / (inv_sqrt_mass[i] * h);
             }
         }

@@ -40,7 +40,8 @@ impl Simulation {
         if let Some(limit) = self.model.strain_limit() {
             let t = std::time::Instant::now();
             let ClothState { x, v, x_prev, time_s, .. } = &mut self.state;
-            report.strain_corrections = apply_strain_limit(&self.model, &limit, x, v, h).corrections;
+            let held = self.control.holds();
+            report.strain_corrections = apply_strain_limit(&self.model, &limit, held, x, v, h).corrections;
             // The corrections may move particles into solids: move them out.
             if !self.model.colliders().is_empty() {
                 let contacts = &mut self.workspace.contacts;
@@ -94,6 +95,18 @@ impl Simulation {
         self.control.set_pin_target(&self.model, index, position)
     }
 
+    /// Holds free particle `particle` and moves it to `target` (m) by the
+    /// end of the next step, then keeps it there until moved again or let
+    /// go (see [`Control::hold`]): a hand grabbing the cloth.
+    pub fn hold(&mut self, particle: usize, target: Vec3) -> Result<(), ControlError> {
+        self.control.hold(&self.model, particle, target)
+    }
+
+    /// Lets a held particle go; whether it was held.
+    pub fn let_go(&mut self, particle: usize) -> bool {
+        self.control.let_go(particle)
+    }
+
     /// Sets the air velocity of an external wind for the next steps, m/s
     /// (see [`Control::set_wind`]).
     pub fn set_wind(&mut self, velocity: Vec3) -> Result<(), ControlError> {
@@ -130,6 +143,14 @@ impl Simulation {
     /// cloth pulls its pins down). Zero before the first step.
     pub fn pin_reaction(&self, index: usize) -> Vec3 {
         self.workspace.pin_forces.get(index).map_or(Vec3::zeros(), |f| -f)
+    }
+
+    /// The mean force the cloth exerted on held particle `particle` over
+    /// the last step, N (what the hand feels); `None` when it is not held.
+    pub fn hold_reaction(&self, particle: usize) -> Option<Vec3> {
+        let j = self.control.holds().binary_search_by_key(&particle, |h| h.0).ok()?;
+        let f = self.workspace.pin_forces.get(self.model.pins().len() + j).copied().unwrap_or_default();
+        Some(-f)
     }
 
     /// Deepest any particle is inside a solid now, m (0 when none is), with

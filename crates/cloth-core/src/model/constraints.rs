@@ -2,7 +2,7 @@
 //! step, links stretched beyond `(1 + tau_c) L` are shortened back by
 //! moving their ends, so a cloth does not stretch like rubber where it
 //! hangs from few points. Only type-1 (structural and shear) links are
-//! constrained; pinned particles never move.
+//! constrained; pinned and held particles never move.
 
 use crate::{ClothModel, StrainLimit, Vec3};
 
@@ -20,9 +20,12 @@ pub struct StrainLimitReport {
 /// earlier in it, so convergence is linear: `passes` is a cap, and the pass
 /// loop stops as soon as no link is too long. Velocities get the same correction
 /// divided by `h`, so `v` stays consistent with the corrected motion.
+/// Pinned particles never move, nor those `held` (sorted particle indices,
+/// as [`crate::Control::holds`] lists them).
 pub fn apply_strain_limit(
     model: &ClothModel,
     limit: &StrainLimit,
+    held: &[(usize, Vec3)],
     x: &mut [Vec3],
     v: &mut [Vec3],
     h: f64,
@@ -42,7 +45,8 @@ pub fn apply_strain_limit(
             if d <= max_len * (1.0 + 1e-12) {
                 continue;
             }
-            let (free_i, free_j) = (!model.is_pinned(i), !model.is_pinned(j));
+            let free = |q: usize| !model.is_pinned(q) && held.binary_search_by_key(&q, |h| h.0).is_err();
+            let (free_i, free_j) = (free(i), free(j));
             // Share of the excess each end takes.
             let (wi, wj) = match (free_i, free_j) {
                 (true, true) => (0.5, 0.5),
