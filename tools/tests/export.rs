@@ -5,29 +5,14 @@
 
 mod common;
 
+use common::cloth;
 use std::path::{Path, PathBuf};
 use std::process::Command;
-
-fn cloth() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_cloth"))
-}
 
 /// The sweep (a ball on a path pushing into a hanging curtain), small and
 /// short, with a frame every 9 steps, in its own directory.
 fn sweep_run(name: &str) -> PathBuf {
-    let out = std::env::temp_dir().join(format!("cloth-export-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&out);
-    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenes/sweep.toml");
-    let status = cloth()
-        .arg("run")
-        .arg(scene)
-        .args(["--quiet", "--frames", "9", "--set", "panels.0.particles=[16, 16]", "--set", "simulation.duration_s=1"])
-        .arg("--out")
-        .arg(&out)
-        .status()
-        .unwrap();
-    assert!(status.success());
-    out
+    common::recorded_run("export", name, "sweep.toml", &["panels.0.particles=[16, 16]", "simulation.duration_s=1"])
 }
 
 #[test]

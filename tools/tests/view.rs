@@ -6,38 +6,20 @@
 mod common;
 
 use cloth_core::Vec3;
+use common::cloth;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 
-fn cloth() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_cloth"))
-}
-
 /// The sphere drape, small and short, with frames, in its own directory.
 fn drape_run(name: &str) -> PathBuf {
-    let out = std::env::temp_dir().join(format!("cloth-view-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&out);
-    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenes/drape-sphere.toml");
-    let status = cloth()
-        .arg("run")
-        .arg(scene)
-        .args([
-            "--quiet",
-            "--frames",
-            "9",
-            "--set",
-            "panels.0.particles=[21, 21]",
-            "--set",
-            "simulation.duration_s=0.6",
-        ])
-        .arg("--out")
-        .arg(&out)
-        .status()
-        .unwrap();
-    assert!(status.success());
-    out
+    common::recorded_run(
+        "view",
+        name,
+        "drape-sphere.toml",
+        &["panels.0.particles=[21, 21]", "simulation.duration_s=0.6"],
+    )
 }
 
 /// A running `cloth view` and its address; stopped when dropped.
