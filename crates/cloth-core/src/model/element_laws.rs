@@ -63,6 +63,22 @@ impl TriangleRest {
     }
 }
 
+/// What an element law returns for `K` corners without its matrix (for
+/// explicit steps and energies: no Hessian built, none copied).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ElementForces<const K: usize> {
+    /// Energy, J.
+    pub energy: f64,
+    /// Force on each corner, N.
+    pub forces: [Vec3; K],
+}
+
+impl<const K: usize> From<ElementResponse<K>> for ElementForces<K> {
+    fn from(r: ElementResponse<K>) -> Self {
+        Self { energy: r.energy, forces: r.forces }
+    }
+}
+
 /// What an element law returns for `K` corners.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ElementResponse<const K: usize> {
@@ -320,7 +336,20 @@ pub const SHORTEST_HALF: f64 = 1e-3;
 ///
 /// `rest` in m, `k_b` in N m^2.
 pub fn bend_triple_with(x: [Vec3; 3], rest: f64, k_b: f64, hessian: bool) -> ElementResponse<3> {
-    let zero = ElementResponse { energy: 0.0, forces: [Vec3::zeros(); 3], hessian: [[Mat3::zeros(); 3]; 3] };
+    let mut h = [[Mat3::zeros(); 3]; 3];
+    let ElementForces { energy, forces } = bend_triple_into(x, rest, k_b, hessian.then_some(&mut h));
+    ElementResponse { energy, forces, hessian: h }
+}
+
+/// [`bend_triple_with`] without the matrix.
+pub fn bend_triple_forces(x: [Vec3; 3], rest: f64, k_b: f64) -> ElementForces<3> {
+    bend_triple_into(x, rest, k_b, None)
+}
+
+/// [`bend_triple_with`]'s energy and forces, and its matrix into `hessian`
+/// when given (left as it was when the path is degenerate).
+fn bend_triple_into(x: [Vec3; 3], rest: f64, k_b: f64, hessian: Option<&mut [[Mat3; 3]; 3]>) -> ElementForces<3> {
+    let zero = ElementForces { energy: 0.0, forces: [Vec3::zeros(); 3] };
     let (c, a, b) = (x[2] - x[0], x[1] - x[0], x[2] - x[1]);
     let (d, l1, l2) = (c.norm(), a.norm(), b.norm());
     let shortest = SHORTEST_HALF * rest;
@@ -343,19 +372,19 @@ pub fn bend_triple_with(x: [Vec3; 3], rest: f64, k_b: f64, hessian: bool) -> Ele
     let q = d / (l * l);
     let grad = [-u / l + e1 * q, -(e1 - e2) * q, u / l - e2 * q];
     let forces = grad.map(|g| -g * de);
-    if !hessian {
-        return ElementResponse { energy: law.energy, forces, ..zero };
+    if let Some(hessian) = hessian {
+        // J = d (t_2 - t_1) / dx, blockwise; the projections are symmetric.
+        let tangent_change = |e: Vec3, len: f64| {
+            if e == Vec3::zeros() { Mat3::zeros() } else { (Mat3::identity() - e * e.transpose()) / len }
+        };
+        let (p1, p2) = (tangent_change(e1, l1), tangent_change(e2, l2));
+        let jac = [p1, -p1 - p2, p2];
+        let c_geo = -de * l1 * l2 / (l * l);
+        *hessian = std::array::from_fn(|s| {
+            std::array::from_fn(|t| grad[s] * grad[t].transpose() * dde + jac[s] * jac[t] * c_geo)
+        });
     }
-    // J = d (t_2 - t_1) / dx, blockwise; the projections are symmetric.
-    let tangent_change = |e: Vec3, len: f64| {
-        if e == Vec3::zeros() { Mat3::zeros() } else { (Mat3::identity() - e * e.transpose()) / len }
-    };
-    let (p1, p2) = (tangent_change(e1, l1), tangent_change(e2, l2));
-    let jac = [p1, -p1 - p2, p2];
-    let c_geo = -de * l1 * l2 / (l * l);
-    let hessian =
-        std::array::from_fn(|s| std::array::from_fn(|t| grad[s] * grad[t].transpose() * dde + jac[s] * jac[t] * c_geo));
-    ElementResponse { energy: law.energy, forces, hessian }
+    ElementForces { energy: law.energy, forces }
 }
 
 #[cfg(test)]

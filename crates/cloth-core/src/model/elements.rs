@@ -8,7 +8,8 @@
 //! its elements in a fixed order, as for links.
 
 use crate::element_laws::{
-    ElementResponse, TriangleRest, bend_triple_with, curvature_bending_with, membrane_triangle_with,
+    ElementForces, ElementResponse, TriangleRest, bend_triple_forces, bend_triple_with, curvature_bending_with,
+    membrane_triangle_with,
 };
 use crate::{Mat3, Vec3};
 use cloth_linalg::{BlockPattern, ROW_CHUNK};
@@ -178,11 +179,13 @@ impl<const K: usize> KindBuffers<K> {
     /// Evaluates `law(e, hessian)` for every element `e` with corners
     /// `nodes(e)`, in parallel, into right-hand sides and (with a Hessian)
     /// blocks `c_x H_ab`.
+    #[allow(clippy::too_many_arguments)]
     fn evaluate<E: Sync>(
         &mut self,
         elems: &[E],
         nodes: impl Fn(&E) -> [u32; K] + Sync,
-        law: impl Fn(&E, bool) -> ElementResponse<K> + Sync,
+        law: impl Fn(&E) -> ElementResponse<K> + Sync,
+        forces_only: impl Fn(&E) -> ElementForces<K> + Sync,
         c_x: f64,
         force: f64,
         k_times: Option<(f64, &[Vec3])>,
@@ -194,13 +197,14 @@ impl<const K: usize> KindBuffers<K> {
                 .zip(elems.par_iter())
                 .with_min_len(ROW_CHUNK)
                 .for_each(|((out, blocks), e)| {
-                    let r = law(e, true);
+                    let r = law(e);
                     *out = fold(&r, &nodes(e), force, k_times);
                     *blocks = r.hessian.map(|row| row.map(|h| h * c_x));
                 });
         } else {
             self.rhs.par_iter_mut().zip(elems.par_iter()).with_min_len(ROW_CHUNK).for_each(|(out, e)| {
-                *out = fold(&law(e, false), &nodes(e), force, None);
+                let r = forces_only(e);
+                *out = ElementRhs { energy: r.energy, rhs: r.forces.map(|f| f * force) };
             });
         }
     }
@@ -264,7 +268,8 @@ pub fn evaluate(
     bufs.membranes.evaluate(
         &set.membranes,
         |m| m.nodes,
-        |m, h| membrane_triangle_with(at(&m.nodes), &m.rest, h),
+        |m| membrane_triangle_with(at(&m.nodes), &m.rest, true),
+        |m| membrane_triangle_with(at(&m.nodes), &m.rest, false).into(),
         c_x,
         force,
         k_times,
@@ -272,7 +277,8 @@ pub fn evaluate(
     bufs.curvatures.evaluate(
         &set.curvatures,
         |e| e.nodes,
-        |e, h| curvature_bending_with(e.nodes.map(|p| x[p as usize]), e.rest_angles, &e.stiffness, h),
+        |e| curvature_bending_with(e.nodes.map(|p| x[p as usize]), e.rest_angles, &e.stiffness, true),
+        |e| curvature_bending_with(e.nodes.map(|p| x[p as usize]), e.rest_angles, &e.stiffness, false).into(),
         c_x,
         force,
         k_times,
@@ -280,7 +286,8 @@ pub fn evaluate(
     bufs.triples.evaluate(
         &set.triples,
         |t| t.nodes,
-        |t, h| bend_triple_with(at(&t.nodes), t.rest, t.k_b, h),
+        |t| bend_triple_with(at(&t.nodes), t.rest, t.k_b, true),
+        |t| bend_triple_forces(at(&t.nodes), t.rest, t.k_b),
         c_x,
         force,
         k_times,
