@@ -412,6 +412,18 @@ pub fn drape(args: &StudyArgs) -> Result<()> {
                 r.cg_iterations,
                 r.step_wall_s
             );
+            // A long study says where it is (101 x 101: tens of minutes).
+            eprintln!(
+                "drape: {} h = {h}: {}, {} steps, {:.1} s",
+                method.label,
+                match (r.stable, reached) {
+                    (false, _) => "blew up".to_string(),
+                    (true, None) => "not vertical within the run".to_string(),
+                    (true, Some(t)) => format!("vertical at {t:.3} s"),
+                },
+                r.steps,
+                r.step_wall_s
+            );
             let cell = match (r.stable, reached) {
                 (false, _) => "x".into(),
                 (true, None) => "-".into(),
