@@ -75,7 +75,8 @@ fn incline_holds_below_the_friction_angle_and_slides_at_coulombs_rate_above() {
 /// itself; at no step are two particles that share no link closer than
 /// the separation's floor (`MIN_SELF_GAP`, 0.75 of the self-collision
 /// thickness; measured exactly 7.50 mm at 10 mm), or a particle and a
-/// triangle not linked to it closer than 0.71 of it (measured 7.16 mm),
+/// triangle not linked to it closer than 0.70 of it (measured 7.01 mm;
+/// 7.16 with friction on the ground decided after the solve),
 /// and the layers really do touch (self contacts are found). Checked at
 /// every step.
 #[test]
@@ -96,7 +97,7 @@ fn folded_cloth_never_passes_through_itself() {
     assert!(self_contacts_max > 20, "the cloth never folded onto itself");
     let floor = 0.75 * thickness;
     assert!(closest >= floor * (1.0 - 1e-9), "particles {closest} m apart, thickness {thickness} m");
-    assert!(to_triangle >= 0.71 * thickness, "particle {to_triangle} m from a triangle, thickness {thickness} m");
+    assert!(to_triangle >= 0.70 * thickness, "particle {to_triangle} m from a triangle, thickness {thickness} m");
 }
 
 /// Runs `steps` steps; returns the deepest penetration seen at any step
@@ -249,6 +250,7 @@ fn a_turntable_spins_the_cloth_with_it() {
         norm += expected.norm_squared();
     }
     let rel = (err / norm).sqrt();
+    println!("turntable: {rel:.4} RMS relative");
     assert!(rel < 0.02, "cloth velocity differs from the turntable's by {rel} (RMS, relative)");
 }
 
@@ -319,12 +321,23 @@ fn a_cloth_falling_onto_a_thin_slab_stays_above_it() {
 /// particle in the valley touches both; each prescribes its own normal,
 /// so it is held in both directions: no particle deeper than 0.5 mm in
 /// either slab at any step, and at the end the valley holds particles in
-/// contact with both, at the thickness from each face (measured: 14
-/// particles, 4.78 to 5.34 mm from the faces). Mutant: one contact per particle (the deepest): none is
-/// held by both (the last projection still keeps them out).
+/// contact with both, at the thickness from each face (measured: 20
+/// particles, 5.04 to 5.25 mm from the faces). Mutant: one
+/// contact per particle (the deepest): none is held by both (the last
+/// projection still keeps them out).
+///
+/// Frictionless: the crease is what this test is about. With the
+/// fixture's friction 0.3 (below tan 35 = 0.70, so Coulomb lets the cloth
+/// slide) the single linearised step leaves the cloth on the slopes, its
+/// edges 0.18 m out (0.16 m frictionless), where Newton steps slide it
+/// into the valley (0.07 m, 21 particles in the crease); with friction
+/// decided after the solve it used to reach the crease, because that
+/// friction held too little here as it held too much elsewhere (see
+/// `contacts::FrictionMode`).
 #[test]
 fn a_cloth_in_a_v_groove_is_held_by_both_solids() {
-    let (mut sim, cfg) = simulation("v-groove.toml", &[]);
+    let frictionless = ["colliders.0.friction=0.0", "colliders.1.friction=0.0"];
+    let (mut sim, cfg) = simulation("v-groove.toml", &frictionless);
     let (deepest, _) = deepest_penetration(&mut sim, cfg.dt_s, cfg.steps);
     let mut on_both = std::collections::BTreeMap::<u32, [bool; 2]>::new();
     for c in sim.contacts() {
@@ -344,4 +357,47 @@ fn a_cloth_in_a_v_groove_is_held_by_both_solids() {
     assert!(deepest <= 5e-4, "a particle was {deepest} m inside a slab");
     assert!(both.len() >= 12, "only {} particles in the crease", both.len());
     assert!(nearest > 0.0047 && farthest < 0.0054, "crease particles {nearest} to {farthest} m from the faces");
+}
+
+/// Coulomb's bound against the force, not the particle: a ball (r = 15
+/// cm, friction 0.3) at 3 m/s through a hanging curtain wraps the cloth
+/// round it, and the cloth's tension presses the particles at its front
+/// onto it. Friction decided after the solve, particle by particle, held
+/// the pole particle while the cloth around it stretched (peak link
+/// stretch 2.00 with BDF2 and 16.6 with backward Euler, against 1.35 and
+/// 1.23 frictionless); decided in the solve (`contacts::FrictionMode`)
+/// the cloth slides round the ball and stretches about as much as without
+/// friction. Measured: 1.450 / 1.348 = 1.08 (BDF2), 1.512 / 1.229 = 1.23
+/// (backward Euler). What remains above 1.15 is the linearised step's
+/// (no transverse stiffness in a straight link: `cloth study stability`).
+#[test]
+fn friction_lets_a_wrapped_curtain_slide_round_a_ball() {
+    let top: Vec<String> = (0..21).map(|i| format!("[{i}, 20]")).collect();
+    let scene = format!(
+        "[simulation]\nintegrator = \"bdf2\"\ndt_s = 0.011111111111111112\nduration_s = 0.8\n\
+         effects = [\"gravity\", \"bending\", \"damping\"]\n\n[solver]\nrel_tol = 1e-4\nmax_iter = 1000\n\n\
+         [material]\nareal_density_kg_m2 = 0.1\ntensile_stiffness_n_m = 200.0\nflexural_rigidity_n_m = 1e-5\n\
+         buckling_stiffness_n_m = 200.0\ndamping_n_s_m = 0.02\n\n\
+         [[panels]]\nparticles = [21, 21]\nsize_m = [1.0, 1.0]\norigin_m = [-0.5, 0.0, 0.0]\n\
+         u_axis = [1.0, 0.0, 0.0]\nv_axis = [0.0, 0.0, 1.0]\n\n[[pins]]\nnodes = [{}]\n\n\
+         [collision]\nthickness_m = 0.005\n\n[[colliders]]\nshape = {{ kind = \"ball\", radius_m = 0.15 }}\n\
+         position_m = [0.0, -0.4, 0.2]\nfriction = 0.3\nmotion = {{ kind = \"linear\", velocity_m_s = [0.0, 3.0, 0.0] }}\n",
+        top.join(", ")
+    );
+    let peak = |integrator: &str, friction: f64| {
+        let o = [format!("simulation.integrator=\"{integrator}\""), format!("colliders.0.friction={friction}")];
+        let (model, cfg) = cloth_core::scene::Scene::parse(&scene, &o).unwrap().build().unwrap();
+        let mut sim = cfg.simulation(model);
+        let mut peak: f64 = 1.0;
+        for _ in 0..cfg.steps {
+            sim.step(cfg.dt_s).unwrap();
+            peak = peak.max(sim.model().max_stretch_ratio(&sim.state().x));
+        }
+        peak
+    };
+    for integrator in ["bdf2", "backward-euler"] {
+        let (with, without) = (peak(integrator, 0.3), peak(integrator, 0.0));
+        println!("{integrator}: peak stretch {with:.3} with friction 0.3, {without:.3} without");
+        assert!(with <= 1.25 * without, "{integrator}: friction stretched the curtain to {with} ({without} without)");
+    }
 }

@@ -593,24 +593,23 @@ fn ball_through_curtain(quick: bool) -> Vec<Row> {
          friction = 0.3\nmotion = {{ kind = \"linear\", velocity_m_s = [0.0, 3.0, 0.0] }}\n",
         top.join(", ")
     );
-    // The single linearised step at 1/90 s fails twice over (measured on
-    // this scene; it was first put down to particle-solid contacts, but no
-    // link crosses the ball at the worst step):
-    // - Friction after the solve judges Coulomb's bound by the particle
-    //   alone (the velocity change `mu N tau / m`), while the normal force
-    //   it reads from the solve carries the tension of the links wrapped
-    //   round the ball. The particle at the ball's front pole is held there
-    //   while the cloth below it folds up and over it: its link stretches
-    //   to 2.0 (BDF2) and, with backward Euler, to 16.6 by the end (held
-    //   all run). Friction 0: 1.35 and 1.23; 0.1: 1.21.
+    // The single linearised step at 1/90 s fails (measured on this scene;
+    // it was first put down to particle-solid contacts, but no link
+    // crosses the ball at the worst step):
     // - A link at rest has no transverse stiffness in a linearised step,
     //   so where the ball's rim hits a row the particle beside it stays
-    //   while the hit one moves 3.3 cm (two thirds of a link): 1.35 even
-    //   without friction.
-    // Newton steps (friction inside the minimisation, Coulomb's bound
-    // against the whole cloth's response) hold: 1.11 (BDF2), 1.06
-    // (backward Euler). At 1 ms the single step holds too.
-    const HELD: &str = "single linearised step: after-solve friction holds a particle at the ball's pole";
+    //   while the hit one moves 3.3 cm (two thirds of a link): 1.35 (BDF2)
+    //   and 1.23 (backward Euler) without friction.
+    // - Friction adds a little: 1.45 and 1.51. It used to add much more:
+    //   decided after the solve, by the particle alone (the velocity change
+    //   `mu N tau / m`, while `N` carries the tension of the links wrapped
+    //   round the ball), it held the particle at the ball's front pole
+    //   while the cloth below it folded up and over it: 2.0 and 16.6.
+    //   Decided in the solve, against the constraint's tangential force
+    //   (`contacts::FrictionMode`), the cloth slides round the ball.
+    // Newton steps (friction inside the minimisation) hold: 1.11 (BDF2),
+    // 1.06 (backward Euler). At 1 ms the single step holds too.
+    const HELD: &str = "single linearised step: a straight link has no transverse stiffness";
     let steps: &[f64] = if quick { &[1e-3] } else { &[1.0 / 90.0, 1e-3] };
     let mut rows = Vec::new();
     for &h in steps {

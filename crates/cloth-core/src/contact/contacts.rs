@@ -83,6 +83,43 @@ pub struct SolidContact {
     /// The bound `mu N` of the last [`linearise_contact_friction`], N (the
     /// line search's dissipation uses the same one).
     pub solve_limit_n: f64,
+    /// Where this contact's friction is decided (see [`FrictionMode`]).
+    pub friction_mode: FrictionMode,
+    /// For [`FrictionMode::Stick`]: the tangential travel of the solid's
+    /// surface over the step, `h (I - n n^T) v_solid`, m.
+    pub tangent_travel_m: Vec3,
+}
+
+/// Where a contact's Coulomb friction is decided in an implicit step.
+///
+/// After the solve ([`apply_friction`]) the particle alone meets the
+/// friction: its slip is stopped when `mu N tau / m` suffices. That is
+/// right for a particle on its own, but a particle linked to the rest of
+/// the cloth slips under the force of a whole stiff cluster, so its slip
+/// speed understates the force to be resisted and it sticks where
+/// Coulomb would let it slide: where the cloth's own tension presses it
+/// onto a solid (the pole of a ball pushing through a curtain: `N` from the
+/// wrapped tension, the particle held while the cloth around it
+/// stretches to twice its length). In the solve, the decision is made on
+/// the force: the contact first holds the particle on the moving surface
+/// (a full constraint), and where the tangential part of the constraint
+/// force exceeds `mu N` it slides instead, the friction `mu N` pointing
+/// along that force (implicit Coulomb friction: the force needed to
+/// stick, projected onto the friction cone). Baraff & Witkin 1998 hold
+/// contacts the same way, with constraints in the filtered solve.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum FrictionMode {
+    /// [`apply_friction`] after the solve: particles squeezed between two
+    /// solids or held by two, solids driven from outside (see
+    /// [`stick_frictional_contacts`]), integrators without a matrix, Newton
+    /// iterations (which smooth friction into their potential).
+    #[default]
+    AfterSolve,
+    /// In the solve, stuck: the particle moves with the surface.
+    Stick,
+    /// In the solve, sliding: the normal constrained, and a constant
+    /// force `mu N` (`solve_constant_n`) in the right-hand side.
+    Slide,
 }
 
 impl SolidContact {
@@ -116,6 +153,8 @@ impl SolidContact {
             solve_constant_n: Vec3::zeros(),
             solve_friction_n: Vec3::zeros(),
             solve_limit_n: 0.0,
+            friction_mode: FrictionMode::AfterSolve,
+            tangent_travel_m: Vec3::zeros(),
         }
     }
 }
@@ -783,6 +822,10 @@ fn constrain_particle(
     // A non-finite value is caught as a non-finite state after the step.
     let _ = match (active.next(), active.next()) {
         (None, _) => filter.set(i, Constraint::Free, Vec3::zeros()),
+        (Some(c), None) if c.friction_mode == FrictionMode::Stick => {
+            let z = value(x[i] + c.normal * c.normal_travel_m + c.tangent_travel_m, i);
+            filter.set(i, Constraint::Fixed, z)
+        }
         (Some(c), None) => {
             let z = value(x[i] + c.normal * c.normal_travel_m, i);
             filter.set(i, Constraint::OneDirection { normal: c.normal }, z)
@@ -810,6 +853,123 @@ pub fn constrain_contacts(
             constrain_particle(&contacts[range], x, filter, &value);
         }
     }
+}
+
+/// Puts the friction of every particle held by one solid alone (not
+/// squeezed, not `prescribed` (pinned or held), with `mu > 0`, its
+/// friction not yet in the solve) into the solve: it starts stuck
+/// ([`FrictionMode::Stick`]), moving with the surface over the step `h`
+/// (s). Returns how many (constrain them again, [`constrain_contacts`]).
+/// Contacts found during the step's passes join too.
+///
+/// Solids driven from outside (`driven(collider)`: rapier bodies, rig
+/// links) keep the friction after the solve. Their velocity over the step
+/// is the co-simulation master's guess; a particle stuck to it hands the
+/// body the whole cloth's tangential pull at once (up to `mu N`, with `N`
+/// carrying the cloth's tension), and a body lighter than the cloth is
+/// thrown by it between passes (`cloth study stability`, a ball of 1e-3
+/// the cloth's mass: its energy rose 27% of the energy in play, 0 with the
+/// friction after the solve).
+pub fn stick_frictional_contacts(
+    contacts: &mut [SolidContact],
+    h: f64,
+    prescribed: impl Fn(usize) -> bool,
+    driven: impl Fn(usize) -> bool,
+) -> usize {
+    let mut stuck = 0;
+    for group in contacts.chunk_by_mut(same_particle) {
+        let [c] = group else { continue };
+        let eligible = c.active && !c.pressed && c.friction > 0.0 && c.friction_mode == FrictionMode::AfterSolve;
+        if eligible && !driven(c.collider as usize) && !prescribed(c.particle as usize) {
+            let n = c.normal;
+            c.tangent_travel_m = (c.solid_velocity - n * n.dot(&c.solid_velocity)) * h;
+            c.friction_mode = FrictionMode::Stick;
+            stuck += 1;
+        }
+    }
+    stuck
+}
+
+/// Slip along the friction over a step below which a sliding contact is
+/// not taken as turned back (m): solver noise (the PCG's relative
+/// tolerance of the step's motion), not motion.
+const REVERSAL_SLIP_M: f64 = 1e-6;
+
+/// Settles the friction in the solve after a solve (and after
+/// [`release_pulling`] read the normal forces), from the solved new
+/// positions `new_x`: a stuck contact whose tangential constraint force
+/// `f_t` (the unfiltered residual) exceeds `mu N` slides from now on,
+/// with the friction `mu N f_t / |f_t|` added to `rhs` (times
+/// `force_coefficient`) and only its normal constrained; a sliding one
+/// whose slip over the step (relative to the surface) went along its
+/// friction was turned back by it, so it sticks; one sliding on keeps its
+/// direction (that of the force that would have stuck it: implicit
+/// Coulomb friction) at the new `mu N`; a released one, or one whose
+/// particle now touches a second solid, goes back to the friction after
+/// the solve. Returns how many changed between sticking and sliding (a
+/// re-solve is due; the caller caps the passes).
+#[allow(clippy::too_many_arguments)]
+pub fn stick_or_slide(
+    contacts: &mut [SolidContact],
+    matrix: &BlockSparseMatrix,
+    rhs: &mut [Vec3],
+    (unknown, force_coefficient): (&[Vec3], f64),
+    x: &[Vec3],
+    new_x: &[Vec3],
+    filter: &mut ConstraintFilter,
+    value: impl Fn(Vec3, usize) -> Vec3,
+) -> usize {
+    let mut changed = 0;
+    for group in contacts.chunk_by_mut(same_particle) {
+        let second_solid = group.len() > 1;
+        for c in group.iter_mut().filter(|c| c.friction_mode != FrictionMode::AfterSolve && second_solid) {
+            if c.friction_mode == FrictionMode::Slide {
+                rhs[c.particle as usize] -= c.solve_constant_n * force_coefficient;
+            }
+            (c.friction_mode, c.solve_constant_n) = (FrictionMode::AfterSolve, Vec3::zeros());
+        }
+    }
+    for c in contacts.iter_mut().filter(|c| c.friction_mode != FrictionMode::AfterSolve) {
+        let i = c.particle as usize;
+        let (n, limit) = (c.normal, c.friction * c.normal_force_n.max(0.0));
+        let old = if c.friction_mode == FrictionMode::Slide { c.solve_constant_n } else { Vec3::zeros() };
+        let friction = match c.friction_mode {
+            _ if !c.active => {
+                rhs[i] -= old * force_coefficient;
+                (c.friction_mode, c.solve_constant_n) = (FrictionMode::AfterSolve, Vec3::zeros());
+                continue;
+            }
+            FrictionMode::Stick => {
+                let force = (matrix.row_times(i, unknown) - rhs[i]) / force_coefficient;
+                let tangential = force - n * n.dot(&force);
+                if tangential.norm() <= limit {
+                    c.solve_constant_n = tangential;
+                    continue;
+                }
+                c.friction_mode = FrictionMode::Slide;
+                tangential * (limit / tangential.norm())
+            }
+            FrictionMode::Slide => {
+                let moved = new_x[i] - x[i] - c.tangent_travel_m;
+                let slip = moved - n * n.dot(&moved);
+                let along = old.try_normalize(0.0).map_or(0.0, |d| slip.dot(&d));
+                if along > REVERSAL_SLIP_M {
+                    c.friction_mode = FrictionMode::Stick;
+                    Vec3::zeros()
+                } else {
+                    old.try_normalize(0.0).map_or(old, |d| d * limit)
+                }
+            }
+            FrictionMode::AfterSolve => unreachable!("filtered out"),
+        };
+        rhs[i] += (friction - old) * force_coefficient;
+        c.solve_constant_n = friction;
+        if (c.friction_mode == FrictionMode::Slide) != (old != Vec3::zeros()) {
+            constrain_particle(std::slice::from_ref(c), x, filter, &value);
+            changed += 1;
+        }
+    }
+    changed
 }
 
 /// Reads each contact's normal force from the unfiltered residual,
@@ -1154,6 +1314,16 @@ pub fn apply_friction(
     for group in contacts.chunk_by_mut(same_particle) {
         for c in group.iter_mut() {
             c.impulse_n_s = if c.active { c.normal * (c.normal_force_n * h) } else { Vec3::zeros() };
+        }
+        if let [c] = group
+            && c.active
+            && c.friction_mode != FrictionMode::AfterSolve
+        {
+            // Decided in the solve: the stuck contact's tangential
+            // constraint force, or the sliding one's `mu N`.
+            c.impulse_n_s += c.solve_constant_n * h;
+            sticking += usize::from(c.friction_mode == FrictionMode::Stick);
+            continue;
         }
         let mut active = group.iter().enumerate().filter(|(_, c)| c.active).map(|(k, _)| k);
         let Some(a) = active.next() else { continue };

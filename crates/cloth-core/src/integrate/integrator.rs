@@ -4,7 +4,7 @@
 use crate::contacts::{
     ContactBuffers, ContactStats, add_penetrating, apply_friction, constrain_contacts, detect_self_contacts,
     detect_solid_contacts, linearise_squeeze_friction, project_out, release_pulling, separate_self_contacts,
-    squeeze_friction_forces,
+    squeeze_friction_forces, stick_frictional_contacts, stick_or_slide,
 };
 use crate::control::{Control, PinPaths};
 use crate::energy::{self, EnergyReport};
@@ -608,6 +608,14 @@ fn uncommitted_step<S: Linearised>(
     let t_pins = Instant::now();
     let value = |target, i| scheme.pinned(state, h, target, i);
     constrain_pins(model, state, control, h, &mut ws.filter, value);
+    // Friction decided in the solve (not with Newton iterations, which
+    // smooth it into their potential): see `contacts::FrictionMode`.
+    let friction_in_solve = solver.newton_iterations <= 1;
+    let prescribed = |i: usize| model.is_pinned(i) || control.holds().binary_search_by_key(&i, |h| h.0).is_ok();
+    let driven = |k: usize| model.colliders()[k].is_external();
+    if friction_in_solve {
+        stick_frictional_contacts(&mut ws.contacts.solid, h, prescribed, driven);
+    }
     constrain_contacts(&ws.contacts.solid, &state.x, &mut ws.filter, value);
     for i in 0..state.len() {
         ws.unknown[i] = scheme.guess(state, &ws.aux, i);
@@ -629,11 +637,21 @@ fn uncommitted_step<S: Linearised>(
         for i in 0..state.len() {
             ws.new_x[i] = scheme.advance(state, &ws.aux, h, i, ws.unknown[i]).0;
         }
+        let (contacts, rhs, solved) =
+            (&mut ws.contacts.solid, &mut ws.system.rhs, (&ws.unknown[..], force_coefficient));
+        let (matrix, filter) = (&ws.system.matrix, &mut ws.filter);
+        let slid = stick_or_slide(contacts, matrix, rhs, solved, &state.x, &ws.new_x, filter, value);
         let t_next = state.time_s + h;
         let added = add_penetrating(model, &state.x, &ws.new_x, t_next, &mut ws.contacts, &mut ws.filter, value);
+        if friction_in_solve
+            && added > 0
+            && stick_frictional_contacts(&mut ws.contacts.solid, h, prescribed, driven) > 0
+        {
+            constrain_contacts(&ws.contacts.solid, &state.x, &mut ws.filter, value);
+        }
         (stats.released, stats.added) = (stats.released + released, stats.added + added);
         unresolved = added > 0 && pass == MAX_CONTACT_PASSES;
-        if released + added == 0 || pass == MAX_CONTACT_PASSES {
+        if released + added + slid == 0 || pass == MAX_CONTACT_PASSES {
             break;
         }
         let (r, s) = solve(ws, state, solver)?;
