@@ -7,14 +7,18 @@ use cloth_tests::simulation;
 use nalgebra::UnitQuaternion;
 
 /// The sweep curtain with its ball moving at `v` (m/s) along y, either on
-/// its scene path or driven from outside.
+/// its scene path or driven from outside, without friction: the friction
+/// of a solid driven from outside is decided after the solve (its velocity
+/// is a co-simulation master's guess, `contacts::stick_frictional_contacts`),
+/// that of a solid on a path in the solve, so with friction the two differ
+/// by design (9.4 mm after 100 steps of this test).
 fn curtain_and_ball(external: bool, v: f64) -> Simulation {
     let motion = if external {
         r#"colliders.0.motion={ kind = "external" }"#.to_string()
     } else {
         format!(r#"colliders.0.motion={{ kind = "linear", velocity_m_s = [0.0, {v}, 0.0] }}"#)
     };
-    simulation("sweep.toml", &[&motion, "solver.rel_tol=1e-10"]).0
+    simulation("sweep.toml", &[&motion, "solver.rel_tol=1e-10", "colliders.0.friction=0.0"]).0
 }
 
 #[test]
