@@ -857,9 +857,13 @@ pub fn constrain_contacts(
 
 /// Puts the friction of every particle held by one solid alone (not
 /// squeezed, not `prescribed` (pinned or held), with `mu > 0`, its
-/// friction not yet in the solve) into the solve: it starts stuck
-/// ([`FrictionMode::Stick`]), moving with the surface over the step `h`
-/// (s). Returns how many (constrain them again, [`constrain_contacts`]).
+/// friction not yet in the solve) into the solve: a resting one starts
+/// stuck ([`FrictionMode::Stick`]), moving with the surface over the step
+/// `h` (s); a landing one (moving more than `LANDING_TRAVEL_M`, 1 mm, towards
+/// the surface this step) starts sliding with no friction, which
+/// [`stick_or_slide`] sets against its slip after the first solve (or
+/// sticks it when it barely slips). Returns how many (constrain them
+/// again, [`constrain_contacts`]).
 /// Contacts found during the step's passes join too.
 ///
 /// Solids driven from outside (`driven(collider)`: rapier bodies, rig
@@ -883,12 +887,24 @@ pub fn stick_frictional_contacts(
         if eligible && !driven(c.collider as usize) && !prescribed(c.particle as usize) {
             let n = c.normal;
             c.tangent_travel_m = (c.solid_velocity - n * n.dot(&c.solid_velocity)) * h;
-            c.friction_mode = FrictionMode::Stick;
+            // A landing particle slides first (its friction set from its
+            // slip after the first solve): stopped dead on landing it
+            // would drag on its neighbours still in the air.
+            let landing = c.normal_travel_m < -LANDING_TRAVEL_M;
+            c.friction_mode = if landing { FrictionMode::Slide } else { FrictionMode::Stick };
+            c.solve_constant_n = Vec3::zeros();
             stuck += 1;
         }
     }
     stuck
 }
+
+/// Travel towards a solid over a step beyond which a contact is landing,
+/// not resting, m. A landing particle starts sliding: stuck at once it
+/// stopped dead while its neighbours, not yet in contact, fell on (the
+/// sphere drape's landing step stretched links to 1.46; sliding first,
+/// 1.14, frictionless 1.13).
+const LANDING_TRAVEL_M: f64 = 1e-3;
 
 /// Slip along the friction over a step below which a sliding contact is
 /// not taken as turned back (m): solver noise (the PCG's relative
@@ -904,7 +920,8 @@ const REVERSAL_SLIP_M: f64 = 1e-6;
 /// whose slip over the step (relative to the surface) went along its
 /// friction was turned back by it, so it sticks; one sliding on keeps its
 /// direction (that of the force that would have stuck it: implicit
-/// Coulomb friction) at the new `mu N`; a released one, or one whose
+/// Coulomb friction) at the new `mu N`; a landed one takes `mu N` against
+/// its slip (or sticks if it barely slipped); a released one, or one whose
 /// particle now touches a second solid, goes back to the friction after
 /// the solve. Returns how many changed between sticking and sliding (a
 /// re-solve is due; the caller caps the passes).
@@ -932,6 +949,7 @@ pub fn stick_or_slide(
     for c in contacts.iter_mut().filter(|c| c.friction_mode != FrictionMode::AfterSolve) {
         let i = c.particle as usize;
         let (n, limit) = (c.normal, c.friction * c.normal_force_n.max(0.0));
+        let before = c.friction_mode;
         let old = if c.friction_mode == FrictionMode::Slide { c.solve_constant_n } else { Vec3::zeros() };
         let friction = match c.friction_mode {
             _ if !c.active => {
@@ -952,20 +970,28 @@ pub fn stick_or_slide(
             FrictionMode::Slide => {
                 let moved = new_x[i] - x[i] - c.tangent_travel_m;
                 let slip = moved - n * n.dot(&moved);
-                let along = old.try_normalize(0.0).map_or(0.0, |d| slip.dot(&d));
-                if along > REVERSAL_SLIP_M {
-                    c.friction_mode = FrictionMode::Stick;
-                    Vec3::zeros()
-                } else {
-                    old.try_normalize(0.0).map_or(old, |d| d * limit)
+                match old.try_normalize(0.0) {
+                    // Landed: against its slip, or stuck when it barely slips.
+                    None if slip.norm() <= REVERSAL_SLIP_M => {
+                        c.friction_mode = FrictionMode::Stick;
+                        Vec3::zeros()
+                    }
+                    None => -slip.normalize() * limit,
+                    Some(d) if slip.dot(&d) > REVERSAL_SLIP_M => {
+                        c.friction_mode = FrictionMode::Stick;
+                        Vec3::zeros()
+                    }
+                    Some(d) => d * limit,
                 }
             }
             FrictionMode::AfterSolve => unreachable!("filtered out"),
         };
         rhs[i] += (friction - old) * force_coefficient;
         c.solve_constant_n = friction;
-        if (c.friction_mode == FrictionMode::Slide) != (old != Vec3::zeros()) {
+        if before != c.friction_mode {
             constrain_particle(std::slice::from_ref(c), x, filter, &value);
+        }
+        if before != c.friction_mode || (old == Vec3::zeros() && friction != Vec3::zeros()) {
             changed += 1;
         }
     }
