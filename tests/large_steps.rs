@@ -101,8 +101,10 @@ fn drape(h: f64, newton: usize) -> (f64, f64, f64, f64) {
 }
 
 /// At h = 0.2 s the cloth meets the ball in the middle of its first step.
-/// The single linearised step ends tangled (links many times their
-/// length); Newton iterations with the ball as a penalty energy and
+/// The single linearised step overstretches it (links 4.5 times their
+/// length at the worst step, 1.53 at the end; 33 and tangled while
+/// friction was decided after the solve); Newton iterations with the ball
+/// as a penalty energy and
 /// friction as a dissipation potential settle it on the ball untangled,
 /// nowhere inside it, its top where small steps put it.
 #[test]
@@ -113,7 +115,7 @@ fn newton_drapes_a_sphere_at_large_steps() {
         "h = 0.2 s: single step peak {single_peak:.2}, final {single_final:.2}; Newton peak {peak:.4}, final \
          {final_stretch:.4}, closest to the ball {clearance:.2e} m, top at {top:.5} m"
     );
-    assert!(single_final > 2.0, "the single step no longer tangles ({single_final}): update this test");
+    assert!(single_peak > 2.0, "the single step no longer overstretches ({single_peak}): update this test");
     // Measured 1.083 (the cloth wrapping the ball), 1.029 at rest (1.126 and
     // 1.026 before issue 15's material mapping).
     assert!(peak < 1.09 && final_stretch < 1.03, "stretch {peak} (peak), {final_stretch} (final)");
