@@ -75,7 +75,9 @@ pub fn live(scene: &Path, overrides: &[String], port: u16, seconds: Option<f64>,
         holds_applied: Vec::new(),
         error: None,
     }));
-    let pinned: Vec<bool> = (0..sim.model().particle_count()).map(|i| sim.model().is_pinned(i)).collect();
+    // Read by every connection's thread, never changed.
+    let pinned: Arc<[bool]> = (0..sim.model().particle_count()).map(|i| sim.model().is_pinned(i)).collect();
+    let run_json: Arc<str> = run_json.into();
     let listener = TcpListener::bind(("127.0.0.1", port)).with_context(|| format!("binding 127.0.0.1:{port}"))?;
     let address = listener.local_addr()?;
     println!("running {} live at http://{address}/", scene.display());
@@ -94,7 +96,7 @@ pub fn live(scene: &Path, overrides: &[String], port: u16, seconds: Option<f64>,
         }
         match listener.accept() {
             Ok((stream, _)) => {
-                let (shared, run_json, pinned) = (Arc::clone(&shared), run_json.clone(), pinned.clone());
+                let (shared, run_json, pinned) = (Arc::clone(&shared), Arc::clone(&run_json), Arc::clone(&pinned));
                 std::thread::spawn(move || {
                     if let Err(e) = serve(stream, &shared, &run_json, external_wind, &pinned) {
                         eprintln!("request failed: {e}");

@@ -938,61 +938,56 @@ pub fn stick_or_slide(
 ) -> usize {
     let mut changed = 0;
     for group in contacts.chunk_by_mut(same_particle) {
-        let second_solid = group.len() > 1;
-        for c in group.iter_mut().filter(|c| c.friction_mode != FrictionMode::AfterSolve && second_solid) {
-            if c.friction_mode == FrictionMode::Slide {
-                rhs[c.particle as usize] -= c.solve_constant_n * force_coefficient;
-            }
-            (c.friction_mode, c.solve_constant_n) = (FrictionMode::AfterSolve, Vec3::zeros());
-        }
-    }
-    for c in contacts.iter_mut().filter(|c| c.friction_mode != FrictionMode::AfterSolve) {
-        let i = c.particle as usize;
-        let (n, limit) = (c.normal, c.friction * c.normal_force_n.max(0.0));
-        let before = c.friction_mode;
-        let old = if c.friction_mode == FrictionMode::Slide { c.solve_constant_n } else { Vec3::zeros() };
-        let friction = match c.friction_mode {
-            _ if !c.active => {
-                rhs[i] -= old * force_coefficient;
-                (c.friction_mode, c.solve_constant_n) = (FrictionMode::AfterSolve, Vec3::zeros());
-                continue;
-            }
-            FrictionMode::Stick => {
-                let force = (matrix.row_times(i, unknown) - rhs[i]) / force_coefficient;
-                let tangential = force - n * n.dot(&force);
-                if tangential.norm() <= limit {
-                    c.solve_constant_n = tangential;
+        let alone = group.len() == 1;
+        for c in group.iter_mut().filter(|c| c.friction_mode != FrictionMode::AfterSolve) {
+            let i = c.particle as usize;
+            let (n, limit) = (c.normal, c.friction * c.normal_force_n.max(0.0));
+            let before = c.friction_mode;
+            let old = if c.friction_mode == FrictionMode::Slide { c.solve_constant_n } else { Vec3::zeros() };
+            let friction = match c.friction_mode {
+                // Released, or the particle now touches a second solid.
+                _ if !c.active || !alone => {
+                    rhs[i] -= old * force_coefficient;
+                    (c.friction_mode, c.solve_constant_n) = (FrictionMode::AfterSolve, Vec3::zeros());
                     continue;
                 }
-                c.friction_mode = FrictionMode::Slide;
-                tangential * (limit / tangential.norm())
-            }
-            FrictionMode::Slide => {
-                let moved = new_x[i] - x[i] - c.tangent_travel_m;
-                let slip = moved - n * n.dot(&moved);
-                match old.try_normalize(0.0) {
-                    // Landed: against its slip, or stuck when it barely slips.
-                    None if slip.norm() <= REVERSAL_SLIP_M => {
-                        c.friction_mode = FrictionMode::Stick;
-                        Vec3::zeros()
+                FrictionMode::Stick => {
+                    let force = (matrix.row_times(i, unknown) - rhs[i]) / force_coefficient;
+                    let tangential = force - n * n.dot(&force);
+                    if tangential.norm() <= limit {
+                        c.solve_constant_n = tangential;
+                        continue;
                     }
-                    None => -slip.normalize() * limit,
-                    Some(d) if slip.dot(&d) > REVERSAL_SLIP_M => {
-                        c.friction_mode = FrictionMode::Stick;
-                        Vec3::zeros()
-                    }
-                    Some(d) => d * limit,
+                    c.friction_mode = FrictionMode::Slide;
+                    tangential * (limit / tangential.norm())
                 }
+                FrictionMode::Slide => {
+                    let moved = new_x[i] - x[i] - c.tangent_travel_m;
+                    let slip = moved - n * n.dot(&moved);
+                    match old.try_normalize(0.0) {
+                        // Landed: against its slip, or stuck when it barely slips.
+                        None if slip.norm() <= REVERSAL_SLIP_M => {
+                            c.friction_mode = FrictionMode::Stick;
+                            Vec3::zeros()
+                        }
+                        None => -slip.normalize() * limit,
+                        Some(d) if slip.dot(&d) > REVERSAL_SLIP_M => {
+                            c.friction_mode = FrictionMode::Stick;
+                            Vec3::zeros()
+                        }
+                        Some(d) => d * limit,
+                    }
+                }
+                FrictionMode::AfterSolve => unreachable!("filtered out"),
+            };
+            rhs[i] += (friction - old) * force_coefficient;
+            c.solve_constant_n = friction;
+            if before != c.friction_mode {
+                constrain_particle(std::slice::from_ref(c), x, filter, &value);
             }
-            FrictionMode::AfterSolve => unreachable!("filtered out"),
-        };
-        rhs[i] += (friction - old) * force_coefficient;
-        c.solve_constant_n = friction;
-        if before != c.friction_mode {
-            constrain_particle(std::slice::from_ref(c), x, filter, &value);
-        }
-        if before != c.friction_mode || (old == Vec3::zeros() && friction != Vec3::zeros()) {
-            changed += 1;
+            if before != c.friction_mode || (old == Vec3::zeros() && friction != Vec3::zeros()) {
+                changed += 1;
+            }
         }
     }
     changed

@@ -231,7 +231,7 @@ impl Control {
         if !target.iter().all(|c| c.is_finite()) {
             return Err(ControlError::NonFinite { what: format!("particle {particle} hold target") });
         }
-        match self.holds.binary_search_by_key(&particle, |h| h.0) {
+        match self.find_hold(particle) {
             Ok(k) => self.holds[k].1 = target,
             Err(k) => self.holds.insert(k, (particle, target)),
         }
@@ -241,13 +241,27 @@ impl Control {
     /// Lets held particle `particle` go (it keeps its velocity); whether
     /// it was held.
     pub fn let_go(&mut self, particle: usize) -> bool {
-        let found = self.holds.binary_search_by_key(&particle, |h| h.0);
-        found.map(|k| self.holds.remove(k)).is_ok()
+        self.find_hold(particle).map(|k| self.holds.remove(k)).is_ok()
     }
 
     /// The held particles and their targets (m), sorted by particle.
     pub fn holds(&self) -> &[(usize, Vec3)] {
         &self.holds
+    }
+
+    /// Where `particle` is in [`Control::holds`], if held.
+    pub fn hold_index(&self, particle: usize) -> Option<usize> {
+        self.find_hold(particle).ok()
+    }
+
+    /// Whether `particle` is held.
+    pub fn is_held(&self, particle: usize) -> bool {
+        self.find_hold(particle).is_ok()
+    }
+
+    /// The hold of `particle` (`Ok`) or where it would go (`Err`).
+    fn find_hold(&self, particle: usize) -> Result<usize, usize> {
+        self.holds.binary_search_by_key(&particle, |h| h.0)
     }
 
     /// Sets external forces on every particle, N, constant over each step

@@ -611,7 +611,7 @@ fn uncommitted_step<S: Linearised>(
     // Friction decided in the solve (not with Newton iterations, which
     // smooth it into their potential): see `contacts::FrictionMode`.
     let friction_in_solve = solver.newton_iterations <= 1;
-    let prescribed = |i: usize| model.is_pinned(i) || control.holds().binary_search_by_key(&i, |h| h.0).is_ok();
+    let prescribed = |i: usize| model.is_pinned(i) || control.is_held(i);
     let driven = |k: usize| model.colliders()[k].is_external();
     if friction_in_solve {
         stick_frictional_contacts(&mut ws.contacts.solid, h, prescribed, driven);

@@ -40,7 +40,7 @@ impl Simulation {
         if let Some(limit) = self.model.strain_limit() {
             let t = std::time::Instant::now();
             let ClothState { x, v, x_prev, time_s, .. } = &mut self.state;
-            let held = self.control.holds();
+            let held = |i| self.control.is_held(i);
             report.strain_corrections = apply_strain_limit(&self.model, &limit, held, x, v, h).corrections;
             // The corrections may move particles into solids: move them out.
             if !self.model.colliders().is_empty() {
@@ -148,7 +148,7 @@ impl Simulation {
     /// The mean force the cloth exerted on held particle `particle` over
     /// the last step, N (what the hand feels); `None` when it is not held.
     pub fn hold_reaction(&self, particle: usize) -> Option<Vec3> {
-        let j = self.control.holds().binary_search_by_key(&particle, |h| h.0).ok()?;
+        let j = self.control.hold_index(particle)?;
         let f = self.workspace.pin_forces.get(self.model.pins().len() + j).copied().unwrap_or_default();
         Some(-f)
     }

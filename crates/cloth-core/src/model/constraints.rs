@@ -20,12 +20,12 @@ pub struct StrainLimitReport {
 /// earlier in it, so convergence is linear: `passes` is a cap, and the pass
 /// loop stops as soon as no link is too long. Velocities get the same correction
 /// divided by `h`, so `v` stays consistent with the corrected motion.
-/// Pinned particles never move, nor those `held` (sorted particle indices,
-/// as [`crate::Control::holds`] lists them).
+/// Pinned particles never move, nor those `held` says are held (see
+/// [`crate::Control::is_held`]).
 pub fn apply_strain_limit(
     model: &ClothModel,
     limit: &StrainLimit,
-    held: &[(usize, Vec3)],
+    held: impl Fn(usize) -> bool,
     x: &mut [Vec3],
     v: &mut [Vec3],
     h: f64,
@@ -45,7 +45,7 @@ pub fn apply_strain_limit(
             if d <= max_len * (1.0 + 1e-12) {
                 continue;
             }
-            let free = |q: usize| !model.is_pinned(q) && held.binary_search_by_key(&q, |h| h.0).is_err();
+            let free = |q: usize| !model.is_pinned(q) && !held(q);
             let (free_i, free_j) = (free(i), free(j));
             // Share of the excess each end takes.
             let (wi, wj) = match (free_i, free_j) {
