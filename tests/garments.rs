@@ -1,7 +1,9 @@
 //! Garments on a URDF character: the skirt of `fixtures/scenes/skirt-walk.toml`
 //! on the mannequin, which stands while the skirt settles, then walks
 //! (BVH) two and a half cycles, and of `skirt-turn.toml`, where it turns
-//! and raises its arms. Contacts with every link, friction and
+//! and raises its arms; the top (`top-walk.toml`) and the one-piece
+//! (`one-piece-walk.toml`), sewn from panels while the mannequin stands,
+//! held up by their straps alone. Contacts with every link, friction and
 //! self-collision at h = 1/90 s.
 
 use cloth_core::Vec3;
@@ -43,24 +45,35 @@ fn the_rig_links_follow_forward_kinematics() {
 struct Worn {
     /// Deepest particle inside any link, m.
     deepest: f64,
-    /// Largest link stretch.
+    /// Largest link stretch from the end of the stand (0.6 s) on.
     stretch: f64,
+    /// Steps at which a link was stretched beyond 1.2.
+    over: usize,
+    /// Largest link stretch before the end of the stand, when garments are sewn.
+    sewing: f64,
     /// Closest particle to a triangle not linked to it (every third step), m.
     closest: f64,
     /// The self-collision thickness, m.
     thickness: f64,
-    /// Farthest particle from the pelvis's axis, m.
+    /// Farthest particle from the axis of the link the garment is worn on, m.
     radial: f64,
-    /// Lowest and highest particle in the pelvis's frame, m.
+    /// Lowest and highest particle in that link's frame, m.
     low: f64,
     high: f64,
+    /// Widest seam gap once the garment is sewn (after the stand), m.
+    seam_gap: f64,
     /// The run at its end.
     run: CoupledRun,
 }
 
-fn wear(scene: &str) -> Worn {
+/// Runs `scene`, measuring in the frame of link `on`.
+fn wear(scene: &str, on: &str) -> Worn {
     let mut run = build(scene, &[]);
-    let pelvis = run.rig.as_ref().unwrap().body("pelvis").unwrap();
+    let link = run.rig.as_ref().unwrap().body(on).unwrap();
+    let sewn_at = (0.6 / run.config.dt_s).round() as u64;
+    let mut seam_gap: f64 = 0.0;
+    let mut over = 0;
+    let mut sewing: f64 = 0.0;
     let thickness = run.cloths[run.cloth].simulation().model().self_collision().unwrap().thickness_m;
     let (mut deepest, mut stretch, mut closest): (f64, f64, f64) = (0.0, 0.0, f64::INFINITY);
     let (mut radial, mut low, mut high): (f64, f64, f64) = (0.0, 0.0, f64::NEG_INFINITY);
@@ -69,11 +82,21 @@ fn wear(scene: &str) -> Worn {
         let sim = run.cloths[run.cloth].simulation();
         let x = &sim.state().x;
         deepest = deepest.max(sim.max_penetration());
-        stretch = stretch.max(sim.model().max_stretch_ratio(x));
+        // The garment as worn: a sewn one from the end of the stand.
+        let now = sim.model().max_stretch_ratio(x);
+        if step >= sewn_at {
+            stretch = stretch.max(now);
+            over += usize::from(now > 1.2);
+        } else {
+            sewing = sewing.max(now);
+        }
         if step % 3 == 2 {
             closest = closest.min(min_unlinked_point_triangle(sim.model(), x));
         }
-        let frame = pose_from_rapier(run.world.bodies[pelvis].position());
+        if step >= sewn_at {
+            seam_gap = seam_gap.max(sim.model().max_seam_gap(x));
+        }
+        let frame = pose_from_rapier(run.world.bodies[link].position());
         for p in x {
             let local = frame.rotation.inverse() * (p - frame.position);
             radial = radial.max(local.xy().norm());
@@ -82,37 +105,44 @@ fn wear(scene: &str) -> Worn {
         }
     }
     println!(
-        "{scene}: deepest {deepest:.2e} m, stretch {stretch:.4}, closest particle-triangle {closest:.4} m \
-         (thickness {thickness}), radial {radial:.3} m, z {low:.3}..{high:.3} m about the hips"
+        "{scene}: deepest {deepest:.2e} m, stretch {stretch:.4} ({over} steps over 1.2; {sewing:.4} while \
+         sewn), closest particle-triangle {closest:.4} m \
+         (thickness {thickness}), radial {radial:.3} m, z {low:.3}..{high:.3} m about the {on}, \
+         seams within {seam_gap:.4} m"
     );
-    Worn { deepest, stretch, closest, thickness, radial, low, high, run }
+    Worn { deepest, stretch, over, sewing, closest, thickness, radial, low, high, seam_gap, run }
 }
 
 impl Worn {
     /// No particle inside a link, no link stretched to `stretch`, no
     /// particle closer than 0.71 of the self-collision thickness to a
     /// triangle not linked to it (the fold test's floor), and every
-    /// particle near the hips: within 0.35 m of the pelvis's axis and from
-    /// 0.40 m below the hip joints (the hem hangs 0.37 m below them) to
-    /// 0.15 m above.
-    fn assert_stays_on(&self, stretch: f64) {
-        let Worn { deepest, closest, thickness, radial, low, high, .. } = *self;
+    /// particle where the garment is worn: within `radial` m of the link's
+    /// axis and between `z` m along it.
+    fn assert_stays_on(&self, stretch: f64, radial: f64, z: [f64; 2]) {
+        let Worn { deepest, closest, thickness, low, high, .. } = *self;
         assert!(deepest <= 0.0, "a particle {deepest} m inside a link");
         assert!(self.stretch < stretch, "stretch {}", self.stretch);
         assert!(closest >= 0.71 * thickness, "a particle {closest} m from a triangle, thickness {thickness} m");
-        assert!(radial < 0.35 && low > -0.40 && high < 0.15, "the skirt left the hips: {radial} {low}..{high}");
+        assert!(
+            self.radial < radial && low > z[0] && high < z[1],
+            "the garment left its place: {} m out, {low}..{high} m",
+            self.radial
+        );
     }
 }
 
 /// Over the stand and two and a half walk cycles the skirt stays on
-/// ([`Worn::assert_stays_on`]; measured: nothing inside a link, stretch
-/// 1.0983, closest 53 mm: this skirt's folds do not close, radial
-/// 0.329 m, down to 0.372 m) and walks the 2.5 m with the mannequin
-/// (centroid within 2 cm of the hips' x; measured 0.2 mm).
+/// ([`Worn::assert_stays_on`]: within 0.35 m of the pelvis's axis, from
+/// 0.40 m below the hip joints (the hem hangs 0.37 m below them) to 0.15 m
+/// above; measured: nothing inside a link, stretch 1.0932, closest 53 mm:
+/// this skirt's folds do not close, radial 0.329 m, down to 0.374 m) and
+/// walks the 2.5 m with the mannequin (centroid within 2 cm of the hips'
+/// x; measured 0.2 mm).
 #[test]
 fn the_skirt_stays_on_the_walking_mannequin() {
-    let worn = wear("skirt-walk.toml");
-    worn.assert_stays_on(1.1);
+    let worn = wear("skirt-walk.toml", "pelvis");
+    worn.assert_stays_on(1.1, 0.35, [-0.40, 0.15]);
     let run = &worn.run;
     let sim = run.cloths[run.cloth].simulation();
     let centroid = sim.state().x.iter().sum::<Vec3>() / sim.state().x.len() as f64;
@@ -124,12 +154,12 @@ fn the_skirt_stays_on_the_walking_mannequin() {
 }
 
 /// Through two looped quarter turns with the arms raised and lowered the
-/// skirt stays on (measured: stretch 1.0984) and turns with the hips: the
+/// skirt stays on (measured: stretch 1.0650) and turns with the hips: the
 /// mannequin ends half a turn round, and so does the skirt's seam.
 #[test]
 fn the_skirt_turns_with_the_mannequin() {
-    let worn = wear("skirt-turn.toml");
-    worn.assert_stays_on(1.1);
+    let worn = wear("skirt-turn.toml", "pelvis");
+    worn.assert_stays_on(1.1, 0.35, [-0.40, 0.15]);
     let run = &worn.run;
     let pelvis = run.rig.as_ref().unwrap().body("pelvis").unwrap();
     let frame = pose_from_rapier(run.world.bodies[pelvis].position());
@@ -145,20 +175,65 @@ fn the_skirt_turns_with_the_mannequin() {
     assert!(hem.x < -0.2 && hem.y.abs() < 0.1, "the seam's hem is at {hem} from the hips");
 }
 
-/// The same scene twice, on one thread and on two: the same bits.
+/// The same scene twice, on one thread and on two: the same bits (the
+/// skirt, and the top through its sewing and into the walk).
 #[test]
-fn skirt_reruns_are_bit_identical_on_one_and_two_threads() {
-    let run_on = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        pool.install(|| {
-            let mut run = skirt(&["simulation.duration_s=1.2"]);
-            for _ in 0..run.config.steps {
-                run.step().unwrap();
-            }
-            run.cloths[run.cloth].simulation().state().x.clone()
-        })
-    };
-    let (one, two) = (run_on(1), run_on(2));
-    assert!(same_bits(&one, &two), "one and two threads differ");
-    assert!(same_bits(&two, &run_on(2)), "two runs on two threads differ");
+fn garment_reruns_are_bit_identical_on_one_and_two_threads() {
+    for scene in ["skirt-walk.toml", "top-walk.toml"] {
+        let run_on = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| {
+                let mut run = build(scene, &["simulation.duration_s=1.2"]);
+                for _ in 0..run.config.steps {
+                    run.step().unwrap();
+                }
+                run.cloths[run.cloth].simulation().state().x.clone()
+            })
+        };
+        let (one, two) = (run_on(1), run_on(2));
+        assert!(same_bits(&one, &two), "{scene}: one and two threads differ");
+        assert!(same_bits(&two, &run_on(2)), "{scene}: two runs on two threads differ");
+    }
+}
+
+impl Worn {
+    /// Sewn garments: the seams closed while the mannequin stood and stay
+    /// closed within `gap` m (the contact thickness is 5 mm), the panels
+    /// stretched less than `sewing` while they were drawn together, and
+    /// the worn garment's links beyond 1.2 at `over` steps at most.
+    fn assert_sewn(&self, gap: f64, sewing: f64, over: usize) {
+        assert!(self.seam_gap < gap, "a seam opened to {} m", self.seam_gap);
+        assert!(self.sewing < sewing, "stretched to {} while sewn", self.sewing);
+        assert!(self.over <= over, "{} steps beyond stretch 1.2", self.over);
+    }
+}
+
+/// The top, sewn from a tube and two straps while the mannequin stands,
+/// stays on through two and a half walk cycles held by its straps alone
+/// (in the torso's frame, whose origin is the waist joint: measured
+/// nothing inside a link, stretch 1.294, 18 of 216 steps beyond 1.2 (the
+/// straps' inner edges where they cross the ridge of the shoulder line,
+/// under the single linearised step: issue 10), 1.133 while sewn, closest
+/// particle-triangle 6.5 mm, 0.283 m from the torso's axis, 0.004 m below
+/// the waist joint to 0.504 m above it, seams within 0.1 mm).
+#[test]
+fn the_sewn_top_stays_on_the_walking_mannequin() {
+    let worn = wear("top-walk.toml", "torso");
+    worn.assert_stays_on(1.3, 0.30, [-0.05, 0.55]);
+    worn.assert_sewn(1e-3, 1.15, 20);
+}
+
+/// The one-piece: the top with a skirt gathered onto its lower edge
+/// (measured: stretch 1.357, 4 steps beyond 1.2, closest 6.8 mm, 0.415 m
+/// out, from 0.626 m below the waist joint, seams within 0.2 mm). A known
+/// defect: while sewn its links reach 2.45, the skirt's top drawn over the
+/// pelvis box's top edge while its stitches pull at their cap, which
+/// stretches the tube's lower rows (a stitch cannot tell closing from
+/// closed: a pull low enough to sew gently let the waist seam tear where
+/// the walking hips caught it).
+#[test]
+fn the_sewn_one_piece_stays_on_the_walking_mannequin() {
+    let worn = wear("one-piece-walk.toml", "torso");
+    worn.assert_stays_on(1.4, 0.45, [-0.65, 0.55]);
+    worn.assert_sewn(1e-3, 2.5, 6);
 }

@@ -276,12 +276,19 @@ fn multigrid_cycle_is_symmetric_positive_definite() {
     let mut mg = Multigrid::new(a.pattern(), &chunk_aggregations(n, 3)).unwrap();
     assert!(mg.depth() >= 3);
     mg.update(&a);
-    for _ in 0..5 {
+    assert_cycle_is_spd(&mut mg, &a, &mut rng, 5);
+}
+
+/// `v^T M u = u^T M v` and `u^T M u > 0` for the V-cycle `M` on `tries`
+/// pairs of random vectors.
+fn assert_cycle_is_spd(mg: &mut Multigrid, a: &BlockSparseMatrix, rng: &mut Rng, tries: usize) {
+    let n = a.n();
+    for _ in 0..tries {
         let u: Vec<Vec3> = (0..n).map(|_| rng.vec3()).collect();
         let v: Vec<Vec3> = (0..n).map(|_| rng.vec3()).collect();
         let (mut mu, mut mv) = (vec![Vec3::zeros(); n], vec![Vec3::zeros(); n]);
-        mg.apply(&a, &u, &mut mu);
-        mg.apply(&a, &v, &mut mv);
+        mg.apply(a, &u, &mut mu);
+        mg.apply(a, &v, &mut mv);
         let dot = |p: &[Vec3], q: &[Vec3]| p.iter().zip(q).map(|(x, y)| x.dot(y)).sum::<f64>();
         let (vmu, umv) = (dot(&v, &mu), dot(&u, &mv));
         assert!((vmu - umv).abs() <= 1e-12 * vmu.abs().max(umv.abs()), "{vmu} vs {umv}");
@@ -372,4 +379,53 @@ fn multigrid_damped_for_its_elements_stays_positive_definite() {
         (smallest_cycle_eigenvalue(a, &mut elements), smallest_cycle_eigenvalue(a, &mut links));
     println!("smallest eigenvalue of the cycle: damped for its elements {with_elements:e}, for links {with_links:e}");
     assert!(with_elements > 0.0 && with_links < 0.0);
+}
+
+/// Nodes tied by a coupling far stiffer than the rest (a seam's stitches)
+/// are smoothed as pairs (`Multigrid::with_pairs`): the cycle stays
+/// symmetric positive definite, PCG still matches Cholesky, and it takes
+/// far fewer iterations than with point blocks, whose diagonals the stiff
+/// coupling inflates.
+#[test]
+fn multigrid_smoothing_stiff_pairs_together_stays_spd_and_converges_faster() {
+    let mut rng = Rng(0xfeed);
+    let a = random_system(&mut rng, 800, 3, 0.02);
+    let n = a.n();
+    // Node i tied to node i + n/2 (never in the same aggregate) for every
+    // tenth i, 1000 times stiffer than a typical coupling.
+    let ties: Vec<(usize, usize)> = (0..n / 2).step_by(10).map(|i| (i, i + n / 2)).collect();
+    let pairs = (0..n).flat_map(|i| a.pattern().row_cols(i).iter().map(move |&j| (i, j as usize)));
+    let pattern = BlockPattern::from_pairs(n, pairs.chain(ties.iter().copied())).unwrap();
+    let mut stiff = BlockSparseMatrix::new(pattern.clone());
+    for (i, j, b) in a.blocks() {
+        stiff.values_mut()[pattern.slot(i, j).unwrap()] = *b;
+    }
+    for &(i, j) in &ties {
+        let k = Mat3::identity() * 1e4;
+        let v = stiff.values_mut();
+        v[pattern.diag_slot(i)] += k;
+        v[pattern.diag_slot(j)] += k;
+        v[pattern.slot(i, j).unwrap()] -= k;
+        v[pattern.slot(j, i).unwrap()] -= k;
+    }
+    let b: Vec<Vec3> = (0..n).map(|_| rng.vec3()).collect();
+    let f = ConstraintFilter::new(n);
+    let reference = cholesky_reference(&stiff, &b, &f);
+    let params = PcgParams { rel_tol: 1e-10, max_iter: 5000, preconditioner: PreconditionerKind::Multigrid };
+    let mut iterations = Vec::new();
+    for paired in [false, true] {
+        let mg = Multigrid::new(&pattern, &chunk_aggregations(n, 4)).unwrap();
+        let mut mg = if paired { mg.with_pairs(&ties) } else { mg };
+        mg.update(&stiff);
+        assert_cycle_is_spd(&mut mg, &stiff, &mut rng, 3);
+        let mut pcg = Pcg::new(n);
+        pcg.set_multigrid(mg);
+        let mut x = vec![Vec3::zeros(); n];
+        let info = pcg.solve(&stiff, &b, &f, &params, &mut x).expect("converges");
+        let err = max_rel_diff(&x, &reference);
+        assert!(err < 1e-7, "paired {paired}: relative difference {err:e}");
+        iterations.push(info.iterations);
+    }
+    // Measured: 120 iterations with point blocks, 24 with the pairs.
+    assert!(iterations[1] * 4 < iterations[0], "iterations (point, paired): {iterations:?}");
 }

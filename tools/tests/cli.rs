@@ -247,7 +247,7 @@ fn collision_work_happens_only_when_the_scene_declares_it() {
 }
 
 #[test]
-fn bench_table1_prints_the_skirt_beside_the_paper() {
+fn bench_table1_prints_the_garments_beside_the_paper() {
     let out = out_dir("table1");
     let status = cloth()
         .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
@@ -261,17 +261,18 @@ fn bench_table1_prints_the_skirt_beside_the_paper() {
     let rows = rows.as_array().unwrap();
     let garments: Vec<&str> = rows.iter().map(|r| r["garment"].as_str().unwrap()).collect();
     assert_eq!(garments, ["one-piece", "top", "skirt"]);
-    // Garments not built yet say so and still show the paper's rows.
-    for r in &rows[..2] {
-        assert!(r["measured"].is_null() && r["missing"].as_str().unwrap().starts_with("not built"));
+    // The sewn garments at twice their fixtures' resolution, beside the paper's rows.
+    for (r, particles) in rows[..2].iter().zip([5458, 2866]) {
+        assert_eq!(r["measured"]["particles"], particles);
+        assert_eq!(r["measured"]["steps"], 9);
         assert!(!r["paper"].as_array().unwrap().is_empty());
     }
     let skirt = &rows[2];
     let (m, paper) = (&skirt["measured"], &skirt["paper"][0]);
-    // The paper's particle count, on the mannequin's 15 links (primitives, no triangles).
+    // The paper's particle count, on the mannequin's 17 shapes (primitives, no triangles).
     assert_eq!(m["particles"], paper["particles"]);
     assert_eq!(paper["particles"], 3456);
-    assert_eq!((m["solids"].as_u64(), m["solid_triangles"].as_u64()), (Some(15), Some(0)));
+    assert_eq!((m["solids"].as_u64(), m["solid_triangles"].as_u64()), (Some(17), Some(0)));
     // 0.1 s at 1/90 s: 9 steps, three per 30 Hz frame.
     assert_eq!(m["steps"], 9);
     let frames = m["frames"].as_f64().unwrap();
@@ -287,7 +288,7 @@ fn bench_table1_prints_the_skirt_beside_the_paper() {
         assert!((speedup * cpu - 3.01).abs() < 1e-9, "{speedup} x {cpu}");
     }
     let md = std::fs::read_to_string(out.join("table1.md")).unwrap();
-    assert!(md.contains("| skirt | 3456 | 15 (0) |"), "{md}");
+    assert!(md.contains("| skirt | 3456 | 17 (0) |"), "{md}");
 }
 
 #[test]

@@ -172,8 +172,10 @@ impl VoxelHash {
     /// triangle's bounding box grown by `margin` (m), found through the
     /// voxels the box touches; in triangle order (then voxel and point
     /// order: deterministic), without duplicates (a point lies in one voxel,
-    /// each voxel is visited once per triangle). A superset of the pairs
-    /// closer than `margin`.
+    /// each voxel is visited once per triangle). A box that spans more
+    /// voxels than there are points is searched point by point instead (in
+    /// point order), so the cost per triangle stays O(points). A superset of
+    /// the pairs closer than `margin`.
     pub fn point_triangle_candidates(
         &self,
         triangles: &[[Vec3; 3]],
@@ -200,14 +202,22 @@ impl VoxelHash {
             let lo = tri[0].inf(&tri[1]).inf(&tri[2]).add_scalar(-margin);
             let hi = tri[0].sup(&tri[1]).sup(&tri[2]).add_scalar(margin);
             let (a, b) = (self.cell_of(&lo), self.cell_of(&hi));
+            let inside = |q: &Vec3| (0..3).all(|k| q[k] >= lo[k] && q[k] <= hi[k]);
+            // A box over more voxels than there are points (a triangle torn
+            // across the scene by a blown-up step) is cheaper to test point
+            // by point: walking its voxels took minutes per step.
+            let cells = (0..3).map(|k| (b[k] as f64 - a[k] as f64 + 1.0).max(1.0)).product::<f64>();
+            if cells > self.point_pos.len() as f64 {
+                let found = self.point_pos.iter().enumerate().filter(|(_, q)| inside(q));
+                out.extend(found.map(|(p, _)| (p as u32, t as u32)));
+                continue;
+            }
             for x in a[0]..=b[0] {
                 for y in a[1]..=b[1] {
                     for z in a[2]..=b[2] {
                         let c = [x, y, z];
                         for &p in self.bucket_points(c) {
-                            let q = &self.point_pos[p as usize];
-                            let inside = (0..3).all(|k| q[k] >= lo[k] && q[k] <= hi[k]);
-                            if self.point_cell[p as usize] == c && inside {
+                            if self.point_cell[p as usize] == c && inside(&self.point_pos[p as usize]) {
                                 out.push((p, t as u32));
                             }
                         }

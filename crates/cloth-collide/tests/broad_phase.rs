@@ -133,3 +133,30 @@ fn bad_input_is_an_error() {
         Err(BroadPhaseError::NonFinite { what: "triangle", .. })
     ));
 }
+
+/// A triangle torn across the scene (a blown-up step: corners 1 km apart
+/// with 1 cm voxels, 1e15 voxels in its box) is searched point by point:
+/// the same candidates as a brute-force box test, at once.
+#[test]
+fn a_huge_triangle_is_searched_point_by_point() {
+    let mut rng = Rng(11);
+    let points = cloud(500, &mut rng);
+    let huge = [Vec3::new(-500.0, -500.0, -500.0), Vec3::new(500.0, 0.0, 500.0), Vec3::new(0.0, 500.0, 0.0)];
+    let small = [Vec3::zeros(), Vec3::new(0.03, 0.0, 0.0), Vec3::new(0.0, 0.03, 0.0)];
+    let mut hash = VoxelHash::new(0.01).unwrap();
+    hash.insert_points(&points).unwrap();
+    let candidates = hash.point_triangle_candidates(&[huge, small], 0.005).unwrap();
+    let in_box = |tri: &[Vec3; 3], q: &Vec3| {
+        let lo = tri[0].inf(&tri[1]).inf(&tri[2]).add_scalar(-0.005);
+        let hi = tri[0].sup(&tri[1]).sup(&tri[2]).add_scalar(0.005);
+        (0..3).all(|k| q[k] >= lo[k] && q[k] <= hi[k])
+    };
+    for (t, tri) in [huge, small].iter().enumerate() {
+        let mut expected: Vec<u32> = (0..points.len() as u32).filter(|&p| in_box(tri, &points[p as usize])).collect();
+        let mut got: Vec<u32> = candidates.iter().filter(|c| c.1 == t as u32).map(|c| c.0).collect();
+        expected.sort_unstable();
+        got.sort_unstable();
+        assert_eq!(got, expected, "triangle {t}");
+    }
+    assert_eq!(candidates.iter().filter(|c| c.1 == 0).count(), points.len());
+}

@@ -26,6 +26,7 @@ pub use contact::{colliders, contacts};
 pub use integrate::control;
 pub use integrate::energy::{EnergyReport, GAIN_TOLERANCE};
 use integrate::{energy, explicit, integrator, matrix_free, newton, sim, state};
+pub use model::seams::{self, SeamSide, SeamSpec, Stitch};
 use model::{constraints, keyframes, material, pins, topology};
 pub use model::{element_laws, elements, forces, laws, wind};
 

@@ -46,6 +46,14 @@
 //! nodes = [[0, 40], [40, 40]]
 //! motion = { kind = "fixed" }
 //!
+//! [[seams]]                    # any number: two runs of edge nodes sewn node for node
+//! a = { panel = 1, edge = "i_min" }                    # range = [0, 1]: the whole edge
+//! b = { panel = 0, edge = "j_min", range = [0.1, 0.2] } # fractions of the edge's length
+//! reverse = false              # pair a's first node with b's last
+//! stiffness_n_m = 2000.0       # a closed stitch; default 10 x tensile_stiffness_n_m
+//! pull_n = 4.0                 # most pull of a stitch, N; default E x a's spacing
+//! closing_speed_m_s = 0.5      # an open stitch closes at about this speed
+//!
 //! [wind]                       # needed by "wind" and "aerodynamics"
 //! profile = { kind = "gust", mean_m_s = [5.0, 0.0, 0.0], amplitude_m_s = [2.0, 0.0, 0.0], frequency_hz = 0.5 }
 //! fluid_coefficient_n_s_m3 = 0.5   # Provot's C_v
@@ -86,7 +94,8 @@
 
 use crate::{
     BendingLaw, ClothModel, ColliderSpec, CollisionSpec, Effects, GridPanel, IntegratorKind, Material, ModelKind,
-    ModelSpec, PcgParams, PinSpec, PreconditionerKind, SelfCollisionSpec, SolverParams, StrainLimit, Vec3, Wind,
+    ModelSpec, PcgParams, PinSpec, PreconditionerKind, SeamSpec, SelfCollisionSpec, SolverParams, StrainLimit, Vec3,
+    Wind,
 };
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -107,6 +116,9 @@ pub struct Scene {
     /// Pinned nodes.
     #[serde(default)]
     pub pins: Vec<PinSpec>,
+    /// Seams sewing panels together.
+    #[serde(default)]
+    pub seams: Vec<SeamSpec>,
     /// Provot's deformation constraints (used when `strain-limit` is listed).
     #[serde(default)]
     pub constraints: StrainLimit,
@@ -471,6 +483,7 @@ impl Scene {
             panels: self.panels.clone(),
             material: self.material,
             pins: self.pins.clone(),
+            seams: self.seams.clone(),
             effects: Effects {
                 gravity: self.has_effect(EffectName::Gravity).then(|| Vec3::from(self.simulation.gravity_m_s2)),
                 damping: self.has_effect(EffectName::Damping),

@@ -85,8 +85,13 @@ struct Level {
     slots: Gather,
     /// The coarse operator `P^T A P`.
     coarse: BlockSparseMatrix,
-    /// Damped inverse diagonal blocks of this level's (fine) operator.
+    /// Damped inverse diagonal blocks of this level's (fine) operator (for
+    /// a paired node, its diagonal block of the pair's inverse).
     inv_diag: Vec<Mat3>,
+    /// Nodes smoothed as pairs (the finest level only): each node's
+    /// partner (itself when unpaired) and the pair's inverse's
+    /// off-diagonal block `(A_pair^-1)_ij`, damped.
+    pairs: Option<(Vec<u32>, Vec<Mat3>)>,
     b: Vec<Vec3>,
     x: Vec<Vec3>,
     r: Vec<Vec3>,
@@ -156,6 +161,7 @@ impl Multigrid {
                 slots,
                 coarse: BlockSparseMatrix::new(coarse_pattern.clone()),
                 inv_diag: vec![Mat3::identity(); n],
+                pairs: None,
                 b: vec![Vec3::zeros(); n],
                 x: vec![Vec3::zeros(); n],
                 r: vec![Vec3::zeros(); n],
@@ -184,6 +190,32 @@ impl Multigrid {
         self
     }
 
+    /// Smooths the finest level's nodes `(i, j)` of `pairs` together: a
+    /// 6 x 6 block of the smoother instead of two 3 x 3 ones. For nodes
+    /// tied by a coupling much stiffer than their others (a seam's
+    /// stitch), point-block Jacobi divides each node's residual by a
+    /// diagonal the stiff coupling inflates, so the pair barely follows its
+    /// neighbours; the pair's block does not. Pairs that repeat a node (or
+    /// are out of range) are skipped. The cycle stays symmetric positive
+    /// definite: it is block-Jacobi on a coarser partition, and an element
+    /// touches no more blocks than before.
+    pub fn with_pairs(mut self, pairs: &[(usize, usize)]) -> Self {
+        let Some(first) = self.levels.first_mut() else { return self };
+        let n = first.inv_diag.len();
+        let mut partner: Vec<u32> = (0..n as u32).collect();
+        let mut any = false;
+        for &(i, j) in pairs {
+            if i < n && j < n && i != j && partner[i] as usize == i && partner[j] as usize == j {
+                (partner[i], partner[j]) = (j as u32, i as u32);
+                any = true;
+            }
+        }
+        if any {
+            first.pairs = Some((partner, vec![Mat3::zeros(); n]));
+        }
+        self
+    }
+
     /// Number of levels including the finest.
     pub fn depth(&self) -> usize {
         self.levels.len() + 1
@@ -197,6 +229,9 @@ impl Multigrid {
             let fine = if l == 0 { a } else { &done[l - 1].coarse };
             let level = &mut rest[0];
             inverse_diagonal(fine, omega, &mut level.inv_diag);
+            if let Some((partner, inv_off)) = &mut level.pairs {
+                invert_pairs(fine, omega, partner, &mut level.inv_diag, inv_off);
+            }
             let slots = &level.slots;
             let src = fine.values();
             level.coarse.values_mut().par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(c, chunk)| {
@@ -228,7 +263,7 @@ impl Multigrid {
             let (before, after) = self.levels.split_at_mut(l);
             let (level, rest) = after.split_first_mut().expect("level l exists");
             let op = if l == 0 { a } else { &before[l - 1].coarse };
-            jacobi_from_zero(&level.inv_diag, &level.b, &mut level.x);
+            jacobi_from_zero(&level.inv_diag, level.pairs.as_ref(), &level.b, &mut level.x);
             op.residual(&level.b, &level.x, &mut level.r);
             let target = if let Some(next) = rest.first_mut() { &mut next.b } else { &mut self.coarsest_b };
             restrict(&level.members, &level.r, target);
@@ -244,14 +279,10 @@ impl Multigrid {
                 *xi += correction[c as usize];
             });
             op.residual(&level.b, &level.x, &mut level.r);
-            level
-                .x
-                .par_iter_mut()
-                .zip(level.r.par_iter().zip(level.inv_diag.par_iter()))
-                .with_min_len(ROW_CHUNK)
-                .for_each(|(xi, (ri, di))| {
-                    *xi += di * ri;
-                });
+            let (r, inv_diag, pairs) = (&level.r, &level.inv_diag, level.pairs.as_ref());
+            level.x.par_iter_mut().enumerate().with_min_len(ROW_CHUNK).for_each(|(i, xi)| {
+                *xi += smoothed(inv_diag, pairs, r, i);
+            });
         }
         z.copy_from_slice(&self.levels[0].x);
     }
@@ -325,11 +356,43 @@ fn inverse_diagonal(a: &BlockSparseMatrix, omega: f64, inv: &mut [Mat3]) {
     });
 }
 
-fn jacobi_from_zero(inv_diag: &[Mat3], b: &[Vec3], x: &mut [Vec3]) {
-    x.par_iter_mut()
-        .zip(b.par_iter().zip(inv_diag.par_iter()))
-        .with_min_len(ROW_CHUNK)
-        .for_each(|(xi, (bi, di))| *xi = di * bi);
+/// The pairs' damped inverse blocks: `omega [A_ii A_ij; A_ji A_jj]^-1`
+/// into the diagonal and off-diagonal slots (a pair whose block is not
+/// positive definite keeps its two point blocks).
+fn invert_pairs(a: &BlockSparseMatrix, omega: f64, partner: &[u32], inv_diag: &mut [Mat3], inv_off: &mut [Mat3]) {
+    for i in 0..partner.len() {
+        let j = partner[i] as usize;
+        if j <= i {
+            continue;
+        }
+        let Some(slot) = a.pattern().slot(i, j) else { continue };
+        let mut m = nalgebra::Matrix6::<f64>::zeros();
+        let (aij, aji) = (a.values()[slot], a.values()[slot].transpose());
+        m.fixed_view_mut::<3, 3>(0, 0).copy_from(a.diag(i));
+        m.fixed_view_mut::<3, 3>(0, 3).copy_from(&aij);
+        m.fixed_view_mut::<3, 3>(3, 0).copy_from(&aji);
+        m.fixed_view_mut::<3, 3>(3, 3).copy_from(a.diag(j));
+        let Some(c) = m.cholesky() else { continue };
+        let inv = c.inverse() * omega;
+        inv_diag[i] = inv.fixed_view::<3, 3>(0, 0).into_owned();
+        inv_off[i] = inv.fixed_view::<3, 3>(0, 3).into_owned();
+        inv_off[j] = inv.fixed_view::<3, 3>(3, 0).into_owned();
+        inv_diag[j] = inv.fixed_view::<3, 3>(3, 3).into_owned();
+    }
+}
+
+/// The smoother's correction at node `i` for residual `r`.
+#[inline]
+fn smoothed(inv_diag: &[Mat3], pairs: Option<&(Vec<u32>, Vec<Mat3>)>, r: &[Vec3], i: usize) -> Vec3 {
+    let own = inv_diag[i] * r[i];
+    match pairs {
+        Some((partner, inv_off)) if partner[i] as usize != i => own + inv_off[i] * r[partner[i] as usize],
+        _ => own,
+    }
+}
+
+fn jacobi_from_zero(inv_diag: &[Mat3], pairs: Option<&(Vec<u32>, Vec<Mat3>)>, b: &[Vec3], x: &mut [Vec3]) {
+    x.par_iter_mut().enumerate().with_min_len(ROW_CHUNK).for_each(|(i, xi)| *xi = smoothed(inv_diag, pairs, b, i));
 }
 
 /// `target[c] = sum of src over aggregate c`, in member order.

@@ -308,7 +308,15 @@ impl ClothSet {
             for s in &cloth.solids {
                 let Some(c) = s.body.and_then(find).map(|k| &coupled[k]) else { continue };
                 let (v, w) = twist(c);
-                cloth.sim.set_solid_motion(s.solid, c.start.motion(t, h, v, w)).map_err(|e| fail(e.to_string()))?;
+                let motion = c.start.motion(t, h, v, w);
+                // A kinematic body's motion is known (its next pose); a
+                // dynamic body's is the master's guess.
+                let set = if matches!(c.start.kind, Drive::Kinematic(_)) {
+                    cloth.sim.set_solid_motion_prescribed(s.solid, motion)
+                } else {
+                    cloth.sim.set_solid_motion(s.solid, motion)
+                };
+                set.map_err(|e| fail(e.to_string()))?;
             }
             let mut targets = Vec::with_capacity(cloth.attachments.len());
             for a in &cloth.attachments {

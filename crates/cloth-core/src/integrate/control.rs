@@ -159,6 +159,8 @@ pub enum ControlError {
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Control {
     solids: Vec<Option<SolidMotion>>,
+    /// Whether each solid's motion is prescribed (exact), not a guess.
+    prescribed_solids: Vec<bool>,
     pins: Vec<Option<Vec3>>,
     /// Held particles and their targets, sorted by particle.
     holds: Vec<(usize, Vec3)>,
@@ -172,6 +174,7 @@ impl Control {
     pub fn for_model(model: &ClothModel) -> Self {
         Self {
             solids: vec![None; model.colliders().len()],
+            prescribed_solids: vec![false; model.colliders().len()],
             pins: vec![None; model.pins().len()],
             holds: Vec::new(),
             forces: Vec::new(),
@@ -181,12 +184,38 @@ impl Control {
     }
 
     /// Sets the motion of externally driven solid `index` (its index among
-    /// the model's colliders).
+    /// the model's colliders) as a guess: a co-simulation master's
+    /// estimate of a body that the cloth pushes back, so the cloth's
+    /// friction on it is decided after the solve (stuck to a guessed
+    /// velocity, a light body gains energy: `contacts::FrictionMode`).
     pub fn set_solid_motion(
         &mut self,
         model: &ClothModel,
         index: usize,
         motion: SolidMotion,
+    ) -> Result<(), ControlError> {
+        self.set_solid(model, index, motion, false)
+    }
+
+    /// Sets the motion of externally driven solid `index` as prescribed:
+    /// exactly how it moves over the step, whatever the cloth does (a
+    /// kinematic body, a character's link). The cloth's friction on it is
+    /// then decided in the solve, as on the scene's own moving solids.
+    pub fn set_solid_motion_prescribed(
+        &mut self,
+        model: &ClothModel,
+        index: usize,
+        motion: SolidMotion,
+    ) -> Result<(), ControlError> {
+        self.set_solid(model, index, motion, true)
+    }
+
+    fn set_solid(
+        &mut self,
+        model: &ClothModel,
+        index: usize,
+        motion: SolidMotion,
+        prescribed: bool,
     ) -> Result<(), ControlError> {
         let count = model.colliders().len();
         let c = model.colliders().get(index).ok_or(ControlError::NoSuchSolid { index, count })?;
@@ -197,6 +226,7 @@ impl Control {
             return Err(ControlError::NonFinite { what: format!("solid {index} motion") });
         }
         self.solids[index] = Some(motion);
+        self.prescribed_solids[index] = prescribed;
         Ok(())
     }
 
@@ -314,6 +344,12 @@ impl Control {
     /// The motion set for solid `index`, if any.
     pub fn solid_motion(&self, index: usize) -> Option<&SolidMotion> {
         self.solids.get(index).and_then(Option::as_ref)
+    }
+
+    /// Whether solid `index`'s motion was set as prescribed
+    /// ([`Control::set_solid_motion_prescribed`]).
+    pub fn is_solid_prescribed(&self, index: usize) -> bool {
+        self.prescribed_solids.get(index).copied().unwrap_or(false)
     }
 
     /// The motion set for each of the model's solids (`None`: not set).

@@ -89,6 +89,9 @@ impl StepEnergy<'_> {
                 rate += l.k_d * dv * dv;
             }
         }
+        for s in model.stitches() {
+            rate += s.c * (v[s.j as usize] - v[s.i as usize]).norm_squared();
+        }
         let dissipated = rate * self.h;
         let (k0, e0, g0) = self.before;
         let (k1, e1, g1) = after;

@@ -612,7 +612,9 @@ fn uncommitted_step<S: Linearised>(
     // smooth it into their potential): see `contacts::FrictionMode`.
     let friction_in_solve = solver.newton_iterations <= 1;
     let prescribed = |i: usize| model.is_pinned(i) || control.is_held(i);
-    let driven = |k: usize| model.colliders()[k].is_external();
+    // Guessed motions keep the friction after the solve; prescribed ones
+    // (kinematic bodies, rig links) are exact, as the scene's own solids.
+    let driven = |k: usize| model.colliders()[k].is_external() && !control.is_solid_prescribed(k);
     if friction_in_solve {
         stick_frictional_contacts(&mut ws.contacts.solid, h, prescribed, driven);
     }

@@ -398,6 +398,13 @@ impl<'a> Line<'a> {
                 q2 += 0.5 * c_f * b * l.k_d * dp * dp;
             }
         }
+        // Stitch dashpots `c |v_j - v_i|^2`.
+        for s in model.stitches() {
+            let (i, j) = (s.i as usize, s.j as usize);
+            let (dv, dp) = (v[j] - v[i], p[j] - p[i]);
+            q1 += c_f * s.c * dv.dot(&dp);
+            q2 += 0.5 * c_f * b * s.c * dp.norm_squared();
+        }
         let contacts = extra.contacts.map(|c| {
             (c, contact_friction_potential(c, v, p, 0.0), contact_penalty_energy(c, model, extra.h, x, p, 0.0))
         });

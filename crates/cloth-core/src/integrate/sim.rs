@@ -89,6 +89,12 @@ impl Simulation {
         self.control.set_solid_motion(&self.model, index, motion)
     }
 
+    /// Sets the prescribed motion of externally driven solid `index` (see
+    /// [`Control::set_solid_motion_prescribed`]).
+    pub fn set_solid_motion_prescribed(&mut self, index: usize, motion: SolidMotion) -> Result<(), ControlError> {
+        self.control.set_solid_motion_prescribed(&self.model, index, motion)
+    }
+
     /// Sets where externally driven pin `index` is at the end of the next
     /// step, m (see [`Control::set_pin_target`]).
     pub fn set_pin_target(&mut self, index: usize, position: Vec3) -> Result<(), ControlError> {

@@ -49,18 +49,54 @@ fn eval_with(law: ScalarLaw, u: Vec3, d: f64, k_d: f64) -> LinkEval {
     }
 }
 
-/// Evaluates link `k` (stretch links first, then bend links) at positions `x`.
+/// Where link `k` lives: a type-1 link, a bend link or a stitch.
+enum LinkRef<'a> {
+    Stretch(&'a crate::StretchLink),
+    Bend(&'a crate::BendLink),
+    Stitch(&'a crate::Stitch),
+}
+
+#[inline]
+fn link_ref(model: &ClothModel, k: usize) -> LinkRef<'_> {
+    let (ns, nb) = (model.stretch_links().len(), model.bend_links().len());
+    if k < ns {
+        LinkRef::Stretch(&model.stretch_links()[k])
+    } else if k < ns + nb {
+        LinkRef::Bend(&model.bend_links()[k - ns])
+    } else {
+        LinkRef::Stitch(&model.stitches()[k - ns - nb])
+    }
+}
+
+/// A stitch's law at chord `d`.
+#[inline]
+fn stitch_law(s: &crate::Stitch, d: f64) -> ScalarLaw {
+    crate::laws::stitch(d, s.k, s.pull)
+}
+
+/// Evaluates link `k` (stretch links first, then bend links, then
+/// stitches) at positions `x`.
 #[inline]
 pub fn eval_link(model: &ClothModel, k: usize, x: &[Vec3]) -> LinkEval {
-    let ns = model.stretch_links().len();
-    if k < ns {
-        let l = &model.stretch_links()[k];
-        let (u, d) = unit_and_length(x[l.j as usize] - x[l.i as usize]);
-        eval_with(l.eval(d), u, d, l.k_d)
-    } else {
-        let l = &model.bend_links()[k - ns];
-        let (u, d) = unit_and_length(x[l.j as usize] - x[l.i as usize]);
-        eval_with(l.eval(d), u, d, 0.0)
+    match link_ref(model, k) {
+        LinkRef::Stretch(l) => {
+            let (u, d) = unit_and_length(x[l.j as usize] - x[l.i as usize]);
+            eval_with(l.eval(d), u, d, l.k_d)
+        }
+        LinkRef::Bend(l) => {
+            let (u, d) = unit_and_length(x[l.j as usize] - x[l.i as usize]);
+            eval_with(l.eval(d), u, d, 0.0)
+        }
+        LinkRef::Stitch(s) => {
+            let (u, d) = unit_and_length(x[s.j as usize] - x[s.i as usize]);
+            let mut e = eval_with(stitch_law(s, d), u, d, 0.0);
+            if d == 0.0 {
+                // A closed stitch's Jacobian is k I from any side.
+                e.stiffness = Mat3::identity() * s.k;
+            }
+            e.damping = Mat3::identity() * s.c;
+            e
+        }
     }
 }
 
@@ -68,13 +104,11 @@ pub fn eval_link(model: &ClothModel, k: usize, x: &[Vec3]) -> LinkEval {
 /// Jacobian).
 #[inline]
 fn link_energy(model: &ClothModel, k: usize, x: &[Vec3]) -> f64 {
-    let ns = model.stretch_links().len();
-    if k < ns {
-        let l = &model.stretch_links()[k];
-        l.eval((x[l.j as usize] - x[l.i as usize]).norm()).energy
-    } else {
-        let l = &model.bend_links()[k - ns];
-        l.eval((x[l.j as usize] - x[l.i as usize]).norm()).energy
+    let chord = |i: u32, j: u32| (x[j as usize] - x[i as usize]).norm();
+    match link_ref(model, k) {
+        LinkRef::Stretch(l) => l.eval(chord(l.i, l.j)).energy,
+        LinkRef::Bend(l) => l.eval(chord(l.i, l.j)).energy,
+        LinkRef::Stitch(s) => stitch_law(s, chord(s.i, s.j)).energy,
     }
 }
 
@@ -124,17 +158,22 @@ pub fn potential_energy(model: &ClothModel, x: &[Vec3]) -> f64 {
 /// damping `k_d P (v_j - v_i)`, N (the second particle gets the opposite).
 #[inline]
 pub fn link_force(model: &ClothModel, k: usize, x: &[Vec3], v: &[Vec3]) -> Vec3 {
-    let ns = model.stretch_links().len();
-    if k < ns {
-        let l = &model.stretch_links()[k];
-        let (i, j) = (l.i as usize, l.j as usize);
-        let (u, d) = unit_and_length(x[j] - x[i]);
-        let elastic = u * l.eval(d).phi;
-        if l.k_d > 0.0 { elastic + u * (l.k_d * u.dot(&(v[j] - v[i]))) } else { elastic }
-    } else {
-        let l = &model.bend_links()[k - ns];
-        let (u, d) = unit_and_length(x[l.j as usize] - x[l.i as usize]);
-        u * l.eval(d).phi
+    match link_ref(model, k) {
+        LinkRef::Stretch(l) => {
+            let (i, j) = (l.i as usize, l.j as usize);
+            let (u, d) = unit_and_length(x[j] - x[i]);
+            let elastic = u * l.eval(d).phi;
+            if l.k_d > 0.0 { elastic + u * (l.k_d * u.dot(&(v[j] - v[i]))) } else { elastic }
+        }
+        LinkRef::Bend(l) => {
+            let (u, d) = unit_and_length(x[l.j as usize] - x[l.i as usize]);
+            u * l.eval(d).phi
+        }
+        LinkRef::Stitch(s) => {
+            let (i, j) = (s.i as usize, s.j as usize);
+            let (u, d) = unit_and_length(x[j] - x[i]);
+            u * stitch_law(s, d).phi + (v[j] - v[i]) * s.c
+        }
     }
 }
 

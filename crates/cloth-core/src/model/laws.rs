@@ -268,6 +268,23 @@ pub fn repulsion(d: f64, thickness: f64, k_r: f64) -> ScalarLaw {
     ScalarLaw { energy: 0.5 * k_r * gap * gap, phi: -k_r * gap, dphi: k_r }
 }
 
+/// A seam's stitch ([`crate::seams`]): a thread of zero rest length whose
+/// pull is capped at `pull` while the seam is open, so panels laid out
+/// apart are drawn together at a bounded force (a garment tool's sewing):
+/// `phi = min(k d, pull)`; `E = k d^2 / 2` for `d <= d_c = pull / k`,
+/// `pull (d - d_c / 2)` beyond (continuous with its slope). Ours, not the
+/// papers'. Closed, it is a linear spring, `df_i/dx_j = k I`.
+///
+/// `d` in m; `k` in N/m; `pull` in N.
+pub fn stitch(d: f64, k: f64, pull: f64) -> ScalarLaw {
+    let d_c = pull / k;
+    if d <= d_c {
+        ScalarLaw { energy: 0.5 * k * d * d, phi: k * d, dphi: k }
+    } else {
+        ScalarLaw { energy: pull * (d - 0.5 * d_c), phi: pull, dphi: 0.0 }
+    }
+}
+
 /// The 3x3 block `df_i/dx_j` of a central law at `x_ij = d u`:
 /// `dphi P + (phi/d)(I - P)`, or `dphi P` alone when `keep_orthogonal` is
 /// false (Choi & Ko drop the orthogonal term of type-2 links from the system
@@ -431,5 +448,25 @@ mod tests {
             let dropped = pair_stiffness(&(xij / d), d, &law(d), false);
             assert!(dropped.symmetric_eigen().eigenvalues.min() >= -1e-12);
         }
+    }
+    #[test]
+    fn stitch_force_is_the_derivative_of_its_energy_and_is_capped() {
+        let (k, pull) = (2000.0, 0.2);
+        for d in [0.0, 2e-5, 9.9e-5, 1.01e-4, 0.01, 0.3] {
+            let s = stitch(d, k, pull);
+            assert!(
+                (fd(|x| stitch(x, k, pull).energy, d.max(1e-9), 1e-9) - stitch(d.max(1e-9), k, pull).phi).abs() < 1e-6,
+                "{d}"
+            );
+            assert!(s.phi <= pull && s.phi >= 0.0);
+            if d > 1.01e-4 {
+                assert!((fd(|x| stitch(x, k, pull).phi, d, 1e-7) - s.dphi).abs() < 1e-9);
+            }
+        }
+        assert_eq!(stitch(0.3, k, pull).phi, pull);
+        assert_eq!(stitch(5e-5, k, pull).phi, 0.1);
+        // The energy is continuous where the cap starts.
+        let d_c = pull / k;
+        assert!((stitch(d_c * (1.0 + 1e-12), k, pull).energy - stitch(d_c, k, pull).energy).abs() < 1e-15);
     }
 }

@@ -12,6 +12,7 @@ pub(crate) mod keyframes;
 pub mod laws;
 pub(crate) mod material;
 pub(crate) mod pins;
+pub mod seams;
 pub(crate) mod topology;
 pub mod wind;
 

@@ -47,6 +47,8 @@ pub enum LinkType {
     Sequential,
     /// Interlaced: buckling (bending) link.
     Interlaced,
+    /// A seam's stitch ([`crate::seams`]).
+    Seam,
 }
 
 /// The geometry and connectivity generated from one [`GridPanel`].
