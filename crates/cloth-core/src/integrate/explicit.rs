@@ -320,6 +320,10 @@ impl crate::Integrator for Explicit {
         use crate::IntegratorKind as K;
         crate::integrator::check_step(model, state, h)?;
         crate::integrator::reject_self_collision(model, self.0)?;
+        let limit_s = model.explicit_stitch_step_limit();
+        if self.0 != K::Dopri5 && h >= limit_s {
+            return Err(StepError::StitchesNeedSmallerStep { integrator: self.0.name(), h_s: h, limit_s });
+        }
         let mut report = StepReport { converged: true, substeps: 1, ..Default::default() };
         let mut next_dt = 0.0;
         let pins = PinPaths::new(model, control, &state.x, state.time_s, h);

@@ -264,6 +264,20 @@ pub enum StepError {
         /// The integrator's scene name.
         integrator: &'static str,
     },
+    /// A fixed-step explicit integrator was asked for a step its seams'
+    /// stitches make unstable ([`ClothModel::explicit_stitch_step_limit`]).
+    #[error(
+        "integrator {integrator} at h = {h_s} s: the seams' stitches need h < {limit_s:.3e} s with an explicit \
+         integrator (stiff dashpots on light particles); use bdf2 or backward-euler"
+    )]
+    StitchesNeedSmallerStep {
+        /// The integrator's scene name.
+        integrator: &'static str,
+        /// The step asked for, s.
+        h_s: f64,
+        /// The longest stable step, s.
+        limit_s: f64,
+    },
     /// A state does not fit the model.
     #[error("state has {got} particles but the model has {expected}")]
     StateMismatch {
