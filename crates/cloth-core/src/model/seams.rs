@@ -196,17 +196,7 @@ fn run(side: &SeamSide, panels: &[GridPanel], offsets: &[usize]) -> Result<(Vec<
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn panel(nx: usize, ny: usize, wrap_u: bool) -> GridPanel {
-        GridPanel {
-            particles: [nx, ny],
-            size_m: [1.0, 0.5],
-            origin_m: [0.0; 3],
-            u_axis: [1.0, 0.0, 0.0],
-            v_axis: [0.0, 1.0, 0.0],
-            wrap_u,
-        }
-    }
+    use crate::topology::tests::panel;
 
     fn side(panel: usize, edge: Edge, range: [f64; 2]) -> SeamSide {
         SeamSide { panel, edge, range }

@@ -290,10 +290,11 @@ impl GridPanel {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn panel(nx: usize, ny: usize, wrap_u: bool) -> GridPanel {
+    /// An `nx x ny` panel 1 m x 0.5 m in the xy plane at the origin.
+    pub(crate) fn panel(nx: usize, ny: usize, wrap_u: bool) -> GridPanel {
         GridPanel {
             particles: [nx, ny],
             size_m: [1.0, 0.5],
