@@ -91,6 +91,10 @@ pub struct Summary {
     pub max_stretch_ratio: f64,
     /// Largest type-1 length / rest length at any step (and at the start).
     pub peak_stretch_ratio: f64,
+    /// The seams' stitches (`[[seams]]`) and how closed they are at the
+    /// end. Absent without seams.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub seams: Option<SeamSummary>,
     /// Newton iterations (`solver.newton_iterations > 1`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub newton: Option<NewtonSummary>,
@@ -125,6 +129,15 @@ pub struct Summary {
     /// Cloth-body coupling counters (scenes with `[[bodies]]`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub coupling: Option<CouplingSummary>,
+}
+
+/// How closed the seams are at the end of a run.
+#[derive(Debug, Serialize)]
+pub struct SeamSummary {
+    /// Stitches (sewn node pairs).
+    pub stitches: usize,
+    /// Widest gap of a stitch at the end, m.
+    pub max_gap_m: f64,
 }
 
 /// What the Newton iterations did over a run.

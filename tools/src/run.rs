@@ -1,6 +1,8 @@
 //! `cloth run`, `cloth validate` and `cloth time`.
 
-use crate::output::{BodySummary, CouplingSummary, EnergySummary, NewtonSummary, StageWall, Summary, write_obj};
+use crate::output::{
+    BodySummary, CouplingSummary, EnergySummary, NewtonSummary, SeamSummary, StageWall, Summary, write_obj,
+};
 use anyhow::{Context, Result, bail};
 use cloth_core::scene::{EffectName, RunConfig, Scene, SceneError};
 use cloth_core::{ClothModel, ContactStats, Simulation, StepReport};
@@ -236,6 +238,8 @@ pub(crate) fn simulate(
         unconverged_steps: unconverged,
         max_stretch_ratio: model.max_stretch_ratio(&state.x),
         peak_stretch_ratio: peak_stretch,
+        seams: (!model.stitches().is_empty())
+            .then(|| SeamSummary { stitches: model.stitches().len(), max_gap_m: model.max_seam_gap(&state.x) }),
         newton: newton.summary(),
         energy: energy.summary(),
         min_z_m: state.x.iter().map(|p| p.z).fold(f64::INFINITY, f64::min),

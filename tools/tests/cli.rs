@@ -246,6 +246,18 @@ fn collision_work_happens_only_when_the_scene_declares_it() {
     assert!(folding["stage_wall_s"]["self_collision"].as_f64().unwrap() > 0.0);
 }
 
+/// A sewn garment's summary says how closed its seams are (the top's 16
+/// stitches, closed within a millimetre once the mannequin has stood for
+/// 0.6 s); a scene without seams has no such entry.
+#[test]
+fn summaries_report_the_seams() {
+    let top = summary_of("top-walk.toml", &["simulation.duration_s=0.7"]);
+    assert_eq!(top["seams"]["stitches"], 16);
+    let gap = top["seams"]["max_gap_m"].as_f64().unwrap();
+    assert!(gap < 1e-3, "seams open by {gap} m");
+    assert!(summary_of("hang.toml", &["simulation.duration_s=0.02"]).get("seams").is_none());
+}
+
 #[test]
 fn bench_table1_prints_the_garments_beside_the_paper() {
     let out = out_dir("table1");
