@@ -412,23 +412,17 @@ pub fn drape(args: &StudyArgs) -> Result<()> {
                 r.cg_iterations,
                 r.step_wall_s
             );
-            // A long study says where it is (101 x 101: tens of minutes).
-            eprintln!(
-                "drape: {} h = {h}: {}, {} steps, {:.1} s",
-                method.label,
-                match (r.stable, reached) {
-                    (false, _) => "blew up".to_string(),
-                    (true, None) => "not vertical within the run".to_string(),
-                    (true, Some(t)) => format!("vertical at {t:.3} s"),
-                },
-                r.steps,
-                r.step_wall_s
-            );
-            let cell = match (r.stable, reached) {
-                (false, _) => "x".into(),
-                (true, None) => "-".into(),
-                (true, Some(_)) => format!("{} / {} / {:.2}", r.steps, r.cg_iterations, r.step_wall_s),
+            // The table's cell, and the outcome for the progress line (a
+            // long study says where it is: 101 x 101 takes tens of minutes).
+            let (cell, outcome) = match (r.stable, reached) {
+                (false, _) => ("x".to_string(), "blew up".to_string()),
+                (true, None) => ("-".to_string(), "not vertical within the run".to_string()),
+                (true, Some(t)) => (
+                    format!("{} / {} / {:.2}", r.steps, r.cg_iterations, r.step_wall_s),
+                    format!("vertical at {t:.3} s"),
+                ),
             };
+            eprintln!("drape: {} h = {h}: {outcome}, {} steps, {:.1} s", method.label, r.steps, r.step_wall_s);
             let _ = write!(md, " {cell} |");
             if r.stable && reached.is_some() {
                 points.push((*h, r.step_wall_s));

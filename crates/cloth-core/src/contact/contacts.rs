@@ -110,9 +110,9 @@ pub struct SolidContact {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum FrictionMode {
     /// [`apply_friction`] after the solve: particles squeezed between two
-    /// solids or held by two, solids driven from outside (see
-    /// [`stick_frictional_contacts`]), integrators without a matrix, Newton
-    /// iterations (which smooth friction into their potential).
+    /// solids or held by two, solids whose motion from outside is a guess
+    /// (see [`stick_frictional_contacts`]), integrators without a matrix,
+    /// Newton iterations (which smooth friction into their potential).
     #[default]
     AfterSolve,
     /// In the solve, stuck: the particle moves with the surface.
@@ -866,9 +866,11 @@ pub fn constrain_contacts(
 /// again, [`constrain_contacts`]).
 /// Contacts found during the step's passes join too.
 ///
-/// Solids driven from outside (`driven(collider)`: rapier bodies, rig
-/// links) keep the friction after the solve. Their velocity over the step
-/// is the co-simulation master's guess; a particle stuck to it hands the
+/// Solids whose motion from outside is a guess (`driven(collider)`:
+/// [`crate::Control::set_solid_motion`], rapier's dynamic and fixed
+/// bodies; not prescribed motions such as rig links, which are exact) keep
+/// the friction after the solve. Their velocity over the step is the
+/// co-simulation master's guess; a particle stuck to it hands the
 /// body the whole cloth's tangential pull at once (up to `mu N`, with `N`
 /// carrying the cloth's tension), and a body lighter than the cloth is
 /// thrown by it between passes (`cloth study stability`, a ball of 1e-3

@@ -552,8 +552,8 @@ impl ClothModel {
         let n = mass.len();
         let offsets: Vec<usize> = panels.iter().map(|p| p.offset).collect();
         let mut stitches = Vec::new();
+        let tensile = spec.material.tensile_stiffness_n_m;
         for (seam, s) in spec.seams.iter().enumerate() {
-            let tensile = spec.material.tensile_stiffness_n_m;
             stitches.extend(
                 seams::stitches(s, &spec.panels, &offsets, tensile).map_err(|(field, message)| ModelError::Seam {
                     seam,

@@ -100,8 +100,8 @@ pub(crate) fn stitches(
     offsets: &[usize],
     tensile: f64,
 ) -> Result<Vec<Stitch>, SeamError> {
-    let (a, spacing) = run(&seam.a, panels, offsets).map_err(|(f, m)| (side_field("a", f), m))?;
-    let (mut b, _) = run(&seam.b, panels, offsets).map_err(|(f, m)| (side_field("b", f), m))?;
+    let (a, spacing) = run(&seam.a, ["a.panel", "a.edge", "a.range"], panels, offsets)?;
+    let (mut b, _) = run(&seam.b, ["b.panel", "b.edge", "b.range"], panels, offsets)?;
     if a.len() != b.len() {
         return Err(("b.range", format!("runs {} nodes, a runs {}: a seam sews node to node", b.len(), a.len())));
     }
@@ -131,45 +131,38 @@ pub(crate) fn stitches(
     Ok(out)
 }
 
-fn side_field(side: &'static str, field: &'static str) -> &'static str {
-    match (side, field) {
-        ("a", "panel") => "a.panel",
-        ("a", "range") => "a.range",
-        ("a", _) => "a.edge",
-        (_, "panel") => "b.panel",
-        (_, "range") => "b.range",
-        _ => "b.edge",
-    }
-}
-
-/// The run's global particle indices and the spacing along it, m.
-fn run(side: &SeamSide, panels: &[GridPanel], offsets: &[usize]) -> Result<(Vec<u32>, f64), SeamError> {
+/// The run's global particle indices and the spacing along it, m; errors
+/// name `fields` (the side's panel, edge and range keys).
+fn run(
+    side: &SeamSide,
+    [panel_field, edge_field, range_field]: [&'static str; 3],
+    panels: &[GridPanel],
+    offsets: &[usize],
+) -> Result<(Vec<u32>, f64), SeamError> {
     let panel = panels
         .get(side.panel)
-        .ok_or_else(|| ("panel", format!("no panel {} (the scene has {})", side.panel, panels.len())))?;
+        .ok_or_else(|| (panel_field, format!("no panel {} (the scene has {})", side.panel, panels.len())))?;
     let [from, to] = side.range;
     if !(from.is_finite() && to.is_finite() && (0.0..=1.0).contains(&from) && (0.0..=1.0).contains(&to)) {
-        return Err(("range", format!("must be two fractions in [0, 1], got {:?}", side.range)));
+        return Err((range_field, format!("must be two fractions in [0, 1], got {:?}", side.range)));
     }
     let [nx, ny] = panel.particles;
     let (dx, dy) = panel.spacing();
     let along_u = matches!(side.edge, Edge::JMin | Edge::JMax);
-    let wrapped = along_u && panel.wrap_u;
-    if !wrapped && side.edge != Edge::JMin && side.edge != Edge::JMax && panel.wrap_u {
-        return Err(("edge", "a wrapped panel has no i edges: its columns close into a cylinder".into()));
+    if panel.wrap_u && !along_u {
+        return Err((edge_field, "a wrapped panel has no i edges: its columns close into a cylinder".into()));
     }
+    let wrapped = panel.wrap_u;
     if from > to && !wrapped {
         return Err((
-            "range",
+            range_field,
             format!("{:?}: from > to runs across node 0, which only a wrapped edge has", side.range),
         ));
     }
-    let (count, fraction): (usize, Box<dyn Fn(usize) -> f64>) = if along_u {
-        let n = nx;
-        (n, if wrapped { Box::new(move |k| k as f64 / n as f64) } else { Box::new(move |k| k as f64 / (n - 1) as f64) })
-    } else {
-        (ny, Box::new(move |k| k as f64 / (ny - 1) as f64))
-    };
+    // Nodes along the edge, and the node count the edge's length spans
+    // (a wrapped edge closes back onto node 0).
+    let (count, span) = if along_u { (nx, if wrapped { nx } else { nx - 1 }) } else { (ny, ny - 1) };
+    let fraction = |k: usize| k as f64 / span as f64;
     let node = |k: usize| -> u32 {
         let (i, j) = match side.edge {
             Edge::JMin => (k, 0),
@@ -188,7 +181,7 @@ fn run(side: &SeamSide, panels: &[GridPanel], offsets: &[usize]) -> Result<(Vec<
         tail.chain((0..count).filter(|&k| inside(fraction(k), 0.0, to))).map(node).collect()
     };
     if nodes.is_empty() {
-        return Err(("range", format!("{:?} holds no node of the edge ({count} nodes)", side.range)));
+        return Err((range_field, format!("{:?} holds no node of the edge ({count} nodes)", side.range)));
     }
     Ok((nodes, if along_u { dx } else { dy }))
 }
