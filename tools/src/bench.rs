@@ -37,10 +37,10 @@ const PAPER: [PaperRow; 5] = [
 /// A garment of the table: the scene that runs it (a fixture and the
 /// overrides that bring it to the paper's particle count) and the paper's
 /// rows it compares with.
-struct Garment {
-    name: &'static str,
-    scene: &'static str,
-    overrides: &'static [&'static str],
+pub(crate) struct Garment {
+    pub name: &'static str,
+    pub scene: &'static str,
+    pub overrides: &'static [&'static str],
     paper: &'static [usize],
 }
 
@@ -57,7 +57,7 @@ const ONE_PIECE: [&str; 4] = [
     "panels.2.particles=[47, 7]",
     "panels.3.particles=[96, 27]",
 ];
-const GARMENTS: [Garment; 3] = [
+pub(crate) const GARMENTS: [Garment; 3] = [
     Garment {
         name: "one-piece",
         scene: "fixtures/scenes/one-piece-walk.toml",

@@ -6,6 +6,7 @@ mod fmu;
 mod gltf;
 mod live;
 mod output;
+mod regress;
 mod run;
 mod study;
 mod svg;
@@ -137,6 +138,32 @@ enum Command {
         #[arg(long, default_value_t = 2)]
         threads: usize,
     },
+    /// Run every fixture scene and the Table-1 garments, shortened, and
+    /// compare each summary and final frame with its golden under
+    /// fixtures/goldens: prints what changed, fails on any change.
+    Regress {
+        /// The fixtures directory (scenes/ and goldens/ in it).
+        #[arg(long, default_value = "fixtures")]
+        fixtures: PathBuf,
+        /// Where the goldens are (default FIXTURES/goldens).
+        #[arg(long)]
+        goldens: Option<PathBuf>,
+        /// After a deliberate change: rewrite the goldens that changed,
+        /// write the new ones, delete those no case has.
+        #[arg(long)]
+        update: bool,
+        /// Only this case (repeatable), e.g. --only hang --only table1-skirt.
+        #[arg(long, value_name = "CASE")]
+        only: Vec<String>,
+        /// Worker threads (results are the same for any count).
+        #[arg(long, default_value_t = 2)]
+        threads: usize,
+        /// Accept floats within this relative difference, and positions
+        /// within it times the cloth's extent (default 0: bit for bit, as
+        /// determinism promises on one platform; for another platform).
+        #[arg(long, default_value_t = 0.0, value_name = "REL")]
+        rel_tol: f64,
+    },
     /// Check a scene without running it.
     Validate {
         /// Scene file (TOML).
@@ -212,6 +239,9 @@ fn main() -> ExitCode {
         }),
         Command::Live { scene, overrides, port, seconds, threads } => {
             live::live(&scene, &overrides, port, seconds, threads)
+        }
+        Command::Regress { fixtures, goldens, update, only, threads, rel_tol } => {
+            regress::regress(&regress::RegressArgs { fixtures, goldens, update, only, threads, rel_tol })
         }
         Command::Validate { scene, overrides } => run::validate(&scene, &overrides),
         Command::Time { scene, overrides, threads, repeat } => run::time(&scene, &overrides, threads, repeat),

@@ -17,6 +17,18 @@ pub fn write_obj(path: &Path, model: &ClothModel, x: &[Vec3]) -> std::io::Result
     w.flush()
 }
 
+/// Writes positions alone as a Wavefront OBJ file (vertices only, full
+/// precision: each coordinate reads back to the same bits), after a
+/// comment line `header`.
+pub fn write_vertices(path: &Path, header: &str, x: &[Vec3]) -> std::io::Result<()> {
+    let mut w = std::io::BufWriter::new(std::fs::File::create(path)?);
+    writeln!(w, "# {header}")?;
+    for p in x {
+        writeln!(w, "v {} {} {}", p.x, p.y, p.z)?;
+    }
+    w.flush()
+}
+
 /// Wall time per stage over the whole run, s.
 #[derive(Debug, Default, Serialize)]
 pub struct StageWall {

@@ -5,7 +5,7 @@ use crate::output::{
 };
 use anyhow::{Context, Result, bail};
 use cloth_core::scene::{EffectName, RunConfig, Scene, SceneError};
-use cloth_core::{ClothModel, ContactStats, Simulation, StepReport};
+use cloth_core::{ClothModel, ContactStats, Simulation, StepReport, Vec3};
 use cloth_rapier::scene::has_bodies;
 use cloth_rapier::{CoupledRun, CoupledScene, CouplingReport, Master, Momentum};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -125,10 +125,31 @@ pub(crate) fn simulate(
     frames: Option<(u64, PathBuf)>,
     progress: bool,
 ) -> Result<Summary> {
+    simulate_steps(scene_path, overrides, threads, frames, progress, None).map(|run| run.summary)
+}
+
+/// What [`simulate_steps`] ran to.
+pub(crate) struct Simulated {
+    pub summary: Summary,
+    /// The cloth's positions after the last step, m.
+    pub final_x: Vec<Vec3>,
+}
+
+/// [`simulate`], stopping after at most `max_steps` steps when given (the
+/// scene's own count otherwise), and keeping the final positions.
+pub(crate) fn simulate_steps(
+    scene_path: &Path,
+    overrides: &[String],
+    threads: usize,
+    frames: Option<(u64, PathBuf)>,
+    progress: bool,
+    max_steps: Option<u64>,
+) -> Result<Simulated> {
     if threads == 0 {
         bail!("--threads must be at least 1");
     }
-    let (scene, cfg, mut runner) = Runner::load(scene_path, overrides)?;
+    let (scene, mut cfg, mut runner) = Runner::load(scene_path, overrides)?;
+    cfg.steps = max_steps.map_or(cfg.steps, |m| m.min(cfg.steps));
     let start_momentum = match &runner {
         Runner::Coupled(run) => Some(run.cloths.momentum(&run.world)),
         Runner::Alone(_) => None,
@@ -258,10 +279,12 @@ pub(crate) fn simulate(
         bodies: None,
         coupling: None,
     };
-    Ok(match (&runner, start_momentum) {
+    let final_x = state.x.clone();
+    let summary = match (&runner, start_momentum) {
         (Runner::Coupled(run), Some(start)) => coupled_summary(summary, run, start, &coupling),
         _ => summary,
-    })
+    };
+    Ok(Simulated { summary, final_x })
 }
 
 /// Adds the bodies and the coupling counters to a coupled run's summary.
