@@ -37,7 +37,7 @@ fn system() -> (SystemBuffers, ConstraintFilter, Multigrid) {
     let terms = SystemTerms {
         d_times: Some((-2.0 * h / 9.0, &delta)),
         mass_times: Some(&delta),
-        ..SystemTerms::new(4.0 * h * h / 9.0, 2.0 * h / 3.0, 4.0 * h * h / 9.0)
+        ..SystemTerms::new(4.0 * h * h / 9.0, 2.0 * h / 3.0, 4.0 * h * h / 9.0, &state.stitches_closed)
     };
     assemble(model, &state.x, &terms, &mut bufs);
     let mut filter = ConstraintFilter::new(model.particle_count());

@@ -84,7 +84,7 @@ fn dense(bufs: &SystemBuffers, n: usize) -> Vec<f64> {
 /// to `1e-5` of the largest force.
 fn assert_forces_are_energy_gradient(model: &ClothModel, x: &[Vec3]) {
     let zero = vec![Vec3::zeros(); x.len()];
-    let f = total_forces(model, x, &zero);
+    let f = total_forces(model, x, &zero, &[]);
     let scale = f.iter().map(|v| v.norm()).fold(0.0, f64::max);
     assert!(scale > 0.0);
     let h = 1e-7;
@@ -93,7 +93,7 @@ fn assert_forces_are_energy_gradient(model: &ClothModel, x: &[Vec3]) {
             let (mut xp, mut xm) = (x.to_vec(), x.to_vec());
             xp[i][c] += h;
             xm[i][c] -= h;
-            let grad = (potential_energy(model, &xp) - potential_energy(model, &xm)) / (2.0 * h);
+            let grad = (potential_energy(model, &xp, &[]) - potential_energy(model, &xm, &[])) / (2.0 * h);
             assert!(
                 (f[i][c] + grad).abs() <= 1e-5 * scale,
                 "particle {i} component {c}: f = {}, -dE/dx = {}",
@@ -155,7 +155,8 @@ fn compressed_links(model: &ClothModel, x: &[Vec3]) -> usize {
 fn jacobian_error(model: &ClothModel, x: &[Vec3], v: &[Vec3], wrt_velocity: bool, dropped: &Mat3Sum) -> f64 {
     let n = x.len();
     let mut bufs = SystemBuffers::new(model);
-    let terms = SystemTerms::new(if wrt_velocity { 0.0 } else { -1.0 }, if wrt_velocity { -1.0 } else { 0.0 }, 0.0);
+    let terms =
+        SystemTerms::new(if wrt_velocity { 0.0 } else { -1.0 }, if wrt_velocity { -1.0 } else { 0.0 }, 0.0, &[]);
     assemble(model, x, &terms, &mut bufs);
     let mut a = dense(&bufs, n);
     for i in 0..n {
@@ -184,8 +185,8 @@ fn jacobian_error(model: &ClothModel, x: &[Vec3], v: &[Vec3], wrt_velocity: bool
                 xp[j][c] += h;
                 xm[j][c] -= h;
             }
-            let fp = total_forces(model, &xp, &vp);
-            let fm = total_forces(model, &xm, &vm);
+            let fp = total_forces(model, &xp, &vp, &[]);
+            let fm = total_forces(model, &xm, &vm, &[]);
             for i in 0..n {
                 for r in 0..3 {
                     let fd = (fp[i][r] - fm[i][r]) / (2.0 * h);
@@ -210,7 +211,7 @@ fn dropped_compression_terms(model: &ClothModel, x: &[Vec3]) -> Mat3Sum {
         let xij = x[j] - x[i];
         let d = xij.norm();
         let u = xij / d;
-        let phi = eval_link(model, k, x).force.dot(&u);
+        let phi = eval_link(model, k, x, &[]).force.dot(&u);
         if phi >= 0.0 {
             continue;
         }
@@ -271,7 +272,7 @@ fn internal_forces_conserve_linear_and_angular_momentum() {
     let mut rng = Rng(4);
     let x = perturbed(&model, &mut rng, 3e-3);
     let v: Vec<Vec3> = (0..x.len()).map(|_| rng.vec3()).collect();
-    let f = total_forces(&model, &x, &v);
+    let f = total_forces(&model, &x, &v, &[]);
     let scale: f64 = f.iter().map(|v| v.norm()).sum();
     let net: Vec3 = f.iter().sum();
     let torque: Vec3 = x.iter().zip(&f).map(|(p, q)| p.cross(q)).sum();
@@ -586,7 +587,7 @@ fn newton_iterations_converge_the_nonlinear_step() {
         sim.step(h).unwrap();
         let after = sim.state();
         let model = sim.model();
-        let f = total_forces(model, &after.x, &after.v);
+        let f = total_forces(model, &after.x, &after.v, &after.stitches_closed);
         let sum: f64 = f
             .iter()
             .enumerate()

@@ -148,6 +148,9 @@ pub struct Summary {
 pub struct SeamSummary {
     /// Stitches (sewn node pairs).
     pub stitches: usize,
+    /// Stitches closed at the end (a closed stitch holds with the seam's
+    /// strength, an open one pulls with its sewing pull).
+    pub closed: usize,
     /// Widest gap of a stitch at the end, m.
     pub max_gap_m: f64,
 }

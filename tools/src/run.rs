@@ -259,8 +259,11 @@ pub(crate) fn simulate_steps(
         unconverged_steps: unconverged,
         max_stretch_ratio: model.max_stretch_ratio(&state.x),
         peak_stretch_ratio: peak_stretch,
-        seams: (!model.stitches().is_empty())
-            .then(|| SeamSummary { stitches: model.stitches().len(), max_gap_m: model.max_seam_gap(&state.x) }),
+        seams: (!model.stitches().is_empty()).then(|| SeamSummary {
+            stitches: model.stitches().len(),
+            closed: state.stitches_closed.iter().filter(|&&c| c).count(),
+            max_gap_m: model.max_seam_gap(&state.x),
+        }),
         newton: newton.summary(),
         energy: energy.summary(),
         min_z_m: state.x.iter().map(|p| p.z).fold(f64::INFINITY, f64::min),

@@ -402,7 +402,7 @@ fn crumpled(quick: bool) -> Vec<Row> {
 fn energies(sim: &Simulation) -> [f64; 3] {
     let (model, s) = (sim.model(), sim.state());
     let kinetic = model.masses().iter().zip(&s.v).map(|(m, v)| 0.5 * m * v.norm_squared()).sum();
-    let elastic = elastic_energy(model, &s.x, &mut EnergyBuffers::new(model));
+    let elastic = elastic_energy(model, &s.x, &s.stitches_closed, &mut EnergyBuffers::new(model));
     [kinetic, elastic, gravitational(sim, &s.x)]
 }
 

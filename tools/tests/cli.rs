@@ -253,6 +253,7 @@ fn collision_work_happens_only_when_the_scene_declares_it() {
 fn summaries_report_the_seams() {
     let top = summary_of("top-walk.toml", &["simulation.duration_s=0.7"]);
     assert_eq!(top["seams"]["stitches"], 16);
+    assert_eq!(top["seams"]["closed"], 16, "every stitch closed by 0.6 s");
     let gap = top["seams"]["max_gap_m"].as_f64().unwrap();
     assert!(gap < 1e-3, "seams open by {gap} m");
     assert!(summary_of("hang.toml", &["simulation.duration_s=0.02"]).get("seams").is_none());

@@ -51,7 +51,8 @@
 //! b = { panel = 0, edge = "j_min", range = [0.1, 0.2] } # fractions of the edge's length
 //! reverse = false              # pair a's first node with b's last
 //! stiffness_n_m = 2000.0       # a closed stitch; default 10 x tensile_stiffness_n_m
-//! pull_n = 4.0                 # most pull of a stitch, N; default E x a's spacing
+//! pull_n = 4.0                 # a closed stitch's strength, N; default E x the finer spacing
+//! sewing_pull_n = 1.3          # an open stitch's pull, N; default pull_n / 4
 //! closing_speed_m_s = 0.5      # an open stitch closes at about this speed
 //!
 //! [wind]                       # needed by "wind" and "aerodynamics"

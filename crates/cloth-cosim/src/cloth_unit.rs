@@ -338,22 +338,29 @@ impl Unit for ClothUnit {
     }
 
     /// Layout: tag, then `time, steps, has_history, last_dt, next_dt`,
-    /// `x, v, x_prev, v_prev` (3 values per particle each), values, rates.
+    /// `x, v, x_prev, v_prev` (3 values per particle each), the stitches'
+    /// states (1 closed, 0 open), values, rates.
     fn serialize_state(&self, state: &UnitState) -> Result<Vec<u8>, UnitError> {
         let saved: &Saved = state.downcast(&self.name, "cloth unit")?;
         let c = &saved.cloth;
         let head = [c.time_s, c.steps as f64, f64::from(u8::from(c.has_history)), c.last_dt_s, c.next_dt_s];
         let vectors =
             [&c.x, &c.v, &c.x_prev, &c.v_prev].into_iter().flat_map(|a| a.iter().flat_map(|p| [p.x, p.y, p.z]));
-        let values =
-            head.into_iter().chain(vectors).chain(saved.values.iter().copied()).chain(saved.rates.iter().copied());
+        let stitches = c.stitches_closed.iter().map(|&closed| f64::from(u8::from(closed)));
+        let values = head
+            .into_iter()
+            .chain(vectors)
+            .chain(stitches)
+            .chain(saved.values.iter().copied())
+            .chain(saved.rates.iter().copied());
         Ok(bytes::pack(TAG, values))
     }
 
     fn deserialize_state(&self, data: &[u8]) -> Result<UnitState, UnitError> {
         let n = self.sim.model().particle_count();
         let m = self.values.len();
-        let expected = 5 + 12 * n + 2 * m;
+        let stitches = self.sim.model().stitches().len();
+        let expected = 5 + 12 * n + stitches + 2 * m;
         let values = bytes::unpack(TAG, data).filter(|v| v.len() == expected).ok_or_else(|| UnitError::BadState {
             unit: self.name.clone(),
             message: format!("{} bytes are not a serialised state of this cloth unit ({expected} values)", data.len()),
@@ -375,8 +382,9 @@ impl Unit for ClothUnit {
             v: vec3s(1),
             x_prev: vec3s(2),
             v_prev: vec3s(3),
+            stitches_closed: values[5 + 12 * n..5 + 12 * n + stitches].iter().map(|&c| c != 0.0).collect(),
         };
-        let tail = &values[5 + 12 * n..];
+        let tail = &values[5 + 12 * n + stitches..];
         Ok(UnitState(Box::new(Saved { cloth, values: tail[..m].to_vec(), rates: tail[m..].to_vec() })))
     }
 }

@@ -128,3 +128,62 @@ fn an_external_wind_input_blows_like_the_scene_s_gust() {
     println!("mean x: blown {blown:.4} m, in still air {hanging:.4} m");
     assert!(blown > hanging + 0.5, "blown {blown}, still {hanging}");
 }
+
+/// A sewn cloth's serialised state carries its stitches' states: saved
+/// once the seam has closed (its stitches then hold with the seam's
+/// strength, not the sewing pull), restored, it replays bit for bit.
+#[test]
+fn a_sewn_cloths_serialised_state_keeps_its_closed_stitches() {
+    let text = r#"
+[simulation]
+integrator = "bdf2"
+dt_s = 0.011111111111111112
+duration_s = 1.0
+effects = ["gravity", "bending", "damping"]
+
+[material]
+areal_density_kg_m2 = 0.1
+tensile_stiffness_n_m = 200.0
+flexural_rigidity_n_m = 1e-5
+buckling_stiffness_n_m = 200.0
+
+[[panels]]
+particles = [5, 5]
+size_m = [0.1, 0.1]
+
+[[panels]]
+particles = [5, 5]
+size_m = [0.1, 0.1]
+origin_m = [0.15, 0.0, 0.0]
+
+[[pins]]
+nodes = [[0, 0], [0, 4]]
+
+[[seams]]
+a = { panel = 0, edge = "i_max" }
+b = { panel = 1, edge = "i_min" }
+"#;
+    let scene = Scene::parse(text, &[]).unwrap();
+    let (model, cfg) = scene.build().unwrap();
+    let mut unit = ClothUnit::new("cloth", cfg.simulation(model));
+    let h = cfg.dt_s;
+    let step =
+        |unit: &mut ClothUnit, k: usize| assert_eq!(unit.do_step(k as f64 * h, h).unwrap(), StepOutcome::Completed);
+    assert!(unit.simulation().state().stitches_closed.iter().all(|&c| !c));
+    for k in 0..20 {
+        step(&mut unit, k);
+    }
+    assert!(unit.simulation().state().stitches_closed.iter().all(|&c| c), "the 5 cm seam closes at 0.5 m/s");
+    let bytes = unit.serialize_state(&unit.get_state()).unwrap();
+    for k in 20..40 {
+        step(&mut unit, k);
+    }
+    let first = unit.simulation().state().x.clone();
+    let restored = unit.deserialize_state(&bytes).unwrap();
+    unit.set_state(&restored).unwrap();
+    assert!(unit.simulation().state().stitches_closed.iter().all(|&c| c));
+    for k in 20..40 {
+        step(&mut unit, k);
+    }
+    assert!(same_bits(&unit.simulation().state().x, &first));
+}

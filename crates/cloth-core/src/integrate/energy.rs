@@ -51,9 +51,15 @@ pub(crate) fn mechanical_with(model: &ClothModel, x: &[Vec3], v: &[Vec3], elasti
     (kinetic, elastic, gravity)
 }
 
-/// Mechanical energy of a state: `(kinetic, elastic, gravitational)`, J.
-pub(crate) fn mechanical(model: &ClothModel, x: &[Vec3], v: &[Vec3], bufs: &mut EnergyBuffers) -> (f64, f64, f64) {
-    mechanical_with(model, x, v, elastic_energy(model, x, bufs))
+/// Mechanical energy of a state: `(kinetic, elastic, gravitational)`, J,
+/// the stitches in the states `stitches_closed`.
+pub(crate) fn mechanical(
+    model: &ClothModel,
+    (x, v): (&[Vec3], &[Vec3]),
+    stitches_closed: &[bool],
+    bufs: &mut EnergyBuffers,
+) -> (f64, f64, f64) {
+    mechanical_with(model, x, v, elastic_energy(model, x, stitches_closed, bufs))
 }
 
 /// What a step did to the energy, from the states before and after it.
@@ -71,6 +77,8 @@ pub(crate) struct StepEnergy<'a> {
     pub h: f64,
     /// Active contacts with solids (their work is not measured).
     pub contacts: usize,
+    /// The stitches' states over the step.
+    pub stitches_closed: &'a [bool],
 }
 
 impl StepEnergy<'_> {
@@ -89,8 +97,8 @@ impl StepEnergy<'_> {
                 rate += l.k_d * dv * dv;
             }
         }
-        for s in model.stitches() {
-            rate += s.c * (v[s.j as usize] - v[s.i as usize]).norm_squared();
+        for (s, &closed) in model.stitches().iter().zip(self.stitches_closed) {
+            rate += s.dashpot(closed) * (v[s.j as usize] - v[s.i as usize]).norm_squared();
         }
         let dissipated = rate * self.h;
         let (k0, e0, g0) = self.before;

@@ -137,6 +137,8 @@ pub(crate) struct Start<'a> {
     pub x: &'a [Vec3],
     pub v: &'a [Vec3],
     pub t: f64,
+    /// The stitches' states (see [`crate::ClothState::stitches_closed`]).
+    pub stitches_closed: &'a [bool],
     /// Pin paths and external forces of the step.
     pub pins: PinPaths<'a>,
     pub control: &'a Control,
@@ -154,7 +156,7 @@ pub(crate) fn rk_step(
     bufs: &mut ExplicitBuffers,
     stages_time: &mut StageTimes,
 ) -> (usize, f64) {
-    let Start { x, v, t, pins, control } = start;
+    let Start { x, v, t, stitches_closed, pins, control } = start;
     let masses = model.masses();
     bufs.pin_impulse.iter_mut().for_each(|p| *p = Vec3::zeros());
     for s in 0..tab.c.len() {
@@ -165,7 +167,7 @@ pub(crate) fn rk_step(
         impose_pins(&pins, ts, &mut bufs.xs, &mut bufs.vs);
         stages_time.update_s += t_update.elapsed().as_secs_f64();
         let t_force = Instant::now();
-        forces_into(model, &bufs.xs, &bufs.vs, &mut bufs.forces, &mut bufs.force);
+        forces_into(model, &bufs.xs, &bufs.vs, stitches_closed, &mut bufs.forces, &mut bufs.force);
         add_wind_forces(model, control, (&bufs.xs, &bufs.vs), ts, &mut bufs.normals, &mut bufs.force);
         control.add_forces_to(&mut bufs.force);
         stages_time.forces_s += t_force.elapsed().as_secs_f64();
@@ -214,9 +216,9 @@ pub(crate) fn symplectic_euler_step(
     bufs: &mut ExplicitBuffers,
     stages_time: &mut StageTimes,
 ) {
-    let Start { x, v, t, pins, control } = start;
+    let Start { x, v, t, stitches_closed, pins, control } = start;
     let t_force = Instant::now();
-    forces_into(model, x, v, &mut bufs.forces, &mut bufs.force);
+    forces_into(model, x, v, stitches_closed, &mut bufs.forces, &mut bufs.force);
     add_wind_forces(model, control, (x, v), t, &mut bufs.normals, &mut bufs.force);
     control.add_forces_to(&mut bufs.force);
     stages_time.forces_s += t_force.elapsed().as_secs_f64();
@@ -260,7 +262,8 @@ pub(crate) fn adaptive_dopri5(
         let remaining = h_total - done;
         let last = h >= remaining * (1.0 - 1e-12);
         let h_try = if last { remaining } else { h };
-        let start = Start { x: x_work, v: v_work, t: state.time_s + done, pins, control };
+        let closed = &state.stitches_closed;
+        let start = Start { x: x_work, v: v_work, t: state.time_s + done, stitches_closed: closed, pins, control };
         let (evals, err) = rk_step(model, &DOPRI5, start, h_try, tolerance, bufs, &mut report.stages);
         report.force_evaluations += evals;
         // Step-size controller (order 5 error estimate of the order-4 solution).
@@ -332,7 +335,8 @@ impl crate::Integrator for Explicit {
         let bufs = ws.explicit.get_or_insert_with(|| ExplicitBuffers::new(model, DOPRI5.c.len()));
         bufs.pin_impulse.resize(pins.count(), Vec3::zeros());
         bufs.pin_total.resize(pins.count(), Vec3::zeros());
-        let start = Start { x: &state.x, v: &state.v, t: state.time_s, pins, control };
+        let closed = &state.stitches_closed;
+        let start = Start { x: &state.x, v: &state.v, t: state.time_s, stitches_closed: closed, pins, control };
         match self.0 {
             K::SymplecticEuler => {
                 symplectic_euler_step(model, start, h, bufs, &mut report.stages);

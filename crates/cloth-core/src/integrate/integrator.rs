@@ -286,6 +286,14 @@ pub enum StepError {
         /// Particles in the state.
         got: usize,
     },
+    /// A state's stitch flags do not fit the model's seams.
+    #[error("state has {got} stitch states but the model has {expected} stitches")]
+    StitchStateMismatch {
+        /// Stitches in the model.
+        expected: usize,
+        /// Flags in the state.
+        got: usize,
+    },
 }
 
 /// Scratch space of the integrators, sized once per model.
@@ -473,7 +481,7 @@ pub(crate) trait Linearised {
     /// The system of a Newton correction at an iterate with velocities `v_k`
     /// (positions are passed to the assembly): same matrix, right-hand side
     /// the negative residual `c_f f(x_k, v_k) + M y`.
-    fn newton_terms<'a>(&self, h: f64, v_k: &'a [Vec3], y: &'a [Vec3]) -> SystemTerms<'a>;
+    fn newton_terms<'a>(&self, h: f64, v_k: &'a [Vec3], y: &'a [Vec3], stitches_closed: &'a [bool]) -> SystemTerms<'a>;
 }
 
 impl Linearised for BackwardEuler {
@@ -481,7 +489,8 @@ impl Linearised for BackwardEuler {
 
     fn terms<'a>(&self, state: &'a ClothState, _: &'a [Vec3], _: &'a [Vec3], h: f64) -> SystemTerms<'a> {
         let v = &state.v;
-        SystemTerms { k_times: Some((h * h, v)), d_times: Some((h, v)), ..SystemTerms::new(h * h, h, h) }
+        let closed = &state.stitches_closed;
+        SystemTerms { k_times: Some((h * h, v)), d_times: Some((h, v)), ..SystemTerms::new(h * h, h, h, closed) }
     }
 
     /// `dv = (p(t + h) - x) / h - v`.
@@ -520,8 +529,8 @@ impl Linearised for BackwardEuler {
         -dv
     }
 
-    fn newton_terms<'a>(&self, h: f64, v_k: &'a [Vec3], y: &'a [Vec3]) -> SystemTerms<'a> {
-        SystemTerms { d_times: Some((h, v_k)), mass_times: Some(y), ..SystemTerms::new(h * h, h, h) }
+    fn newton_terms<'a>(&self, h: f64, v_k: &'a [Vec3], y: &'a [Vec3], closed: &'a [bool]) -> SystemTerms<'a> {
+        SystemTerms { d_times: Some((h, v_k)), mass_times: Some(y), ..SystemTerms::new(h * h, h, h, closed) }
     }
 }
 
@@ -535,11 +544,11 @@ impl Linearised for Bdf2 {
         }
     }
 
-    fn terms<'a>(&self, _: &'a ClothState, aux: &'a [Vec3], aux2: &'a [Vec3], h: f64) -> SystemTerms<'a> {
+    fn terms<'a>(&self, state: &'a ClothState, aux: &'a [Vec3], aux2: &'a [Vec3], h: f64) -> SystemTerms<'a> {
         SystemTerms {
             d_times: Some((-2.0 * h / 9.0, aux)),
             mass_times: Some(aux2),
-            ..SystemTerms::new(4.0 * h * h / 9.0, 2.0 * h / 3.0, 4.0 * h * h / 9.0)
+            ..SystemTerms::new(4.0 * h * h / 9.0, 2.0 * h / 3.0, 4.0 * h * h / 9.0, &state.stitches_closed)
         }
     }
 
@@ -579,9 +588,9 @@ impl Linearised for Bdf2 {
         aux2[i] - dx
     }
 
-    fn newton_terms<'a>(&self, h: f64, v_k: &'a [Vec3], y: &'a [Vec3]) -> SystemTerms<'a> {
+    fn newton_terms<'a>(&self, h: f64, v_k: &'a [Vec3], y: &'a [Vec3], closed: &'a [bool]) -> SystemTerms<'a> {
         let c = 4.0 * h * h / 9.0;
-        SystemTerms { d_times: Some((c, v_k)), mass_times: Some(y), ..SystemTerms::new(c, 2.0 * h / 3.0, c) }
+        SystemTerms { d_times: Some((c, v_k)), mass_times: Some(y), ..SystemTerms::new(c, 2.0 * h / 3.0, c, closed) }
     }
 }
 
@@ -741,8 +750,9 @@ fn uncommitted_step<S: Linearised>(
         external: loads.external.then_some(&ws.external[..]),
         h,
         contacts: stats.contacts,
+        stitches_closed: &state.stitches_closed,
     };
-    let after = energy::mechanical(model, &ws.new_x, &ws.new_v, &mut ws.energy);
+    let after = energy::mechanical(model, (&ws.new_x, &ws.new_v), &state.stitches_closed, &mut ws.energy);
     report.energy = Some(balance.report(model, after));
     report.stages = StageTimes {
         forces_s,
@@ -902,6 +912,10 @@ pub(crate) fn check_step(model: &ClothModel, state: &ClothState, h: f64) -> Resu
     }
     if state.len() != model.particle_count() || state.v.len() != state.len() {
         return Err(StepError::StateMismatch { expected: model.particle_count(), got: state.len() });
+    }
+    if state.stitches_closed.len() != model.stitches().len() {
+        let (expected, got) = (model.stitches().len(), state.stitches_closed.len());
+        return Err(StepError::StitchStateMismatch { expected, got });
     }
     Ok(())
 }

@@ -214,7 +214,7 @@ fn iterate_with<S: Linearised>(
             external: Some(&nb.external),
             diag_stiffness: Some(&nb.stiffness),
             diag_damping: Some(&nb.damping),
-            ..scheme.newton_terms(h, &nb.v, &nb.y)
+            ..scheme.newton_terms(h, &nb.v, &nb.y, &state.stitches_closed)
         };
         let t = assemble(model, &nb.x, &terms, &mut ws.system);
         (out.forces_s, out.assembly_s, out.evaluations) =
@@ -243,6 +243,7 @@ fn iterate_with<S: Linearised>(
             friction: squeeze_friction.then_some(&ws.contacts.friction_damping[..]),
             contacts: colliders.then_some(&ws.contacts.solid[..]),
             h,
+            stitches_closed: &state.stitches_closed,
         };
         let Some((alpha, backtracks, evaluations)) = line_search(model, ws, nb, (c_f, a, b), extra) else {
             // Not a descent direction (an unconverged PCG): keep the iterate.
@@ -345,6 +346,8 @@ struct Line<'a> {
     /// penalty energy (J) at the iterate, and the step, s.
     contacts: Option<(&'a [SolidContact], f64, f64)>,
     h: f64,
+    /// The stitches' states (see [`crate::ClothState::stitches_closed`]).
+    stitches_closed: &'a [bool],
 }
 
 /// What acts on the particles besides links and elements, as in the
@@ -357,6 +360,7 @@ struct Extra<'a> {
     friction: Option<&'a [Mat3]>,
     contacts: Option<&'a [SolidContact]>,
     h: f64,
+    stitches_closed: &'a [bool],
 }
 
 impl<'a> Line<'a> {
@@ -399,16 +403,17 @@ impl<'a> Line<'a> {
             }
         }
         // Stitch dashpots `c |v_j - v_i|^2`.
-        for s in model.stitches() {
+        for (s, &closed) in model.stitches().iter().zip(extra.stitches_closed) {
             let (i, j) = (s.i as usize, s.j as usize);
-            let (dv, dp) = (v[j] - v[i], p[j] - p[i]);
-            q1 += c_f * s.c * dv.dot(&dp);
-            q2 += 0.5 * c_f * b * s.c * dp.norm_squared();
+            let (dv, dp, c) = (v[j] - v[i], p[j] - p[i], s.dashpot(closed));
+            q1 += c_f * c * dv.dot(&dp);
+            q2 += 0.5 * c_f * b * c * dp.norm_squared();
         }
         let contacts = extra.contacts.map(|c| {
             (c, contact_friction_potential(c, v, p, 0.0), contact_penalty_energy(c, model, extra.h, x, p, 0.0))
         });
-        Self { slope, q1, q2, scale: c_f / a, u0: system.elastic_energy(), a, b, contacts, h: extra.h }
+        let (u0, h, stitches_closed) = (system.elastic_energy(), extra.h, extra.stitches_closed);
+        Self { slope, q1, q2, scale: c_f / a, u0, a, b, contacts, h, stitches_closed }
     }
 
     /// `E(alpha) - E(0)`, J (trial positions written to `trial`).
@@ -425,7 +430,7 @@ impl<'a> Line<'a> {
         for ((t, x), p) in trial.iter_mut().zip(x).zip(p) {
             *t = x + p * (alpha * self.a);
         }
-        let elastic = elastic_energy(model, trial, energy) - self.u0;
+        let elastic = elastic_energy(model, trial, self.stitches_closed, energy) - self.u0;
         let contacts = self.contacts.map_or(0.0, |(contacts, d0, p0)| {
             let penalty = contact_penalty_energy(contacts, model, self.h, x, p, alpha * self.a) - p0;
             let dissipation = contact_friction_potential(contacts, v, p, alpha * self.b) - d0;
@@ -562,7 +567,7 @@ mod tests {
                 external: Some(&loads[..]),
                 diag_stiffness: Some(&stiffness[..]),
                 diag_damping: Some(&damping[..]),
-                ..SystemTerms::new(c_f, 2.0 * h / 3.0, c_f)
+                ..SystemTerms::new(c_f, 2.0 * h / 3.0, c_f, &[])
             };
             let mut system = SystemBuffers::new(&model);
             assemble(&model, &x, &terms, &mut system);
@@ -577,7 +582,13 @@ mod tests {
                 let minus = line.change(&model, (&x, &v), &p, -eps, trial, energy);
                 ((plus - minus) / (2.0 * eps) - line.slope).abs() / line.slope.abs()
             };
-            let full = Extra { external: Some(&external), friction: Some(&friction), contacts: Some(&solids), h };
+            let full = Extra {
+                external: Some(&external),
+                friction: Some(&friction),
+                contacts: Some(&solids),
+                h,
+                stitches_closed: &[],
+            };
             let err = derivative_error(full, &mut energy, &mut trial);
             let no_loads = derivative_error(Extra { external: None, friction: None, ..full }, &mut energy, &mut trial);
             let no_contacts = derivative_error(Extra { contacts: None, ..full }, &mut energy, &mut trial);

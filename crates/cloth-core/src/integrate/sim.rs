@@ -33,7 +33,8 @@ impl Simulation {
     }
 
     /// Advances by `h` seconds, then applies the model's deformation
-    /// constraints if it has them. On error the state is unchanged.
+    /// constraints if it has them and closes the stitches whose gaps have
+    /// closed. On error the state is unchanged.
     pub fn step(&mut self, h: f64) -> Result<StepReport, StepError> {
         let (model, control) = (&self.model, &self.control);
         let mut report = self.integrator.step(model, &mut self.state, control, h, &mut self.workspace, &self.solver)?;
@@ -49,6 +50,7 @@ impl Simulation {
             }
             report.stages.update_s += t.elapsed().as_secs_f64();
         }
+        self.model.close_stitches(&self.state.x, &mut self.state.stitches_closed);
         Ok(report)
     }
 
@@ -192,6 +194,10 @@ impl Simulation {
         let lens = [snapshot.x.len(), snapshot.v.len(), snapshot.x_prev.len(), snapshot.v_prev.len()];
         if let Some(&got) = lens.iter().find(|&&l| l != n) {
             return Err(StepError::StateMismatch { expected: n, got });
+        }
+        let stitches = self.model.stitches().len();
+        if snapshot.stitches_closed.len() != stitches {
+            return Err(StepError::StitchStateMismatch { expected: stitches, got: snapshot.stitches_closed.len() });
         }
         if let Some((particle, quantity)) = snapshot.first_non_finite() {
             return Err(StepError::NonFinite { step: snapshot.steps, time_s: snapshot.time_s, particle, quantity });

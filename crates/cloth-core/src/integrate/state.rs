@@ -26,6 +26,10 @@ pub struct ClothState {
     /// The adaptive integrator's suggested substep, s (0: none yet). Part of
     /// the state so that a restored snapshot steps to the same bits.
     pub next_dt_s: f64,
+    /// Of each stitch of the model's seams, whether it has closed: an open
+    /// stitch pulls with its gentle sewing pull, a closed one holds with
+    /// the seam's strength ([`crate::seams`]). Updated after each step.
+    pub stitches_closed: Vec<bool>,
 }
 
 impl ClothState {
@@ -42,7 +46,15 @@ impl ClothState {
             has_history: false,
             last_dt_s: 0.0,
             next_dt_s: 0.0,
+            stitches_closed: Self::stitches_closed_at(model, model.rest_positions()),
         }
+    }
+
+    /// The stitches closed at positions `x` ([`ClothModel::close_stitches`]).
+    pub fn stitches_closed_at(model: &ClothModel, x: &[Vec3]) -> Vec<bool> {
+        let mut closed = vec![false; model.stitches().len()];
+        model.close_stitches(x, &mut closed);
+        closed
     }
 
     /// The rest shape with every free particle displaced by a deterministic
@@ -54,6 +66,7 @@ impl ClothState {
                 *x += Vec3::new(unit_noise(3 * i), unit_noise(3 * i + 1), unit_noise(3 * i + 2)) * amplitude;
             }
         }
+        s.stitches_closed = Self::stitches_closed_at(model, &s.x);
         s
     }
 

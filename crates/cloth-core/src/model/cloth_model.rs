@@ -731,9 +731,17 @@ impl ClothModel {
         for s in &self.stitches {
             let (mi, mj) = (self.mass[s.i as usize], self.mass[s.j as usize]);
             let mu = mi * mj / (mi + mj);
-            limit = limit.min(2.0 * mu / s.c).min(2.0 * (mu / s.k).sqrt());
+            limit = limit.min(2.0 * mu / s.dashpot(true)).min(2.0 * (mu / s.k).sqrt());
         }
         limit
+    }
+    /// Closes every stitch whose gap at `x` is within `pull / k` (the
+    /// closed law's linear range); `closed` holds one flag per stitch, and a
+    /// closed stitch stays closed (see [`crate::seams`]).
+    pub fn close_stitches(&self, x: &[Vec3], closed: &mut [bool]) {
+        for (s, c) in self.stitches.iter().zip(closed) {
+            *c = *c || (x[s.j as usize] - x[s.i as usize]).norm() <= s.pull / s.k;
+        }
     }
     /// Widest gap of a stitch at positions `x`, m (0 without seams): how
     /// far the seams are from closed.

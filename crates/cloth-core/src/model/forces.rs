@@ -53,32 +53,36 @@ fn eval_with(law: ScalarLaw, u: Vec3, d: f64, k_d: f64) -> LinkEval {
 enum LinkRef<'a> {
     Stretch(&'a crate::StretchLink),
     Bend(&'a crate::BendLink),
-    Stitch(&'a crate::Stitch),
+    /// With whether it has closed.
+    Stitch(&'a crate::Stitch, bool),
 }
 
 #[inline]
-fn link_ref(model: &ClothModel, k: usize) -> LinkRef<'_> {
+fn link_ref<'a>(model: &'a ClothModel, k: usize, stitches_closed: &[bool]) -> LinkRef<'a> {
     let (ns, nb) = (model.stretch_links().len(), model.bend_links().len());
     if k < ns {
         LinkRef::Stretch(&model.stretch_links()[k])
     } else if k < ns + nb {
         LinkRef::Bend(&model.bend_links()[k - ns])
     } else {
-        LinkRef::Stitch(&model.stitches()[k - ns - nb])
+        LinkRef::Stitch(&model.stitches()[k - ns - nb], stitches_closed[k - ns - nb])
     }
 }
 
-/// A stitch's law at chord `d`.
+/// A stitch's law at chord `d`: capped at its strength once closed, at
+/// its sewing pull while open.
 #[inline]
-fn stitch_law(s: &crate::Stitch, d: f64) -> ScalarLaw {
-    crate::laws::stitch(d, s.k, s.pull)
+fn stitch_law(s: &crate::Stitch, closed: bool, d: f64) -> ScalarLaw {
+    crate::laws::stitch(d, s.k, s.cap(closed))
 }
 
 /// Evaluates link `k` (stretch links first, then bend links, then
-/// stitches) at positions `x`.
+/// stitches) at positions `x`; `stitches_closed` says of each stitch
+/// whether it has closed ([`crate::ClothState::stitches_closed`]; empty
+/// without seams).
 #[inline]
-pub fn eval_link(model: &ClothModel, k: usize, x: &[Vec3]) -> LinkEval {
-    match link_ref(model, k) {
+pub fn eval_link(model: &ClothModel, k: usize, x: &[Vec3], stitches_closed: &[bool]) -> LinkEval {
+    match link_ref(model, k, stitches_closed) {
         LinkRef::Stretch(l) => {
             let (u, d) = unit_and_length(x[l.j as usize] - x[l.i as usize]);
             eval_with(l.eval(d), u, d, l.k_d)
@@ -87,14 +91,14 @@ pub fn eval_link(model: &ClothModel, k: usize, x: &[Vec3]) -> LinkEval {
             let (u, d) = unit_and_length(x[l.j as usize] - x[l.i as usize]);
             eval_with(l.eval(d), u, d, 0.0)
         }
-        LinkRef::Stitch(s) => {
+        LinkRef::Stitch(s, closed) => {
             let (u, d) = unit_and_length(x[s.j as usize] - x[s.i as usize]);
-            let mut e = eval_with(stitch_law(s, d), u, d, 0.0);
+            let mut e = eval_with(stitch_law(s, closed, d), u, d, 0.0);
             if d == 0.0 {
                 // A closed stitch's Jacobian is k I from any side.
                 e.stiffness = Mat3::identity() * s.k;
             }
-            e.damping = Mat3::identity() * s.c;
+            e.damping = Mat3::identity() * s.dashpot(closed);
             e
         }
     }
@@ -103,12 +107,12 @@ pub fn eval_link(model: &ClothModel, k: usize, x: &[Vec3]) -> LinkEval {
 /// Elastic energy of link `k` at positions `x`, J (the law only, no
 /// Jacobian).
 #[inline]
-fn link_energy(model: &ClothModel, k: usize, x: &[Vec3]) -> f64 {
+fn link_energy(model: &ClothModel, k: usize, x: &[Vec3], stitches_closed: &[bool]) -> f64 {
     let chord = |i: u32, j: u32| (x[j as usize] - x[i as usize]).norm();
-    match link_ref(model, k) {
+    match link_ref(model, k, stitches_closed) {
         LinkRef::Stretch(l) => l.eval(chord(l.i, l.j)).energy,
         LinkRef::Bend(l) => l.eval(chord(l.i, l.j)).energy,
-        LinkRef::Stitch(s) => stitch_law(s, chord(s.i, s.j)).energy,
+        LinkRef::Stitch(s, closed) => stitch_law(s, closed, chord(s.i, s.j)).energy,
     }
 }
 
@@ -128,11 +132,11 @@ impl EnergyBuffers {
 
 /// Elastic energy of every link and element at `x`, J, without
 /// allocating: laws in parallel, summed in link and element order (the
-/// same bits for any thread count).
-pub fn elastic_energy(model: &ClothModel, x: &[Vec3], bufs: &mut EnergyBuffers) -> f64 {
+/// same bits for any thread count). `stitches_closed` as for [`eval_link`].
+pub fn elastic_energy(model: &ClothModel, x: &[Vec3], stitches_closed: &[bool], bufs: &mut EnergyBuffers) -> f64 {
     bufs.link.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(chunk, es)| {
         for (k, e) in es.iter_mut().enumerate() {
-            *e = link_energy(model, chunk * ROW_CHUNK + k, x);
+            *e = link_energy(model, chunk * ROW_CHUNK + k, x, stitches_closed);
         }
     });
     let links: f64 = bufs.link.iter().sum();
@@ -144,9 +148,10 @@ pub fn elastic_energy(model: &ClothModel, x: &[Vec3], bufs: &mut EnergyBuffers) 
     links + elements::energy(&bufs.elements)
 }
 
-/// Total potential energy at `x`: link energies plus gravity `-sum m g.x`, J.
-pub fn potential_energy(model: &ClothModel, x: &[Vec3]) -> f64 {
-    let elastic = elastic_energy(model, x, &mut EnergyBuffers::new(model));
+/// Total potential energy at `x`: link energies plus gravity `-sum m g.x`,
+/// J. `stitches_closed` as for [`eval_link`].
+pub fn potential_energy(model: &ClothModel, x: &[Vec3], stitches_closed: &[bool]) -> f64 {
+    let elastic = elastic_energy(model, x, stitches_closed, &mut EnergyBuffers::new(model));
     let gravity = model
         .effects()
         .gravity
@@ -156,9 +161,10 @@ pub fn potential_energy(model: &ClothModel, x: &[Vec3]) -> f64 {
 
 /// Force on link `k`'s first particle at `(x, v)`: elastic plus directional
 /// damping `k_d P (v_j - v_i)`, N (the second particle gets the opposite).
+/// `stitches_closed` as for [`eval_link`].
 #[inline]
-pub fn link_force(model: &ClothModel, k: usize, x: &[Vec3], v: &[Vec3]) -> Vec3 {
-    match link_ref(model, k) {
+pub fn link_force(model: &ClothModel, k: usize, x: &[Vec3], v: &[Vec3], stitches_closed: &[bool]) -> Vec3 {
+    match link_ref(model, k, stitches_closed) {
         LinkRef::Stretch(l) => {
             let (i, j) = (l.i as usize, l.j as usize);
             let (u, d) = unit_and_length(x[j] - x[i]);
@@ -169,10 +175,10 @@ pub fn link_force(model: &ClothModel, k: usize, x: &[Vec3], v: &[Vec3]) -> Vec3 
             let (u, d) = unit_and_length(x[l.j as usize] - x[l.i as usize]);
             u * l.eval(d).phi
         }
-        LinkRef::Stitch(s) => {
+        LinkRef::Stitch(s, closed) => {
             let (i, j) = (s.i as usize, s.j as usize);
             let (u, d) = unit_and_length(x[j] - x[i]);
-            u * stitch_law(s, d).phi + (v[j] - v[i]) * s.c
+            u * stitch_law(s, closed, d).phi + (v[j] - v[i]) * s.dashpot(closed)
         }
     }
 }
@@ -210,11 +216,18 @@ impl ForceBuffers {
 
 /// Total force on every particle at `(x, v)` (elastic, damping, gravity,
 /// N) into `out`, without allocating: links in parallel, then a fixed-order
-/// gather per particle.
-pub fn forces_into(model: &ClothModel, x: &[Vec3], v: &[Vec3], bufs: &mut ForceBuffers, out: &mut [Vec3]) {
+/// gather per particle. `stitches_closed` as for [`eval_link`].
+pub fn forces_into(
+    model: &ClothModel,
+    x: &[Vec3],
+    v: &[Vec3],
+    stitches_closed: &[bool],
+    bufs: &mut ForceBuffers,
+    out: &mut [Vec3],
+) {
     bufs.link.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(chunk, fs)| {
         for (k, f) in fs.iter_mut().enumerate() {
-            *f = link_force(model, chunk * ROW_CHUNK + k, x, v);
+            *f = link_force(model, chunk * ROW_CHUNK + k, x, v, stitches_closed);
         }
     });
     let set = model.elements();
@@ -233,10 +246,11 @@ pub fn forces_into(model: &ClothModel, x: &[Vec3], v: &[Vec3], bufs: &mut ForceB
     });
 }
 
-/// Total force on every particle at `(x, v)`: elastic, damping and gravity, N.
-pub fn total_forces(model: &ClothModel, x: &[Vec3], v: &[Vec3]) -> Vec<Vec3> {
+/// Total force on every particle at `(x, v)`: elastic, damping and
+/// gravity, N. `stitches_closed` as for [`eval_link`].
+pub fn total_forces(model: &ClothModel, x: &[Vec3], v: &[Vec3], stitches_closed: &[bool]) -> Vec<Vec3> {
     let mut out = vec![Vec3::zeros(); model.particle_count()];
-    forces_into(model, x, v, &mut ForceBuffers::new(model), &mut out);
+    forces_into(model, x, v, stitches_closed, &mut ForceBuffers::new(model), &mut out);
     out
 }
 
@@ -272,12 +286,15 @@ pub struct SystemTerms<'a> {
     /// with `d_times = (a_d, w_d)`, `-a_d C_i w_d` to the right-hand side;
     /// the force's constant part goes in `external`.
     pub diag_damping: Option<&'a [Mat3]>,
+    /// Of each stitch, whether it has closed (as for [`eval_link`]).
+    pub stitches_closed: &'a [bool],
 }
 
 impl<'a> SystemTerms<'a> {
     /// `A = M - c_v D - c_x K`, `b = force (f + m g)`, with none of the
-    /// optional terms; set those with struct update syntax.
-    pub fn new(c_x: f64, c_v: f64, force: f64) -> Self {
+    /// optional terms (set those with struct update syntax), the stitches
+    /// in `stitches_closed`'s states (empty without seams).
+    pub fn new(c_x: f64, c_v: f64, force: f64, stitches_closed: &'a [bool]) -> Self {
         Self {
             c_x,
             c_v,
@@ -288,6 +305,7 @@ impl<'a> SystemTerms<'a> {
             external: None,
             diag_stiffness: None,
             diag_damping: None,
+            stitches_closed,
         }
     }
 }
@@ -381,7 +399,7 @@ pub fn assemble_matrix_free(
         |(chunk, ((rhs, blocks), energies))| {
             for (k_local, ((r, b), en)) in rhs.iter_mut().zip(blocks.iter_mut()).zip(energies.iter_mut()).enumerate() {
                 let k = chunk * ROW_CHUNK + k_local;
-                let e = eval_link(model, k, x);
+                let e = eval_link(model, k, x, terms.stitches_closed);
                 let (i, j, _) = model.link_ends(k);
                 let mut ri = e.force * terms.force;
                 if let Some((a, w)) = terms.k_times {

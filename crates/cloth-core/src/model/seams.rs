@@ -3,18 +3,27 @@
 //! A seam pairs the nodes of a run along one panel edge with those of a
 //! run along another (or the same panel's other edge), node for node, and
 //! joins each pair by a stitch ([`crate::laws::stitch`]): a thread of zero
-//! rest length whose pull is capped while the seam is open, beside a
-//! dashpot `c (v_j - v_i)`. Panels laid out apart (a strap above a
-//! shoulder, a skirt wider than the bodice it hangs from) are drawn
-//! together during a settling phase, the way a garment tool sews: the
-//! capped pull against the dashpot closes a stitch at about `pull / c`
-//! (a constant pull alone would fling the seam's light edge particles
-//! through each other: in the linearised step an open stitch has no
-//! stiffness along itself). Once closed the stitch is a stiff spring that
-//! keeps the pair together: a linear spring up to `pull / stiffness`
-//! (a tenth of the spacing by default), so it opens again only under a
-//! load that would double the length of the cloth's links. A run of more nodes sewn to a shorter edge gathers
-//! the cloth, as a gathered skirt is.
+//! rest length beside a dashpot `c (v_j - v_i)`. Panels laid out apart (a
+//! strap above a shoulder, a skirt wider than the bodice it hangs from)
+//! are drawn together during a settling phase, the way a garment tool
+//! sews: while a stitch is open its pull is capped at a gentle `sewing`,
+//! and against the dashpot it closes at about `sewing / c` (a constant
+//! pull alone would fling the seam's light edge particles through each
+//! other: in the linearised step an open stitch has no stiffness along
+//! itself). A stitch is closed once its gap is within `pull / k` (a tenth
+//! of the spacing by default), and stays closed
+//! ([`crate::ClothState::stitches_closed`]): it catches, its pull rising
+//! from `sewing` to `k d`, and its cap is the seam's strength `pull`, so
+//! it opens again only under a load that would double the length of the
+//! cloth's links; its dashpot grows with its cap
+//! ([`Stitch::dashpot`]). (Closing only within the sewing law's own linear
+//! range, `sewing / k`, left a strap's last stitches open for a second:
+//! their load exceeded the sewing pull.) One cap for both
+//! did not serve: at the seam's strength the one-piece's skirt, drawn
+//! over the pelvis while it was sewn, stretched the bodice's lower rows to
+//! 2.45 times their length; at a tenth of it the waist seam tore where the
+//! walking hips caught it and the skirt tangled. A run of more nodes sewn
+//! to a shorter edge gathers the cloth, as a gathered skirt is.
 //!
 //! A seam carries no bending: the cloth hinges freely along it (a real
 //! seam's allowance stiffens it instead; documented in the README).
@@ -60,15 +69,21 @@ pub struct SeamSpec {
     /// `tensile_stiffness_n_m`.
     #[serde(default)]
     pub stiffness_n_m: Option<f64>,
-    /// Most pull of a stitch, N: while it closes, and the most a closed
-    /// stitch holds before it opens again. Default `E s`, the pull that
-    /// doubles the length of a strip of `a`'s spacing `s`: a seam holds
-    /// what the cloth can (at `0.1 E s` the one-piece's waist seam tore
-    /// where the walking hips caught it, and the skirt tangled).
+    /// Strength of a closed stitch, N: the most it holds before it opens
+    /// again. Default `E s`, the pull that doubles the length of a strip
+    /// of spacing `s`, the finer of the two runs' spacings: a seam holds
+    /// what the cloth can.
     #[serde(default)]
     pub pull_n: Option<f64>,
+    /// Pull of a stitch while it is open, N (at most `pull_n`). Default a
+    /// quarter of `pull_n` (at a third and at half of it the one-piece at
+    /// Table-1 resolution tangled on the thigh and blew up; at all of it
+    /// the bodice stretched to 2.45 while sewn).
+    #[serde(default)]
+    pub sewing_pull_n: Option<f64>,
     /// Speed at which an open stitch closes, m/s (its dashpot is
-    /// `pull / speed`). Default 0.5.
+    /// `sewing_pull_n / speed` while open, `pull_n / speed` once closed).
+    /// Default 0.5.
     #[serde(default)]
     pub closing_speed_m_s: Option<f64>,
 }
@@ -82,10 +97,28 @@ pub struct Stitch {
     pub j: u32,
     /// Stiffness once closed, N/m.
     pub k: f64,
-    /// Most pull while open, N.
+    /// Strength once closed, N.
     pub pull: f64,
-    /// Dashpot on the pair's relative velocity, N s/m.
-    pub c: f64,
+    /// Pull while open, N.
+    pub sewing: f64,
+    /// Speed at which it closes while open, m/s.
+    pub closing_speed_m_s: f64,
+}
+
+impl Stitch {
+    /// The cap of its pull, N: the seam's strength once closed, the
+    /// sewing pull while open.
+    pub fn cap(&self, closed: bool) -> f64 {
+        if closed { self.pull } else { self.sewing }
+    }
+
+    /// Its dashpot on the pair's relative velocity, N s/m: the cap over the
+    /// closing speed, so an open stitch closes at that speed and a closed
+    /// one damps as strongly as it holds (with the sewing pull's dashpot
+    /// alone the sewn garments' straps stretched further as they walked).
+    pub fn dashpot(&self, closed: bool) -> f64 {
+        self.cap(closed) / self.closing_speed_m_s
+    }
 }
 
 /// Why a seam is invalid: the field (below `seams[k]`) and the reason.
@@ -100,8 +133,8 @@ pub(crate) fn stitches(
     offsets: &[usize],
     tensile: f64,
 ) -> Result<Vec<Stitch>, SeamError> {
-    let (a, spacing) = run(&seam.a, ["a.panel", "a.edge", "a.range"], panels, offsets)?;
-    let (mut b, _) = run(&seam.b, ["b.panel", "b.edge", "b.range"], panels, offsets)?;
+    let (a, spacing_a) = run(&seam.a, ["a.panel", "a.edge", "a.range"], panels, offsets)?;
+    let (mut b, spacing_b) = run(&seam.b, ["b.panel", "b.edge", "b.range"], panels, offsets)?;
     if a.len() != b.len() {
         return Err(("b.range", format!("runs {} nodes, a runs {}: a seam sews node to node", b.len(), a.len())));
     }
@@ -112,21 +145,24 @@ pub(crate) fn stitches(
     if !(k.is_finite() && k > 0.0) {
         return Err(("stiffness_n_m", format!("must be finite and > 0, got {k}")));
     }
-    let pull = seam.pull_n.unwrap_or(tensile * spacing);
+    let pull = seam.pull_n.unwrap_or(tensile * spacing_a.min(spacing_b));
     if !(pull.is_finite() && pull > 0.0) {
         return Err(("pull_n", format!("must be finite and > 0, got {pull}")));
+    }
+    let sewing = seam.sewing_pull_n.unwrap_or(pull / 4.0);
+    if !(sewing.is_finite() && sewing > 0.0 && sewing <= pull) {
+        return Err(("sewing_pull_n", format!("must be finite, > 0 and at most pull_n ({pull} N), got {sewing}")));
     }
     let speed = seam.closing_speed_m_s.unwrap_or(0.5);
     if !(speed.is_finite() && speed > 0.0) {
         return Err(("closing_speed_m_s", format!("must be finite and > 0, got {speed}")));
     }
-    let c = pull / speed;
     let mut out = Vec::with_capacity(a.len());
     for (&i, &j) in a.iter().zip(&b) {
         if i == j {
             return Err(("b", format!("sews particle {i} to itself")));
         }
-        out.push(Stitch { i, j, k, pull, c });
+        out.push(Stitch { i, j, k, pull, sewing, closing_speed_m_s: speed });
     }
     Ok(out)
 }
@@ -196,7 +232,15 @@ mod tests {
     }
 
     fn seam(a: SeamSide, b: SeamSide) -> SeamSpec {
-        SeamSpec { a, b, reverse: false, stiffness_n_m: None, pull_n: None, closing_speed_m_s: None }
+        SeamSpec {
+            a,
+            b,
+            reverse: false,
+            stiffness_n_m: None,
+            pull_n: None,
+            sewing_pull_n: None,
+            closing_speed_m_s: None,
+        }
     }
 
     #[test]
@@ -210,8 +254,10 @@ mod tests {
         let pairs: Vec<(u32, u32)> = st.iter().map(|s| (s.i, s.j)).collect();
         assert_eq!(pairs, vec![(10, 23), (11, 24), (12, 15), (13, 16), (14, 17)]);
         assert_eq!(st[0].k, 2000.0);
-        // E s with panel 0's spacing along u, 0.25 m.
-        assert!((st[0].pull - 200.0 * 0.25).abs() < 1e-15);
+        // E s with the finer spacing along the runs: the cylinder's 0.1 m
+        // (panel 0's is 0.25 m); sewing at a quarter of it.
+        assert!((st[0].pull - 200.0 * 0.1).abs() < 1e-13);
+        assert_eq!(st[0].sewing, st[0].pull / 4.0);
         let r = SeamSpec { reverse: true, ..s };
         assert_eq!(stitches(&r, &panels, &offsets, 200.0).unwrap()[0].j, 17);
         // An i edge, part of it.
@@ -239,5 +285,7 @@ mod tests {
         check(SeamSpec { stiffness_n_m: Some(-1.0), ..s }, "stiffness_n_m");
         check(SeamSpec { pull_n: Some(f64::INFINITY), ..s }, "pull_n");
         check(SeamSpec { closing_speed_m_s: Some(0.0), ..s }, "closing_speed_m_s");
+        check(SeamSpec { sewing_pull_n: Some(0.0), ..s }, "sewing_pull_n");
+        check(SeamSpec { pull_n: Some(1.0), sewing_pull_n: Some(1.5), ..s }, "sewing_pull_n");
     }
 }
