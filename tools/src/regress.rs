@@ -242,7 +242,7 @@ fn check(case: &Case, fixtures: &Path, goldens: &Path, args: &RegressArgs) -> Re
     let run = match run {
         Ok(run) => run,
         Err(e) => {
-            let change = Change { field: "run".into(), golden: String::new(), now: format!("{e:#}") };
+            let change = Change { field: "did not run".into(), golden: String::new(), now: format!("{e:#}") };
             return Ok(Checked {
                 name: case.name.clone(),
                 outcome: Outcome::Failed,
@@ -430,7 +430,10 @@ fn print_changes(checked: &[Checked]) {
     for c in checked.iter().filter(|c| !c.changes.is_empty()) {
         let _ = writeln!(text, "\n{}:", c.name);
         for ch in c.changes.iter().take(LISTED_CHANGES) {
-            let _ = writeln!(text, "  {}: {} -> {}", ch.field, ch.golden, ch.now);
+            let _ = match ch.golden.as_str() {
+                "" => writeln!(text, "  {}: {}", ch.field, ch.now),
+                golden => writeln!(text, "  {}: {golden} -> {}", ch.field, ch.now),
+            };
         }
         if c.changes.len() > LISTED_CHANGES {
             let _ = writeln!(text, "  and {} more", c.changes.len() - LISTED_CHANGES);

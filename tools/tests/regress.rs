@@ -118,3 +118,24 @@ fn a_changed_case_and_an_unknown_name_are_refused() {
     let o = regress(&["--only", "freefall", "--goldens", g, "--rel-tol=-1"]);
     assert!(stderr(&o).contains("--rel-tol must be finite and >= 0"), "{}", stderr(&o));
 }
+
+/// A case without a golden is new, and a scene that does not load fails,
+/// naming the file and the field; both fail the run (the Table-1 cases
+/// fail too: this fixtures directory has no garments).
+#[test]
+fn a_new_case_and_a_broken_scene_fail_the_run() {
+    let dir = goldens_dir("fixtures");
+    std::fs::create_dir_all(dir.join("scenes")).unwrap();
+    let freefall = std::fs::read_to_string(workspace().join("fixtures/scenes/freefall.toml")).unwrap();
+    std::fs::write(dir.join("scenes/tiny.toml"), &freefall).unwrap();
+    let broken = freefall.replace("dt_s = 0.01", "dt_s = 0.01\nstep_count = 3");
+    std::fs::write(dir.join("scenes/broken.toml"), broken).unwrap();
+    let o = regress(&["--fixtures", dir.to_str().unwrap()]);
+    let (out, err) = (stdout(&o), stderr(&o));
+    assert!(!o.status.success());
+    assert!(out.contains("| tiny | 441 | 50 |") && out.contains("NEW (no golden)"), "{out}");
+    assert!(out.contains("| broken | - | - | - | FAILED |"), "{out}");
+    assert!(out.contains("broken.toml") && out.contains("step_count"), "the error names the file and the field: {out}");
+    assert!(out.contains("| table1-skirt | - | - | - | FAILED |"), "{out}");
+    assert!(err.contains("4 of 5 cases did not run"), "{err}");
+}
