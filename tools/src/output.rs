@@ -8,9 +8,7 @@ use std::path::Path;
 /// Writes positions and the model's triangles as a Wavefront OBJ file.
 pub fn write_obj(path: &Path, model: &ClothModel, x: &[Vec3]) -> std::io::Result<()> {
     let mut w = std::io::BufWriter::new(std::fs::File::create(path)?);
-    for p in x {
-        writeln!(w, "v {} {} {}", p.x, p.y, p.z)?;
-    }
+    write_vertex_lines(&mut w, x)?;
     for t in model.triangles() {
         writeln!(w, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1)?;
     }
@@ -23,10 +21,17 @@ pub fn write_obj(path: &Path, model: &ClothModel, x: &[Vec3]) -> std::io::Result
 pub fn write_vertices(path: &Path, header: &str, x: &[Vec3]) -> std::io::Result<()> {
     let mut w = std::io::BufWriter::new(std::fs::File::create(path)?);
     writeln!(w, "# {header}")?;
+    write_vertex_lines(&mut w, x)?;
+    w.flush()
+}
+
+/// `v x y z` per position, full precision (`{}` of an `f64` reads back to
+/// the same bits).
+fn write_vertex_lines(w: &mut impl Write, x: &[Vec3]) -> std::io::Result<()> {
     for p in x {
         writeln!(w, "v {} {} {}", p.x, p.y, p.z)?;
     }
-    w.flush()
+    Ok(())
 }
 
 /// Wall time per stage over the whole run, s.

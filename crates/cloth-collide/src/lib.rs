@@ -17,7 +17,7 @@ mod triangle;
 mod voxel_hash;
 
 pub use collider::{BodyPose, ShapeError, ShapeSpec, SolidShape, SurfacePoint};
-pub use obj::{ObjError, ObjMesh, parse_obj};
+pub use obj::{ObjError, ObjMesh, parse_obj, parse_obj_points};
 pub use triangle::closest_point_on_triangle;
 pub use voxel_hash::{BroadPhaseError, VoxelHash};
 

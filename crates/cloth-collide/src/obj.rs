@@ -25,8 +25,19 @@ pub struct ObjError {
 
 /// Parses OBJ text. Face indices may be negative (relative to the end) and
 /// may carry `/vt/vn` suffixes; faces with more than three corners are
-/// split into a fan.
+/// split into a fan. A mesh without faces is an error (see
+/// [`parse_obj_points`]).
 pub fn parse_obj(text: &str) -> Result<ObjMesh, ObjError> {
+    let mesh = parse_obj_points(text)?;
+    if mesh.triangles.is_empty() {
+        return Err(ObjError { line: 0, message: "no faces".into() });
+    }
+    Ok(mesh)
+}
+
+/// Parses OBJ text as [`parse_obj`] does, but accepts vertices alone (a
+/// point cloud, as `cloth regress` keeps a final frame).
+pub fn parse_obj_points(text: &str) -> Result<ObjMesh, ObjError> {
     let mut mesh = ObjMesh { vertices: Vec::new(), triangles: Vec::new() };
     for (k, raw) in text.lines().enumerate() {
         let line = k + 1;
@@ -67,9 +78,6 @@ pub fn parse_obj(text: &str) -> Result<ObjMesh, ObjError> {
             _ => {}
         }
     }
-    if mesh.triangles.is_empty() {
-        return Err(ObjError { line: 0, message: "no faces".into() });
-    }
     Ok(mesh)
 }
 
@@ -93,5 +101,13 @@ mod tests {
         assert_eq!(parse_obj("v 0 0 0\nf 1 2 3\n").unwrap_err().line, 2);
         assert_eq!(parse_obj("v 0 0 nan\n").unwrap_err().line, 1);
         assert_eq!(parse_obj("v 0 0 0\n").unwrap_err().line, 0);
+    }
+
+    #[test]
+    fn points_alone_are_a_point_cloud() {
+        let points = parse_obj_points("# a frame\nv 0.1 -2 3e-17\nv 1 0 0\n").unwrap();
+        assert_eq!(points.vertices, vec![Vec3::new(0.1, -2.0, 3e-17), Vec3::new(1.0, 0.0, 0.0)]);
+        assert!(points.triangles.is_empty());
+        assert_eq!(parse_obj_points("v 0 0\n").unwrap_err().line, 1);
     }
 }

@@ -55,7 +55,8 @@ pub(crate) fn mechanical_with(model: &ClothModel, x: &[Vec3], v: &[Vec3], elasti
 /// the stitches in the states `stitches_closed`.
 pub(crate) fn mechanical(
     model: &ClothModel,
-    (x, v): (&[Vec3], &[Vec3]),
+    x: &[Vec3],
+    v: &[Vec3],
     stitches_closed: &[bool],
     bufs: &mut EnergyBuffers,
 ) -> (f64, f64, f64) {

@@ -752,7 +752,7 @@ fn uncommitted_step<S: Linearised>(
         contacts: stats.contacts,
         stitches_closed: &state.stitches_closed,
     };
-    let after = energy::mechanical(model, (&ws.new_x, &ws.new_v), &state.stitches_closed, &mut ws.energy);
+    let after = energy::mechanical(model, &ws.new_x, &ws.new_v, &state.stitches_closed, &mut ws.energy);
     report.energy = Some(balance.report(model, after));
     report.stages = StageTimes {
         forces_s,
