@@ -95,7 +95,7 @@ pub fn eval_link(model: &ClothModel, k: usize, x: &[Vec3], stitches_closed: &[bo
             let (u, d) = unit_and_length(x[s.j as usize] - x[s.i as usize]);
             let mut e = eval_with(stitch_law(s, closed, d), u, d, 0.0);
             if d == 0.0 {
-                // A closed stitch's Jacobian is k I from any side.
+                // At zero gap (either state, within its cap) the Jacobian is k I from any side.
                 e.stiffness = Mat3::identity() * s.k;
             }
             e.damping = Mat3::identity() * s.dashpot(closed);
