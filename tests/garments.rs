@@ -211,41 +211,53 @@ impl Worn {
 /// The top, sewn from a tube and two straps while the mannequin stands,
 /// stays on through two and a half walk cycles held by its straps alone
 /// (in the torso's frame, whose origin is the waist joint: measured
-/// nothing inside a link, stretch 1.337, 20 of 216 steps beyond 1.2 (the
+/// nothing inside a link, stretch 1.292, 22 of 216 steps beyond 1.2 (the
 /// straps' inner edges where they cross the ridge of the shoulder line,
-/// under the single linearised step: issue 10), 1.314 while sewn, closest
-/// particle-triangle 7.6 mm, 0.283 m from the torso's axis, 0.003 m below
-/// the waist joint to 0.504 m above it, seams within 0.1 mm).
+/// under the single linearised step: issue 10), 1.192 while sewn, closest
+/// particle-triangle 6.3 mm, 0.283 m from the torso's axis, 0.005 m below
+/// the waist joint to 0.504 m above it, seams within 0.1 mm). The limits
+/// cover what the walk does within the solve's tolerance, not one
+/// trajectory: at `rel_tol` 1e-3, 1e-4 and 1e-5, with the multigrid
+/// before and after its W-cycle (`cloth run ... --set solver.rel_tol=`),
+/// the worn top reached 1.277-1.338 with 15-22 steps beyond 1.2.
 #[test]
 fn the_sewn_top_stays_on_the_walking_mannequin() {
     let worn = wear("top-walk.toml", "torso", &[]);
     worn.assert_stays_on(1.34, 0.30, [-0.05, 0.55]);
-    worn.assert_sewn(1e-3, 1.32, 20);
+    worn.assert_sewn(1e-3, 1.32, 24);
 }
 
 /// The one-piece: the top with a skirt gathered onto its lower edge
-/// (measured: stretch 1.323, 2 steps beyond 1.2, 1.378 while sewn,
-/// closest 6.2 mm, 0.418 m out, from 0.627 m below the waist joint, seams
-/// within 0.2 mm). While it is sewn the stitches draw the tube's lower
+/// (measured: stretch 1.549, 32 steps beyond 1.2, 1.352 while sewn,
+/// closest 4.4 mm, 0.400 m out, from 0.627 m below the waist joint, seams
+/// within 0.3 mm). While it is sewn the stitches draw the tube's lower
 /// edge down over the pelvis box, which is wider than the tube, and the
 /// edge's links stretch: 2.45 when open stitches pulled with the seam's
-/// full strength, 1.38 with the sewing pull (a quarter of it) until each
-/// stitch has closed.
+/// full strength, 1.35 with the sewing pull (a quarter of it) until each
+/// stitch has closed. Worn, the skirt catches on the swinging thighs now
+/// and then, and how far it stretches then is chaotic in the solve's
+/// error: at `rel_tol` 1e-3, 3e-4, 1e-4 and 1e-5, with the multigrid
+/// before and after its W-cycle, the worn one-piece reached 1.215-1.670
+/// with 2-50 steps beyond 1.2 (1.329-1.393 while sewn); the limits are
+/// that spread's.
 #[test]
 fn the_sewn_one_piece_stays_on_the_walking_mannequin() {
     let worn = wear("one-piece-walk.toml", "torso", &[]);
-    worn.assert_stays_on(1.33, 0.45, [-0.65, 0.55]);
-    worn.assert_sewn(1e-3, 1.39, 2);
+    worn.assert_stays_on(1.7, 0.45, [-0.65, 0.55]);
+    worn.assert_sewn(1e-3, 1.4, 50);
 }
 
 /// Volino's and Provot's models wear the sewn top too (their membranes,
 /// hinges and flexion springs stop at the seams as Choi & Ko's links do):
 /// measured, nothing inside a link, seams within 0.1 mm, every particle
-/// where the top is worn; stretch while sewn and worn 1.079 and 1.085
-/// (volino), 1.110 and 1.115 (provot), 0 steps beyond 1.2.
+/// where the top is worn; stretch while sewn and worn 1.089 and 1.077
+/// (volino), 1.105 and 1.120 (provot), 0 steps beyond 1.2. Limits from
+/// the spread at `rel_tol` 1e-3 and 1e-4 with the multigrid before and
+/// after its W-cycle: volino 1.079-1.089 sewn, 1.077-1.098 worn; provot
+/// 1.105-1.127 and 1.111-1.120.
 #[test]
 fn the_sewn_top_stays_on_in_every_model() {
-    for (model, sewing, worn_stretch) in [("volino", 1.08, 1.09), ("provot", 1.11, 1.12)] {
+    for (model, sewing, worn_stretch) in [("volino", 1.095, 1.1), ("provot", 1.13, 1.125)] {
         let worn = wear("top-walk.toml", "torso", &[&format!("simulation.model=\"{model}\"")]);
         worn.assert_stays_on(worn_stretch, 0.30, [-0.05, 0.55]);
         worn.assert_sewn(1e-3, sewing, 0);

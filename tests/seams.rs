@@ -119,7 +119,12 @@ fn a_stitch_force_and_jacobian_match_finite_differences() {
 
 #[test]
 fn a_seam_laid_open_closes_at_a_bounded_pull_and_keeps_the_centre_of_mass() {
-    let (mut sim, h, steps) = build(&open_seam(0.05), &[]);
+    // Solved to 1e-12: the centre of mass moves by what the solves leave
+    // unbalanced, which the tolerance bounds (at the scene's 1e-10 it moved
+    // 2.4e-10 m in 90 steps; a preconditioner exact on this small system,
+    // as the multigrid was before its levels' residuals were rounded to
+    // f32, left it at roundoff).
+    let (mut sim, h, steps) = build(&open_seam(0.05), &["solver.rel_tol=1e-12"]);
     let model = sim.model().clone();
     let c0 = centre(&model, &sim.state().x);
     assert!((model.max_seam_gap(&sim.state().x) - 0.05).abs() < 1e-15);
@@ -137,12 +142,12 @@ fn a_seam_laid_open_closes_at_a_bounded_pull_and_keeps_the_centre_of_mass() {
     let gap = model.max_seam_gap(x);
     let drift = (centre(&model, x) - c0).norm();
     // Measured: the stitches close at their 0.5 m/s (5.55 mm a step),
-    // within 1 mm after 9 steps; 1 s later the gap is 1e-20 m, the centre
-    // moved 2.0e-12 m (the linear solves' tolerance), the links stretched
+    // within 1 mm after 9 steps; 1 s later the gap is 2e-20 m, the centre
+    // moved 1.25e-11 m (the linear solves' tolerance), the links stretched
     // at most 1.002 on the way.
     assert_eq!(closed_at, Some(8));
     assert!(gap < 1e-9, "gap {gap:e} m");
-    assert!(drift < 2.5e-12, "centre of mass moved {drift:e} m");
+    assert!(drift < 1.5e-11, "centre of mass moved {drift:e} m");
     assert!(stretch < 1.0021, "stretch {stretch}");
 }
 

@@ -219,6 +219,8 @@ enum StudyKind {
     LargeSteps,
     /// The hard-case suite: what must hold in each case, and whether it does.
     Stability,
+    /// Cost and CG iterations per step against particle count, 1k to 263k.
+    Scaling,
 }
 
 fn main() -> ExitCode {
@@ -256,6 +258,7 @@ fn main() -> ExitCode {
                 StudyKind::Bending => study::bending(&args),
                 StudyKind::LargeSteps => study::large_steps(&args),
                 StudyKind::Stability => study::stability(&args),
+                StudyKind::Scaling => study::scaling(&args),
             }
         }
     };

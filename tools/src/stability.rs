@@ -324,7 +324,10 @@ fn step_sizes(quick: bool) -> Vec<Row> {
                 .set("simulation.dt_s", format!("{h:e}"))
                 .set("simulation.duration_s", format!("{:e}", h * count as f64))
                 .set("solver.newton_iterations", newton)
-                .set("solver.rel_tol", if small { 1e-12 } else { 1e-4 });
+                // The middle particle's velocity is as exact as the solve
+                // (its relative error is the residual's share of the
+                // reference): 1e-12 left 3.6e-12 under the W-cycle.
+                .set("solver.rel_tol", if small { 1e-14 } else { 1e-4 });
             let mut fall_error = 0.0f64;
             let run = case.run(
                 |_| {},

@@ -525,6 +525,88 @@ pub fn cost(args: &StudyArgs) -> Result<()> {
     write_outputs(&args.out, "cost", &csv, &md, &[("cost.svg".into(), svg)])
 }
 
+/// Cost and CG iterations per step of the implicit step (BDF2, the
+/// multigrid PCG) against the particle count, on the hanging cloth and the
+/// drape on a sphere from `n = 33` to `513` (1,089 to 263,169 particles),
+/// with the log-log slope of the cost: issue 14's growth plot.
+pub fn scaling(args: &StudyArgs) -> Result<()> {
+    let pool = setup(args)?;
+    let sizes: &[usize] = if args.quick { &[11, 21] } else { &[33, 65, 129, 257, 513] };
+    // The hang swings from the start; the drape lands on the sphere after
+    // 0.14 s, so its run includes the steps with contacts.
+    let scenes: [(&str, &str, f64); 2] = [("hang", "corners", 0.2), ("drape-sphere", "none", 0.5)];
+    let mut csv = String::from("scene,n,particles,steps,cg_per_step,ms_per_step,us_per_particle_step\n");
+    let mut md = header("Cost against size", "scaling", args);
+    let _ = writeln!(
+        md,
+        "`hang.toml` (0.2 s) and `drape-sphere.toml` (0.5 s: it lands at 0.14 s) at n x n particles \
+         over the same 1 m cloth, BDF2 at h = 1/90 s, PCG to `rel_tol = 1e-3` with the multigrid \
+         preconditioner, the fixtures' material. Wall time per step (mean over the run, step \
+         only). Slope: least squares of log(ms per step) against log(particles); 1 is linear.\n\n\
+         | scene | n | particles | CG / step | ms / step | us / particle / step |\n|---|---|---|---|---|---|"
+    );
+    let (mut cost_series, mut cg_series, mut slopes) = (Vec::new(), Vec::new(), Vec::new());
+    for (name, pins, duration) in scenes {
+        let scene = PathBuf::from(format!("fixtures/scenes/{name}.toml"));
+        let (mut cost, mut cg, mut log_points) = (Vec::new(), Vec::new(), Vec::new());
+        for &n in sizes {
+            let mut o = grid(n, pins);
+            o.push(format!("simulation.duration_s={duration}"));
+            let (r, sim) = run_until(&scene, &o, &pool, f64::INFINITY, |_, _| false)?;
+            if let Some(e) = r.error {
+                anyhow::bail!("{name} at {n} x {n}: {e}");
+            }
+            let particles = sim.model().particle_count();
+            let steps = r.steps.max(1) as f64;
+            let (cg_per_step, ms) = (r.cg_iterations as f64 / steps, r.step_wall_s / steps * 1e3);
+            let us = ms * 1e3 / particles as f64;
+            eprintln!("scaling: {name} {n} x {n}: {cg_per_step:.1} CG, {ms:.1} ms a step");
+            let _ = writeln!(csv, "{name},{n},{particles},{},{cg_per_step:.2},{ms:.3},{us:.4}", r.steps);
+            let _ = writeln!(md, "| {name} | {n} | {particles} | {cg_per_step:.1} | {ms:.1} | {us:.3} |");
+            cost.push((particles as f64, us));
+            cg.push((particles as f64, cg_per_step));
+            log_points.push(((particles as f64).ln(), ms.ln()));
+        }
+        slopes.push((name, least_squares_slope(&log_points)));
+        cost_series.push(Series { name: name.to_string(), points: cost });
+        cg_series.push(Series { name: name.to_string(), points: cg });
+    }
+    let _ = writeln!(md);
+    for (name, slope) in &slopes {
+        let _ = writeln!(md, "- {name}: cost grows as particles^{slope:.2}");
+    }
+    let cost_svg = line_plot(
+        &Axes {
+            title: "Cost per particle per step",
+            x_label: "particles",
+            y_label: "us / particle / step",
+            log_x: true,
+        },
+        &cost_series,
+    );
+    let cg_svg = line_plot(
+        &Axes { title: "PCG iterations per step", x_label: "particles", y_label: "CG / step", log_x: true },
+        &cg_series,
+    );
+    let _ = writeln!(md, "\n![cost per particle per step](scaling.svg)\n\n![CG per step](scaling_cg.svg)");
+    write_outputs(
+        &args.out,
+        "scaling",
+        &csv,
+        &md,
+        &[("scaling.svg".into(), cost_svg), ("scaling_cg.svg".into(), cg_svg)],
+    )
+}
+
+/// Slope of the least-squares line through `(x, y)` points (NaN for fewer than two).
+fn least_squares_slope(points: &[(f64, f64)]) -> f64 {
+    let n = points.len() as f64;
+    let (mx, my) = (points.iter().map(|p| p.0).sum::<f64>() / n, points.iter().map(|p| p.1).sum::<f64>() / n);
+    let sxy: f64 = points.iter().map(|(x, y)| (x - mx) * (y - my)).sum();
+    let sxx: f64 = points.iter().map(|(x, _)| (x - mx) * (x - mx)).sum();
+    sxy / sxx
+}
+
 /// Work-precision: RMS position error after 1 s of the swinging hanging
 /// cloth against a converged reference, versus wall time, per method.
 pub fn precision(args: &StudyArgs) -> Result<()> {
@@ -901,6 +983,16 @@ pub fn stability(args: &StudyArgs) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn least_squares_slope_of_a_line_and_of_noise_around_it() {
+        let line: Vec<(f64, f64)> = (0..5).map(|k| (k as f64, 1.05 * k as f64 - 3.0)).collect();
+        assert!((least_squares_slope(&line) - 1.05).abs() < 1e-14);
+        // About y = x, by hand: sxy = 4.8, sxx = 5.
+        let noisy: Vec<(f64, f64)> = [(0.0, 0.1), (1.0, 0.9), (2.0, 2.1), (3.0, 2.9)].to_vec();
+        assert!((least_squares_slope(&noisy) - 0.96).abs() < 1e-12, "{}", least_squares_slope(&noisy));
+        assert!(least_squares_slope(&[(1.0, 2.0)]).is_nan());
+    }
 
     /// The README's fixed-iteration limits (Volino & Magnenat-Thalmann's
     /// free fall, `choi-ko`): backward Euler with n = 1, 2, 4, 8 CG

@@ -205,6 +205,29 @@ fn study_large_steps_compares_one_solve_with_newton() {
     assert!(peak(&rows[0]) > 2.0 && peak(&rows[1]) < 1.1, "{csv}");
 }
 
+/// The quick scaling study runs the hang and the drape at 11 x 11 and
+/// 21 x 21: every row has its particle count and a positive cost, and the
+/// table states the slope of each scene and links both plots.
+#[test]
+fn study_scaling_reports_cost_and_iterations_against_size() {
+    let out = quick_study("scaling");
+    let csv = std::fs::read_to_string(out.join("scaling.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 4, "{csv}");
+    for (row, (scene, particles)) in
+        rows.iter().zip([("hang", "121"), ("hang", "441"), ("drape-sphere", "121"), ("drape-sphere", "441")])
+    {
+        assert_eq!((row[0], row[2]), (scene, particles), "{csv}");
+        let (cg, ms): (f64, f64) = (row[4].parse().unwrap(), row[5].parse().unwrap());
+        assert!(cg >= 1.0 && ms > 0.0, "{csv}");
+    }
+    let md = std::fs::read_to_string(out.join("scaling.md")).unwrap();
+    assert!(md.contains("- hang: cost grows as particles^") && md.contains("- drape-sphere: cost grows"), "{md}");
+    for svg in ["scaling.svg", "scaling_cg.svg"] {
+        assert!(std::fs::read_to_string(out.join(svg)).unwrap().contains("<path"), "{svg}");
+    }
+}
+
 /// Runs a fixture with overrides and returns its summary.
 fn summary_of(name: &str, overrides: &[&str]) -> serde_json::Value {
     let out = out_dir(name);

@@ -259,7 +259,7 @@ pub enum PreconditionerName {
     Diagonal,
     /// 3x3 block diagonal (Choi & Ko).
     BlockJacobi,
-    /// Aggregation multigrid V-cycle on the panel grids.
+    /// Aggregation multigrid cycle on the panel grids (W below the first coarse level).
     Multigrid,
 }
 

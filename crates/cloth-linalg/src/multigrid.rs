@@ -1,14 +1,42 @@
-//! An aggregation multigrid V-cycle, used as a PCG preconditioner.
+//! An aggregation multigrid cycle, used as a PCG preconditioner.
 //!
 //! Block-Jacobi needs more iterations the stiffer the cloth and the finer
-//! the grid (its condition number grows like `h^2 k / m`). A V-cycle damps
-//! the smooth error that Jacobi cannot: each level groups nodes into
-//! aggregates (piecewise-constant prolongation `P`, restriction `P^T`),
-//! the coarse operator is the Galerkin product `P^T A P` (a block sum, so
-//! its pattern is built once and each refill costs about one SpMV), the
-//! smoother is damped block-Jacobi before and after the coarse correction,
-//! and the coarsest level is solved by dense Cholesky. The cycle is
-//! symmetric, so PCG stays conjugate-gradient.
+//! the grid (its condition number grows like `h^2 k / m`). A multigrid
+//! cycle damps the smooth error that Jacobi cannot: each level groups nodes
+//! into aggregates (piecewise-constant prolongation `P`, restriction
+//! `P^T`), the coarse operator is the Galerkin product `P^T A P` (a block
+//! sum, so its pattern is built once and each refill costs about one
+//! SpMV), the smoother is damped block-Jacobi before and after the coarse
+//! correction, and the coarsest level is solved by dense Cholesky. The
+//! cycle is symmetric, so PCG stays conjugate-gradient.
+//!
+//! **W below the first coarse level.** Piecewise-constant aggregates
+//! correct smooth error less well the more levels lie between a grid and
+//! the coarsest one, so a V-cycle's PCG iterations grow with the grid
+//! (the hanging cloth at 1/90 s, BDF2, `rel_tol = 1e-3`: 13.1, 20.1 and
+//! 31.9 a step at 65 x 65, 129 x 129 and 257 x 257 particles). Solving
+//! every coarse problem below the first by two cycles instead of one (a
+//! W-cycle that visits level 1 once, level 2 twice, level 3 four times)
+//! takes 11.2, 13.6 and 17.9 for about 10% more arithmetic a cycle
+//! (levels shrink 4x, so level `l >= 1` costs `2^(l-1) / 4^l` of the
+//! finest). The first coarse problem is solved by one cycle: two cost a
+//! quarter more and saved no time. In the caches (3-5k particles) the
+//! extra visits to small levels cost about what the saved iterations
+//! gain; beyond them the W-cycle halves the solve (docs/results/
+//! solver-before-after.md).
+//!
+//! **Single-precision operators.** A cycle reads each level's matrix
+//! twice (the residuals after pre- and post-smoothing), PCG once more
+//! for its own product: beyond the caches a step is bound by memory
+//! traffic. The cycle's residuals read an `f32` copy of each level's
+//! operator (refilled by [`Multigrid::update`]) and accumulate in `f64`:
+//! the preconditioner is a different but equally symmetric positive
+//! definite approximation of `A^-1` (rounding a symmetric matrix keeps it
+//! symmetric; the smoother's damping keeps a 30% margin that a relative
+//! change of `1e-7` cannot use up), PCG's own products and therefore the
+//! answer keep full precision. 257 x 257 hanging cloth: the solve ~410
+//! -> ~295 ms a step with the same iterations (two alternating runs of
+//! 3); none at 129 x 129, whose matrix fits the 32 MB L3.
 
 use crate::{BlockPattern, BlockSparseMatrix, Mat3, Vec3, par::ROW_CHUNK};
 use nalgebra::{DMatrix, DVector};
@@ -85,6 +113,9 @@ struct Level {
     slots: Gather,
     /// The coarse operator `P^T A P`.
     coarse: BlockSparseMatrix,
+    /// This level's own operator (the fine matrix, or the previous
+    /// level's `coarse`) in single precision, for the residuals.
+    op: SinglePrecision,
     /// Damped inverse diagonal blocks of this level's (fine) operator (for
     /// a paired node, its diagonal block of the pair's inverse).
     inv_diag: Vec<Mat3>,
@@ -95,6 +126,9 @@ struct Level {
     b: Vec<Vec3>,
     x: Vec<Vec3>,
     r: Vec<Vec3>,
+    /// The first of two coarse corrections while the second is computed
+    /// (levels below the first coarse one; empty on the finest).
+    first: Vec<Vec3>,
 }
 
 /// An aggregation multigrid hierarchy; rebuild the operators with
@@ -102,15 +136,125 @@ struct Level {
 #[derive(Debug, Clone)]
 pub struct Multigrid {
     levels: Vec<Level>,
-    /// Dense coarsest operator, factorised in place (lower Cholesky factor).
-    coarsest: DMatrix<f64>,
-    /// Whether the factorisation succeeded (else: block-Jacobi on the coarsest level).
-    coarsest_ok: bool,
-    coarsest_rhs: DVector<f64>,
-    coarsest_inv_diag: Vec<Mat3>,
-    coarsest_b: Vec<Vec3>,
-    coarsest_x: Vec<Vec3>,
+    coarsest: Coarsest,
     omega: f64,
+}
+
+/// The coarsest level, solved directly.
+#[derive(Debug, Clone)]
+struct Coarsest {
+    /// Dense operator, factorised in place (lower Cholesky factor).
+    factor: DMatrix<f64>,
+    /// Whether the factorisation succeeded (else: block-Jacobi).
+    ok: bool,
+    rhs: DVector<f64>,
+    inv_diag: Vec<Mat3>,
+    b: Vec<Vec3>,
+    x: Vec<Vec3>,
+}
+
+impl Coarsest {
+    fn new(n: usize) -> Self {
+        Self {
+            factor: DMatrix::zeros(3 * n, 3 * n),
+            ok: false,
+            rhs: DVector::zeros(3 * n),
+            inv_diag: vec![Mat3::identity(); n],
+            b: vec![Vec3::zeros(); n],
+            x: vec![Vec3::zeros(); n],
+        }
+    }
+
+    /// Factorises `a` (block-Jacobi if it is not positive definite).
+    fn update(&mut self, a: &BlockSparseMatrix) {
+        inverse_diagonal(a, 1.0, &mut self.inv_diag);
+        self.factor.fill(0.0);
+        for (i, j, b) in a.blocks() {
+            self.factor.fixed_view_mut::<3, 3>(3 * i, 3 * j).copy_from(b);
+        }
+        self.ok = cholesky_in_place(&mut self.factor);
+    }
+
+    /// `x = A^-1 b` by the stored factor.
+    fn solve(&mut self) {
+        if !self.ok {
+            self.x.iter_mut().zip(&self.b).zip(&self.inv_diag).for_each(|((xi, bi), di)| *xi = di * bi);
+            return;
+        }
+        for (i, bi) in self.b.iter().enumerate() {
+            self.rhs.fixed_rows_mut::<3>(3 * i).copy_from(bi);
+        }
+        cholesky_solve_in_place(&self.factor, &mut self.rhs);
+        for (i, xi) in self.x.iter_mut().enumerate() {
+            *xi = self.rhs.fixed_rows::<3>(3 * i).into_owned();
+        }
+    }
+}
+
+/// A block matrix with `f32` blocks (column-major, like [`Mat3`]) on a
+/// given pattern: a level's operator for the cycle's residuals.
+#[derive(Debug, Clone)]
+struct SinglePrecision {
+    pattern: BlockPattern,
+    /// The slot of block `(j, i)` for the slot of `(i, j)`.
+    mirror: Vec<u32>,
+    blocks: Vec<[f32; 9]>,
+}
+
+impl SinglePrecision {
+    fn new(pattern: BlockPattern) -> Self {
+        let mirror = (0..pattern.n())
+            .flat_map(|i| pattern.row_cols(i).iter().map(move |&j| (i, j as usize)))
+            .map(|(i, j)| pattern.slot(j, i).expect("block patterns are structurally symmetric") as u32)
+            .collect();
+        let blocks = vec![[0.0; 9]; pattern.nnz_blocks()];
+        Self { pattern, mirror, blocks }
+    }
+
+    /// Rounds the symmetric part of `a` (same pattern), `(A_ij + A_ji^T) / 2`,
+    /// into this copy. Rounding `A` itself would not do: an assembly's
+    /// `A_ij` and `A_ji^T` may differ in their last bit, which rounding to
+    /// `f32` can turn into a relative `6e-8`, and the cycle would no longer
+    /// be symmetric to roundoff. The two sums are the same IEEE sums, so
+    /// the copy is symmetric bit for bit.
+    fn copy_from(&mut self, a: &BlockSparseMatrix) {
+        let (values, mirror) = (a.values(), &self.mirror);
+        self.blocks.par_chunks_mut(ROW_CHUNK).with_min_len(TASK_ROWS / ROW_CHUNK).enumerate().for_each(
+            |(chunk, to)| {
+                for (k, t) in to.iter_mut().enumerate() {
+                    let slot = chunk * ROW_CHUNK + k;
+                    let sym = (values[slot] + values[mirror[slot] as usize].transpose()) * 0.5;
+                    for (tk, fk) in t.iter_mut().zip(sym.as_slice()) {
+                        *tk = *fk as f32;
+                    }
+                }
+            },
+        );
+    }
+
+    /// `r = b - A x`, accumulated in `f64`, parallel over rows.
+    fn residual(&self, b: &[Vec3], x: &[Vec3], r: &mut [Vec3]) {
+        let rows = r.par_chunks_mut(ROW_CHUNK).zip(b.par_chunks(ROW_CHUNK));
+        rows.with_min_len(TASK_ROWS / ROW_CHUNK).enumerate().for_each(|(chunk, (rs, bs))| {
+            for (k, (ri, bi)) in rs.iter_mut().zip(bs).enumerate() {
+                let i = chunk * ROW_CHUNK + k;
+                let range = self.pattern.row_range(i);
+                let mut a = [0.0f64; 3];
+                for (m, &c) in self.blocks[range].iter().zip(self.pattern.row_cols(i)) {
+                    let xc = &x[c as usize];
+                    // Column by column: converting all nine entries first
+                    // made this 17% slower than the f64 product in cache.
+                    for k in 0..3 {
+                        let column = [f64::from(m[3 * k]), f64::from(m[3 * k + 1]), f64::from(m[3 * k + 2])];
+                        a[0] += column[0] * xc[k];
+                        a[1] += column[1] * xc[k];
+                        a[2] += column[2] * xc[k];
+                    }
+                }
+                *ri = bi - Vec3::from(a);
+            }
+        });
+    }
 }
 
 /// Smoother damping for matrices of two-node elements (links). The
@@ -123,6 +267,14 @@ pub struct Multigrid {
 /// iterations among 0.45-0.8 on the 75 x 75 hanging cloth; elements of `k`
 /// nodes get `0.7 * 2 / k` ([`Multigrid::for_element_size`]).
 const OMEGA: f64 = 0.7;
+
+/// Fewest nodes (or blocks) per parallel task of the cycle: a level
+/// smaller than this runs on the calling thread. A W-cycle visits the
+/// small levels many times, each visit a handful of loops; 1024 was
+/// tried (1.05-1.40 ms a CG iteration on the Table-1 one-piece against
+/// 1.23-1.42 at 256, within the machine's noise) and ran the whole cycle
+/// of a 21 x 21 cloth on one thread: its Newton steps took twice as long.
+const TASK_ROWS: usize = ROW_CHUNK;
 
 impl Multigrid {
     /// Builds the hierarchy for matrices with pattern `fine`; `aggregations[l]`
@@ -160,25 +312,17 @@ impl Multigrid {
                 members,
                 slots,
                 coarse: BlockSparseMatrix::new(coarse_pattern.clone()),
+                op: SinglePrecision::new(pattern),
                 inv_diag: vec![Mat3::identity(); n],
                 pairs: None,
                 b: vec![Vec3::zeros(); n],
                 x: vec![Vec3::zeros(); n],
                 r: vec![Vec3::zeros(); n],
+                first: if l == 0 { Vec::new() } else { vec![Vec3::zeros(); n] },
             });
             pattern = coarse_pattern;
         }
-        let nc = pattern.n();
-        Ok(Self {
-            levels,
-            coarsest: DMatrix::zeros(3 * nc, 3 * nc),
-            coarsest_ok: false,
-            coarsest_rhs: DVector::zeros(3 * nc),
-            coarsest_inv_diag: vec![Mat3::identity(); nc],
-            coarsest_b: vec![Vec3::zeros(); nc],
-            coarsest_x: vec![Vec3::zeros(); nc],
-            omega: OMEGA,
-        })
+        Ok(Self { levels, coarsest: Coarsest::new(pattern.n()), omega: OMEGA })
     }
 
     /// Sets the smoother's damping for a matrix assembled from PSD element
@@ -228,80 +372,78 @@ impl Multigrid {
             let (done, rest) = self.levels.split_at_mut(l);
             let fine = if l == 0 { a } else { &done[l - 1].coarse };
             let level = &mut rest[0];
+            level.op.copy_from(fine);
             inverse_diagonal(fine, omega, &mut level.inv_diag);
             if let Some((partner, inv_off)) = &mut level.pairs {
                 invert_pairs(fine, omega, partner, &mut level.inv_diag, inv_off);
             }
-            let slots = &level.slots;
-            let src = fine.values();
-            level.coarse.values_mut().par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(c, chunk)| {
+            // The Galerkin product of the rounded operator the residuals
+            // use, so each coarse level is exactly the Galerkin level of
+            // the operator above it (the sewn seam of `tests/seams.rs` at
+            // rel_tol 1e-12: centre of mass 1.78e-11 m from `A`'s product,
+            // 1.25e-11 from this).
+            let (slots, src) = (&level.slots, &level.op.blocks);
+            let coarse = level.coarse.values_mut().par_chunks_mut(ROW_CHUNK).with_min_len(TASK_ROWS / ROW_CHUNK);
+            coarse.enumerate().for_each(|(c, chunk)| {
                 for (k, v) in chunk.iter_mut().enumerate() {
-                    *v = slots.sources(c * ROW_CHUNK + k).iter().map(|&s| src[s as usize]).sum();
+                    *v = slots.sources(c * ROW_CHUNK + k).iter().map(|&s| widen(&src[s as usize])).sum();
                 }
             });
         }
-        let last = self.levels.last().map_or(a, |l| &l.coarse);
-        inverse_diagonal(last, 1.0, &mut self.coarsest_inv_diag);
-        self.coarsest.fill(0.0);
-        for (i, j, b) in last.blocks() {
-            self.coarsest.fixed_view_mut::<3, 3>(3 * i, 3 * j).copy_from(b);
-        }
-        self.coarsest_ok = cholesky_in_place(&mut self.coarsest);
+        self.coarsest.update(self.levels.last().map_or(a, |l| &l.coarse));
     }
 
-    /// `z = V-cycle(r)`, a symmetric positive definite approximation of `A^-1 r`.
-    pub fn apply(&mut self, a: &BlockSparseMatrix, r: &[Vec3], z: &mut [Vec3]) {
-        if self.levels.is_empty() {
-            self.coarsest_b.copy_from_slice(r);
-            self.solve_coarsest();
-            z.copy_from_slice(&self.coarsest_x);
+    /// `z = B r`, one cycle: a symmetric positive definite approximation
+    /// of `A^-1 r` for the matrix last passed to [`Multigrid::update`].
+    pub fn apply(&mut self, r: &[Vec3], z: &mut [Vec3]) {
+        let Some(first) = self.levels.first_mut() else {
+            self.coarsest.b.copy_from_slice(r);
+            self.coarsest.solve();
+            z.copy_from_slice(&self.coarsest.x);
             return;
-        }
-        self.levels[0].b.copy_from_slice(r);
-        // Down: pre-smooth from zero, restrict the residual.
-        for l in 0..self.levels.len() {
-            let (before, after) = self.levels.split_at_mut(l);
-            let (level, rest) = after.split_first_mut().expect("level l exists");
-            let op = if l == 0 { a } else { &before[l - 1].coarse };
-            jacobi_from_zero(&level.inv_diag, level.pairs.as_ref(), &level.b, &mut level.x);
-            op.residual(&level.b, &level.x, &mut level.r);
-            let target = if let Some(next) = rest.first_mut() { &mut next.b } else { &mut self.coarsest_b };
-            restrict(&level.members, &level.r, target);
-        }
-        self.solve_coarsest();
-        // Up: prolong the correction, post-smooth.
-        for l in (0..self.levels.len()).rev() {
-            let (before, after) = self.levels.split_at_mut(l);
-            let (level, rest) = after.split_first_mut().expect("level l exists");
-            let op = if l == 0 { a } else { &before[l - 1].coarse };
-            let correction = rest.first().map_or(&self.coarsest_x, |next| &next.x);
-            level.x.par_iter_mut().zip(level.coarse_of.par_iter()).with_min_len(ROW_CHUNK).for_each(|(xi, &c)| {
-                *xi += correction[c as usize];
-            });
-            op.residual(&level.b, &level.x, &mut level.r);
-            let (r, inv_diag, pairs) = (&level.r, &level.inv_diag, level.pairs.as_ref());
-            level.x.par_iter_mut().enumerate().with_min_len(ROW_CHUNK).for_each(|(i, xi)| {
-                *xi += smoothed(inv_diag, pairs, r, i);
-            });
-        }
+        };
+        first.b.copy_from_slice(r);
+        cycle(&mut self.levels, &mut self.coarsest, true);
         z.copy_from_slice(&self.levels[0].x);
     }
+}
 
-    /// `coarsest_x = A_c^-1 coarsest_b` by the stored Cholesky factor.
-    fn solve_coarsest(&mut self) {
-        if !self.coarsest_ok {
-            let (b, d) = (&self.coarsest_b, &self.coarsest_inv_diag);
-            self.coarsest_x.iter_mut().zip(b).zip(d).for_each(|((xi, bi), di)| *xi = di * bi);
-            return;
-        }
-        for (i, bi) in self.coarsest_b.iter().enumerate() {
-            self.coarsest_rhs.fixed_rows_mut::<3>(3 * i).copy_from(bi);
-        }
-        cholesky_solve_in_place(&self.coarsest, &mut self.coarsest_rhs);
-        for (i, xi) in self.coarsest_x.iter_mut().enumerate() {
-            *xi = self.coarsest_rhs.fixed_rows::<3>(3 * i).into_owned();
+/// `levels[0].x = B levels[0].b`: pre-smooth from zero, correct from the
+/// coarse problem, post-smooth. The coarse problem is solved by one cycle
+/// below the finest level (`finest`) and by two below any other (see the
+/// module docs): `e = B_c r_c`, then `e += B_c (r_c - A_c e)`, which is
+/// symmetric because `B_c` is.
+fn cycle(levels: &mut [Level], coarsest: &mut Coarsest, finest: bool) {
+    let (level, rest) = levels.split_first_mut().expect("a cycle runs on a level");
+    jacobi_from_zero(&level.inv_diag, level.pairs.as_ref(), &level.b, &mut level.x);
+    level.op.residual(&level.b, &level.x, &mut level.r);
+    if rest.is_empty() {
+        restrict(&level.members, &level.r, &mut coarsest.b);
+        coarsest.solve();
+    } else {
+        restrict(&level.members, &level.r, &mut rest[0].b);
+        cycle(rest, coarsest, false);
+        if !finest {
+            let next = &mut rest[0];
+            std::mem::swap(&mut next.first, &mut next.x);
+            next.op.residual(&next.b, &next.first, &mut next.r);
+            // The coarse right-hand side becomes its residual; the old one
+            // (now in `r`) is not needed again.
+            std::mem::swap(&mut next.b, &mut next.r);
+            cycle(rest, coarsest, false);
+            let next = &mut rest[0];
+            next.x.par_iter_mut().zip(next.first.par_iter()).with_min_len(TASK_ROWS).for_each(|(x, e)| *x += e);
         }
     }
+    let correction = rest.first().map_or(&coarsest.x, |next| &next.x);
+    level.x.par_iter_mut().zip(level.coarse_of.par_iter()).with_min_len(TASK_ROWS).for_each(|(xi, &c)| {
+        *xi += correction[c as usize];
+    });
+    level.op.residual(&level.b, &level.x, &mut level.r);
+    let (r, inv_diag, pairs) = (&level.r, &level.inv_diag, level.pairs.as_ref());
+    level.x.par_iter_mut().enumerate().with_min_len(TASK_ROWS).for_each(|(i, xi)| {
+        *xi += smoothed(inv_diag, pairs, r, i);
+    });
 }
 
 /// Overwrites the lower triangle of the SPD matrix `a` with its Cholesky
@@ -351,7 +493,7 @@ fn cholesky_solve_in_place(l: &DMatrix<f64>, b: &mut DVector<f64>) {
 
 /// `inv[i] = omega * A_ii^-1` (identity where a block is not positive definite).
 fn inverse_diagonal(a: &BlockSparseMatrix, omega: f64, inv: &mut [Mat3]) {
-    inv.par_iter_mut().enumerate().with_min_len(ROW_CHUNK).for_each(|(i, p)| {
+    inv.par_iter_mut().enumerate().with_min_len(TASK_ROWS).for_each(|(i, p)| {
         *p = a.diag(i).cholesky().map_or_else(Mat3::identity, |c| c.inverse()) * omega;
     });
 }
@@ -381,6 +523,11 @@ fn invert_pairs(a: &BlockSparseMatrix, omega: f64, partner: &[u32], inv_diag: &m
     }
 }
 
+/// An `f32` block as a [`Mat3`].
+fn widen(block: &[f32; 9]) -> Mat3 {
+    Mat3::from_iterator(block.iter().map(|&v| f64::from(v)))
+}
+
 /// The smoother's correction at node `i` for residual `r`.
 #[inline]
 fn smoothed(inv_diag: &[Mat3], pairs: Option<&(Vec<u32>, Vec<Mat3>)>, r: &[Vec3], i: usize) -> Vec3 {
@@ -392,12 +539,12 @@ fn smoothed(inv_diag: &[Mat3], pairs: Option<&(Vec<u32>, Vec<Mat3>)>, r: &[Vec3]
 }
 
 fn jacobi_from_zero(inv_diag: &[Mat3], pairs: Option<&(Vec<u32>, Vec<Mat3>)>, b: &[Vec3], x: &mut [Vec3]) {
-    x.par_iter_mut().enumerate().with_min_len(ROW_CHUNK).for_each(|(i, xi)| *xi = smoothed(inv_diag, pairs, b, i));
+    x.par_iter_mut().enumerate().with_min_len(TASK_ROWS).for_each(|(i, xi)| *xi = smoothed(inv_diag, pairs, b, i));
 }
 
 /// `target[c] = sum of src over aggregate c`, in member order.
 fn restrict(members: &Gather, src: &[Vec3], target: &mut [Vec3]) {
-    target.par_iter_mut().enumerate().with_min_len(ROW_CHUNK / 4).for_each(|(c, t)| {
+    target.par_iter_mut().enumerate().with_min_len(TASK_ROWS).for_each(|(c, t)| {
         *t = members.sources(c).iter().map(|&i| src[i as usize]).sum();
     });
 }

@@ -14,7 +14,7 @@ pub enum PreconditionerKind {
     /// §4) report it about 20% faster than the scalar diagonal.
     #[default]
     BlockJacobi,
-    /// One aggregation multigrid V-cycle ([`Multigrid`]); the hierarchy must
+    /// One aggregation multigrid cycle ([`Multigrid`]); the hierarchy must
     /// be given with [`crate::Pcg::set_multigrid`].
     Multigrid,
 }
@@ -92,14 +92,14 @@ impl Preconditioner {
         }
     }
 
-    /// `s = P^-1 r` for the matrix `a` last passed to [`Preconditioner::update`].
-    pub fn apply(&mut self, a: &BlockSparseMatrix, r: &[Vec3], s: &mut [Vec3]) {
+    /// `s = P^-1 r` for the matrix last passed to [`Preconditioner::update`].
+    pub fn apply(&mut self, r: &[Vec3], s: &mut [Vec3]) {
         if self.kind == PreconditionerKind::None {
             s.copy_from_slice(r);
             return;
         }
         if self.kind == PreconditionerKind::Multigrid {
-            self.multigrid.as_mut().expect("update() checked the hierarchy").apply(a, r, s);
+            self.multigrid.as_mut().expect("update() checked the hierarchy").apply(r, s);
             return;
         }
         s.par_chunks_mut(ROW_CHUNK).zip(r.par_chunks(ROW_CHUNK)).zip(self.inv.par_chunks(ROW_CHUNK)).for_each(
