@@ -8,6 +8,7 @@ use cloth_core::{
     ClothModel, ClothState, Effects, GridPanel, IntegratorKind, Material, ModelSpec, PcgParams, PinMotion, PinSpec,
     PreconditionerKind, Simulation, SolverParams, Vec3,
 };
+use cloth_tests::least_squares_slope;
 
 const STRETCH: f64 = 1.15;
 const T: f64 = 0.05;
@@ -129,11 +130,8 @@ fn order_on(growth: f64, kind: IntegratorKind, steps: &[usize], reference: &[Vec
     // A huge tolerance makes dopri5 take exactly the given step (fixed-step order).
     let errors: Vec<f64> =
         steps.iter().map(|&n| max_error(&run_drum(drum(growth), kind, n, 1e6).0, reference)).collect();
-    let (xs, ys): (Vec<f64>, Vec<f64>) = steps.iter().zip(&errors).map(|(&n, e)| ((T / n as f64).ln(), e.ln())).unzip();
-    let (mx, my) = (xs.iter().sum::<f64>() / xs.len() as f64, ys.iter().sum::<f64>() / ys.len() as f64);
-    let slope = xs.iter().zip(&ys).map(|(x, y)| (x - mx) * (y - my)).sum::<f64>()
-        / xs.iter().map(|x| (x - mx) * (x - mx)).sum::<f64>();
-    (slope, errors)
+    let points: Vec<(f64, f64)> = steps.iter().zip(&errors).map(|(&n, e)| ((T / n as f64).ln(), e.ln())).collect();
+    (least_squares_slope(&points), errors)
 }
 
 #[test]

@@ -6,6 +6,7 @@ use cloth_core::{
     BendingLaw, ClothModel, Edge, Effects, GridPanel, IntegratorKind, Material, ModelKind, ModelSpec, PcgParams,
     PinMotion, PinSpec, Simulation, SolverParams, Vec3, forces,
 };
+use cloth_tests::least_squares_slope;
 
 /// The three models, by name (Choi & Ko with the arc-path law, the
 /// default; the arc-chord law's limits are in `cloth_core::material`).
@@ -205,9 +206,7 @@ fn decay_and_frequency(u: &[f64], h: f64) -> (f64, f64) {
         }
     }
     let n = peaks.len() as f64;
-    let (mt, ml) = (peaks.iter().map(|p| p.0).sum::<f64>() / n, peaks.iter().map(|p| p.1).sum::<f64>() / n);
-    let slope = peaks.iter().map(|p| (p.0 - mt) * (p.1 - ml)).sum::<f64>()
-        / peaks.iter().map(|p| (p.0 - mt).powi(2)).sum::<f64>();
+    let slope = least_squares_slope(&peaks);
     // Peaks of |u| come every half period.
     let half_period = (peaks.last().unwrap().0 - peaks[0].0) / (n - 1.0);
     (-slope, std::f64::consts::PI / half_period)

@@ -23,6 +23,15 @@ pub fn simulation(name: &str, overrides: &[&str]) -> (Simulation, RunConfig) {
     (cfg.simulation(model), cfg)
 }
 
+/// Slope of the least-squares line through `(x, y)` points.
+pub fn least_squares_slope(points: &[(f64, f64)]) -> f64 {
+    let n = points.len() as f64;
+    let (mx, my) = (points.iter().map(|p| p.0).sum::<f64>() / n, points.iter().map(|p| p.1).sum::<f64>() / n);
+    let sxy: f64 = points.iter().map(|(x, y)| (x - mx) * (y - my)).sum();
+    let sxx: f64 = points.iter().map(|(x, _)| (x - mx) * (x - mx)).sum();
+    sxy / sxx
+}
+
 /// Bitwise equality of two position or velocity arrays.
 pub fn same_bits(a: &[Vec3], b: &[Vec3]) -> bool {
     a.len() == b.len() && a.iter().zip(b).all(|(p, q)| p.iter().zip(q.iter()).all(|(x, y)| x.to_bits() == y.to_bits()))

@@ -219,23 +219,21 @@ impl SinglePrecision {
     /// the copy is symmetric bit for bit.
     fn copy_from(&mut self, a: &BlockSparseMatrix) {
         let (values, mirror) = (a.values(), &self.mirror);
-        self.blocks.par_chunks_mut(ROW_CHUNK).with_min_len(TASK_ROWS / ROW_CHUNK).enumerate().for_each(
-            |(chunk, to)| {
-                for (k, t) in to.iter_mut().enumerate() {
-                    let slot = chunk * ROW_CHUNK + k;
-                    let sym = (values[slot] + values[mirror[slot] as usize].transpose()) * 0.5;
-                    for (tk, fk) in t.iter_mut().zip(sym.as_slice()) {
-                        *tk = *fk as f32;
-                    }
+        self.blocks.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(chunk, to)| {
+            for (k, t) in to.iter_mut().enumerate() {
+                let slot = chunk * ROW_CHUNK + k;
+                let sym = (values[slot] + values[mirror[slot] as usize].transpose()) * 0.5;
+                for (tk, fk) in t.iter_mut().zip(sym.as_slice()) {
+                    *tk = *fk as f32;
                 }
-            },
-        );
+            }
+        });
     }
 
     /// `r = b - A x`, accumulated in `f64`, parallel over rows.
     fn residual(&self, b: &[Vec3], x: &[Vec3], r: &mut [Vec3]) {
         let rows = r.par_chunks_mut(ROW_CHUNK).zip(b.par_chunks(ROW_CHUNK));
-        rows.with_min_len(TASK_ROWS / ROW_CHUNK).enumerate().for_each(|(chunk, (rs, bs))| {
+        rows.enumerate().for_each(|(chunk, (rs, bs))| {
             for (k, (ri, bi)) in rs.iter_mut().zip(bs).enumerate() {
                 let i = chunk * ROW_CHUNK + k;
                 let range = self.pattern.row_range(i);
@@ -267,14 +265,6 @@ impl SinglePrecision {
 /// iterations among 0.45-0.8 on the 75 x 75 hanging cloth; elements of `k`
 /// nodes get `0.7 * 2 / k` ([`Multigrid::for_element_size`]).
 const OMEGA: f64 = 0.7;
-
-/// Fewest nodes (or blocks) per parallel task of the cycle: a level
-/// smaller than this runs on the calling thread. A W-cycle visits the
-/// small levels many times, each visit a handful of loops; 1024 was
-/// tried (1.05-1.40 ms a CG iteration on the Table-1 one-piece against
-/// 1.23-1.42 at 256, within the machine's noise) and ran the whole cycle
-/// of a 21 x 21 cloth on one thread: its Newton steps took twice as long.
-const TASK_ROWS: usize = ROW_CHUNK;
 
 impl Multigrid {
     /// Builds the hierarchy for matrices with pattern `fine`; `aggregations[l]`
@@ -383,7 +373,7 @@ impl Multigrid {
             // rel_tol 1e-12: centre of mass 1.78e-11 m from `A`'s product,
             // 1.25e-11 from this).
             let (slots, src) = (&level.slots, &level.op.blocks);
-            let coarse = level.coarse.values_mut().par_chunks_mut(ROW_CHUNK).with_min_len(TASK_ROWS / ROW_CHUNK);
+            let coarse = level.coarse.values_mut().par_chunks_mut(ROW_CHUNK);
             coarse.enumerate().for_each(|(c, chunk)| {
                 for (k, v) in chunk.iter_mut().enumerate() {
                     *v = slots.sources(c * ROW_CHUNK + k).iter().map(|&s| widen(&src[s as usize])).sum();
@@ -412,7 +402,11 @@ impl Multigrid {
 /// coarse problem, post-smooth. The coarse problem is solved by one cycle
 /// below the finest level (`finest`) and by two below any other (see the
 /// module docs): `e = B_c r_c`, then `e += B_c (r_c - A_c e)`, which is
-/// symmetric because `B_c` is.
+/// symmetric because `B_c` is. Loops split at [`ROW_CHUNK`] rows as
+/// elsewhere: running levels under 1024 nodes on one thread was tried
+/// (1.05-1.40 ms a CG iteration on the Table-1 one-piece against
+/// 1.23-1.42, within the machine's noise) and ran a 21 x 21 cloth's whole
+/// cycle on one thread, doubling its Newton steps.
 fn cycle(levels: &mut [Level], coarsest: &mut Coarsest, finest: bool) {
     let (level, rest) = levels.split_first_mut().expect("a cycle runs on a level");
     jacobi_from_zero(&level.inv_diag, level.pairs.as_ref(), &level.b, &mut level.x);
@@ -432,16 +426,16 @@ fn cycle(levels: &mut [Level], coarsest: &mut Coarsest, finest: bool) {
             std::mem::swap(&mut next.b, &mut next.r);
             cycle(rest, coarsest, false);
             let next = &mut rest[0];
-            next.x.par_iter_mut().zip(next.first.par_iter()).with_min_len(TASK_ROWS).for_each(|(x, e)| *x += e);
+            next.x.par_iter_mut().zip(next.first.par_iter()).with_min_len(ROW_CHUNK).for_each(|(x, e)| *x += e);
         }
     }
     let correction = rest.first().map_or(&coarsest.x, |next| &next.x);
-    level.x.par_iter_mut().zip(level.coarse_of.par_iter()).with_min_len(TASK_ROWS).for_each(|(xi, &c)| {
+    level.x.par_iter_mut().zip(level.coarse_of.par_iter()).with_min_len(ROW_CHUNK).for_each(|(xi, &c)| {
         *xi += correction[c as usize];
     });
     level.op.residual(&level.b, &level.x, &mut level.r);
     let (r, inv_diag, pairs) = (&level.r, &level.inv_diag, level.pairs.as_ref());
-    level.x.par_iter_mut().enumerate().with_min_len(TASK_ROWS).for_each(|(i, xi)| {
+    level.x.par_iter_mut().enumerate().with_min_len(ROW_CHUNK).for_each(|(i, xi)| {
         *xi += smoothed(inv_diag, pairs, r, i);
     });
 }
@@ -493,7 +487,7 @@ fn cholesky_solve_in_place(l: &DMatrix<f64>, b: &mut DVector<f64>) {
 
 /// `inv[i] = omega * A_ii^-1` (identity where a block is not positive definite).
 fn inverse_diagonal(a: &BlockSparseMatrix, omega: f64, inv: &mut [Mat3]) {
-    inv.par_iter_mut().enumerate().with_min_len(TASK_ROWS).for_each(|(i, p)| {
+    inv.par_iter_mut().enumerate().with_min_len(ROW_CHUNK).for_each(|(i, p)| {
         *p = a.diag(i).cholesky().map_or_else(Mat3::identity, |c| c.inverse()) * omega;
     });
 }
@@ -539,12 +533,12 @@ fn smoothed(inv_diag: &[Mat3], pairs: Option<&(Vec<u32>, Vec<Mat3>)>, r: &[Vec3]
 }
 
 fn jacobi_from_zero(inv_diag: &[Mat3], pairs: Option<&(Vec<u32>, Vec<Mat3>)>, b: &[Vec3], x: &mut [Vec3]) {
-    x.par_iter_mut().enumerate().with_min_len(TASK_ROWS).for_each(|(i, xi)| *xi = smoothed(inv_diag, pairs, b, i));
+    x.par_iter_mut().enumerate().with_min_len(ROW_CHUNK).for_each(|(i, xi)| *xi = smoothed(inv_diag, pairs, b, i));
 }
 
 /// `target[c] = sum of src over aggregate c`, in member order.
 fn restrict(members: &Gather, src: &[Vec3], target: &mut [Vec3]) {
-    target.par_iter_mut().enumerate().with_min_len(TASK_ROWS).for_each(|(c, t)| {
+    target.par_iter_mut().enumerate().with_min_len(ROW_CHUNK / 4).for_each(|(c, t)| {
         *t = members.sources(c).iter().map(|&i| src[i as usize]).sum();
     });
 }
