@@ -241,10 +241,14 @@ fn multigrid_pcg_matches_cholesky_with_and_without_filters() {
             )
             .unwrap();
     }
-    for f in [ConstraintFilter::new(n), filter] {
+    // `f64` operators on every level (these are small), and the `f32`
+    // copies that large levels get.
+    let cases = [(ConstraintFilter::new(n), usize::MAX), (filter.clone(), usize::MAX), (filter, 0)];
+    for (f, single_from) in cases {
         let reference = cholesky_reference(&a, &b, &f);
         let mut pcg = Pcg::new(n);
-        pcg.set_multigrid(Multigrid::new(a.pattern(), &chunk_aggregations(n, 4)).unwrap());
+        let aggregations = chunk_aggregations(n, 4);
+        pcg.set_multigrid(Multigrid::with_single_precision_from(a.pattern(), &aggregations, single_from).unwrap());
         let params = PcgParams { rel_tol: 1e-12, max_iter: 5000, preconditioner: PreconditionerKind::Multigrid };
         let mut x = vec![Vec3::zeros(); n];
         let info = pcg.solve(&a, &b, &f, &params, &mut x).expect("multigrid PCG converges");
@@ -273,10 +277,15 @@ fn multigrid_cycle_is_symmetric_positive_definite() {
     let mut rng = Rng(99);
     let a = random_system(&mut rng, 700, 4, 0.01);
     let n = a.n();
-    let mut mg = Multigrid::new(a.pattern(), &chunk_aggregations(n, 3)).unwrap();
-    assert!(mg.depth() >= 3);
-    mg.update(&a);
-    assert_cycle_is_spd(&mut mg, &a, &mut rng, 5);
+    // With `f64` operators on every level (these are small), and with
+    // the `f32` copies that large levels get.
+    for single_from in [usize::MAX, 0] {
+        let mut mg =
+            Multigrid::with_single_precision_from(a.pattern(), &chunk_aggregations(n, 3), single_from).unwrap();
+        assert!(mg.depth() >= 3);
+        mg.update(&a);
+        assert_cycle_is_spd(&mut mg, &a, &mut rng, 5);
+    }
 }
 
 /// `v^T M u = u^T M v` and `u^T M u > 0` for the cycle `M` on `tries`
@@ -287,8 +296,8 @@ fn assert_cycle_is_spd(mg: &mut Multigrid, a: &BlockSparseMatrix, rng: &mut Rng,
         let u: Vec<Vec3> = (0..n).map(|_| rng.vec3()).collect();
         let v: Vec<Vec3> = (0..n).map(|_| rng.vec3()).collect();
         let (mut mu, mut mv) = (vec![Vec3::zeros(); n], vec![Vec3::zeros(); n]);
-        mg.apply(&u, &mut mu);
-        mg.apply(&v, &mut mv);
+        mg.apply(a, &u, &mut mu);
+        mg.apply(a, &v, &mut mv);
         let dot = |p: &[Vec3], q: &[Vec3]| p.iter().zip(q).map(|(x, y)| x.dot(y)).sum::<f64>();
         let (vmu, umv) = (dot(&v, &mu), dot(&u, &mv));
         // Roundoff against the products' Cauchy-Schwarz bound, not against
@@ -327,7 +336,7 @@ fn smallest_cycle_eigenvalue(a: &BlockSparseMatrix, mg: &mut Multigrid) -> f64 {
     for col in 0..3 * n {
         let mut e = vec![Vec3::zeros(); n];
         e[col / 3][col % 3] = 1.0;
-        mg.apply(&e, &mut z);
+        mg.apply(a, &e, &mut z);
         for (i, zi) in z.iter().enumerate() {
             dense.fixed_view_mut::<3, 1>(3 * i, col).copy_from(zi);
         }
@@ -419,8 +428,8 @@ fn multigrid_smoothing_stiff_pairs_together_stays_spd_and_converges_faster() {
     let reference = cholesky_reference(&stiff, &b, &f);
     let params = PcgParams { rel_tol: 1e-10, max_iter: 5000, preconditioner: PreconditionerKind::Multigrid };
     let mut iterations = Vec::new();
-    for paired in [false, true] {
-        let mg = Multigrid::new(&pattern, &chunk_aggregations(n, 4)).unwrap();
+    for (paired, single_from) in [(false, usize::MAX), (true, usize::MAX), (true, 0)] {
+        let mg = Multigrid::with_single_precision_from(&pattern, &chunk_aggregations(n, 4), single_from).unwrap();
         let mut mg = if paired { mg.with_pairs(&ties) } else { mg };
         mg.update(&stiff);
         assert_cycle_is_spd(&mut mg, &stiff, &mut rng, 3);
@@ -432,8 +441,11 @@ fn multigrid_smoothing_stiff_pairs_together_stays_spd_and_converges_faster() {
         assert!(err < 1e-7, "paired {paired}: relative difference {err:e}");
         iterations.push(info.iterations);
     }
-    // Measured: 120 iterations with point blocks, 24 with the pairs.
-    assert!(iterations[1] * 4 < iterations[0], "iterations (point, paired): {iterations:?}");
+    println!("iterations (point, paired, paired f32): {iterations:?}");
+    // Measured: 126 iterations with point blocks, 24 with the pairs (`f64`
+    // operators), 24 with the pairs on `f32` copies.
+    assert!(iterations[1] * 4 < iterations[0], "iterations (point, paired, paired f32): {iterations:?}");
+    assert!(iterations[2] * 4 < iterations[0], "iterations (point, paired, paired f32): {iterations:?}");
 }
 
 /// The cycle's iterations on the cloth it was tuned on: the 65 x 65

@@ -25,18 +25,22 @@
 //! gain; beyond them the W-cycle halves the solve (docs/results/
 //! solver-before-after.md).
 //!
-//! **Single-precision operators.** A cycle reads each level's matrix
-//! twice (the residuals after pre- and post-smoothing), PCG once more
-//! for its own product: beyond the caches a step is bound by memory
-//! traffic. The cycle's residuals read an `f32` copy of each level's
-//! operator (refilled by [`Multigrid::update`]) and accumulate in `f64`:
-//! the preconditioner is a different but equally symmetric positive
-//! definite approximation of `A^-1` (rounding a symmetric matrix keeps it
-//! symmetric; the smoother's damping keeps a 30% margin that a relative
-//! change of `1e-7` cannot use up), PCG's own products and therefore the
-//! answer keep full precision. 257 x 257 hanging cloth: the solve ~410
-//! -> ~295 ms a step with the same iterations (two alternating runs of
-//! 3); none at 129 x 129, whose matrix fits the 32 MB L3.
+//! **Single-precision operators for large levels.** A cycle reads each
+//! level's matrix twice (the residuals after pre- and post-smoothing), PCG
+//! once more for its own product: beyond the caches a step is bound by
+//! memory traffic. On levels of at least [`SINGLE_MIN_BLOCKS`] blocks the
+//! cycle's residuals read an `f32` copy of the operator (refilled by
+//! [`Multigrid::update`]) and accumulate in `f64`: the preconditioner is a
+//! different but equally symmetric positive definite approximation of
+//! `A^-1` (rounding a symmetric matrix keeps it symmetric; the smoother's
+//! damping keeps a 30% margin that a relative change of `1e-7` cannot use
+//! up), PCG's own products and therefore the answer keep full precision.
+//! 257 x 257 hanging cloth: the solve ~410 -> ~295 ms a step with the same
+//! iterations. Smaller levels read the `f64` operator: in the caches the
+//! copy's refill at every solve and the conversion per block cost more
+//! than the halved traffic saves (the Table-1 one-piece, 5,458 particles:
+//! solve 36-38 -> 33 ms a step; the default hanging cloth 3.8 -> 3.5 ms
+//! a step; neutral at 129 x 129).
 
 use crate::{BlockPattern, BlockSparseMatrix, Mat3, Vec3, par::ROW_CHUNK};
 use nalgebra::{DMatrix, DVector};
@@ -114,8 +118,10 @@ struct Level {
     /// The coarse operator `P^T A P`.
     coarse: BlockSparseMatrix,
     /// This level's own operator (the fine matrix, or the previous
-    /// level's `coarse`) in single precision, for the residuals.
-    op: SinglePrecision,
+    /// level's `coarse`) in single precision, for the residuals, on levels
+    /// of at least [`SINGLE_MIN_BLOCKS`] blocks (smaller ones read the
+    /// `f64` operator).
+    single: Option<SinglePrecision>,
     /// Damped inverse diagonal blocks of this level's (fine) operator (for
     /// a paired node, its diagonal block of the pair's inverse).
     inv_diag: Vec<Mat3>,
@@ -255,6 +261,12 @@ impl SinglePrecision {
     }
 }
 
+/// Blocks from which a level's operator gets an `f32` copy for the
+/// cycle's residuals: 36 MB of `f64` blocks, beyond this machine's 32 MB
+/// L3 (measured, hanging cloth: neutral at 129 x 129, 278k blocks; the
+/// solve 20% faster at 257 x 257, 1.1M blocks).
+const SINGLE_MIN_BLOCKS: usize = 500_000;
+
 /// Smoother damping for matrices of two-node elements (links). The
 /// symmetric cycle is positive definite when `2 D / omega - A` is. A sum
 /// of PSD element matrices over `k` nodes each (plus a diagonal) satisfies
@@ -270,6 +282,17 @@ impl Multigrid {
     /// Builds the hierarchy for matrices with pattern `fine`; `aggregations[l]`
     /// coarsens level `l`.
     pub fn new(fine: &BlockPattern, aggregations: &[Aggregation]) -> Result<Self, MultigridError> {
+        Self::with_single_precision_from(fine, aggregations, SINGLE_MIN_BLOCKS)
+    }
+
+    /// As [`Multigrid::new`], with `f32` copies of the operators of the
+    /// levels of at least `blocks` blocks for the cycle's residuals (`new`
+    /// takes [`SINGLE_MIN_BLOCKS`]; see the module docs).
+    pub fn with_single_precision_from(
+        fine: &BlockPattern,
+        aggregations: &[Aggregation],
+        blocks: usize,
+    ) -> Result<Self, MultigridError> {
         let mut levels = Vec::new();
         let mut pattern = fine.clone();
         for (l, agg) in aggregations.iter().enumerate() {
@@ -302,7 +325,7 @@ impl Multigrid {
                 members,
                 slots,
                 coarse: BlockSparseMatrix::new(coarse_pattern.clone()),
-                op: SinglePrecision::new(pattern),
+                single: (pattern.nnz_blocks() >= blocks).then(|| SinglePrecision::new(pattern)),
                 inv_diag: vec![Mat3::identity(); n],
                 pairs: None,
                 b: vec![Vec3::zeros(); n],
@@ -362,7 +385,6 @@ impl Multigrid {
             let (done, rest) = self.levels.split_at_mut(l);
             let fine = if l == 0 { a } else { &done[l - 1].coarse };
             let level = &mut rest[0];
-            level.op.copy_from(fine);
             inverse_diagonal(fine, omega, &mut level.inv_diag);
             if let Some((partner, inv_off)) = &mut level.pairs {
                 invert_pairs(fine, omega, partner, &mut level.inv_diag, inv_off);
@@ -372,20 +394,34 @@ impl Multigrid {
             // the operator above it (the sewn seam of `tests/seams.rs` at
             // rel_tol 1e-12: centre of mass 1.78e-11 m from `A`'s product,
             // 1.25e-11 from this).
-            let (slots, src) = (&level.slots, &level.op.blocks);
+            let slots = &level.slots;
             let coarse = level.coarse.values_mut().par_chunks_mut(ROW_CHUNK);
-            coarse.enumerate().for_each(|(c, chunk)| {
-                for (k, v) in chunk.iter_mut().enumerate() {
-                    *v = slots.sources(c * ROW_CHUNK + k).iter().map(|&s| widen(&src[s as usize])).sum();
+            match &mut level.single {
+                Some(single) => {
+                    single.copy_from(fine);
+                    let src = &single.blocks;
+                    coarse.enumerate().for_each(|(c, chunk)| {
+                        for (k, v) in chunk.iter_mut().enumerate() {
+                            *v = slots.sources(c * ROW_CHUNK + k).iter().map(|&s| widen(&src[s as usize])).sum();
+                        }
+                    });
                 }
-            });
+                None => {
+                    let src = fine.values();
+                    coarse.enumerate().for_each(|(c, chunk)| {
+                        for (k, v) in chunk.iter_mut().enumerate() {
+                            *v = slots.sources(c * ROW_CHUNK + k).iter().map(|&s| src[s as usize]).sum();
+                        }
+                    });
+                }
+            }
         }
         self.coarsest.update(self.levels.last().map_or(a, |l| &l.coarse));
     }
 
     /// `z = B r`, one cycle: a symmetric positive definite approximation
     /// of `A^-1 r` for the matrix last passed to [`Multigrid::update`].
-    pub fn apply(&mut self, r: &[Vec3], z: &mut [Vec3]) {
+    pub fn apply(&mut self, a: &BlockSparseMatrix, r: &[Vec3], z: &mut [Vec3]) {
         let Some(first) = self.levels.first_mut() else {
             self.coarsest.b.copy_from_slice(r);
             self.coarsest.solve();
@@ -393,7 +429,7 @@ impl Multigrid {
             return;
         };
         first.b.copy_from_slice(r);
-        cycle(&mut self.levels, &mut self.coarsest, true);
+        cycle(&mut self.levels, &mut self.coarsest, a, true);
         z.copy_from_slice(&self.levels[0].x);
     }
 }
@@ -407,24 +443,25 @@ impl Multigrid {
 /// (1.05-1.40 ms a CG iteration on the Table-1 one-piece against
 /// 1.23-1.42, within the machine's noise) and ran a 21 x 21 cloth's whole
 /// cycle on one thread, doubling its Newton steps.
-fn cycle(levels: &mut [Level], coarsest: &mut Coarsest, finest: bool) {
+fn cycle(levels: &mut [Level], coarsest: &mut Coarsest, a: &BlockSparseMatrix, finest: bool) {
     let (level, rest) = levels.split_first_mut().expect("a cycle runs on a level");
     jacobi_from_zero(&level.inv_diag, level.pairs.as_ref(), &level.b, &mut level.x);
-    level.op.residual(&level.b, &level.x, &mut level.r);
+    residual(level.single.as_ref(), a, &level.b, &level.x, &mut level.r);
     if rest.is_empty() {
         restrict(&level.members, &level.r, &mut coarsest.b);
         coarsest.solve();
     } else {
         restrict(&level.members, &level.r, &mut rest[0].b);
-        cycle(rest, coarsest, false);
+        let coarse = &level.coarse;
+        cycle(rest, coarsest, coarse, false);
         if !finest {
             let next = &mut rest[0];
             std::mem::swap(&mut next.first, &mut next.x);
-            next.op.residual(&next.b, &next.first, &mut next.r);
+            residual(next.single.as_ref(), coarse, &next.b, &next.first, &mut next.r);
             // The coarse right-hand side becomes its residual; the old one
             // (now in `r`) is not needed again.
             std::mem::swap(&mut next.b, &mut next.r);
-            cycle(rest, coarsest, false);
+            cycle(rest, coarsest, coarse, false);
             let next = &mut rest[0];
             next.x.par_iter_mut().zip(next.first.par_iter()).with_min_len(ROW_CHUNK).for_each(|(x, e)| *x += e);
         }
@@ -433,11 +470,19 @@ fn cycle(levels: &mut [Level], coarsest: &mut Coarsest, finest: bool) {
     level.x.par_iter_mut().zip(level.coarse_of.par_iter()).with_min_len(ROW_CHUNK).for_each(|(xi, &c)| {
         *xi += correction[c as usize];
     });
-    level.op.residual(&level.b, &level.x, &mut level.r);
+    residual(level.single.as_ref(), a, &level.b, &level.x, &mut level.r);
     let (r, inv_diag, pairs) = (&level.r, &level.inv_diag, level.pairs.as_ref());
     level.x.par_iter_mut().enumerate().with_min_len(ROW_CHUNK).for_each(|(i, xi)| {
         *xi += smoothed(inv_diag, pairs, r, i);
     });
+}
+
+/// `r = b - A x` with the level's `f32` copy of `a` when it has one.
+fn residual(single: Option<&SinglePrecision>, a: &BlockSparseMatrix, b: &[Vec3], x: &[Vec3], r: &mut [Vec3]) {
+    match single {
+        Some(single) => single.residual(b, x, r),
+        None => a.residual(b, x, r),
+    }
 }
 
 /// Overwrites the lower triangle of the SPD matrix `a` with its Cholesky

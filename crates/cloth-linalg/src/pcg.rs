@@ -253,7 +253,7 @@ impl Pcg {
         }
         let ref_norm = ref_sq.sqrt();
         let tol_sq = params.rel_tol * params.rel_tol * ref_sq;
-        self.precond.apply(&self.r, &mut self.s);
+        self.precond.apply(a, &self.r, &mut self.s);
         self.c.copy_from_slice(&self.s);
         filter.project(&mut self.c);
         let mut rho = dot_with(&self.r, &self.c, &mut self.partials);
@@ -277,7 +277,7 @@ impl Pcg {
             let alpha = rho / curvature;
             let rho_old = rho;
             (r_sq, rho) =
-                if self.precond.is_pointwise() { self.step_fused(alpha, x) } else { self.step_unfused(alpha, x) };
+                if self.precond.is_pointwise() { self.step_fused(alpha, x) } else { self.step_unfused(a, alpha, x) };
             if !r_sq.is_finite() || !rho.is_finite() {
                 return Err(PcgError::NonFinite { iteration: iterations });
             }
@@ -300,7 +300,7 @@ impl Pcg {
     }
 
     /// As [`Pcg::step_fused`] for a preconditioner that is not row-local.
-    fn step_unfused(&mut self, alpha: f64, x: &mut [Vec3]) -> (f64, f64) {
+    fn step_unfused(&mut self, a: &BlockSparseMatrix, alpha: f64, x: &mut [Vec3]) -> (f64, f64) {
         x.par_chunks_mut(ROW_CHUNK)
             .zip(self.r.par_chunks_mut(ROW_CHUNK))
             .zip(self.c.par_chunks(ROW_CHUNK).zip(self.q.par_chunks(ROW_CHUNK)))
@@ -310,7 +310,7 @@ impl Pcg {
                     cr[k] -= alpha * cq[k];
                 }
             });
-        self.precond.apply(&self.r, &mut self.s);
+        self.precond.apply(a, &self.r, &mut self.s);
         let r_sq = dot_with(&self.r, &self.r, &mut self.partials);
         let rho = dot_with(&self.r, &self.s, &mut self.partials);
         (r_sq, rho)

@@ -92,14 +92,14 @@ impl Preconditioner {
         }
     }
 
-    /// `s = P^-1 r` for the matrix last passed to [`Preconditioner::update`].
-    pub fn apply(&mut self, r: &[Vec3], s: &mut [Vec3]) {
+    /// `s = P^-1 r` for the matrix `a` last passed to [`Preconditioner::update`].
+    pub fn apply(&mut self, a: &BlockSparseMatrix, r: &[Vec3], s: &mut [Vec3]) {
         if self.kind == PreconditionerKind::None {
             s.copy_from_slice(r);
             return;
         }
         if self.kind == PreconditionerKind::Multigrid {
-            self.multigrid.as_mut().expect("update() checked the hierarchy").apply(r, s);
+            self.multigrid.as_mut().expect("update() checked the hierarchy").apply(a, r, s);
             return;
         }
         s.par_chunks_mut(ROW_CHUNK).zip(r.par_chunks(ROW_CHUNK)).zip(self.inv.par_chunks(ROW_CHUNK)).for_each(

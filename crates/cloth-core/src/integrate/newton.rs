@@ -176,7 +176,6 @@ fn iterate_with<S: Linearised>(
     let (c_f, a, b) = (scheme.force_coefficient(h), scheme.position_per_unknown(h), scheme.velocity_per_unknown(h));
     let mut out = NewtonOutcome { cg_converged: true, ..Default::default() };
     let colliders = !model.colliders().is_empty();
-    let t_next = state.time_s + h;
     if colliders {
         // Solids act through the penalty from here on: their constraints go,
         // and so does the squeezed particles' friction linearised at the
@@ -198,7 +197,7 @@ fn iterate_with<S: Linearised>(
         copy_or_zero(squeeze_friction.then_some(&ws.contacts.friction_damping), &mut nb.damping);
         copy_or_zero(loads.self_collision.then_some(&ws.contacts.self_stiffness), &mut nb.stiffness);
         if colliders {
-            penalty_contacts(model, &state.x, &nb.x, t_next, h, &mut ws.contacts);
+            penalty_contacts(model, &state.x, &nb.x, (state.time_s, h), &mut ws.contacts);
             if refresh {
                 lag_normal_forces(&ws.contacts.solid, &mut nb.lagged);
             }

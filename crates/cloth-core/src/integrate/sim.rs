@@ -46,7 +46,7 @@ impl Simulation {
             // The corrections may move particles into solids: move them out.
             if !self.model.colliders().is_empty() {
                 let contacts = &mut self.workspace.contacts;
-                report.contacts.projected += project_out(&self.model, x_prev, *time_s, contacts, true, x, v);
+                report.contacts.projected += project_out(&self.model, x_prev, (*time_s - h, h), contacts, true, x, v);
             }
             report.stages.update_s += t.elapsed().as_secs_f64();
         }
