@@ -201,20 +201,19 @@ impl Coarsest {
 /// given pattern: a level's operator for the cycle's residuals.
 #[derive(Debug, Clone)]
 struct SinglePrecision {
-    pattern: BlockPattern,
     /// The slot of block `(j, i)` for the slot of `(i, j)`.
     mirror: Vec<u32>,
     blocks: Vec<[f32; 9]>,
 }
 
 impl SinglePrecision {
-    fn new(pattern: BlockPattern) -> Self {
+    fn new(pattern: &BlockPattern) -> Self {
         let mirror = (0..pattern.n())
             .flat_map(|i| pattern.row_cols(i).iter().map(move |&j| (i, j as usize)))
             .map(|(i, j)| pattern.slot(j, i).expect("block patterns are structurally symmetric") as u32)
             .collect();
         let blocks = vec![[0.0; 9]; pattern.nnz_blocks()];
-        Self { pattern, mirror, blocks }
+        Self { mirror, blocks }
     }
 
     /// Rounds the symmetric part of `a` (same pattern), `(A_ij + A_ji^T) / 2`,
@@ -236,15 +235,15 @@ impl SinglePrecision {
         });
     }
 
-    /// `r = b - A x`, accumulated in `f64`, parallel over rows.
-    fn residual(&self, b: &[Vec3], x: &[Vec3], r: &mut [Vec3]) {
+    /// `r = b - A x` on `pattern` (this copy's), accumulated in `f64`,
+    /// parallel over rows.
+    fn residual(&self, pattern: &BlockPattern, b: &[Vec3], x: &[Vec3], r: &mut [Vec3]) {
         let rows = r.par_chunks_mut(ROW_CHUNK).zip(b.par_chunks(ROW_CHUNK));
         rows.enumerate().for_each(|(chunk, (rs, bs))| {
             for (k, (ri, bi)) in rs.iter_mut().zip(bs).enumerate() {
                 let i = chunk * ROW_CHUNK + k;
-                let range = self.pattern.row_range(i);
                 let mut a = [0.0f64; 3];
-                for (m, &c) in self.blocks[range].iter().zip(self.pattern.row_cols(i)) {
+                for (m, &c) in self.blocks[pattern.row_range(i)].iter().zip(pattern.row_cols(i)) {
                     let xc = &x[c as usize];
                     // Column by column: converting all nine entries first
                     // made this 17% slower than the f64 product in cache.
@@ -325,7 +324,7 @@ impl Multigrid {
                 members,
                 slots,
                 coarse: BlockSparseMatrix::new(coarse_pattern.clone()),
-                single: (pattern.nnz_blocks() >= blocks).then(|| SinglePrecision::new(pattern)),
+                single: (pattern.nnz_blocks() >= blocks).then(|| SinglePrecision::new(&pattern)),
                 inv_diag: vec![Mat3::identity(); n],
                 pairs: None,
                 b: vec![Vec3::zeros(); n],
@@ -394,26 +393,13 @@ impl Multigrid {
             // the operator above it (the sewn seam of `tests/seams.rs` at
             // rel_tol 1e-12: centre of mass 1.78e-11 m from `A`'s product,
             // 1.25e-11 from this).
-            let slots = &level.slots;
-            let coarse = level.coarse.values_mut().par_chunks_mut(ROW_CHUNK);
+            let (slots, coarse) = (&level.slots, &mut level.coarse);
             match &mut level.single {
                 Some(single) => {
                     single.copy_from(fine);
-                    let src = &single.blocks;
-                    coarse.enumerate().for_each(|(c, chunk)| {
-                        for (k, v) in chunk.iter_mut().enumerate() {
-                            *v = slots.sources(c * ROW_CHUNK + k).iter().map(|&s| widen(&src[s as usize])).sum();
-                        }
-                    });
+                    galerkin(slots, coarse, |s| widen(&single.blocks[s]));
                 }
-                None => {
-                    let src = fine.values();
-                    coarse.enumerate().for_each(|(c, chunk)| {
-                        for (k, v) in chunk.iter_mut().enumerate() {
-                            *v = slots.sources(c * ROW_CHUNK + k).iter().map(|&s| src[s as usize]).sum();
-                        }
-                    });
-                }
+                None => galerkin(slots, coarse, |s| fine.values()[s]),
             }
         }
         self.coarsest.update(self.levels.last().map_or(a, |l| &l.coarse));
@@ -480,7 +466,7 @@ fn cycle(levels: &mut [Level], coarsest: &mut Coarsest, a: &BlockSparseMatrix, f
 /// `r = b - A x` with the level's `f32` copy of `a` when it has one.
 fn residual(single: Option<&SinglePrecision>, a: &BlockSparseMatrix, b: &[Vec3], x: &[Vec3], r: &mut [Vec3]) {
     match single {
-        Some(single) => single.residual(b, x, r),
+        Some(single) => single.residual(a.pattern(), b, x, r),
         None => a.residual(b, x, r),
     }
 }
@@ -560,6 +546,16 @@ fn invert_pairs(a: &BlockSparseMatrix, omega: f64, partner: &[u32], inv_diag: &m
         inv_off[j] = inv.fixed_view::<3, 3>(3, 0).into_owned();
         inv_diag[j] = inv.fixed_view::<3, 3>(3, 3).into_owned();
     }
+}
+
+/// `coarse`'s blocks as the sums of the fine blocks `block(s)` over each
+/// coarse slot's fine slots `s`, in `slots`' order, parallel over slots.
+fn galerkin(slots: &Gather, coarse: &mut BlockSparseMatrix, block: impl Fn(usize) -> Mat3 + Sync) {
+    coarse.values_mut().par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(c, chunk)| {
+        for (k, v) in chunk.iter_mut().enumerate() {
+            *v = slots.sources(c * ROW_CHUNK + k).iter().map(|&s| block(s as usize)).sum();
+        }
+    });
 }
 
 /// An `f32` block as a [`Mat3`].

@@ -563,8 +563,7 @@ fn near_surface(
 /// `fallback` (the point nearest where it ends). When a moving solid swept
 /// over `from`, the face closest to where the particle sat relative to the
 /// solid at the start (`from + h v_solid(from)` in the new pose: the face
-/// that swept it)
-/// if that is the shorter way out: the fallback pushed a skirt particle of
+/// that swept it) if that is the shorter way out: the fallback pushed a skirt particle of
 /// the Table-1 dress, swept over by a striding thigh and carried deep
 /// into it by the solve, 5 cm out through the thigh's far end in one
 /// step. Only the solid's pose and velocity at the end of the step are
@@ -578,8 +577,11 @@ fn side_of(
 ) -> SurfacePoint {
     let side = c.shape.closest(next.pose(), from);
     *queries += 1;
-    if side.distance_m > 0.0 || !c.is_moving() {
-        return if side.distance_m > 0.0 { side } else { fallback };
+    if side.distance_m > 0.0 {
+        return side;
+    }
+    if !c.is_moving() {
+        return fallback;
     }
     // The solid moved by about `h v` since: relative to it, the particle
     // sat `h v` further along.
