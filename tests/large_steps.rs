@@ -181,9 +181,10 @@ fn pin_jump(energy_guard: bool) -> PinJump {
 /// length, and the energy monitor flags those steps. (Newton's iterations
 /// or Provot's two-sided springs also settle it; backward Euler's damping
 /// hides it.) With the guard the flagged steps are retaken as backward
-/// Euler and the cloth swings down: measured 1.0e-4 of its energy at the
-/// stop left as kinetic energy after 6 s, stretch 1.094 (the paper's pair
-/// law: 4.4e-6, 1.077, its fastest particle 0.94 m/s against 2.4).
+/// Euler and the cloth swings down: measured 1.6e-5 of its energy at the
+/// stop left as kinetic energy after 6 s, stretch 1.071, its fastest
+/// particle at 1.45 m/s, 27 steps retaken; unguarded 752 m/s, stretch 86,
+/// 174 steps flagged.
 #[test]
 fn bdf2_settles_after_a_violent_pin_jump() {
     let j = pin_jump(true);

@@ -182,15 +182,18 @@ pub struct EnergySummary {
     pub kinetic_j: f64,
     pub elastic_j: f64,
     pub gravitational_j: f64,
-    /// Work of pins and external forces, and dissipation by dampers and drag, over the run.
+    /// Work of pins, external forces and solids (through their contacts),
+    /// and dissipation by dampers and drag, over the run.
     pub pin_work_total_j: f64,
     pub external_work_total_j: f64,
+    pub contact_work_total_j: f64,
     pub dissipated_total_j: f64,
     /// Energy the steps created beyond their loads (negative: numerical dissipation).
     pub gain_total_j: f64,
     /// Largest gain of one step.
     pub gain_max_j: f64,
-    /// Steps whose gain exceeded the tolerance (`cloth_core::GAIN_TOLERANCE` of the energy in play).
+    /// Steps whose growth (gain without the dissipation) exceeded the
+    /// tolerance (`cloth_core::GAIN_TOLERANCE` of the energy in play).
     pub flagged_steps: u64,
     /// BDF2 steps retaken as backward Euler because they were flagged.
     pub retaken_as_backward_euler_steps: u64,

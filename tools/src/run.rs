@@ -368,6 +368,7 @@ struct EnergyTotals {
     last: cloth_core::EnergyReport,
     pin_work: f64,
     external_work: f64,
+    contact_work: f64,
     dissipated: f64,
     gain: f64,
     gain_max: f64,
@@ -382,6 +383,7 @@ impl EnergyTotals {
         self.last = e;
         self.pin_work += e.pin_work_j;
         self.external_work += e.external_work_j;
+        self.contact_work += e.contact_work_j;
         self.dissipated += e.dissipated_j;
         self.gain += e.gain_j;
         self.gain_max = self.gain_max.max(e.gain_j);
@@ -396,6 +398,7 @@ impl EnergyTotals {
             gravitational_j: self.last.gravitational_j,
             pin_work_total_j: self.pin_work,
             external_work_total_j: self.external_work,
+            contact_work_total_j: self.contact_work,
             dissipated_total_j: self.dissipated,
             gain_total_j: self.gain,
             gain_max_j: self.gain_max,

@@ -750,8 +750,7 @@ fn uncommitted_step<S: Linearised>(
         pins,
         pin_forces: &ws.pin_forces,
         external: loads.external.then_some(&ws.external[..]),
-        h,
-        contacts: stats.contacts,
+        contacts: &ws.contacts.solid,
         stitches_closed: &state.stitches_closed,
     };
     let after = energy::mechanical(model, &ws.new_x, &ws.new_v, &state.stitches_closed, &mut ws.energy);
