@@ -284,6 +284,7 @@ pub fn run_suite(quick: bool) -> Vec<Row> {
     rows.extend(released_from_ten_times(quick));
     rows.extend(shaken(quick));
     rows.extend(ball_through_curtain(quick));
+    rows.extend(pulled_across_a_table(quick));
     rows.extend(scales(quick));
     rows.extend(coincident_particles());
     rows.extend(coupled_mass_ratios(quick));
@@ -644,6 +645,71 @@ fn ball_through_curtain(quick: bool) -> Vec<Row> {
                 }),
             );
         }
+    }
+    rows
+}
+
+/// The base cloth lying on a table (a 1.2 x 1.2 m slab, friction 0.3),
+/// its far edge pinned and pulled off at 4 m/s for 0.35 s: the cloth
+/// slides across and off the table. Friction on a table at rest only takes
+/// energy out, so the cloth's kinetic energy may never exceed what it has
+/// without friction by more than the friction's own scale (`mu m g` over
+/// the pull, added to the frictionless peak, and 10% for the different
+/// path). Measured: 1.76 J against 1.78 J frictionless (BDF2), 1.24 J
+/// against 1.27 J (backward Euler). With the contact passes capped at 3,
+/// as before session 22, 7.3 J and 5.0 J: the rows of the cloth still
+/// stuck when the passes ran out held up to 20 times their Coulomb bound,
+/// and the pins pumped that into the links (stretch 3.6); 10 passes, 2.6
+/// J (`solver.max_contact_passes`; the 3-pass rows stay as known
+/// defects: the price of that setting).
+fn pulled_across_a_table(quick: bool) -> Vec<Row> {
+    let mu = 0.3;
+    let extra = "[[pins]]\nedge = \"i_max\"\nmotion = { kind = \"linear\", velocity_m_s = [4.0, 0.0, 0.0] }\n\n\
+                 [collision]\nthickness_m = 0.005\n\n[[colliders]]\n\
+                 shape = { kind = \"cuboid\", half_extents_m = [0.6, 0.6, 0.05] }\nposition_m = [0.0, 0.0, 0.95]\n";
+    const OUT_OF_PASSES: &str = "contact passes capped at 3: rows still stuck beyond their Coulomb bound";
+    let case = |integrator: &str, friction: f64, passes: usize| {
+        Case::new(
+            "pulled across a table",
+            format!("at 4 m/s, friction {friction}, at most {passes} contact passes"),
+            "finite; peak kinetic energy <= frictionless + mu m g d, +10%",
+        )
+        .extra(extra)
+        .integrator(integrator)
+        .set("simulation.duration_s", 0.35)
+        .set("panels.0.origin_m", "[-0.5, -0.5, 1.005]")
+        .set("colliders.0.friction", friction)
+        .set("solver.max_contact_passes", passes)
+        .known_defect((passes < 30).then_some(OUT_OF_PASSES))
+    };
+    let peak = |case: &Case| {
+        let mut peak: f64 = 0.0;
+        let run = case.run(|_| {}, |sim, _| peak = peak.max(energies(sim)[0]));
+        run.map(|(p, sim)| (p, sim, peak))
+    };
+    let mut rows = Vec::new();
+    let variants = integrators(quick).iter().flat_map(|&i| [(i, 30), (i, 3)]);
+    for (integrator, passes) in variants {
+        let free = case(integrator, 0.0, 30);
+        let with = case(integrator, mu, passes);
+        let (free_peak, with_run) = match (peak(&free), peak(&with)) {
+            (Ok((_, _, f)), r) => (f, r),
+            (Err(e), _) => {
+                rows.push(free.row(None, Err(e)));
+                continue;
+            }
+        };
+        rows.push(match with_run {
+            Ok((p, sim, peak)) => {
+                let mass: f64 = sim.model().masses().iter().sum();
+                let allowed = 1.1 * (free_peak + mu * mass * G * 4.0 * 0.35);
+                let m =
+                    format!("peak kinetic energy {peak:.3} J, frictionless {free_peak:.3} J, allowed {allowed:.3} J");
+                let verdict = p.ran().and(if peak <= allowed { Ok(m) } else { Err(m) });
+                with.row(Some(&p), verdict)
+            }
+            Err(e) => with.row(None, Err(e)),
+        });
     }
     rows
 }

@@ -29,6 +29,7 @@
 //! newton_iterations = 1        # backward-euler and bdf2: most linear solves per step
 //! newton_tolerance_m = 1e-6    # Newton stops at this residual (as a distance, m)
 //! energy_guard = true          # bdf2 retakes a step that creates energy as backward Euler
+//! max_contact_passes = 30      # most re-solves of a step's contact set (fewer: faster, friction beyond Coulomb)
 //!
 //! [material]
 //! areal_density_kg_m2 = 0.1
@@ -229,6 +230,9 @@ pub struct SolverSection {
     pub newton_tolerance_m: f64,
     /// `bdf2` retakes a step flagged by the energy monitor as backward Euler.
     pub energy_guard: bool,
+    /// Most re-solves of a step's contact active set (see
+    /// [`SolverParams::max_contact_passes`]).
+    pub max_contact_passes: usize,
 }
 
 impl Default for SolverSection {
@@ -245,6 +249,7 @@ impl Default for SolverSection {
             newton_iterations: p.newton_iterations,
             newton_tolerance_m: p.newton_tolerance_m,
             energy_guard: p.energy_guard,
+            max_contact_passes: p.max_contact_passes,
         }
     }
 }
@@ -547,6 +552,7 @@ impl Scene {
                 newton_iterations: self.solver.newton_iterations,
                 newton_tolerance_m: self.solver.newton_tolerance_m,
                 energy_guard: self.solver.energy_guard,
+                max_contact_passes: self.solver.max_contact_passes,
             },
         };
         Ok((model, config))

@@ -309,9 +309,10 @@ impl ClothSet {
                 let Some(c) = s.body.and_then(find).map(|k| &coupled[k]) else { continue };
                 let (v, w) = twist(c);
                 let motion = c.start.motion(t, h, v, w);
-                // A kinematic body's motion is known (its next pose); a
-                // dynamic body's is the master's guess.
-                let set = if matches!(c.start.kind, Drive::Kinematic(_)) {
+                // A kinematic body's motion is known (its next pose), and
+                // so is a still one's (fixed, sleeping: it does not move
+                // within the step); a dynamic body's is the master's guess.
+                let set = if c.start.kind != Drive::Dynamic {
                     cloth.sim.set_solid_motion_prescribed(s.solid, motion)
                 } else {
                     cloth.sim.set_solid_motion(s.solid, motion)

@@ -88,6 +88,9 @@ pub struct SolidContact {
     /// For [`FrictionMode::Stick`]: the tangential travel of the solid's
     /// surface over the step, `h (I - n n^T) v_solid`, m.
     pub tangent_travel_m: Vec3,
+    /// Whether this step's passes already turned it back from sliding to
+    /// sticking once ([`stick_or_slide`]).
+    pub turned_back: bool,
 }
 
 /// Where a contact's Coulomb friction is decided in an implicit step.
@@ -155,6 +158,7 @@ impl SolidContact {
             solve_limit_n: 0.0,
             friction_mode: FrictionMode::AfterSolve,
             tangent_travel_m: Vec3::zeros(),
+            turned_back: false,
         }
     }
 }
@@ -969,7 +973,12 @@ const REVERSAL_SLIP_M: f64 = 1e-6;
 /// with the friction `mu N f_t / |f_t|` added to `rhs` (times
 /// `force_coefficient`) and only its normal constrained; a sliding one
 /// whose slip over the step (relative to the surface) went along its
-/// friction was turned back by it, so it sticks; one sliding on keeps its
+/// friction was turned back by it, so it sticks, once a step: turned back
+/// and then over its bound again it is at the bound (`|f_t| = mu N` with
+/// next to no slip, where sticking and sliding meet), and it slides on
+/// from then (in the Table-1 garments contacts went stick, slide, stick,
+/// slide, stick pass after pass; allowed to turn back every time, the
+/// passes never settled). One sliding on keeps its
 /// direction (that of the force that would have stuck it: implicit
 /// Coulomb friction) at the new `mu N`; a landed one takes `mu N` against
 /// its slip (or sticks if it barely slipped); a released one, or one whose
@@ -1022,8 +1031,8 @@ pub fn stick_or_slide(
                             Vec3::zeros()
                         }
                         None => -slip.normalize() * limit,
-                        Some(d) if slip.dot(&d) > REVERSAL_SLIP_M => {
-                            c.friction_mode = FrictionMode::Stick;
+                        Some(d) if slip.dot(&d) > REVERSAL_SLIP_M && !c.turned_back => {
+                            (c.friction_mode, c.turned_back) = (FrictionMode::Stick, true);
                             Vec3::zeros()
                         }
                         Some(d) => d * limit,
@@ -2060,6 +2069,37 @@ mod tests {
         let still = crate::Collider { motion: crate::PinMotion::Fixed, ..collider.clone() };
         let (at, side) = near_surface(&still, (&now, 0.01), Vec3::new(0.04, 0.0, 0.035), to, 0.0025, &mut 0).unwrap();
         assert_eq!(at, side);
+    }
+
+    /// A sliding contact whose slip went along its friction (the friction
+    /// turned it back) sticks, once a step; turned back again it is at its
+    /// bound and slides on with `mu N` (allowed to turn back every time,
+    /// contacts of the Table-1 garments went stick, slide, stick, slide
+    /// pass after pass).
+    #[test]
+    fn a_contact_turns_back_from_sliding_to_sticking_once_a_step() {
+        let pattern = cloth_linalg::BlockPattern::from_pairs(1, []).unwrap();
+        let mut matrix = BlockSparseMatrix::new(pattern);
+        matrix.fill_rows(|_, row| row[0] = Mat3::identity() * 1e-3);
+        let mut filter = ConstraintFilter::new(1);
+        let limit = 0.3 * 0.01;
+        let mut c = touching(Vec3::z(), Vec3::zeros(), 0.3, 0.01);
+        let friction = Vec3::new(limit, 0.0, 0.0);
+        (c.friction_mode, c.solve_constant_n) = (FrictionMode::Slide, friction);
+        let (x, along) = ([Vec3::zeros()], [Vec3::new(1e-3, 0.0, 0.0)]);
+        let mut rhs = [friction];
+        let unknown = [Vec3::zeros()];
+        let mut contacts = [c];
+        let pass = |contacts: &mut [SolidContact], rhs: &mut [Vec3], filter: &mut ConstraintFilter| {
+            stick_or_slide(contacts, &matrix, rhs, (&unknown, 1.0), &x, &along, filter, |v, _| v)
+        };
+        assert_eq!(pass(&mut contacts, &mut rhs, &mut filter), 1);
+        assert_eq!(contacts[0].friction_mode, FrictionMode::Stick);
+        assert!(contacts[0].turned_back && rhs[0] == Vec3::zeros());
+        // Over its bound again it slides, and now stays sliding.
+        (contacts[0].friction_mode, contacts[0].solve_constant_n, rhs[0]) = (FrictionMode::Slide, friction, friction);
+        assert_eq!(pass(&mut contacts, &mut rhs, &mut filter), 0);
+        assert_eq!((contacts[0].friction_mode, contacts[0].solve_constant_n), (FrictionMode::Slide, friction));
     }
 
     /// Coulomb friction: a tangential speed below mu f_n tau / m stops
