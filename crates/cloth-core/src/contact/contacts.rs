@@ -230,6 +230,9 @@ pub struct ContactBuffers {
     /// particle touching two solids (a corner, overlapping solids) has two
     /// consecutive entries.
     pub solid: Vec<SolidContact>,
+    /// Solids a Newton correction would carry a particle into (see
+    /// [`penalty_watch`]): the line search's penalty sees them too.
+    pub watch: Vec<SolidContact>,
     /// Self-collision pairs of the current step.
     pub self_pairs: Vec<SelfContact>,
     /// Per-particle candidates of the narrow phase (before compaction).
@@ -1202,6 +1205,42 @@ pub fn penalty_contacts(
     });
     bufs.solid.clear();
     bufs.solid.extend(bufs.candidate.iter().flatten().flatten());
+}
+
+/// The solids a Newton correction `p` (unknown; positions move by `a p`)
+/// would carry particles into, from the iterate `x_iter` whose contacts
+/// [`penalty_contacts`] found: into `bufs.watch`, one entry per particle
+/// whose full-step position `x_iter + a p` is closer than the thickness to
+/// a solid it has no contact with, on the solid's tangent plane at the
+/// point nearest the iterate (where the particle comes from, so its
+/// penalty there is zero: the line's potential keeps the residual as its
+/// slope). Without them the line search saw only the iterate's contacts:
+/// an iterate just off a heavy ball moving into the cloth stepped its
+/// particles deep into the ball (nothing to stop a full step), the next
+/// pushed them out past the thickness, and Newton alternated between the
+/// two for all 30 corrections, handing the coupling a 70 N penalty.
+pub fn penalty_watch(model: &ClothModel, x_iter: &[Vec3], p: &[Vec3], a: f64, t_next: f64, bufs: &mut ContactBuffers) {
+    let thickness = model.contact_thickness();
+    let colliders = model.colliders();
+    let solids_next = bufs.next.at(model, &bufs.external, t_next);
+    bufs.watch.clear();
+    for i in 0..x_iter.len() {
+        if model.is_pinned(i) || p[i] == Vec3::zeros() {
+            continue;
+        }
+        let end = x_iter[i] + p[i] * a;
+        for (k, (c, next)) in colliders.iter().zip(solids_next).enumerate() {
+            let touching = bufs.candidate[i].iter().flatten().any(|e| e.collider as usize == k);
+            if touching {
+                continue;
+            }
+            let Some((_, side)) = near_surface(c, (next, 0.0), x_iter[i], end, thickness, &mut 0) else {
+                continue;
+            };
+            let gap = side.normal.dot(&(x_iter[i] - side.point));
+            bufs.watch.push(contact(i, k, c, &side, gap, 0.0, next));
+        }
+    }
 }
 
 /// The penalty energy of `contacts` ([`penalty_contacts`]) with particle

@@ -57,7 +57,7 @@
 
 use crate::contacts::{
     SolidContact, contact_friction_potential, contact_penalty_energy, contact_penalty_stiffness,
-    linearise_contact_friction, penalty_contacts,
+    linearise_contact_friction, penalty_contacts, penalty_watch,
 };
 use crate::control::Control;
 use crate::forces::{EnergyBuffers, SystemBuffers, SystemTerms, assemble, elastic_energy};
@@ -237,10 +237,13 @@ fn iterate_with<S: Linearised>(
         (out.cg_iterations, out.cg_converged, out.solve_s) =
             (out.cg_iterations + r.cg_iterations, out.cg_converged & r.converged, out.solve_s + s);
         out.corrections += 1;
+        if colliders {
+            penalty_watch(model, &nb.x, &ws.unknown, a, state.time_s + h, &mut ws.contacts);
+        }
         let extra = Extra {
             external: loads.external.then_some(&ws.external[..]),
             friction: squeeze_friction.then_some(&ws.contacts.friction_damping[..]),
-            contacts: colliders.then_some(&ws.contacts.solid[..]),
+            contacts: colliders.then_some((&ws.contacts.solid[..], &ws.contacts.watch[..])),
             h,
             stitches_closed: &state.stitches_closed,
         };
@@ -341,9 +344,11 @@ struct Line<'a> {
     u0: f64,
     a: f64,
     b: f64,
-    /// Contacts with solids, with their friction dissipation (W) and
-    /// penalty energy (J) at the iterate, and the step, s.
-    contacts: Option<(&'a [SolidContact], f64, f64)>,
+    /// Contacts with solids and the solids a correction would reach (see
+    /// [`penalty_watch`]), with the friction dissipation (W) and penalty
+    /// energy (J) at the iterate.
+    contacts: Option<(&'a [SolidContact], &'a [SolidContact], f64, f64)>,
+    /// The step, s.
     h: f64,
     /// The stitches' states (see [`crate::ClothState::stitches_closed`]).
     stitches_closed: &'a [bool],
@@ -357,7 +362,8 @@ struct Line<'a> {
 struct Extra<'a> {
     external: Option<&'a [Vec3]>,
     friction: Option<&'a [Mat3]>,
-    contacts: Option<&'a [SolidContact]>,
+    /// The iterate's contacts and the watched solids ([`penalty_watch`]).
+    contacts: Option<(&'a [SolidContact], &'a [SolidContact])>,
     h: f64,
     stitches_closed: &'a [bool],
 }
@@ -408,8 +414,10 @@ impl<'a> Line<'a> {
             q1 += c_f * c * dv.dot(&dp);
             q2 += 0.5 * c_f * b * c * dp.norm_squared();
         }
-        let contacts = extra.contacts.map(|c| {
-            (c, contact_friction_potential(c, v, p, 0.0), contact_penalty_energy(c, model, extra.h, x, p, 0.0))
+        let contacts = extra.contacts.map(|(c, watch)| {
+            let penalty = contact_penalty_energy(c, model, extra.h, x, p, 0.0)
+                + contact_penalty_energy(watch, model, extra.h, x, p, 0.0);
+            (c, watch, contact_friction_potential(c, v, p, 0.0), penalty)
         });
         let (u0, h, stitches_closed) = (system.elastic_energy(), extra.h, extra.stitches_closed);
         Self { slope, q1, q2, scale: c_f / a, u0, a, b, contacts, h, stitches_closed }
@@ -430,8 +438,11 @@ impl<'a> Line<'a> {
             *t = x + p * (alpha * self.a);
         }
         let elastic = elastic_energy(model, trial, self.stitches_closed, energy) - self.u0;
-        let contacts = self.contacts.map_or(0.0, |(contacts, d0, p0)| {
-            let penalty = contact_penalty_energy(contacts, model, self.h, x, p, alpha * self.a) - p0;
+        let contacts = self.contacts.map_or(0.0, |(contacts, watch, d0, p0)| {
+            let beta = alpha * self.a;
+            let penalty = contact_penalty_energy(contacts, model, self.h, x, p, beta)
+                + contact_penalty_energy(watch, model, self.h, x, p, beta)
+                - p0;
             let dissipation = contact_friction_potential(contacts, v, p, alpha * self.b) - d0;
             self.scale * penalty + self.scale * self.a / self.b * dissipation
         });
@@ -584,7 +595,7 @@ mod tests {
             let full = Extra {
                 external: Some(&external),
                 friction: Some(&friction),
-                contacts: Some(&solids),
+                contacts: Some((&solids, &[])),
                 h,
                 stitches_closed: &[],
             };
