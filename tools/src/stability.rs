@@ -223,6 +223,10 @@ impl Case {
         let newton = self.value("solver.newton_iterations", "1");
         if newton != "1" {
             integrator = format!("{integrator} + Newton {newton}");
+            let trigger = self.value("solver.newton_trigger", "0");
+            if trigger != "0" {
+                integrator = format!("{integrator} where off by {trigger}");
+            }
         }
         Row {
             case: self.case,
@@ -611,17 +615,21 @@ fn ball_through_curtain(quick: bool) -> Vec<Row> {
     //   while the cloth below it folded up and over it: 2.0 and 16.6.
     //   Decided in the solve, against the constraint's tangential force
     //   (`contacts::FrictionMode`), the cloth slides round the ball.
-    // Newton steps (friction inside the minimisation) hold: 1.11 (BDF2),
-    // 1.06 (backward Euler). At 1 ms the single step holds too.
+    // Newton steps (friction inside the minimisation) hold: 1.08 (BDF2),
+    // 1.06 (backward Euler). At 1 ms the single step holds too. Newton
+    // only on the steps whose linearised tension is off by more than a
+    // quarter of `k_s L` (`solver.newton_trigger = 0.25`) holds at the
+    // single step's cost: the ball's first hit is one step.
     const HELD: &str = "single linearised step: a straight link has no transverse stiffness";
     let steps: &[f64] = if quick { &[1e-3] } else { &[1.0 / 90.0, 1e-3] };
     let mut rows = Vec::new();
     for &h in steps {
-        let mut variants: Vec<(&str, usize)> = integrators(quick).iter().map(|&i| (i, 1)).collect();
+        let mut variants: Vec<(&str, usize, f64)> = integrators(quick).iter().map(|&i| (i, 1, 0.0)).collect();
         if h > 1e-3 {
-            variants.extend(integrators(quick).iter().map(|&i| (i, 10)));
+            variants.extend(integrators(quick).iter().map(|&i| (i, 10, 0.0)));
+            variants.extend(integrators(quick).iter().map(|&i| (i, 10, 0.25)));
         }
-        for (integrator, newton) in variants {
+        for (integrator, newton, trigger) in variants {
             rows.push(
                 Case::new(
                     "ball through a curtain",
@@ -634,6 +642,7 @@ fn ball_through_curtain(quick: bool) -> Vec<Row> {
                 .set("simulation.dt_s", format!("{h:e}"))
                 .set("simulation.duration_s", 0.8)
                 .set("solver.newton_iterations", newton)
+                .set("solver.newton_trigger", trigger)
                 .set("panels.0.origin_m", "[-0.5, 0.0, 0.0]")
                 .set("panels.0.u_axis", "[1.0, 0.0, 0.0]")
                 .set("panels.0.v_axis", "[0.0, 0.0, 1.0]")

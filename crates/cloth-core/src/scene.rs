@@ -28,6 +28,7 @@
 //! fixed_cg_iterations = 4      # backward-euler-fixed-cg only
 //! newton_iterations = 1        # backward-euler and bdf2: most linear solves per step
 //! newton_tolerance_m = 1e-6    # Newton stops at this residual (as a distance, m)
+//! newton_trigger = 0.0         # Newton only on steps whose linearised tension is off by more (share of k_s L; 0: always)
 //! energy_guard = true          # bdf2 retakes a step that creates energy as backward Euler
 //! max_contact_passes = 30      # most re-solves of a step's contact set (fewer: faster, friction beyond Coulomb)
 //!
@@ -228,6 +229,10 @@ pub struct SolverSection {
     pub newton_iterations: usize,
     /// Newton's stopping rule: the step equation's residual as a distance, m (> 0).
     pub newton_tolerance_m: f64,
+    /// Newton only on steps whose single linearised step misjudged a
+    /// link's tension by more than this share of `k_s L` (>= 0; 0: every
+    /// step; see [`SolverParams::newton_trigger`]).
+    pub newton_trigger: f64,
     /// `bdf2` retakes a step flagged by the energy monitor as backward Euler.
     pub energy_guard: bool,
     /// Most re-solves of a step's contact active set (see
@@ -248,6 +253,7 @@ impl Default for SolverSection {
             fixed_cg_iterations: p.fixed_cg_iterations,
             newton_iterations: p.newton_iterations,
             newton_tolerance_m: p.newton_tolerance_m,
+            newton_trigger: p.newton_trigger,
             energy_guard: p.energy_guard,
             max_contact_passes: p.max_contact_passes,
         }
@@ -467,6 +473,9 @@ impl Scene {
                 format!("must be finite and > 0, got {}", v.newton_tolerance_m),
             ));
         }
+        if !(v.newton_trigger.is_finite() && v.newton_trigger >= 0.0) {
+            return Err(invalid("solver.newton_trigger", format!("must be finite and >= 0, got {}", v.newton_trigger)));
+        }
         // Checked even when the effect is not listed: a bad value is never silently kept.
         let c = &self.constraints;
         if !(c.max_strain.is_finite() && c.max_strain >= 0.0) {
@@ -551,6 +560,7 @@ impl Scene {
                 fixed_cg_iterations: self.solver.fixed_cg_iterations,
                 newton_iterations: self.solver.newton_iterations,
                 newton_tolerance_m: self.solver.newton_tolerance_m,
+                newton_trigger: self.solver.newton_trigger,
                 energy_guard: self.solver.energy_guard,
                 max_contact_passes: self.solver.max_contact_passes,
             },
@@ -680,6 +690,7 @@ nodes = [[0, 3]]
             ("solver.max_substeps=0", "solver.max_substeps"),
             ("solver.newton_iterations=0", "solver.newton_iterations"),
             ("solver.newton_tolerance_m=-1e-6", "solver.newton_tolerance_m"),
+            ("solver.newton_trigger=-0.25", "solver.newton_trigger"),
             ("constraints.max_strain=-0.1", "constraints.max_strain"),
             ("panels.0.particles=[1, 4]", "panels[0].particles"),
             ("panels.0.size_m=[1.0, inf]", "panels[0].size_m"),

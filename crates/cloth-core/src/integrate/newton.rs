@@ -263,6 +263,53 @@ fn iterate_with<S: Linearised>(
     Ok(out)
 }
 
+/// The worst error of the single linearised step's tension over its
+/// result `ws.unknown`, as a share of `k_s L`
+/// ([`tension_linearisation_error`] of every stretch link). Used by
+/// [`crate::SolverParams::newton_trigger`].
+pub(crate) fn worst_tension_error<S: Linearised>(
+    scheme: &S,
+    model: &ClothModel,
+    state: &ClothState,
+    h: f64,
+    ws: &Workspace,
+) -> f64 {
+    let (x, new_x) = (&state.x, |i: usize| scheme.advance(state, &ws.aux, h, i, ws.unknown[i]).0);
+    model
+        .stretch_links()
+        .iter()
+        .map(|l| {
+            let (i, j) = (l.i as usize, l.j as usize);
+            tension_linearisation_error(l, (x[i], x[j]), (new_x(i), new_x(j)))
+        })
+        .fold(0.0, f64::max)
+}
+
+/// How wrong a linear step's tension of link `l` is after its ends moved
+/// from `start` to `end` (m), as a share of `k_s L` (dimensionless):
+/// `|f(end) - (f(start) + K (dx_j - dx_i))| / (k_s L)` with `f` the link's
+/// tension alone (`k_s (d - L) u` when stretched, else none) and `K` its
+/// Jacobian at `start` (axial `k_s u u^T` plus the geometric
+/// `(|f| / d)(I - u u^T)`). A link at rest kicked sideways by a third of
+/// its length (no transverse stiffness in the linear model) is off by
+/// `sqrt(1 + 1/9) - 1 = 5.4%`; under small motions a linear step's error is
+/// second order. Buckling (below the rest length) is left out: Choi &
+/// Ko's law is linearised for stability, not accuracy.
+pub(crate) fn tension_linearisation_error(l: &crate::StretchLink, start: (Vec3, Vec3), end: (Vec3, Vec3)) -> f64 {
+    let tension = |p: Vec3| -> (Vec3, Mat3) {
+        let d = p.norm();
+        if d <= l.rest {
+            return (Vec3::zeros(), Mat3::zeros());
+        }
+        let (u, phi) = (p / d, l.k_s * (d - l.rest));
+        let uu = u * u.transpose();
+        (u * phi, uu * l.k_s + (Mat3::identity() - uu) * (phi / d))
+    };
+    let (f0, k0) = tension(start.1 - start.0);
+    let predicted = f0 + k0 * ((end.1 - start.1) - (end.0 - start.0));
+    (tension(end.1 - end.0).0 - predicted).norm() / (l.k_s * l.rest)
+}
+
 /// Adds the solids' penalties (force `k (e - g) n`, N; stiffness
 /// `k n n^T`, N/m) and their smoothed Coulomb friction linearised at the
 /// velocities `v` (with normal forces `normal(contact)`, N) to an
@@ -610,5 +657,38 @@ mod tests {
             assert!(no_loads > 1e-3, "{kind:?}: the check is blind to missing loads ({no_loads:e})");
             assert!(no_contacts > 1e-3, "{kind:?}: the check is blind to missing contacts ({no_contacts:e})");
         }
+    }
+
+    /// The trigger's measure: a link at rest kicked sideways by a third of
+    /// its length is off by `sqrt(1 + 1/9) - 1`; a stretched link carried
+    /// without turning is exact; turned by `theta`, off by `1 - cos theta`
+    /// (second order: a tenth of the turn, a hundredth of the error).
+    #[test]
+    fn tension_linearisation_error_is_the_linear_links_miss() {
+        let link = crate::StretchLink {
+            i: 0,
+            j: 1,
+            rest: 0.05,
+            k_s: 200.0,
+            compression: crate::Compression::Linear(0.0),
+            k_d: 0.0,
+        };
+        let (a, b) = (Vec3::zeros(), Vec3::new(0.05, 0.0, 0.0));
+        let kicked = tension_linearisation_error(&link, (a, b), (a, b + Vec3::new(0.0, 0.05 / 3.0, 0.0)));
+        assert!((kicked - ((1.0f64 + 1.0 / 9.0).sqrt() - 1.0)).abs() < 1e-14, "{kicked}");
+        let stretched = Vec3::new(0.06, 0.0, 0.0);
+        let shift = Vec3::new(0.3, -0.2, 0.1);
+        assert!(tension_linearisation_error(&link, (a, stretched), (a + shift, stretched + shift)) < 1e-14);
+        let turned = |theta: f64| {
+            let end = Vec3::new(theta.cos(), theta.sin(), 0.0) * 0.06;
+            tension_linearisation_error(&link, (a, stretched), (a, end))
+        };
+        // Its tension (2 N) turns exactly; the linear axial stiffness takes
+        // the chord's shortening `d (1 - cos theta)` for a slackening:
+        // off by `k_s d (1 - cos theta) - f (1 - cos theta)`, over `k_s L`:
+        // `1 - cos theta`.
+        let (coarse, fine) = (turned(0.1), turned(0.01));
+        assert!((coarse - (1.0 - 0.1f64.cos())).abs() < 1e-14, "{coarse}");
+        assert!((coarse / fine / 100.0 - 1.0).abs() < 1e-3, "{coarse} / {fine}");
     }
 }
