@@ -251,11 +251,10 @@ impl ClothSet {
             if let Some(s) = c.slot
                 && world.bodies[c.handle].mass() < cloth_mass
             {
-                let mean = |values: &[f64], k: usize| Vec3::from_column_slice(&values[6 * s + k..6 * s + k + 3]);
-                let (v, w) = (mean(guess, 0), mean(guess, 3));
+                let ((v, w), (v_rapier, w_rapier)) = (mean_twist(guess, s), mean_twist(&pass.end, s));
                 let rb = &mut world.bodies[c.handle];
-                let v_end = vec_from_rapier(rb.linvel()) + v - mean(&pass.end, 0);
-                let w_end = vec_from_rapier(rb.angvel()) + w - mean(&pass.end, 3);
+                let v_end = vec_from_rapier(rb.linvel()) + v - v_rapier;
+                let w_end = vec_from_rapier(rb.angvel()) + w - w_rapier;
                 rb.set_position(pose_to_rapier(&c.start.end_pose(h, v, w)), true);
                 rb.set_linvel(vec_to_rapier(v_end), true);
                 rb.set_angvel(vec_to_rapier(w_end), true);
@@ -297,13 +296,7 @@ impl ClothSet {
         guess: &[f64],
         h: f64,
     ) -> Result<Pass, CouplingError> {
-        let twist = |c: &Coupled| match c.slot {
-            Some(s) => (
-                Vec3::from_column_slice(&guess[6 * s..6 * s + 3]),
-                Vec3::from_column_slice(&guess[6 * s + 3..6 * s + 6]),
-            ),
-            None => (Vec3::zeros(), Vec3::zeros()),
-        };
+        let twist = |c: &Coupled| c.slot.map_or((Vec3::zeros(), Vec3::zeros()), |s| mean_twist(guess, s));
         let find = |handle: RigidBodyHandle| coupled.iter().position(|c| c.handle == handle);
         let mut impulses = vec![BodyImpulse::default(); coupled.len()];
         let mut contacts = 0;
@@ -372,6 +365,13 @@ impl ClothSet {
         }
         Ok(Pass { end, contacts, reports })
     }
+}
+
+/// Body `slot`'s mean linear (m/s) and angular (rad/s) velocity over the
+/// step in a guess or a pass's result (6 values per body).
+fn mean_twist(values: &[f64], slot: usize) -> (Vec3, Vec3) {
+    let at = |k: usize| Vec3::from_column_slice(&values[6 * slot + k..6 * slot + k + 3]);
+    (at(0), at(3))
 }
 
 fn check_iterated(p: &IteratedCoupling) -> Result<(), CouplingError> {

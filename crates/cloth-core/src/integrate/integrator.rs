@@ -712,10 +712,8 @@ fn uncommitted_step<S: Linearised>(
     // (see `newton`): solids then act as penalties, self-collision as at the
     // start of the step.
     let escalate = solver.newton_iterations > 1
-        && (solver.newton_trigger <= 0.0 || {
-            let off = crate::newton::worst_tension_error(scheme, model, state, h, ws);
-            off > solver.newton_trigger
-        });
+        && (solver.newton_trigger <= 0.0
+            || crate::newton::worst_tension_error(scheme, model, state, h, ws) > solver.newton_trigger);
     let newton = if escalate {
         if friction_in_solve {
             // Newton smooths friction into its potential from scratch.
