@@ -8,7 +8,8 @@
 //! sum, so its pattern is built once and each refill costs about one
 //! SpMV), the smoother is damped block-Jacobi before and after the coarse
 //! correction, and the coarsest level is solved by dense Cholesky. The
-//! cycle is symmetric, so PCG stays conjugate-gradient.
+//! W-cycle is symmetric, so PCG stays conjugate-gradient; the K-cycle
+//! (below) is not a fixed matrix, and PCG takes the flexible update.
 //!
 //! **W below the first coarse level.** Piecewise-constant aggregates
 //! correct smooth error less well the more levels lie between a grid and
@@ -24,6 +25,20 @@
 //! extra visits to small levels cost about what the saved iterations
 //! gain; beyond them the W-cycle halves the solve (docs/results/
 //! solver-before-after.md).
+//!
+//! **K-cycle on large grids.** The W-cycle's two stationary cycles on a
+//! coarse problem still leave its iterations growing with the grid (17.4
+//! CG a step on the 257 x 257 hanging cloth, 30.6 at 513 x 513). The
+//! K-cycle ([`Cycle::K`]; Notay & Vassilevski 2008) solves every coarse
+//! problem, the first one too, by two steps of flexible CG preconditioned
+//! by the next level's cycle: the coarse correction is then the best
+//! combination of the two cycles' results in the coarse operator's energy
+//! rather than their fixed sum, which keeps the iterations nearly flat
+//! (7.9 / 8.8 / 8.7 / 10.7 a step at 33 / 65 / 129 / 257; at 513 x 513,
+//! 19.4, where the cloth stretches to 2.85 at its pinned corners). It
+//! costs two coarse products per coarse visit (the W-cycle one) and
+//! visits every coarse level twice as often, so in the caches it loses to
+//! the W-cycle; [`Multigrid::new`] takes it from [`K_CYCLE_MIN_NODES`].
 //!
 //! **Single-precision operators for large levels.** A cycle reads each
 //! level's matrix twice (the residuals after pre- and post-smoothing), PCG
@@ -42,7 +57,10 @@
 //! solve 36-38 -> 33 ms a step; the default hanging cloth 3.8 -> 3.5 ms
 //! a step; neutral at 129 x 129).
 
-use crate::{BlockPattern, BlockSparseMatrix, Mat3, Vec3, par::ROW_CHUNK};
+use crate::{
+    BlockPattern, BlockSparseMatrix, Mat3, Vec3,
+    par::{ROW_CHUNK, chunk_count, dot_with},
+};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
@@ -133,8 +151,12 @@ struct Level {
     x: Vec<Vec3>,
     r: Vec<Vec3>,
     /// The first of two coarse corrections while the second is computed
-    /// (levels below the first coarse one; empty on the finest).
+    /// (empty on the finest).
     first: Vec<Vec3>,
+    /// `A c1` in the K-cycle's coarse solve (empty on the finest).
+    v: Vec<Vec3>,
+    /// Chunk partials for this level's dot products.
+    partials: Vec<f64>,
 }
 
 /// An aggregation multigrid hierarchy; rebuild the operators with
@@ -144,7 +166,33 @@ pub struct Multigrid {
     levels: Vec<Level>,
     coarsest: Coarsest,
     omega: f64,
+    cycle: Cycle,
 }
+
+/// How a cycle solves its coarse problems (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Cycle {
+    /// One cycle on the first coarse problem, two stationary cycles on
+    /// every problem below it (`e = B r`, `e += B (r - A e)`): a fixed
+    /// symmetric positive definite operator.
+    W,
+    /// Notay & Vassilevski's K-cycle: every coarse problem is solved by two
+    /// steps of flexible conjugate gradients preconditioned by the next
+    /// level's cycle. The cycle is then a nonlinear function of its input
+    /// ([`Multigrid::is_nonlinear`]), and PCG uses the flexible
+    /// (Polak-Ribiere) update.
+    K,
+}
+
+/// Fine-level nodes from which [`Multigrid::new`] takes the K-cycle (the W
+/// below). Measured (BDF2 at 1/90 s, PCG to 1e-3, 2 threads; CG a step and
+/// solve ms a step, W -> K): hanging cloth at 65 x 65 10.7 -> 8.8 CG but
+/// 7.4 -> 10.6 ms; at 129 x 129 13.1 -> 8.7, 84 -> 73 ms; at 257 x 257
+/// 17.4 -> 10.7, 372 -> 323 ms; the 101 x 101 drape on a sphere 56.8 ->
+/// 50.8 CG, 217-235 -> 239-271 ms (its contact passes' re-solves take a
+/// few iterations each, which a stronger cycle does not shorten); the
+/// Table-1 one-piece 43.5 -> 40.4 CG, 25% more solve time.
+pub const K_CYCLE_MIN_NODES: usize = 16_000;
 
 /// The coarsest level, solved directly.
 #[derive(Debug, Clone)]
@@ -331,10 +379,13 @@ impl Multigrid {
                 x: vec![Vec3::zeros(); n],
                 r: vec![Vec3::zeros(); n],
                 first: if l == 0 { Vec::new() } else { vec![Vec3::zeros(); n] },
+                v: if l == 0 { Vec::new() } else { vec![Vec3::zeros(); n] },
+                partials: vec![0.0; chunk_count(n)],
             });
             pattern = coarse_pattern;
         }
-        Ok(Self { levels, coarsest: Coarsest::new(pattern.n()), omega: OMEGA })
+        let cycle = if fine.n() >= K_CYCLE_MIN_NODES { Cycle::K } else { Cycle::W };
+        Ok(Self { levels, coarsest: Coarsest::new(pattern.n()), omega: OMEGA, cycle })
     }
 
     /// Sets the smoother's damping for a matrix assembled from PSD element
@@ -370,6 +421,24 @@ impl Multigrid {
             first.pairs = Some((partner, vec![Mat3::zeros(); n]));
         }
         self
+    }
+
+    /// Solves the coarse problems as `cycle` says (`new` takes the K-cycle
+    /// from [`K_CYCLE_MIN_NODES`] fine nodes, else the W-cycle).
+    pub fn with_cycle(mut self, cycle: Cycle) -> Self {
+        self.cycle = cycle;
+        self
+    }
+
+    /// The cycle's kind.
+    pub fn cycle(&self) -> Cycle {
+        self.cycle
+    }
+
+    /// Whether [`Multigrid::apply`] is a nonlinear function of its input
+    /// (the K-cycle): PCG must then use the flexible update.
+    pub fn is_nonlinear(&self) -> bool {
+        self.cycle == Cycle::K && self.levels.len() > 1
     }
 
     /// Number of levels including the finest.
@@ -415,7 +484,7 @@ impl Multigrid {
             return;
         };
         first.b.copy_from_slice(r);
-        cycle(&mut self.levels, &mut self.coarsest, a, true);
+        cycle(&mut self.levels, &mut self.coarsest, a, true, self.cycle);
         z.copy_from_slice(&self.levels[0].x);
     }
 }
@@ -429,7 +498,7 @@ impl Multigrid {
 /// (1.05-1.40 ms a CG iteration on the Table-1 one-piece against
 /// 1.23-1.42, within the machine's noise) and ran a 21 x 21 cloth's whole
 /// cycle on one thread, doubling its Newton steps.
-fn cycle(levels: &mut [Level], coarsest: &mut Coarsest, a: &BlockSparseMatrix, finest: bool) {
+fn cycle(levels: &mut [Level], coarsest: &mut Coarsest, a: &BlockSparseMatrix, finest: bool, kind: Cycle) {
     let (level, rest) = levels.split_first_mut().expect("a cycle runs on a level");
     jacobi_from_zero(&level.inv_diag, level.pairs.as_ref(), &level.b, &mut level.x);
     residual(level.single.as_ref(), a, &level.b, &level.x, &mut level.r);
@@ -439,17 +508,21 @@ fn cycle(levels: &mut [Level], coarsest: &mut Coarsest, a: &BlockSparseMatrix, f
     } else {
         restrict(&level.members, &level.r, &mut rest[0].b);
         let coarse = &level.coarse;
-        cycle(rest, coarsest, coarse, false);
-        if !finest {
-            let next = &mut rest[0];
-            std::mem::swap(&mut next.first, &mut next.x);
-            residual(next.single.as_ref(), coarse, &next.b, &next.first, &mut next.r);
-            // The coarse right-hand side becomes its residual; the old one
-            // (now in `r`) is not needed again.
-            std::mem::swap(&mut next.b, &mut next.r);
-            cycle(rest, coarsest, coarse, false);
-            let next = &mut rest[0];
-            next.x.par_iter_mut().zip(next.first.par_iter()).with_min_len(ROW_CHUNK).for_each(|(x, e)| *x += e);
+        cycle(rest, coarsest, coarse, false, kind);
+        match kind {
+            Cycle::K => krylov_second_step(rest, coarsest, coarse),
+            Cycle::W if !finest => {
+                let next = &mut rest[0];
+                std::mem::swap(&mut next.first, &mut next.x);
+                residual(next.single.as_ref(), coarse, &next.b, &next.first, &mut next.r);
+                // The coarse right-hand side becomes its residual; the old one
+                // (now in `r`) is not needed again.
+                std::mem::swap(&mut next.b, &mut next.r);
+                cycle(rest, coarsest, coarse, false, kind);
+                let next = &mut rest[0];
+                next.x.par_iter_mut().zip(next.first.par_iter()).with_min_len(ROW_CHUNK).for_each(|(x, e)| *x += e);
+            }
+            Cycle::W => {}
         }
     }
     let correction = rest.first().map_or(&coarsest.x, |next| &next.x);
@@ -461,6 +534,45 @@ fn cycle(levels: &mut [Level], coarsest: &mut Coarsest, a: &BlockSparseMatrix, f
     level.x.par_iter_mut().enumerate().with_min_len(ROW_CHUNK).for_each(|(i, xi)| {
         *xi += smoothed(inv_diag, pairs, r, i);
     });
+}
+
+/// The K-cycle's coarse solve, given its first step `c1 = B b` in
+/// `rest[0].x` (`b = rest[0].b`, `A` = `coarse`): two steps of flexible CG,
+///
+/// ```text
+/// rho1 = c1.A c1,  t1 = (c1.b) / rho1,  r2 = b - t1 A c1,  c2 = B r2
+/// gamma = c2.A c1, rho2 = c2.A c2 - gamma^2 / rho1,  alpha2 = c2.r2
+/// x = (t1 - gamma alpha2 / (rho1 rho2)) c1 + (alpha2 / rho2) c2
+/// ```
+///
+/// the combination of `c1` and `c2` of least `A`-norm error (Notay &
+/// Vassilevski 2008, "Recursive Krylov-based multigrid cycles"). A step
+/// without positive curvature (roundoff, `c2` parallel to `c1`) is dropped.
+fn krylov_second_step(rest: &mut [Level], coarsest: &mut Coarsest, coarse: &BlockSparseMatrix) {
+    let next = &mut rest[0];
+    let rho1 = coarse.mul_vec_dot(&next.x, &mut next.v, &mut next.partials);
+    let t1 = dot_with(&next.x, &next.b, &mut next.partials) / rho1;
+    if !(rho1 > 0.0 && t1.is_finite()) {
+        return;
+    }
+    let (b, v) = (&next.b, &next.v);
+    next.r.par_iter_mut().enumerate().with_min_len(ROW_CHUNK).for_each(|(i, ri)| *ri = b[i] - v[i] * t1);
+    // c1 to `first`, r2 becomes the right-hand side (the old one is not needed again).
+    std::mem::swap(&mut next.first, &mut next.x);
+    std::mem::swap(&mut next.b, &mut next.r);
+    cycle(rest, coarsest, coarse, false, Cycle::K);
+    let next = &mut rest[0];
+    let c2_a_c2 = coarse.mul_vec_dot(&next.x, &mut next.r, &mut next.partials);
+    let gamma = dot_with(&next.x, &next.v, &mut next.partials);
+    let alpha2 = dot_with(&next.x, &next.b, &mut next.partials);
+    let rho2 = c2_a_c2 - gamma * gamma / rho1;
+    let (w1, w2) = if rho2 > 0.0 && (alpha2 / rho2).is_finite() {
+        (t1 - gamma * alpha2 / (rho1 * rho2), alpha2 / rho2)
+    } else {
+        (t1, 0.0)
+    };
+    let first = &next.first;
+    next.x.par_iter_mut().enumerate().with_min_len(ROW_CHUNK).for_each(|(i, x)| *x = first[i] * w1 + *x * w2);
 }
 
 /// `r = b - A x` with the level's `f32` copy of `a` when it has one.

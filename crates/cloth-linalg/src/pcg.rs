@@ -258,6 +258,7 @@ impl Pcg {
         filter.project(&mut self.c);
         let mut rho = dot_with(&self.r, &self.c, &mut self.partials);
 
+        let flexible = self.precond.is_nonlinear();
         let mut iterations = 0;
         while r_sq > tol_sq {
             if iterations == params.max_iter {
@@ -284,7 +285,13 @@ impl Pcg {
             if rho <= 0.0 && r_sq > 0.0 {
                 return Err(PcgError::PreconditionerNotPositive { iteration: iterations });
             }
-            let beta = rho / rho_old;
+            // Flexible (Polak-Ribiere) for a nonlinear preconditioner:
+            // beta = s_new.(r_new - r_old) / rho_old, r_new - r_old = -alpha q.
+            let beta = if flexible {
+                -alpha * dot_with(&self.q, &self.s, &mut self.partials) / rho_old
+            } else {
+                rho / rho_old
+            };
             self.c
                 .par_chunks_mut(ROW_CHUNK)
                 .zip(self.s.par_chunks(ROW_CHUNK))

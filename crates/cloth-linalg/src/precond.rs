@@ -77,6 +77,12 @@ impl Preconditioner {
         self.kind != PreconditionerKind::Multigrid
     }
 
+    /// Whether `P^-1 r` is a nonlinear function of `r` (the multigrid's
+    /// K-cycle): PCG then needs the flexible update.
+    pub fn is_nonlinear(&self) -> bool {
+        self.kind == PreconditionerKind::Multigrid && self.multigrid.as_ref().is_some_and(Multigrid::is_nonlinear)
+    }
+
     /// The kind last built.
     pub fn kind(&self) -> PreconditionerKind {
         self.kind
