@@ -31,6 +31,7 @@
 //! newton_trigger = 0.0         # Newton only on steps whose linearised tension is off by more (share of k_s L; 0: always)
 //! energy_guard = true          # bdf2 retakes a step that creates energy as backward Euler
 //! max_contact_passes = 30      # most re-solves of a step's contact set (fewer: faster, friction beyond Coulomb)
+//! settling_iterations = 4      # CG cap of the solves while the contact set settles (0: each to rel_tol)
 //!
 //! [material]
 //! areal_density_kg_m2 = 0.1
@@ -238,6 +239,9 @@ pub struct SolverSection {
     /// Most re-solves of a step's contact active set (see
     /// [`SolverParams::max_contact_passes`]).
     pub max_contact_passes: usize,
+    /// CG iterations of the solves while a step's contact set settles (0:
+    /// each to `rel_tol`; see [`SolverParams::settling_iterations`]).
+    pub settling_iterations: usize,
 }
 
 impl Default for SolverSection {
@@ -256,6 +260,7 @@ impl Default for SolverSection {
             newton_trigger: p.newton_trigger,
             energy_guard: p.energy_guard,
             max_contact_passes: p.max_contact_passes,
+            settling_iterations: p.settling_iterations,
         }
     }
 }
@@ -563,6 +568,7 @@ impl Scene {
                 newton_trigger: self.solver.newton_trigger,
                 energy_guard: self.solver.energy_guard,
                 max_contact_passes: self.solver.max_contact_passes,
+                settling_iterations: self.solver.settling_iterations,
             },
         };
         Ok((model, config))
