@@ -458,13 +458,19 @@ fn multigrid_smoothing_stiff_pairs_together_stays_spd_and_converges_faster() {
 /// the V-cycle took 13.1 and two cycles on every coarse problem 9.6.
 #[test]
 fn the_w_cycle_keeps_the_hanging_cloths_iterations_down() {
-    let (mut sim, cfg) = cloth_tests::simulation(
-        "hang.toml",
-        &["panels.0.particles=[65, 65]", "pins.0.nodes=[[0, 64], [64, 64]]", "simulation.duration_s=0.2"],
-    );
-    let total: usize = (0..cfg.steps).map(|_| sim.step(cfg.dt_s).unwrap().cg_iterations).sum();
-    let mean = total as f64 / cfg.steps as f64;
+    let mean = hanging_cloth_cg_per_step(65);
     assert!(mean < 11.0, "{mean} CG a step");
+}
+
+/// Mean CG iterations a step of the `n x n` hanging cloth (`hang.toml`,
+/// pinned at its top corners) over 0.2 s.
+fn hanging_cloth_cg_per_step(n: usize) -> f64 {
+    let (particles, pins) =
+        (format!("panels.0.particles=[{n}, {n}]"), format!("pins.0.nodes=[[0, {0}], [{0}, {0}]]", n - 1));
+    let (mut sim, cfg) =
+        cloth_tests::simulation("hang.toml", &[particles.as_str(), pins.as_str(), "simulation.duration_s=0.2"]);
+    let total: usize = (0..cfg.steps).map(|_| sim.step(cfg.dt_s).unwrap().cg_iterations).sum();
+    total as f64 / cfg.steps as f64
 }
 
 /// A flat square grid of `n x n` nodes tied to their four neighbours and
@@ -553,11 +559,6 @@ fn k_cycle_solve_is_bit_identical_across_thread_counts() {
 /// takes 13.1 and the 65 x 65 cloth's W-cycle 10.7 (above).
 #[test]
 fn the_k_cycle_keeps_the_finer_hanging_cloths_iterations_down() {
-    let (mut sim, cfg) = cloth_tests::simulation(
-        "hang.toml",
-        &["panels.0.particles=[129, 129]", "pins.0.nodes=[[0, 128], [128, 128]]", "simulation.duration_s=0.2"],
-    );
-    let total: usize = (0..cfg.steps).map(|_| sim.step(cfg.dt_s).unwrap().cg_iterations).sum();
-    let mean = total as f64 / cfg.steps as f64;
+    let mean = hanging_cloth_cg_per_step(129);
     assert!(mean < 9.0, "{mean} CG a step");
 }
