@@ -430,11 +430,6 @@ impl Multigrid {
         self
     }
 
-    /// The cycle's kind.
-    pub fn cycle(&self) -> Cycle {
-        self.cycle
-    }
-
     /// Whether [`Multigrid::apply`] is a nonlinear function of its input
     /// (the K-cycle): PCG must then use the flexible update.
     pub fn is_nonlinear(&self) -> bool {

@@ -732,9 +732,7 @@ fn uncommitted_step<S: Linearised>(
             let sliding = || ws.contacts.solid.iter().any(|c| c.friction_mode == FrictionMode::Slide);
             if settled && friction_from_rough && sliding() {
                 let (r, s) = solve(ws, state, solver)?;
-                report.cg_iterations += r.cg_iterations;
-                solve_s += s;
-                (report.rel_residual, report.converged) = (r.rel_residual, report.converged & r.converged);
+                add_solve(&mut report, &mut solve_s, &r, s, true);
             }
             break;
         }
@@ -743,15 +741,8 @@ fn uncommitted_step<S: Linearised>(
         // its solve to `rel_tol`, and (settled) one more check.
         let full = settled || pass == last || !settling;
         let (r, s) = solve(ws, state, if full { solver } else { &rough })?;
-        report.cg_iterations += r.cg_iterations;
-        solve_s += s;
         exact = full || r.converged;
-        if full || r.converged {
-            (report.rel_residual, report.converged) = (r.rel_residual, report.converged & r.converged);
-        }
-        if pass == last {
-            break;
-        }
+        add_solve(&mut report, &mut solve_s, &r, s, exact);
     }
     let (mut forces_s, mut assembly_s) = (timing.links_s, timing.gather_s + pins_s);
     // Newton iterations with a line search on the nonlinear step equation
@@ -843,6 +834,17 @@ fn uncommitted_step<S: Linearised>(
     };
     report.contacts = stats;
     Ok(report)
+}
+
+/// Adds a contact pass's solve `r` (taking `s` seconds) to the step's
+/// report; its residual and convergence count only when it solved the
+/// set to `rel_tol` (`exact`), not for a rough settling solve.
+fn add_solve(report: &mut StepReport, solve_s: &mut f64, r: &StepReport, s: f64, exact: bool) {
+    report.cg_iterations += r.cg_iterations;
+    *solve_s += s;
+    if exact {
+        (report.rel_residual, report.converged) = (r.rel_residual, report.converged & r.converged);
+    }
 }
 
 /// A scheme's `terms` with the loads of the step that `loads` says are
