@@ -229,9 +229,9 @@ fn the_sewn_top_stays_on_the_walking_mannequin() {
 }
 
 /// The one-piece: the top with a skirt gathered onto its lower edge
-/// (measured: stretch 1.389, 20 steps beyond 1.2, 1.352 while sewn,
-/// closest 4.4 mm, 0.400 m out, from 0.627 m below the waist joint, seams
-/// within 0.3 mm). While it is sewn the stitches draw the tube's lower
+/// (measured: stretch 1.268, 3 steps beyond 1.2, 1.455 while sewn,
+/// closest 4.7 mm, 0.414 m out, from 0.627 m below the waist joint, seams
+/// within 0.2 mm). While it is sewn the stitches draw the tube's lower
 /// edge down over the pelvis box, which is wider than the tube, and the
 /// edge's links stretch: 2.45 when open stitches pulled with the seam's
 /// full strength, 1.35 with the sewing pull (a quarter of it) until each
@@ -239,13 +239,21 @@ fn the_sewn_top_stays_on_the_walking_mannequin() {
 /// and then, and how far it stretches then is chaotic in the solve's
 /// error: at `rel_tol` 1e-3, 3e-4, 1e-4 and 1e-5, with the multigrid
 /// before and after its W-cycle, the worn one-piece reached 1.215-1.670
-/// with 2-50 steps beyond 1.2 (1.329-1.393 while sewn); the limits are
-/// that spread's.
+/// with 2-50 steps beyond 1.2 (1.329-1.393 while sewn). The rough solves
+/// while the contact set settles (`solver.settling_iterations` 4) move
+/// that spread: 1.205-1.359 worn with 2-16 steps beyond 1.2, 1.352-1.455
+/// while sewn (the scene's 1e-3: 1.455, 3e-4: 1.352, 1e-4: 1.422, 1e-5:
+/// 1.353; 1.352 at 0 with 1e-3). The 1.455 is one step, 0.36 s in, of
+/// a strap's link on the shoulder, which jumps between 0.89 and 1.46
+/// from step to step while the skirt's stitches close (the garment's
+/// links jitter as much at 0: the largest step-to-step second difference
+/// of a link's stretch over the first 1.2 s is 0.67 at 0, 0.80 at 4).
+/// The limits are those spreads'.
 #[test]
 fn the_sewn_one_piece_stays_on_the_walking_mannequin() {
     let worn = wear("one-piece-walk.toml", "torso", &[]);
     worn.assert_stays_on(1.7, 0.45, [-0.65, 0.55]);
-    worn.assert_sewn(1e-3, 1.4, 50);
+    worn.assert_sewn(1e-3, 1.46, 50);
 }
 
 /// Volino's and Provot's models wear the sewn top too (their membranes,
