@@ -408,25 +408,8 @@ fn multigrid_damped_for_its_elements_stays_positive_definite() {
 #[test]
 fn multigrid_smoothing_stiff_pairs_together_stays_spd_and_converges_faster() {
     let mut rng = Rng(0xfeed);
-    let a = random_system(&mut rng, 800, 3, 0.02);
-    let n = a.n();
-    // Node i tied to node i + n/2 (never in the same aggregate) for every
-    // tenth i, 1000 times stiffer than a typical coupling.
-    let ties: Vec<(usize, usize)> = (0..n / 2).step_by(10).map(|i| (i, i + n / 2)).collect();
-    let pairs = (0..n).flat_map(|i| a.pattern().row_cols(i).iter().map(move |&j| (i, j as usize)));
-    let pattern = BlockPattern::from_pairs(n, pairs.chain(ties.iter().copied())).unwrap();
-    let mut stiff = BlockSparseMatrix::new(pattern.clone());
-    for (i, j, b) in a.blocks() {
-        stiff.values_mut()[pattern.slot(i, j).unwrap()] = *b;
-    }
-    for &(i, j) in &ties {
-        let k = Mat3::identity() * 1e4;
-        let v = stiff.values_mut();
-        v[pattern.diag_slot(i)] += k;
-        v[pattern.diag_slot(j)] += k;
-        v[pattern.slot(i, j).unwrap()] -= k;
-        v[pattern.slot(j, i).unwrap()] -= k;
-    }
+    let (stiff, ties) = tied_system(&mut rng, 800);
+    let (n, pattern) = (stiff.n(), stiff.pattern().clone());
     let b: Vec<Vec3> = (0..n).map(|_| rng.vec3()).collect();
     let f = ConstraintFilter::new(n);
     let reference = cholesky_reference(&stiff, &b, &f);
@@ -450,6 +433,113 @@ fn multigrid_smoothing_stiff_pairs_together_stays_spd_and_converges_faster() {
     // operators), 24 with the pairs on `f32` copies.
     assert!(iterations[1] * 4 < iterations[0], "iterations (point, paired, paired f32): {iterations:?}");
     assert!(iterations[2] * 4 < iterations[0], "iterations (point, paired, paired f32): {iterations:?}");
+}
+
+/// A random system of `n` nodes with node `i` tied to node `i + n/2`
+/// (never in the same aggregate) for every tenth `i`, 1000 times stiffer
+/// than a typical coupling; returns it and the ties.
+fn tied_system(rng: &mut Rng, n: usize) -> (BlockSparseMatrix, Vec<(usize, usize)>) {
+    let a = random_system(rng, n, 3, 0.02);
+    let ties: Vec<(usize, usize)> = (0..n / 2).step_by(10).map(|i| (i, i + n / 2)).collect();
+    let pairs = (0..n).flat_map(|i| a.pattern().row_cols(i).iter().map(move |&j| (i, j as usize)));
+    let pattern = BlockPattern::from_pairs(n, pairs.chain(ties.iter().copied())).unwrap();
+    let mut stiff = BlockSparseMatrix::new(pattern.clone());
+    for (i, j, b) in a.blocks() {
+        stiff.values_mut()[pattern.slot(i, j).unwrap()] = *b;
+    }
+    for &(i, j) in &ties {
+        let k = Mat3::identity() * 1e4;
+        let v = stiff.values_mut();
+        v[pattern.diag_slot(i)] += k;
+        v[pattern.diag_slot(j)] += k;
+        v[pattern.slot(i, j).unwrap()] -= k;
+        v[pattern.slot(j, i).unwrap()] -= k;
+    }
+    (stiff, ties)
+}
+
+/// A contact pass solves the same matrix again under a changed filter:
+/// the hierarchy is then refilled only where the filter changed, and every
+/// solve's answer and iterations are those of a solver whose hierarchy was
+/// built from scratch, to the last bit. Over a sequence of filters (none;
+/// fixed and one-direction particles, on tied pairs too; some released,
+/// turned, added; most particles at once, which refills everything; the
+/// matrix changed, which must not be refilled in part), with `f64` and
+/// `f32` coarse operators, point and paired smoothing, W- and K-cycles.
+#[test]
+fn re_solves_under_a_changed_filter_refill_the_hierarchy_to_the_same_bits() {
+    let mut rng = Rng(0xa11ce);
+    let (a, ties) = tied_system(&mut rng, 800);
+    let n = a.n();
+    let b: Vec<Vec3> = (0..n).map(|_| rng.vec3()).collect();
+    let mut constrain = |f: &mut ConstraintFilter, i: usize| {
+        let c = if i.is_multiple_of(3) { Constraint::Fixed } else { Constraint::OneDirection { normal: rng.vec3() } };
+        f.set(i, c, rng.vec3()).unwrap();
+    };
+    let mut filters = vec![ConstraintFilter::new(n)];
+    let mut f = ConstraintFilter::new(n);
+    for i in (0..n).step_by(23).chain([ties[3].0, ties[3].1, ties[7].0]) {
+        constrain(&mut f, i);
+    }
+    filters.push(f.clone());
+    // Some released (a new filter without them), some turned, some added.
+    let mut g = ConstraintFilter::new(n);
+    for (i, s, z) in f.iter() {
+        match i % 4 {
+            0 => {}
+            1 => constrain(&mut g, i),
+            _ => {
+                let turned = if *s == Mat3::zeros() {
+                    Constraint::OneDirection { normal: Vec3::new(1.0, 2.0, 3.0) }
+                } else {
+                    Constraint::Fixed
+                };
+                g.set(i, turned, *z).unwrap();
+            }
+        }
+    }
+    for i in (5..n).step_by(41).chain([ties[5].1]) {
+        constrain(&mut g, i);
+    }
+    filters.push(g.clone());
+    filters.push(f);
+    let mut most = ConstraintFilter::new(n);
+    for i in (0..n).filter(|i| !i.is_multiple_of(5)) {
+        constrain(&mut most, i);
+    }
+    filters.push(most);
+    filters.push(g);
+    let params = PcgParams { rel_tol: 1e-9, max_iter: 5000, preconditioner: PreconditionerKind::Multigrid };
+    for (single_from, paired, cycle) in
+        [(usize::MAX, false, Cycle::W), (0, true, Cycle::W), (usize::MAX, true, Cycle::K), (0, false, Cycle::K)]
+    {
+        let hierarchy = || {
+            let mg =
+                Multigrid::with_single_precision_from(a.pattern(), &chunk_aggregations(n, 4), single_from).unwrap();
+            let mg = if paired { mg.with_pairs(&ties) } else { mg };
+            mg.with_cycle(cycle)
+        };
+        let mut reused = Pcg::new(n);
+        reused.set_multigrid(hierarchy());
+        let mut matrix = a.clone();
+        let mut partial = Vec::new();
+        for (k, filter) in filters.iter().enumerate() {
+            if k == filters.len() - 1 {
+                // A new matrix (same pattern): the hierarchy must be rebuilt.
+                matrix.values_mut().iter_mut().for_each(|v| *v *= 1.5);
+            }
+            let (mut x, mut y) = (vec![Vec3::zeros(); n], vec![Vec3::zeros(); n]);
+            let got = reused.solve_in_place(&mut matrix, &b, filter, &params, &mut x).unwrap();
+            let mut fresh = Pcg::new(n);
+            fresh.set_multigrid(hierarchy());
+            let want = fresh.solve_in_place(&mut matrix.clone(), &b, filter, &params, &mut y).unwrap();
+            assert_eq!(got.iterations, want.iterations, "{cycle:?}, filter {k}");
+            assert!(same_bits(&x, &y), "{cycle:?} (f32 from {single_from}, paired {paired}): filter {k} differs");
+            partial.push(got.partial_refill);
+        }
+        // In part where only the filter changed, and only a few particles.
+        assert_eq!(partial, [false, true, true, true, false, false], "{cycle:?}");
+    }
 }
 
 /// The cycle's iterations on the cloth it was tuned on: the 65 x 65

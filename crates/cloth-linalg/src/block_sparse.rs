@@ -8,6 +8,7 @@
 use crate::{Mat3, Vec3, par::ROW_CHUNK};
 use rayon::prelude::*;
 use std::ops::Range;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Why a sparsity pattern could not be built.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -98,13 +99,30 @@ impl BlockPattern {
 pub struct BlockSparseMatrix {
     pattern: BlockPattern,
     values: Vec<Mat3>,
+    /// See [`BlockSparseMatrix::revision`].
+    revision: u64,
+}
+
+/// The next [`BlockSparseMatrix::revision`], shared by all matrices.
+static NEXT_REVISION: AtomicU64 = AtomicU64::new(0);
+
+fn next_revision() -> u64 {
+    NEXT_REVISION.fetch_add(1, Ordering::Relaxed)
 }
 
 impl BlockSparseMatrix {
     /// A zero matrix with the given pattern.
     pub fn new(pattern: BlockPattern) -> Self {
         let values = vec![Mat3::zeros(); pattern.nnz_blocks()];
-        Self { pattern, values }
+        Self { pattern, values, revision: next_revision() }
+    }
+
+    /// A number that changes whenever the values may have changed (every
+    /// mutable access draws a new one, unique across all matrices): two
+    /// reads of the same number saw the same values. A clone keeps it (and
+    /// the values).
+    pub fn revision(&self) -> u64 {
+        self.revision
     }
 
     /// The sparsity pattern.
@@ -124,12 +142,14 @@ impl BlockSparseMatrix {
 
     /// All stored blocks, mutable (the pattern stays fixed).
     pub fn values_mut(&mut self) -> &mut [Mat3] {
+        self.revision = next_revision();
         &mut self.values
     }
 
     /// The pattern and the mutable values at once (to edit blocks found
     /// through the pattern).
     pub fn pattern_and_values_mut(&mut self) -> (&BlockPattern, &mut [Mat3]) {
+        self.revision = next_revision();
         (&self.pattern, &mut self.values)
     }
 
@@ -147,6 +167,7 @@ impl BlockSparseMatrix {
         F: Fn(usize, &mut [Mat3]) + Sync,
     {
         let n = self.n();
+        self.revision = next_revision();
         fill_range(&self.pattern.row_ptr, 0..n, &mut self.values, 0, &fill);
     }
 
@@ -187,6 +208,41 @@ impl BlockSparseMatrix {
                 *ri = bi - self.row_times(chunk * ROW_CHUNK + k, x);
             }
         });
+    }
+
+    /// `r1 = b - A x1` and `r2 = b - A x2` in one pass over the matrix (a
+    /// solve's two starting residuals), each row summed as
+    /// [`BlockSparseMatrix::residual`] sums it: the same bits as two calls.
+    pub fn residual_pair(&self, b: &[Vec3], (x1, x2): (&[Vec3], &[Vec3]), (r1, r2): (&mut [Vec3], &mut [Vec3])) {
+        let n = self.n();
+        let lengths = [b.len(), x1.len(), x2.len(), r1.len(), r2.len()];
+        assert!(lengths.iter().all(|&l| l == n), "residual_pair: dimension mismatch");
+        let rows = r1.par_chunks_mut(ROW_CHUNK).zip(r2.par_chunks_mut(ROW_CHUNK)).zip(b.par_chunks(ROW_CHUNK));
+        rows.enumerate().for_each(|(chunk, ((r1s, r2s), bs))| {
+            for (k, ((r1i, r2i), bi)) in r1s.iter_mut().zip(r2s).zip(bs).enumerate() {
+                let (y1, y2) = self.row_times_pair(chunk * ROW_CHUNK + k, x1, x2);
+                (*r1i, *r2i) = (bi - y1, bi - y2);
+            }
+        });
+    }
+
+    /// Row `i` of `A x1` and of `A x2`, each summed as [`BlockSparseMatrix::row_times`].
+    #[inline]
+    fn row_times_pair(&self, i: usize, x1: &[Vec3], x2: &[Vec3]) -> (Vec3, Vec3) {
+        let range = self.pattern.row_range(i);
+        let (mut a0, mut a1, mut a2) = (0.0, 0.0, 0.0);
+        let (mut b0, mut b1, mut b2) = (0.0, 0.0, 0.0);
+        for (blk, &c) in self.values[range.clone()].iter().zip(&self.pattern.cols[range]) {
+            let (u, v) = (&x1[c as usize], &x2[c as usize]);
+            let m = blk.as_slice();
+            a0 += m[0] * u.x + m[3] * u.y + m[6] * u.z;
+            a1 += m[1] * u.x + m[4] * u.y + m[7] * u.z;
+            a2 += m[2] * u.x + m[5] * u.y + m[8] * u.z;
+            b0 += m[0] * v.x + m[3] * v.y + m[6] * v.z;
+            b1 += m[1] * v.x + m[4] * v.y + m[7] * v.z;
+            b2 += m[2] * v.x + m[5] * v.y + m[8] * v.z;
+        }
+        (Vec3::new(a0, a1, a2), Vec3::new(b0, b1, b2))
     }
 
     /// `y = A x` and returns `x . y` (the curvature CG needs) in the same
@@ -284,6 +340,13 @@ mod tests {
         let mut y2 = vec![Vec3::zeros(); n];
         let xay = a.mul_vec_dot(&x, &mut y2, &mut partials);
         assert_eq!(y, y2);
+        // Two residuals in one pass: the same bits as two passes.
+        let (b, x2): (Vec<Vec3>, Vec<Vec3>) = (0..n).map(|i| (Vec3::new(0.5, -(i as f64), 2.0), x[n - 1 - i])).unzip();
+        let (mut r1, mut r2, mut one, mut two) = (y.clone(), y.clone(), y.clone(), y.clone());
+        a.residual_pair(&b, (&x, &x2), (&mut r1, &mut r2));
+        a.residual(&b, &x, &mut one);
+        a.residual(&b, &x2, &mut two);
+        assert!(r1 == one && r2 == two, "residual_pair differs from residual");
         let direct: f64 = x.iter().zip(&y).map(|(p, q)| p.dot(q)).sum();
         assert!((xay - direct).abs() <= 1e-12 * direct.abs());
         // The dense reference: the pattern's column lists and the fill alone.

@@ -73,5 +73,9 @@ pub fn cg_fixed_iterations(
         c.iter_mut().zip(r.iter()).for_each(|(ci, ri)| *ci = ri + *ci * beta);
         rho = rho_new;
     }
-    Ok(PcgInfo { iterations: done, rel_residual: if rho0 > 0.0 { (rho / rho0).sqrt() } else { 0.0 } })
+    Ok(PcgInfo {
+        iterations: done,
+        rel_residual: if rho0 > 0.0 { (rho / rho0).sqrt() } else { 0.0 },
+        partial_refill: false,
+    })
 }

@@ -133,6 +133,13 @@ struct Level {
     members: Gather,
     /// Coarse slot -> fine slots (Galerkin product).
     slots: Gather,
+    /// Fine slot -> coarse slot (the inverse of `slots`).
+    slot_target: Vec<u32>,
+    /// Coarse slots a partial refill recomputes, each with its row and
+    /// column, and whether it is marked in that list (see
+    /// [`Multigrid::update_rows`]).
+    dirty: Vec<Dirty>,
+    marked: Vec<bool>,
     /// The coarse operator `P^T A P`.
     coarse: BlockSparseMatrix,
     /// This level's own operator (the fine matrix, or the previous
@@ -167,7 +174,17 @@ pub struct Multigrid {
     coarsest: Coarsest,
     omega: f64,
     cycle: Cycle,
+    /// The finest operator's changed slots in a partial refill.
+    fine_dirty: Vec<Dirty>,
 }
+
+/// A slot of a level's operator that a partial refill recomputes: `(slot,
+/// row, column)`.
+type Dirty = (u32, u32, u32);
+
+/// Share of the finest operator's slots above which
+/// [`Multigrid::update_rows`] refills everything (in parallel) instead.
+const PARTIAL_REFILL_MAX_SHARE: f64 = 0.25;
 
 /// How a cycle solves its coarse problems (see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -274,13 +291,14 @@ impl SinglePrecision {
         let (values, mirror) = (a.values(), &self.mirror);
         self.blocks.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(chunk, to)| {
             for (k, t) in to.iter_mut().enumerate() {
-                let slot = chunk * ROW_CHUNK + k;
-                let sym = (values[slot] + values[mirror[slot] as usize].transpose()) * 0.5;
-                for (tk, fk) in t.iter_mut().zip(sym.as_slice()) {
-                    *tk = *fk as f32;
-                }
+                *t = rounded_symmetric(values, mirror, chunk * ROW_CHUNK + k);
             }
         });
+    }
+
+    /// As [`SinglePrecision::copy_from`] for one slot.
+    fn copy_slot(&mut self, a: &BlockSparseMatrix, slot: usize) {
+        self.blocks[slot] = rounded_symmetric(a.values(), &self.mirror, slot);
     }
 
     /// `r = b - A x` on `pattern` (this copy's), accumulated in `f64`,
@@ -306,6 +324,12 @@ impl SinglePrecision {
             }
         });
     }
+}
+
+/// `(A_ij + A_ji^T) / 2` at `slot` (of `(i, j)`; `mirror[slot]` is `(j, i)`'s), rounded to `f32`.
+fn rounded_symmetric(values: &[Mat3], mirror: &[u32], slot: usize) -> [f32; 9] {
+    let sym = (values[slot] + values[mirror[slot] as usize].transpose()) * 0.5;
+    std::array::from_fn(|k| sym.as_slice()[k] as f32)
 }
 
 /// Blocks from which a level's operator gets an `f32` copy for the
@@ -371,6 +395,9 @@ impl Multigrid {
                 coarse_of: agg.coarse_of.clone(),
                 members,
                 slots,
+                slot_target: slot_target.iter().map(|&t| t as u32).collect(),
+                dirty: Vec::new(),
+                marked: vec![false; coarse_pattern.nnz_blocks()],
                 coarse: BlockSparseMatrix::new(coarse_pattern.clone()),
                 single: (pattern.nnz_blocks() >= blocks).then(|| SinglePrecision::new(&pattern)),
                 inv_diag: vec![Mat3::identity(); n],
@@ -385,7 +412,7 @@ impl Multigrid {
             pattern = coarse_pattern;
         }
         let cycle = if fine.n() >= K_CYCLE_MIN_NODES { Cycle::K } else { Cycle::W };
-        Ok(Self { levels, coarsest: Coarsest::new(pattern.n()), omega: OMEGA, cycle })
+        Ok(Self { levels, coarsest: Coarsest::new(pattern.n()), omega: OMEGA, cycle, fine_dirty: Vec::new() })
     }
 
     /// Sets the smoother's damping for a matrix assembled from PSD element
@@ -467,6 +494,83 @@ impl Multigrid {
             }
         }
         self.coarsest.update(self.levels.last().map_or(a, |l| &l.coarse));
+    }
+
+    /// As [`Multigrid::update`], for an `a` that differs from the matrix of
+    /// the last update only in the rows and columns of the nodes `changed`
+    /// (a solve's constraint filter changed there, the matrix did not):
+    /// only what those blocks reach is recomputed, each block, inverse and
+    /// Galerkin sum as `update` computes it, so the hierarchy is the same
+    /// bit for bit. The caller vouches for the premise; a `changed` that
+    /// touches more than a quarter of the blocks refills everything.
+    /// Returns whether the refill was partial.
+    pub fn update_rows(&mut self, a: &BlockSparseMatrix, changed: &[usize]) -> bool {
+        let pattern = a.pattern();
+        let mut dirty = std::mem::take(&mut self.fine_dirty);
+        dirty.clear();
+        for &i in changed {
+            for (slot, &j) in pattern.row_range(i).zip(pattern.row_cols(i)) {
+                dirty.push((slot as u32, i as u32, j));
+                if j as usize != i {
+                    let mirror = pattern.slot(j as usize, i).expect("block patterns are structurally symmetric");
+                    dirty.push((mirror as u32, j, i as u32));
+                }
+            }
+        }
+        if dirty.len() as f64 > PARTIAL_REFILL_MAX_SHARE * pattern.nnz_blocks() as f64 {
+            self.fine_dirty = dirty;
+            self.update(a);
+            return false;
+        }
+        let omega = self.omega;
+        for l in 0..self.levels.len() {
+            let (done, rest) = self.levels.split_at_mut(l);
+            let (fine, fine_dirty) = match done.last() {
+                None => (a, &dirty),
+                Some(above) => (&above.coarse, &above.dirty),
+            };
+            let level = &mut rest[0];
+            // Diagonal inverses (and the finest level's pairs) of the rows
+            // whose diagonal block changed.
+            for &(_, i, _) in fine_dirty.iter().filter(|&&(_, i, j)| i == j) {
+                let i = i as usize;
+                level.inv_diag[i] = inverse_diagonal_block(fine, omega, i);
+                if let Some((partner, inv_off)) = &mut level.pairs {
+                    let p = partner[i] as usize;
+                    if p != i {
+                        level.inv_diag[p] = inverse_diagonal_block(fine, omega, p);
+                        invert_pair(fine, omega, (i.min(p), i.max(p)), &mut level.inv_diag, inv_off);
+                    }
+                }
+            }
+            if let Some(single) = &mut level.single {
+                for &(slot, _, _) in fine_dirty {
+                    single.copy_slot(fine, slot as usize);
+                }
+            }
+            // The coarse slots the changed fine slots sum into.
+            level.dirty.clear();
+            for &(slot, i, j) in fine_dirty {
+                let target = level.slot_target[slot as usize];
+                if !level.marked[target as usize] {
+                    level.marked[target as usize] = true;
+                    let (ci, cj) = (level.coarse_of[i as usize], level.coarse_of[j as usize]);
+                    level.dirty.push((target, ci, cj));
+                }
+            }
+            let (slots, values, single) = (&level.slots, level.coarse.values_mut(), &level.single);
+            for &(target, _, _) in &level.dirty {
+                level.marked[target as usize] = false;
+                let sources = slots.sources(target as usize).iter();
+                values[target as usize] = match single {
+                    Some(single) => sources.map(|&s| widen(&single.blocks[s as usize])).sum(),
+                    None => sources.map(|&s| fine.values()[s as usize]).sum(),
+                };
+            }
+        }
+        self.coarsest.update(self.levels.last().map_or(a, |l| &l.coarse));
+        self.fine_dirty = dirty;
+        true
     }
 
     /// `z = B r`, one cycle: a symmetric positive definite approximation
@@ -626,33 +730,44 @@ fn cholesky_solve_in_place(l: &DMatrix<f64>, b: &mut DVector<f64>) {
 /// `inv[i] = omega * A_ii^-1` (identity where a block is not positive definite).
 fn inverse_diagonal(a: &BlockSparseMatrix, omega: f64, inv: &mut [Mat3]) {
     inv.par_iter_mut().enumerate().with_min_len(ROW_CHUNK).for_each(|(i, p)| {
-        *p = a.diag(i).cholesky().map_or_else(Mat3::identity, |c| c.inverse()) * omega;
+        *p = inverse_diagonal_block(a, omega, i);
     });
 }
 
-/// The pairs' damped inverse blocks: `omega [A_ii A_ij; A_ji A_jj]^-1`
-/// into the diagonal and off-diagonal slots (a pair whose block is not
-/// positive definite keeps its two point blocks).
+/// `omega * A_ii^-1` (the identity where the block is not positive definite).
+fn inverse_diagonal_block(a: &BlockSparseMatrix, omega: f64, i: usize) -> Mat3 {
+    a.diag(i).cholesky().map_or_else(Mat3::identity, |c| c.inverse()) * omega
+}
+
+/// The pairs' damped inverse blocks (see [`invert_pair`]), over `inv_diag`'s
+/// point blocks.
 fn invert_pairs(a: &BlockSparseMatrix, omega: f64, partner: &[u32], inv_diag: &mut [Mat3], inv_off: &mut [Mat3]) {
-    for i in 0..partner.len() {
-        let j = partner[i] as usize;
-        if j <= i {
-            continue;
+    for (i, &j) in partner.iter().enumerate() {
+        if j as usize > i {
+            invert_pair(a, omega, (i, j as usize), inv_diag, inv_off);
         }
-        let Some(slot) = a.pattern().slot(i, j) else { continue };
-        let mut m = nalgebra::Matrix6::<f64>::zeros();
-        let (aij, aji) = (a.values()[slot], a.values()[slot].transpose());
-        m.fixed_view_mut::<3, 3>(0, 0).copy_from(a.diag(i));
-        m.fixed_view_mut::<3, 3>(0, 3).copy_from(&aij);
-        m.fixed_view_mut::<3, 3>(3, 0).copy_from(&aji);
-        m.fixed_view_mut::<3, 3>(3, 3).copy_from(a.diag(j));
-        let Some(c) = m.cholesky() else { continue };
-        let inv = c.inverse() * omega;
-        inv_diag[i] = inv.fixed_view::<3, 3>(0, 0).into_owned();
-        inv_off[i] = inv.fixed_view::<3, 3>(0, 3).into_owned();
-        inv_off[j] = inv.fixed_view::<3, 3>(3, 0).into_owned();
-        inv_diag[j] = inv.fixed_view::<3, 3>(3, 3).into_owned();
     }
+}
+
+/// The pair `i < j`'s damped inverse `omega [A_ii A_ij; A_ji A_jj]^-1`
+/// into the diagonal and off-diagonal slots. A pair whose block is not
+/// positive definite (or not stored) keeps its two point blocks in
+/// `inv_diag` and no coupling.
+fn invert_pair(a: &BlockSparseMatrix, omega: f64, (i, j): (usize, usize), inv_diag: &mut [Mat3], inv_off: &mut [Mat3]) {
+    (inv_off[i], inv_off[j]) = (Mat3::zeros(), Mat3::zeros());
+    let Some(slot) = a.pattern().slot(i, j) else { return };
+    let mut m = nalgebra::Matrix6::<f64>::zeros();
+    let (aij, aji) = (a.values()[slot], a.values()[slot].transpose());
+    m.fixed_view_mut::<3, 3>(0, 0).copy_from(a.diag(i));
+    m.fixed_view_mut::<3, 3>(0, 3).copy_from(&aij);
+    m.fixed_view_mut::<3, 3>(3, 0).copy_from(&aji);
+    m.fixed_view_mut::<3, 3>(3, 3).copy_from(a.diag(j));
+    let Some(c) = m.cholesky() else { return };
+    let inv = c.inverse() * omega;
+    inv_diag[i] = inv.fixed_view::<3, 3>(0, 0).into_owned();
+    inv_off[i] = inv.fixed_view::<3, 3>(0, 3).into_owned();
+    inv_off[j] = inv.fixed_view::<3, 3>(3, 0).into_owned();
+    inv_diag[j] = inv.fixed_view::<3, 3>(3, 3).into_owned();
 }
 
 /// `coarse`'s blocks as the sums of the fine blocks `block(s)` over each

@@ -46,6 +46,10 @@ pub struct PcgInfo {
     pub iterations: usize,
     /// Final `|S r| / |S (b - A z)|` (0 when the reference is 0).
     pub rel_residual: f64,
+    /// Whether the multigrid hierarchy was refilled only where the filter
+    /// changed since the last solve of the same matrix (see
+    /// [`Pcg::solve_in_place`]).
+    pub partial_refill: bool,
 }
 
 /// Why a solve failed.
@@ -108,6 +112,14 @@ pub struct Pcg {
     filtered: Option<BlockSparseMatrix>,
     /// Original blocks changed by [`Pcg::solve_in_place`], for restoring.
     saved_blocks: Vec<(usize, Mat3)>,
+    /// What [`Pcg::solve_in_place`] last built the multigrid hierarchy
+    /// from: the unfiltered matrix's [`BlockSparseMatrix::revision`] and
+    /// the filter's projectors by particle (see [`Pcg::hierarchy_changes`]).
+    hierarchy_from: Option<(u64, Vec<(usize, Mat3)>)>,
+    /// Scratch: the current filter's projectors, and the particles whose
+    /// projector changed since the hierarchy was built.
+    projectors: Vec<(usize, Mat3)>,
+    changed: Vec<usize>,
 }
 
 impl Pcg {
@@ -141,9 +153,10 @@ impl Pcg {
         params: &PcgParams,
         x: &mut [Vec3],
     ) -> Result<PcgInfo, PcgError> {
+        self.hierarchy_from = None;
         let Some(start) = self.begin(a, b, filter, params, x)? else { return Ok(PcgInfo::default()) };
         if !needs_filtered_hierarchy(params, filter) {
-            return self.iterate(a, filter, params, x, start);
+            return self.iterate(a, filter, params, x, start, None);
         }
         let mut f = match self.filtered.take() {
             Some(f) if f.pattern() == a.pattern() => f,
@@ -155,7 +168,7 @@ impl Pcg {
         filter_in_place(&mut f, filter, None);
         // S A S c = S (S A S + (I - S) d) c for c = S c: iterating on the
         // filtered copy gives the same iterates.
-        let result = self.iterate(&f, filter, params, x, start);
+        let result = self.iterate(&f, filter, params, x, start, None);
         self.filtered = Some(f);
         result
     }
@@ -164,6 +177,12 @@ impl Pcg {
     /// constrained particles `A` is turned into `S A S + (I - S) d` in place
     /// for the iterations and restored bit for bit before returning (only
     /// the constrained rows and columns change): no copy of the matrix.
+    ///
+    /// Solving again with the same matrix (the same
+    /// [`BlockSparseMatrix::revision`] as this solve left it) under another
+    /// filter, as a contact pass does, the multigrid refills only what the
+    /// particles whose constraint changed reach: the same hierarchy bit for
+    /// bit, at a fraction of the cost.
     pub fn solve_in_place(
         &mut self,
         a: &mut BlockSparseMatrix,
@@ -173,17 +192,79 @@ impl Pcg {
         x: &mut [Vec3],
     ) -> Result<PcgInfo, PcgError> {
         let Some(start) = self.begin(a, b, filter, params, x)? else { return Ok(PcgInfo::default()) };
-        if !needs_filtered_hierarchy(params, filter) {
-            return self.iterate(a, filter, params, x, start);
+        if params.preconditioner != PreconditionerKind::Multigrid {
+            return self.iterate(a, filter, params, x, start, None);
         }
-        let mut saved = std::mem::take(&mut self.saved_blocks);
-        filter_in_place(a, filter, Some(&mut saved));
-        let result = self.iterate(a, filter, params, x, start);
-        for &(slot, block) in &saved {
-            a.values_mut()[slot] = block;
-        }
-        self.saved_blocks = saved;
+        let partial = self.hierarchy_changes(a, filter);
+        let changed = std::mem::take(&mut self.changed);
+        let changed_rows = partial.then_some(&changed[..]);
+        let result = if needs_filtered_hierarchy(params, filter) {
+            let mut saved = std::mem::take(&mut self.saved_blocks);
+            filter_in_place(a, filter, Some(&mut saved));
+            let result = self.iterate(a, filter, params, x, start, changed_rows);
+            let values = a.values_mut();
+            for &(slot, block) in &saved {
+                values[slot] = block;
+            }
+            self.saved_blocks = saved;
+            result
+        } else {
+            self.iterate(a, filter, params, x, start, changed_rows)
+        };
+        self.changed = changed;
+        let built = !matches!(result, Err(PcgError::NoMultigridHierarchy));
+        let projectors = std::mem::take(&mut self.projectors);
+        let old = std::mem::replace(&mut self.hierarchy_from, built.then(|| (a.revision(), projectors)));
+        self.projectors = old.map(|(_, p)| p).unwrap_or_default();
         result
+    }
+
+    /// Collects `filter`'s projectors into `self.projectors` (by particle)
+    /// and, when the hierarchy was last built from this very `a` (its
+    /// revision as the last solve left it), the particles whose projector
+    /// differs from then into `self.changed`: the rows and columns in which
+    /// the filtered operator differs. Returns whether that comparison holds.
+    fn hierarchy_changes(&mut self, a: &BlockSparseMatrix, filter: &ConstraintFilter) -> bool {
+        self.projectors.clear();
+        self.projectors.extend(filter.iter().map(|(i, s, _)| (i, *s)));
+        self.projectors.sort_unstable_by_key(|&(i, _)| i);
+        self.changed.clear();
+        let Some((revision, old)) = &self.hierarchy_from else { return false };
+        if *revision != a.revision() {
+            return false;
+        }
+        let (mut o, mut n) = (old.iter().peekable(), self.projectors.iter().peekable());
+        loop {
+            let (i, same) = match (o.peek(), n.peek()) {
+                (None, None) => return true,
+                (Some(&&(i, _)), None) => {
+                    o.next();
+                    (i, false)
+                }
+                (None, Some(&&(i, _))) => {
+                    n.next();
+                    (i, false)
+                }
+                (Some(&&(i, si)), Some(&&(j, sj))) => match i.cmp(&j) {
+                    std::cmp::Ordering::Less => {
+                        o.next();
+                        (i, false)
+                    }
+                    std::cmp::Ordering::Greater => {
+                        n.next();
+                        (j, false)
+                    }
+                    std::cmp::Ordering::Equal => {
+                        o.next();
+                        n.next();
+                        (i, si.iter().zip(sj.iter()).all(|(p, q)| p.to_bits() == q.to_bits()))
+                    }
+                },
+            };
+            if !same {
+                self.changed.push(i);
+            }
+        }
     }
 
     /// Checks the inputs and computes the starting residual. Returns `None`
@@ -209,12 +290,14 @@ impl Pcg {
             return Err(PcgError::InvalidTolerance { rel_tol: params.rel_tol });
         }
         self.resize(n);
-        // Reference residual S (b - A z), z = the prescribed part alone (kept in c).
+        // Reference residual S (b - A z), z = the prescribed part alone
+        // (kept in c), and the residual of the caller's guess, in one pass
+        // over the matrix.
         let z_only = &mut self.c;
         z_only.par_chunks_mut(ROW_CHUNK).for_each(|ch| ch.fill(Vec3::zeros()));
         filter.impose(z_only);
-        a.mul_vec(&self.c, &mut self.q);
-        sub_into(b, &self.q, &mut self.s);
+        filter.impose(x);
+        a.residual_pair(b, (&self.c, x), (&mut self.s, &mut self.r));
         filter.project(&mut self.s);
         let ref_sq = dot_with(&self.s, &self.s, &mut self.partials);
         if !ref_sq.is_finite() {
@@ -224,10 +307,7 @@ impl Pcg {
             x.copy_from_slice(&self.c);
             return Ok(None);
         }
-        // Residual of the caller's guess; a guess worse than none is dropped.
-        filter.impose(x);
-        a.mul_vec(x, &mut self.q);
-        sub_into(b, &self.q, &mut self.r);
+        // A guess worse than none is dropped.
         filter.project(&mut self.r);
         let mut r_sq = dot_with(&self.r, &self.r, &mut self.partials);
         if r_sq.is_nan() || r_sq > ref_sq {
@@ -247,8 +327,13 @@ impl Pcg {
         params: &PcgParams,
         x: &mut [Vec3],
         (ref_sq, mut r_sq): (f64, f64),
+        changed_rows: Option<&[usize]>,
     ) -> Result<PcgInfo, PcgError> {
-        if !self.precond.update(params.preconditioner, a) {
+        let (built, partial_refill) = match changed_rows {
+            Some(changed) => self.precond.update_rows(params.preconditioner, a, changed),
+            None => (self.precond.update(params.preconditioner, a), false),
+        };
+        if !built {
             return Err(PcgError::NoMultigridHierarchy);
         }
         let ref_norm = ref_sq.sqrt();
@@ -262,7 +347,7 @@ impl Pcg {
         let mut iterations = 0;
         while r_sq > tol_sq {
             if iterations == params.max_iter {
-                let info = PcgInfo { iterations, rel_residual: r_sq.sqrt() / ref_norm };
+                let info = PcgInfo { iterations, rel_residual: r_sq.sqrt() / ref_norm, partial_refill };
                 return Err(PcgError::NotConverged { info });
             }
             iterations += 1;
@@ -298,11 +383,12 @@ impl Pcg {
                 .for_each(|(cc, cs)| cc.iter_mut().zip(cs).for_each(|(ci, si)| *ci = si + beta * *ci));
             filter.project(&mut self.c);
         }
-        Ok(PcgInfo { iterations, rel_residual: r_sq.sqrt() / ref_norm })
+        Ok(PcgInfo { iterations, rel_residual: r_sq.sqrt() / ref_norm, partial_refill })
     }
 
     /// Sets the hierarchy for [`PreconditionerKind::Multigrid`].
     pub fn set_multigrid(&mut self, mg: crate::Multigrid) {
+        self.hierarchy_from = None;
         self.precond.set_multigrid(mg);
     }
 
@@ -402,16 +488,6 @@ fn filter_in_place(a: &mut BlockSparseMatrix, filter: &ConstraintFilter, mut sav
 fn own_scale(diag: &Mat3) -> f64 {
     let d = diag.trace() / 3.0;
     if d > 0.0 && d.is_finite() { d } else { 1.0 }
-}
-
-fn sub_into(a: &[Vec3], b: &[Vec3], out: &mut [Vec3]) {
-    out.par_chunks_mut(ROW_CHUNK).zip(a.par_chunks(ROW_CHUNK).zip(b.par_chunks(ROW_CHUNK))).for_each(
-        |(o, (ca, cb))| {
-            for ((oi, ai), bi) in o.iter_mut().zip(ca).zip(cb) {
-                *oi = ai - bi;
-            }
-        },
-    );
 }
 
 #[cfg(test)]

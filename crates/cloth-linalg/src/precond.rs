@@ -67,6 +67,21 @@ impl Preconditioner {
         true
     }
 
+    /// As [`Preconditioner::update`], for an `a` that differs from the
+    /// matrix of the last update only in the rows and columns of the nodes
+    /// `changed`: the multigrid refills only what they reach
+    /// ([`Multigrid::update_rows`]), the other kinds rebuild. Returns
+    /// whether it was built (as `update`) and whether only in part.
+    pub fn update_rows(&mut self, kind: PreconditionerKind, a: &BlockSparseMatrix, changed: &[usize]) -> (bool, bool) {
+        match (kind, &mut self.multigrid) {
+            (PreconditionerKind::Multigrid, Some(mg)) => {
+                self.kind = kind;
+                (true, mg.update_rows(a, changed))
+            }
+            _ => (self.update(kind, a), false),
+        }
+    }
+
     /// Sets the multigrid hierarchy used by [`PreconditionerKind::Multigrid`].
     pub fn set_multigrid(&mut self, mg: Multigrid) {
         self.multigrid = Some(mg);
