@@ -380,9 +380,11 @@ fn bend_triple_into(x: [Vec3; 3], rest: f64, k_b: f64, hessian: Option<&mut [[Ma
         let (p1, p2) = (tangent_change(e1, l1), tangent_change(e2, l2));
         let jac = [p1, -p1 - p2, p2];
         let c_geo = -de * l1 * l2 / (l * l);
-        *hessian = std::array::from_fn(|s| {
-            std::array::from_fn(|t| grad[s] * grad[t].transpose() * dde + jac[s] * jac[t] * c_geo)
-        });
+        for (s, row) in hessian.iter_mut().enumerate() {
+            for (t, block) in row.iter_mut().enumerate() {
+                *block = grad[s] * grad[t].transpose() * dde + jac[s] * jac[t] * c_geo;
+            }
+        }
     }
     ElementForces { energy: law.energy, forces }
 }

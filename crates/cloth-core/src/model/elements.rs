@@ -199,7 +199,11 @@ impl<const K: usize> KindBuffers<K> {
                 .for_each(|((out, blocks), e)| {
                     let r = law(e);
                     *out = fold(&r, &nodes(e), force, k_times);
-                    *blocks = r.hessian.map(|row| row.map(|h| h * c_x));
+                    // In place: a mapped array is a temporary the size of
+                    // the whole matrix, then copied.
+                    for (to, from) in blocks.iter_mut().flatten().zip(r.hessian.iter().flatten()) {
+                        *to = from * c_x;
+                    }
                 });
         } else {
             self.rhs.par_iter_mut().zip(elems.par_iter()).with_min_len(ROW_CHUNK).for_each(|(out, e)| {
