@@ -105,6 +105,18 @@ pub fn membrane_triangle(x: [Vec3; 3], rest: &TriangleRest) -> ElementResponse<3
 /// [`membrane_triangle`], with the Hessian left zero when `hessian` is
 /// false (explicit integrators need forces only).
 pub fn membrane_triangle_with(x: [Vec3; 3], rest: &TriangleRest, hessian: bool) -> ElementResponse<3> {
+    let mut h = [[Mat3::zeros(); 3]; 3];
+    let ElementForces { energy, forces } = membrane_triangle_into(x, rest, hessian.then_some(&mut h));
+    ElementResponse { energy, forces, hessian: h }
+}
+
+/// [`membrane_triangle_with`]'s energy and forces, and its matrix written
+/// into `hessian` when given (every block).
+pub fn membrane_triangle_into(
+    x: [Vec3; 3],
+    rest: &TriangleRest,
+    hessian: Option<&mut [[Mat3; 3]; 3]>,
+) -> ElementForces<3> {
     let g = &rest.g;
     let f0 = x[0] * g[0].x + x[1] * g[1].x + x[2] * g[2].x; // F column u
     let f1 = x[0] * g[0].y + x[1] * g[1].y + x[2] * g[2].y; // F column v
@@ -115,9 +127,7 @@ pub fn membrane_triangle_with(x: [Vec3; 3], rest: &TriangleRest, hessian: bool) 
     let b: [[Vec3; 3]; 3] = std::array::from_fn(|k| [f0 * g[k].x, f1 * g[k].y, f1 * g[k].x + f0 * g[k].y]);
     let forces = std::array::from_fn(|k| -(b[k][0] * stress.x + b[k][1] * stress.y + b[k][2] * stress.z) * a);
     let energy = 0.5 * a * strain.dot(&stress);
-    if !hessian {
-        return ElementResponse { energy, forces, hessian: [[Mat3::zeros(); 3]; 3] };
-    }
+    let Some(hessian) = hessian else { return ElementForces { energy, forces } };
     // Positive part of the 2x2 stress tensor [[s_uu, s_uv], [s_uv, s_vv]].
     let s = Matrix2::new(stress.x, stress.z, stress.z, stress.y);
     let eig = s.symmetric_eigen();
@@ -128,18 +138,19 @@ pub fn membrane_triangle_with(x: [Vec3; 3], rest: &TriangleRest, hessian: bool) 
         s_pos += v * v.transpose() * lambda;
     }
     let c = &rest.c;
-    let hessian = std::array::from_fn(|p| {
-        std::array::from_fn(|q| {
+    // In place: a 3 x 3 array of blocks built and returned is copied.
+    for (p, row) in hessian.iter_mut().enumerate() {
+        for (q, block) in row.iter_mut().enumerate() {
             let (bp, bq) = (&b[p], &b[q]);
             // sum_ij C_ij bp_i bq_j^T with the Voigt C.
             let material = bp[0] * (bq[0] * c.c11 + bq[1] * c.c12).transpose()
                 + bp[1] * (bq[0] * c.c12 + bq[1] * c.c22).transpose()
                 + bp[2] * (bq[2] * c.g).transpose();
             let geometric = (g[p].transpose() * s_pos * g[q])[(0, 0)];
-            (material + Mat3::identity() * geometric) * a
-        })
-    });
-    ElementResponse { energy, forces, hessian }
+            *block = (material + Mat3::identity() * geometric) * a;
+        }
+    }
+    ElementForces { energy, forces }
 }
 
 /// Signed dihedral angle of a hinge (radians, 0 when flat): corners 0 and 1
@@ -267,6 +278,19 @@ pub fn edge_hinge(k: usize) -> [usize; 4] {
 /// An edge whose row of `M` is zero (a free edge) is not evaluated: its
 /// neighbour slot may repeat a corner.
 pub fn curvature_bending_with(x: [Vec3; 6], rest_angles: [f64; 3], m: &Mat3, hessian: bool) -> ElementResponse<6> {
+    let mut h = [[Mat3::zeros(); 6]; 6];
+    let ElementForces { energy, forces } = curvature_bending_into(x, rest_angles, m, hessian.then_some(&mut h));
+    ElementResponse { energy, forces, hessian: h }
+}
+
+/// [`curvature_bending_with`]'s energy and forces, and its matrix written
+/// into `hessian` when given (every block).
+pub fn curvature_bending_into(
+    x: [Vec3; 6],
+    rest_angles: [f64; 3],
+    m: &Mat3,
+    hessian: Option<&mut [[Mat3; 6]; 6]>,
+) -> ElementForces<6> {
     let mut d = Vector3::zeros();
     let mut grads = [[Vec3::zeros(); 6]; 3];
     for k in (0..3).filter(|&k| m[(k, k)] != 0.0) {
@@ -280,12 +304,14 @@ pub fn curvature_bending_with(x: [Vec3; 6], rest_angles: [f64; 3], m: &Mat3, hes
     let md = m * d;
     let forces = std::array::from_fn(|a| -(grads[0][a] * md[0] + grads[1][a] * md[1] + grads[2][a] * md[2]));
     let energy = 0.5 * d.dot(&md);
-    if !hessian {
-        return ElementResponse { energy, forces, hessian: [[Mat3::zeros(); 6]; 6] };
-    }
+    let Some(hessian) = hessian else { return ElementForces { energy, forces } };
     let jt: [Mat3; 6] = std::array::from_fn(|a| Mat3::from_columns(&[grads[0][a], grads[1][a], grads[2][a]]));
-    let hessian = std::array::from_fn(|a| std::array::from_fn(|c| jt[a] * m * jt[c].transpose()));
-    ElementResponse { energy, forces, hessian }
+    for (a, row) in hessian.iter_mut().enumerate() {
+        for (c, block) in row.iter_mut().enumerate() {
+            *block = jt[a] * m * jt[c].transpose();
+        }
+    }
+    ElementForces { energy, forces }
 }
 
 /// Shortest length a half of a type-2 path counts as, in rest lengths
@@ -346,14 +372,18 @@ pub fn bend_triple_forces(x: [Vec3; 3], rest: f64, k_b: f64) -> ElementForces<3>
     bend_triple_into(x, rest, k_b, None)
 }
 
-/// [`bend_triple_with`]'s energy and forces, and its matrix into `hessian`
-/// when given (left as it was when the path is degenerate).
-fn bend_triple_into(x: [Vec3; 3], rest: f64, k_b: f64, hessian: Option<&mut [[Mat3; 3]; 3]>) -> ElementForces<3> {
+/// [`bend_triple_with`]'s energy and forces, and its matrix written into
+/// `hessian` when given (every block; zero when the rest length is not a
+/// positive length).
+pub fn bend_triple_into(x: [Vec3; 3], rest: f64, k_b: f64, hessian: Option<&mut [[Mat3; 3]; 3]>) -> ElementForces<3> {
     let zero = ElementForces { energy: 0.0, forces: [Vec3::zeros(); 3] };
     let (c, a, b) = (x[2] - x[0], x[1] - x[0], x[2] - x[1]);
     let (d, l1, l2) = (c.norm(), a.norm(), b.norm());
     let shortest = SHORTEST_HALF * rest;
     if !shortest.is_finite() || shortest <= 0.0 {
+        if let Some(hessian) = hessian {
+            *hessian = [[Mat3::zeros(); 3]; 3];
+        }
         return zero;
     }
     // Each half's length and its gradient (zero once held at `shortest`).

@@ -8,8 +8,8 @@
 //! its elements in a fixed order, as for links.
 
 use crate::element_laws::{
-    ElementForces, ElementResponse, TriangleRest, bend_triple_forces, bend_triple_with, curvature_bending_with,
-    membrane_triangle_with,
+    ElementForces, TriangleRest, bend_triple_forces, bend_triple_into, curvature_bending_into, curvature_bending_with,
+    membrane_triangle_into, membrane_triangle_with,
 };
 use crate::{Mat3, Vec3};
 use cloth_linalg::{BlockPattern, ROW_CHUNK};
@@ -178,13 +178,15 @@ impl<const K: usize> KindBuffers<K> {
 
     /// Evaluates `law(e, hessian)` for every element `e` with corners
     /// `nodes(e)`, in parallel, into right-hand sides and (with a Hessian)
-    /// blocks `c_x H_ab`.
+    /// blocks `c_x H_ab`. `law` writes every block of `H` into the buffer
+    /// it is given: built and returned, a matrix of `K x K` blocks was a
+    /// temporary copied twice (up to 2.6 kB an element).
     #[allow(clippy::too_many_arguments)]
     fn evaluate<E: Sync>(
         &mut self,
         elems: &[E],
         nodes: impl Fn(&E) -> [u32; K] + Sync,
-        law: impl Fn(&E) -> ElementResponse<K> + Sync,
+        law: impl Fn(&E, &mut [[Mat3; K]; K]) -> ElementForces<K> + Sync,
         forces_only: impl Fn(&E) -> ElementForces<K> + Sync,
         c_x: f64,
         force: f64,
@@ -197,13 +199,9 @@ impl<const K: usize> KindBuffers<K> {
                 .zip(elems.par_iter())
                 .with_min_len(ROW_CHUNK)
                 .for_each(|((out, blocks), e)| {
-                    let r = law(e);
-                    *out = fold(&r, &nodes(e), force, k_times);
-                    // In place: a mapped array is a temporary the size of
-                    // the whole matrix, then copied.
-                    for (to, from) in blocks.iter_mut().flatten().zip(r.hessian.iter().flatten()) {
-                        *to = from * c_x;
-                    }
+                    let r = law(e, blocks);
+                    *out = fold(&r, blocks, &nodes(e), force, k_times);
+                    blocks.iter_mut().flatten().for_each(|b| *b *= c_x);
                 });
         } else {
             self.rhs.par_iter_mut().zip(elems.par_iter()).with_min_len(ROW_CHUNK).for_each(|(out, e)| {
@@ -237,9 +235,10 @@ impl ElementBuffers {
     }
 }
 
-/// Folds a law's response into right-hand-side terms.
+/// Folds a law's forces and matrix `hessian` into right-hand-side terms.
 fn fold<const K: usize>(
-    r: &ElementResponse<K>,
+    r: &ElementForces<K>,
+    hessian: &[[Mat3; K]; K],
     nodes: &[u32; K],
     force: f64,
     k_times: Option<(f64, &[Vec3])>,
@@ -248,7 +247,7 @@ fn fold<const K: usize>(
         let mut v = r.forces[a] * force;
         if let Some((coef, w)) = k_times {
             for b in 0..K {
-                v -= r.hessian[a][b] * w[nodes[b] as usize] * coef;
+                v -= hessian[a][b] * w[nodes[b] as usize] * coef;
             }
         }
         v
@@ -272,7 +271,7 @@ pub fn evaluate(
     bufs.membranes.evaluate(
         &set.membranes,
         |m| m.nodes,
-        |m| membrane_triangle_with(at(&m.nodes), &m.rest, true),
+        |m, h| membrane_triangle_into(at(&m.nodes), &m.rest, Some(h)),
         |m| membrane_triangle_with(at(&m.nodes), &m.rest, false).into(),
         c_x,
         force,
@@ -281,7 +280,7 @@ pub fn evaluate(
     bufs.curvatures.evaluate(
         &set.curvatures,
         |e| e.nodes,
-        |e| curvature_bending_with(e.nodes.map(|p| x[p as usize]), e.rest_angles, &e.stiffness, true),
+        |e, h| curvature_bending_into(e.nodes.map(|p| x[p as usize]), e.rest_angles, &e.stiffness, Some(h)),
         |e| curvature_bending_with(e.nodes.map(|p| x[p as usize]), e.rest_angles, &e.stiffness, false).into(),
         c_x,
         force,
@@ -290,7 +289,7 @@ pub fn evaluate(
     bufs.triples.evaluate(
         &set.triples,
         |t| t.nodes,
-        |t| bend_triple_with(at(&t.nodes), t.rest, t.k_b, true),
+        |t, h| bend_triple_into(at(&t.nodes), t.rest, t.k_b, Some(h)),
         |t| bend_triple_forces(at(&t.nodes), t.rest, t.k_b),
         c_x,
         force,
