@@ -175,17 +175,12 @@ impl BlockSparseMatrix {
     #[inline]
     pub fn row_times(&self, i: usize, x: &[Vec3]) -> Vec3 {
         let range = self.pattern.row_range(i);
-        let (mut a0, mut a1, mut a2) = (0.0, 0.0, 0.0);
+        let mut a = [0.0; 3];
         for (b, &c) in self.values[range.clone()].iter().zip(&self.pattern.cols[range]) {
-            let xc = &x[c as usize];
-            let (x0, x1, x2) = (xc.x, xc.y, xc.z);
-            // Column-major 3x3 block times a 3-vector, written out.
-            let m = b.as_slice();
-            a0 += m[0] * x0 + m[3] * x1 + m[6] * x2;
-            a1 += m[1] * x0 + m[4] * x1 + m[7] * x2;
-            a2 += m[2] * x0 + m[5] * x1 + m[8] * x2;
+            let t = block_times(b, &x[c as usize]);
+            (a[0], a[1], a[2]) = (a[0] + t[0], a[1] + t[1], a[2] + t[2]);
         }
-        Vec3::new(a0, a1, a2)
+        Vec3::from(a)
     }
 
     /// `y = A x`, parallel over rows.
@@ -230,19 +225,13 @@ impl BlockSparseMatrix {
     #[inline]
     fn row_times_pair(&self, i: usize, x1: &[Vec3], x2: &[Vec3]) -> (Vec3, Vec3) {
         let range = self.pattern.row_range(i);
-        let (mut a0, mut a1, mut a2) = (0.0, 0.0, 0.0);
-        let (mut b0, mut b1, mut b2) = (0.0, 0.0, 0.0);
+        let (mut a, mut b) = ([0.0; 3], [0.0; 3]);
         for (blk, &c) in self.values[range.clone()].iter().zip(&self.pattern.cols[range]) {
-            let (u, v) = (&x1[c as usize], &x2[c as usize]);
-            let m = blk.as_slice();
-            a0 += m[0] * u.x + m[3] * u.y + m[6] * u.z;
-            a1 += m[1] * u.x + m[4] * u.y + m[7] * u.z;
-            a2 += m[2] * u.x + m[5] * u.y + m[8] * u.z;
-            b0 += m[0] * v.x + m[3] * v.y + m[6] * v.z;
-            b1 += m[1] * v.x + m[4] * v.y + m[7] * v.z;
-            b2 += m[2] * v.x + m[5] * v.y + m[8] * v.z;
+            let (t, u) = (block_times(blk, &x1[c as usize]), block_times(blk, &x2[c as usize]));
+            (a[0], a[1], a[2]) = (a[0] + t[0], a[1] + t[1], a[2] + t[2]);
+            (b[0], b[1], b[2]) = (b[0] + u[0], b[1] + u[1], b[2] + u[2]);
         }
-        (Vec3::new(a0, a1, a2), Vec3::new(b0, b1, b2))
+        (Vec3::from(a), Vec3::from(b))
     }
 
     /// `y = A x` and returns `x . y` (the curvature CG needs) in the same
@@ -270,6 +259,15 @@ impl BlockSparseMatrix {
             self.pattern.row_range(i).map(move |s| (i, self.pattern.cols[s] as usize, &self.values[s]))
         })
     }
+}
+
+/// A column-major 3x3 block times a 3-vector, written out (every product
+/// of the matrix sums these in column order, so two products agree bit
+/// for bit).
+#[inline]
+fn block_times(b: &Mat3, x: &Vec3) -> [f64; 3] {
+    let m = b.as_slice();
+    [m[0] * x.x + m[3] * x.y + m[6] * x.z, m[1] * x.x + m[4] * x.y + m[7] * x.z, m[2] * x.x + m[5] * x.y + m[8] * x.z]
 }
 
 /// Rows per leaf task of [`BlockSparseMatrix::fill_rows`].

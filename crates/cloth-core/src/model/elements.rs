@@ -8,8 +8,7 @@
 //! its elements in a fixed order, as for links.
 
 use crate::element_laws::{
-    ElementForces, TriangleRest, bend_triple_forces, bend_triple_into, curvature_bending_into, curvature_bending_with,
-    membrane_triangle_into, membrane_triangle_with,
+    ElementForces, TriangleRest, bend_triple_forces, bend_triple_into, curvature_bending_into, membrane_triangle_into,
 };
 use crate::{Mat3, Vec3};
 use cloth_linalg::{BlockPattern, ROW_CHUNK};
@@ -272,7 +271,7 @@ pub fn evaluate(
         &set.membranes,
         |m| m.nodes,
         |m, h| membrane_triangle_into(at(&m.nodes), &m.rest, Some(h)),
-        |m| membrane_triangle_with(at(&m.nodes), &m.rest, false).into(),
+        |m| membrane_triangle_into(at(&m.nodes), &m.rest, None),
         c_x,
         force,
         k_times,
@@ -281,7 +280,7 @@ pub fn evaluate(
         &set.curvatures,
         |e| e.nodes,
         |e, h| curvature_bending_into(e.nodes.map(|p| x[p as usize]), e.rest_angles, &e.stiffness, Some(h)),
-        |e| curvature_bending_with(e.nodes.map(|p| x[p as usize]), e.rest_angles, &e.stiffness, false).into(),
+        |e| curvature_bending_into(e.nodes.map(|p| x[p as usize]), e.rest_angles, &e.stiffness, None),
         c_x,
         force,
         k_times,
