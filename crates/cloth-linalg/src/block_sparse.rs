@@ -32,6 +32,8 @@ pub struct BlockPattern {
     row_ptr: Vec<usize>,
     cols: Vec<u32>,
     diag: Vec<usize>,
+    /// `mirror[slot(i, j)] = slot(j, i)`.
+    mirror: Vec<u32>,
 }
 
 impl BlockPattern {
@@ -58,7 +60,12 @@ impl BlockPattern {
             cols.extend_from_slice(&r);
             row_ptr.push(cols.len());
         }
-        Ok(Self { row_ptr, cols, diag })
+        let mut pattern = Self { row_ptr, cols, diag, mirror: Vec::new() };
+        pattern.mirror = (0..n)
+            .flat_map(|i| pattern.row_cols(i).iter().map(move |&j| (i, j as usize)))
+            .map(|(i, j)| pattern.slot(j, i).expect("both (i, j) and (j, i) were pushed") as u32)
+            .collect();
+        Ok(pattern)
     }
 
     /// Number of block rows.
@@ -76,6 +83,12 @@ impl BlockPattern {
         let r = self.row_range(i);
         let found = self.cols[r.clone()].binary_search(&(j as u32)).ok()?;
         Some(r.start + found)
+    }
+
+    /// Storage slot of block `(j, i)`, given the slot of `(i, j)` (the
+    /// pattern is structurally symmetric; a table built with it).
+    pub fn mirror_slot(&self, slot: usize) -> usize {
+        self.mirror[slot] as usize
     }
 
     /// Storage slot of the diagonal block `(i, i)`.
@@ -304,6 +317,11 @@ mod tests {
         assert_eq!(p.slot(0, 3), Some(2));
         assert_eq!(p.slot(1, 3), None);
         assert_eq!(p.diag_slot(2), p.slot(2, 2).unwrap());
+        for i in 0..p.n() {
+            for (slot, &j) in p.row_range(i).zip(p.row_cols(i)) {
+                assert_eq!(p.mirror_slot(slot), p.slot(j as usize, i).unwrap());
+            }
+        }
     }
 
     #[test]
