@@ -241,38 +241,13 @@ impl Pcg {
         if *revision != a.revision() {
             return false;
         }
-        let (mut o, mut n) = (old.iter().peekable(), self.projectors.iter().peekable());
-        loop {
-            let (i, same) = match (o.peek(), n.peek()) {
-                (None, None) => return true,
-                (Some(&&(i, _)), None) => {
-                    o.next();
-                    (i, false)
-                }
-                (None, Some(&&(i, _))) => {
-                    n.next();
-                    (i, false)
-                }
-                (Some(&&(i, si)), Some(&&(j, sj))) => match i.cmp(&j) {
-                    std::cmp::Ordering::Less => {
-                        o.next();
-                        (i, false)
-                    }
-                    std::cmp::Ordering::Greater => {
-                        n.next();
-                        (j, false)
-                    }
-                    std::cmp::Ordering::Equal => {
-                        o.next();
-                        n.next();
-                        (i, si.iter().zip(sj.iter()).all(|(p, q)| p.to_bits() == q.to_bits()))
-                    }
-                },
-            };
-            if !same {
-                self.changed.push(i);
-            }
-        }
+        // Released or turned (a free particle's projector is the identity,
+        // which no constraint's is), then added.
+        let same = |p: &Mat3, q: &Mat3| p.iter().zip(q.iter()).all(|(a, b)| a.to_bits() == b.to_bits());
+        let kept = |i: usize| old.binary_search_by_key(&i, |&(j, _)| j).is_ok();
+        self.changed.extend(old.iter().filter(|(i, s)| !same(&filter.projector(*i), s)).map(|&(i, _)| i));
+        self.changed.extend(self.projectors.iter().map(|&(i, _)| i).filter(|&i| !kept(i)));
+        true
     }
 
     /// Checks the inputs and computes the starting residual. Returns `None`
