@@ -213,8 +213,6 @@ pub const K_CYCLE_MIN_NODES: usize = 16_000;
 /// The coarsest level, solved directly.
 #[derive(Debug, Clone)]
 struct Coarsest {
-    /// Dimension of the dense operator (3 per node).
-    dim: usize,
     /// Dense operator, row-major, factorised in place: its lower triangle
     /// becomes the Cholesky factor `L`. Row-major so that the inner loops
     /// of [`cholesky_in_place`] run along rows (refactorised at every
@@ -225,6 +223,8 @@ struct Coarsest {
     factor_t: Vec<f64>,
     /// Whether the factorisation succeeded (else: block-Jacobi).
     ok: bool,
+    /// The solves' right-hand side and solution, and the factorisation's
+    /// scratch column (3 per node: the dense operator's dimension).
     rhs: Vec<f64>,
     inv_diag: Vec<Mat3>,
     b: Vec<Vec3>,
@@ -235,7 +235,6 @@ impl Coarsest {
     fn new(n: usize) -> Self {
         let dim = 3 * n;
         Self {
-            dim,
             factor: vec![0.0; dim * dim],
             factor_t: vec![0.0; dim * dim],
             ok: false,
@@ -249,7 +248,7 @@ impl Coarsest {
     /// Factorises `a` (block-Jacobi if it is not positive definite).
     fn update(&mut self, a: &BlockSparseMatrix) {
         inverse_diagonal(a, 1.0, &mut self.inv_diag);
-        let dim = self.dim;
+        let dim = self.rhs.len();
         self.factor.fill(0.0);
         for (i, j, b) in a.blocks() {
             for r in 0..3 {
@@ -260,11 +259,7 @@ impl Coarsest {
         }
         self.ok = cholesky_in_place(&mut self.factor, dim, &mut self.rhs);
         if self.ok {
-            for i in 0..dim {
-                for k in 0..=i {
-                    self.factor_t[k * dim + i] = self.factor[i * dim + k];
-                }
-            }
+            transpose_lower(&self.factor, dim, &mut self.factor_t);
         }
     }
 
@@ -730,6 +725,16 @@ fn cholesky_in_place(a: &mut [f64], n: usize, column: &mut [f64]) -> bool {
     true
 }
 
+/// `l_t = L^T` for the lower triangle `L` of the `n x n` row-major `l`
+/// (only `l_t`'s upper triangle is written).
+fn transpose_lower(l: &[f64], n: usize, l_t: &mut [f64]) {
+    for i in 0..n {
+        for k in 0..=i {
+            l_t[k * n + i] = l[i * n + k];
+        }
+    }
+}
+
 /// Solves `L L^T x = b` in place given `l_t`, the transpose of the factor
 /// from [`cholesky_in_place`] (row-major). The forward
 /// substitution runs by columns (`b_i -= L_ik b_k` for all `i > k` once
@@ -918,11 +923,7 @@ mod tests {
                 }
             }
             let mut l_t = vec![0.0; n * n];
-            for i in 0..n {
-                for k in 0..=i {
-                    l_t[k * n + i] = got[i * n + k];
-                }
-            }
+            transpose_lower(&got, n, &mut l_t);
             let b: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).sin() * 10f64.powi(i as i32 % 5)).collect();
             let (mut x_want, mut x_got) = (b.clone(), b);
             substitute(&want, &mut x_want);

@@ -349,15 +349,11 @@ impl Pcg {
                 (r_sq, rho) = self.step_fused(alpha, x);
             } else {
                 r_sq = self.advance(alpha, x);
-                // The loop's exits, before the preconditioner: its result
-                // would only serve a next direction (one cycle of five in a
-                // four-iteration solve).
-                if r_sq.is_finite() && r_sq <= tol_sq {
-                    break;
-                }
-                if r_sq.is_finite() && iterations == params.max_iter {
-                    let info = PcgInfo { iterations, rel_residual: r_sq.sqrt() / ref_norm, partial_refill };
-                    return Err(PcgError::NotConverged { info });
+                // The loop's exits (at its top) come before the
+                // preconditioner: its result would only serve a next
+                // direction (one cycle of five in a four-iteration solve).
+                if r_sq.is_finite() && (r_sq <= tol_sq || iterations == params.max_iter) {
+                    continue;
                 }
                 rho = self.precondition(a);
             }
