@@ -8,7 +8,7 @@ use crate::material::{Compressive, Lattice, Membrane, PATH_CURVATURE_FACTOR};
 use crate::seams::{self, SeamSpec, Stitch};
 use crate::{
     GridPanel, LinkType, Material, Pin, PinMotion, Vec3, Wind,
-    laws::{BucklingLaw, ScalarLaw, bilinear_spring, linear_spring},
+    laws::{BucklingLaw, BucklingLaws, ScalarLaw, bilinear_spring, linear_spring},
 };
 use cloth_linalg::{Aggregation, BlockPattern, Multigrid};
 use serde::{Deserialize, Serialize};
@@ -439,6 +439,7 @@ impl ClothModel {
         let mut elements = ElementSet::default();
         let mut bending_triangles = Vec::new();
         let mut drag = Vec::new();
+        let mut buckling = BucklingLaws::default();
         let damping = spec.effects.damping;
         // Volino's bending triangles need every adjacent pair to be a parallelogram.
         let diagonals =
@@ -498,7 +499,7 @@ impl ClothModel {
                     k_s,
                     compression: match spec.kind {
                         ModelKind::ChoiKo if path => {
-                            Compression::Buckling(BucklingLaw::new(rest, k_b, compressive.ratio * k_s))
+                            Compression::Buckling(buckling.law(rest, k_b, compressive.ratio * k_s))
                         }
                         ModelKind::ChoiKo | ModelKind::Volino => Compression::Linear(0.0),
                         ModelKind::Provot => Compression::Linear(k_s),
@@ -535,7 +536,7 @@ impl ClothModel {
                             k_b: PATH_CURVATURE_FACTOR * c.k_b,
                         }),
                         _ => {
-                            bend.push(BendLink { i, j, law: BendLaw::Buckling(BucklingLaw::new(rest, c.k_b, c.c_b)) });
+                            bend.push(BendLink { i, j, law: BendLaw::Buckling(buckling.law(rest, c.k_b, c.c_b)) });
                             bend_middle.push(link.middle.map(at));
                         }
                     }
