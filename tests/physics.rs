@@ -2,7 +2,9 @@
 //! energies, Jacobians against forces, momentum, free fall, resolution
 //! independence, stability at large steps, determinism and rollback.
 
-use cloth_core::forces::{SystemBuffers, SystemTerms, assemble, eval_link, potential_energy, total_forces};
+use cloth_core::forces::{
+    EnergyBuffers, SystemBuffers, SystemTerms, assemble, elastic_energy, eval_link, potential_energy, total_forces,
+};
 use cloth_core::{
     BendingLaw, ClothModel, Compression, Effects, GridPanel, IntegratorKind, LinkType, Mat3, Material, ModelKind,
     ModelSpec, PcgParams, Simulation, SolverParams, Vec3,
@@ -134,6 +136,32 @@ fn forces_are_minus_the_energy_gradient() {
     };
     assert!(!triples.is_empty() && !triples.iter().any(straight));
     assert_forces_are_energy_gradient(&model, &x);
+}
+
+/// The energy monitor's buffers hold no element Hessians
+/// (`ElementBuffers::forces_only`): its elastic energy is still the
+/// assembly's, bit for bit, for the arc-path triples and Volino's
+/// membranes and bending triangles; and its buffers refuse an assembly.
+#[test]
+fn energy_only_buffers_give_the_assemblys_elastic_energy_bit_for_bit() {
+    let mut rng = Rng(3);
+    let models = [small_model(true, false, true), small_model_of(ModelKind::Volino, true, false, true)];
+    for model in &models {
+        assert!(!model.elements().is_empty());
+        let x = perturbed(model, &mut rng, 2e-3);
+        let mut system = SystemBuffers::new(model);
+        assemble(model, &x, &SystemTerms::new(-1.0, 0.0, 0.0, &[]), &mut system);
+        let monitor = elastic_energy(model, &x, &[], &mut EnergyBuffers::new(model));
+        assert!(monitor > 0.0);
+        assert_eq!(monitor.to_bits(), system.elastic_energy().to_bits());
+    }
+    let set = models[0].elements();
+    let mut forces_only = cloth_core::elements::ElementBuffers::forces_only(set);
+    let x = models[0].rest_positions();
+    let refused = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        cloth_core::elements::evaluate(set, x, 1.0, 1.0, None, &mut forces_only)
+    }));
+    assert!(refused.is_err(), "an assembly into forces-only buffers must not pass silently");
 }
 
 fn x_dist(a: Vec3, b: Vec3) -> f64 {

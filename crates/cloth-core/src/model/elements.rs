@@ -171,8 +171,10 @@ struct KindBuffers<const K: usize> {
 }
 
 impl<const K: usize> KindBuffers<K> {
-    fn new(len: usize) -> Self {
-        Self { rhs: vec![ElementRhs::default(); len], blocks: vec![[[Mat3::zeros(); K]; K]; len] }
+    /// For `len` elements; their Hessian blocks only `with_hessians`.
+    fn new(len: usize, with_hessians: bool) -> Self {
+        let blocks = if with_hessians { len } else { 0 };
+        Self { rhs: vec![ElementRhs::default(); len], blocks: vec![[[Mat3::zeros(); K]; K]; blocks] }
     }
 
     /// Evaluates `law(e, hessian)` for every element `e` with corners
@@ -192,6 +194,7 @@ impl<const K: usize> KindBuffers<K> {
         k_times: Option<(f64, &[Vec3])>,
     ) {
         if c_x != 0.0 || k_times.is_some() {
+            assert_eq!(self.blocks.len(), elems.len(), "element Hessians asked of buffers built for forces only");
             self.rhs
                 .par_iter_mut()
                 .zip(self.blocks.par_iter_mut())
@@ -224,12 +227,24 @@ pub struct ElementBuffers {
 }
 
 impl ElementBuffers {
-    /// Buffers for `set`.
+    /// Buffers for `set`, for assemblies (forces and Hessians).
     pub fn new(set: &ElementSet) -> Self {
+        Self::sized(set, true)
+    }
+
+    /// Buffers for `set` for energies and forces only ([`evaluate`] with
+    /// `c_x = 0` and no `k_times`): without the Hessian blocks, up to
+    /// 36 `Mat3` an element (the 513 x 513 cloth's energy monitor held 340
+    /// MB of them, never written).
+    pub fn forces_only(set: &ElementSet) -> Self {
+        Self::sized(set, false)
+    }
+
+    fn sized(set: &ElementSet, with_hessians: bool) -> Self {
         Self {
-            membranes: KindBuffers::new(set.membranes.len()),
-            curvatures: KindBuffers::new(set.curvatures.len()),
-            triples: KindBuffers::new(set.triples.len()),
+            membranes: KindBuffers::new(set.membranes.len(), with_hessians),
+            curvatures: KindBuffers::new(set.curvatures.len(), with_hessians),
+            triples: KindBuffers::new(set.triples.len(), with_hessians),
         }
     }
 }

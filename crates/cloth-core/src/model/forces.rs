@@ -126,7 +126,7 @@ pub struct EnergyBuffers {
 impl EnergyBuffers {
     /// Buffers for `model`.
     pub fn new(model: &ClothModel) -> Self {
-        Self { link: vec![0.0; model.link_count()], elements: ElementBuffers::new(model.elements()) }
+        Self { link: vec![0.0; model.link_count()], elements: ElementBuffers::forces_only(model.elements()) }
     }
 }
 
@@ -210,7 +210,7 @@ pub struct ForceBuffers {
 impl ForceBuffers {
     /// Buffers for `model`.
     pub fn new(model: &ClothModel) -> Self {
-        Self { link: vec![Vec3::zeros(); model.link_count()], elements: ElementBuffers::new(model.elements()) }
+        Self { link: vec![Vec3::zeros(); model.link_count()], elements: ElementBuffers::forces_only(model.elements()) }
     }
 }
 
