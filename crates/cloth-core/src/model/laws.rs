@@ -232,23 +232,13 @@ impl BucklingLaw {
 /// (the 513 x 513 one 20 s). The same arguments give the same law, so a
 /// remembered one is the same bits.
 #[derive(Debug, Default)]
-pub struct BucklingLaws(std::collections::HashMap<[u64; 3], BucklingLaw>);
+pub(crate) struct BucklingLaws(std::collections::HashMap<[u64; 3], BucklingLaw>);
 
 impl BucklingLaws {
     /// `BucklingLaw::new(rest, k_b, c_b)`, built once per distinct triple.
-    pub fn law(&mut self, rest: f64, k_b: f64, c_b: f64) -> BucklingLaw {
+    pub(crate) fn law(&mut self, rest: f64, k_b: f64, c_b: f64) -> BucklingLaw {
         let key = [rest, k_b, c_b].map(f64::to_bits);
         *self.0.entry(key).or_insert_with(|| BucklingLaw::new(rest, k_b, c_b))
-    }
-
-    /// How many distinct laws were built.
-    pub fn len(&self) -> usize {
-        self.0.len()
-    }
-
-    /// Whether none was built yet.
-    pub fn is_empty(&self) -> bool {
-        self.0.is_empty()
     }
 }
 
@@ -356,7 +346,7 @@ mod tests {
                 assert_eq!(laws.law(l, k_b, c_b), BucklingLaw::new(l, k_b, c_b));
             }
         }
-        assert_eq!(laws.len(), 9);
+        assert_eq!(laws.0.len(), 9, "one law per distinct triple");
     }
 
     #[test]
