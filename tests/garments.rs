@@ -47,8 +47,9 @@ struct Worn {
     deepest: f64,
     /// Largest link stretch from the end of the stand (0.6 s) on.
     stretch: f64,
-    /// Steps at which a link was stretched beyond 1.2.
-    over: usize,
+    /// Mean over the steps from the end of the stand on of each step's
+    /// largest link stretch: how stretched the worn garment typically is.
+    typical: f64,
     /// Largest link stretch before the end of the stand, when garments are sewn.
     sewing: f64,
     /// Closest particle to a triangle not linked to it (every third step), m.
@@ -72,7 +73,7 @@ fn wear(scene: &str, on: &str, overrides: &[&str]) -> Worn {
     let link = run.rig.as_ref().unwrap().body(on).unwrap();
     let sewn_at = (0.6 / run.config.dt_s).round() as u64;
     let mut seam_gap: f64 = 0.0;
-    let mut over = 0;
+    let mut stretch_sum = 0.0;
     let mut sewing: f64 = 0.0;
     let thickness = run.cloths[run.cloth].simulation().model().self_collision().unwrap().thickness_m;
     let (mut deepest, mut stretch, mut closest): (f64, f64, f64) = (0.0, 0.0, f64::INFINITY);
@@ -86,7 +87,7 @@ fn wear(scene: &str, on: &str, overrides: &[&str]) -> Worn {
         let now = sim.model().max_stretch_ratio(x);
         if step >= sewn_at {
             stretch = stretch.max(now);
-            over += usize::from(now > 1.2);
+            stretch_sum += now;
         } else {
             sewing = sewing.max(now);
         }
@@ -104,13 +105,14 @@ fn wear(scene: &str, on: &str, overrides: &[&str]) -> Worn {
             high = high.max(local.z);
         }
     }
+    let typical = stretch_sum / run.config.steps.saturating_sub(sewn_at).max(1) as f64;
     println!(
-        "{scene}: deepest {deepest:.2e} m, stretch {stretch:.4} ({over} steps over 1.2; {sewing:.4} while \
+        "{scene}: deepest {deepest:.2e} m, stretch {stretch:.4} (typically {typical:.4}; {sewing:.4} while \
          sewn), closest particle-triangle {closest:.4} m \
          (thickness {thickness}), radial {radial:.3} m, z {low:.3}..{high:.3} m about the {on}, \
          seams within {seam_gap:.4} m"
     );
-    Worn { deepest, stretch, over, sewing, closest, thickness, radial, low, high, seam_gap, run }
+    Worn { deepest, stretch, typical, sewing, closest, thickness, radial, low, high, seam_gap, run }
 }
 
 impl Worn {
@@ -135,7 +137,7 @@ impl Worn {
 /// Over the stand and two and a half walk cycles the skirt stays on
 /// ([`Worn::assert_stays_on`]: within 0.35 m of the pelvis's axis, from
 /// 0.40 m below the hip joints (the hem hangs 0.37 m below them) to 0.15 m
-/// above; measured: nothing inside a link, stretch 1.0654, closest 36 mm:
+/// above; measured: nothing inside a link, stretch 1.0562, closest 36 mm:
 /// this skirt's folds do not close, radial 0.325 m, down to 0.372 m) and
 /// walks the 2.5 m with the mannequin (centroid within 2 cm of the hips'
 /// x; measured 0.2 mm).
@@ -154,7 +156,7 @@ fn the_skirt_stays_on_the_walking_mannequin() {
 }
 
 /// Through two looped quarter turns with the arms raised and lowered the
-/// skirt stays on (measured: stretch 1.0520) and turns with the hips: the
+/// skirt stays on (measured: stretch 1.0595) and turns with the hips: the
 /// mannequin ends half a turn round, and so does the skirt's seam.
 #[test]
 fn the_skirt_turns_with_the_mannequin() {
@@ -200,77 +202,85 @@ impl Worn {
     /// Sewn garments: the seams closed while the mannequin stood and stay
     /// closed within `gap` m (the contact thickness is 5 mm), the panels
     /// stretched less than `sewing` while they were drawn together, and
-    /// the worn garment's links beyond 1.2 at `over` steps at most.
-    fn assert_sewn(&self, gap: f64, sewing: f64, over: usize) {
+    /// the worn garment's largest link stretch below `typical` on average
+    /// over the steps (a garment's edge may stay stretched where it is
+    /// caught on a link: its peak is [`Worn::assert_stays_on`]'s).
+    fn assert_sewn(&self, gap: f64, sewing: f64, typical: f64) {
         assert!(self.seam_gap < gap, "a seam opened to {} m", self.seam_gap);
         assert!(self.sewing < sewing, "stretched to {} while sewn", self.sewing);
-        assert!(self.over <= over, "{} steps beyond stretch 1.2", self.over);
+        assert!(self.typical < typical, "typically stretched to {}", self.typical);
     }
 }
 
 /// The top, sewn from a tube and two straps while the mannequin stands,
 /// stays on through two and a half walk cycles held by its straps alone
 /// (in the torso's frame, whose origin is the waist joint: measured
-/// nothing inside a link, stretch 1.244, 13 of 216 steps beyond 1.2 (the
-/// straps' inner edges where they cross the ridge of the shoulder line,
-/// under the single linearised step: issue 10), 1.225 while sewn, closest
-/// particle-triangle 7.5 mm, 0.283 m from the torso's axis, 0.006 m below
+/// nothing inside a link, stretch 1.273 (the straps' inner edges where
+/// they cross the ridge of the shoulder line, under the single linearised
+/// step: issue 10), typically 1.109, 1.150 while sewn, closest
+/// particle-triangle 7.3 mm, 0.283 m from the torso's axis, 0.003 m below
 /// the waist joint to 0.504 m above it, seams within 0.1 mm). The limits
 /// cover what the walk does within the solve's tolerance, not one
 /// trajectory: at `rel_tol` 1e-3, 3e-4, 1e-4 and 1e-5 over three versions
 /// of the multigrid and three of the contact response (`cloth run ... --set
-/// solver.rel_tol=`), the worn top reached 1.244-1.362 with 13-32 steps
-/// beyond 1.2, 1.153-1.289 while sewn.
+/// solver.rel_tol=`), the worn top reached 1.244-1.362, 1.153-1.289 while
+/// sewn; with held contacts kept from bouncing (the fourth response) 1.268-1.293,
+/// typically 1.109-1.118, 1.150-1.191 while sewn.
 #[test]
 fn the_sewn_top_stays_on_the_walking_mannequin() {
     let worn = wear("top-walk.toml", "torso", &[]);
     worn.assert_stays_on(1.37, 0.30, [-0.05, 0.55]);
-    worn.assert_sewn(1e-3, 1.32, 32);
+    worn.assert_sewn(1e-3, 1.32, 1.13);
 }
 
 /// The one-piece: the top with a skirt gathered onto its lower edge
-/// (measured: stretch 1.268, 3 steps beyond 1.2, 1.455 while sewn,
-/// closest 4.7 mm, 0.414 m out, from 0.627 m below the waist joint, seams
-/// within 0.2 mm). While it is sewn the stitches draw the tube's lower
-/// edge down over the pelvis box, which is wider than the tube, and the
-/// edge's links stretch: 2.45 when open stitches pulled with the seam's
-/// full strength, 1.35 with the sewing pull (a quarter of it) until each
-/// stitch has closed. Worn, the skirt catches on the swinging thighs now
-/// and then, and how far it stretches then is chaotic in the solve's
-/// error: at `rel_tol` 1e-3, 3e-4, 1e-4 and 1e-5, with the multigrid
-/// before and after its W-cycle, the worn one-piece reached 1.215-1.670
-/// with 2-50 steps beyond 1.2 (1.329-1.393 while sewn). The rough solves
-/// while the contact set settles (`solver.settling_iterations` 4) move
-/// that spread: 1.205-1.359 worn with 2-16 steps beyond 1.2, 1.352-1.455
-/// while sewn (the scene's 1e-3: 1.455, 3e-4: 1.352, 1e-4: 1.422, 1e-5:
-/// 1.353; 1.352 at 0 with 1e-3). The 1.455 is one step, 0.36 s in, of
-/// a strap's link on the shoulder, which jumps between 0.89 and 1.46
-/// from step to step while the skirt's stitches close (the garment's
-/// links jitter as much at 0: the largest step-to-step second difference
-/// of a link's stretch over the first 1.2 s is 0.67 at 0, 0.80 at 4).
-/// The limits are those spreads'.
+/// (measured: stretch 1.423, typically 1.262, 1.414 while sewn, closest
+/// 6.7 mm, 0.402 m out, from 0.627 m below the waist joint, seams within
+/// 0.7 mm). While it is sewn the stitches draw the tube's lower edge down
+/// over the pelvis box, which is wider than the tube, and the edge's
+/// links stretch: 2.45 when open stitches pulled with the seam's full
+/// strength, 1.35 with the sewing pull (a quarter of it) until each
+/// stitch has closed. Worn, the tube's edge may stay caught over the hip,
+/// sliding against friction (mu 0.3) with the body, one link at about
+/// 1.25 for the whole walk, and the skirt catches on the swinging thighs
+/// now and then; whether and how long it is caught is chaotic in the
+/// solve's error. At `rel_tol` 2e-3, 1e-3, 7e-4, 5e-4, 3e-4, 2e-4, 1e-4
+/// and 1e-5, and at 1e-3 with `solver.settling_iterations` 0 and 6 (the
+/// scene's 4), the worn one-piece reached 1.259-1.464, typically
+/// 1.132-1.262 (the scene's own run is the one caught all walk: 216 of
+/// 216 steps beyond 1.2, against 5-155 in the others), 1.356-1.414 while
+/// sewn (at the four tolerances 1e-3 to 1e-5). Before held contacts were
+/// kept from bouncing the contact held every other step and its friction
+/// with it: then the same walk typically stretched to 1.13-1.16, and as
+/// much as 1.15 with half the friction on the new response (mu 0.15: 30
+/// steps beyond 1.2; mu 0: 1 step). The 1.455 while sewn the sewing
+/// limit allows was one step of a strap's link on the shoulder, which
+/// jumps between 0.89 and 1.46 from step to step while the skirt's
+/// stitches close.
 #[test]
 fn the_sewn_one_piece_stays_on_the_walking_mannequin() {
     let worn = wear("one-piece-walk.toml", "torso", &[]);
-    worn.assert_stays_on(1.7, 0.45, [-0.65, 0.55]);
-    worn.assert_sewn(1e-3, 1.46, 50);
+    worn.assert_stays_on(1.5, 0.45, [-0.65, 0.55]);
+    worn.assert_sewn(1e-3, 1.46, 1.27);
 }
 
 /// Volino's and Provot's models wear the sewn top too (their membranes,
 /// hinges and flexion springs stop at the seams as Choi & Ko's links do):
-/// measured, nothing inside a link, seams within 0.1 mm, every particle
-/// where the top is worn; stretch while sewn and worn 1.103 and 1.079
-/// (volino), 1.126 and 1.107 (provot), 0 steps beyond 1.2. Limits from
-/// the spread at `rel_tol` 1e-3, 3e-4, 1e-4 and 1e-5 over three versions
-/// of the multigrid and three of the contact response: volino
-/// 1.072-1.103 sewn, 1.067-1.314 worn (0-2 steps beyond 1.2); provot
-/// 1.105-1.127 and 1.107-1.240 (0-2 steps): one trajectory in four
-/// reaches each worn peak.
+/// measured, nothing inside a link, seams within 0.2 mm, every particle
+/// where the top is worn; stretch while sewn and worn 1.071 and 1.089,
+/// typically 1.058 (volino), 1.108 and 1.113, typically 1.097 (provot).
+/// Limits from the spread at `rel_tol` 1e-3, 3e-4, 1e-4 and 1e-5 over
+/// three versions of the multigrid and three of the contact response:
+/// volino 1.072-1.103 sewn, 1.067-1.314 worn; provot 1.105-1.127 and
+/// 1.107-1.240: one trajectory in four reaches each worn peak; with held
+/// contacts kept from bouncing volino 1.071-1.082 and 1.089-1.127,
+/// typically 1.058-1.061, provot 1.108-1.127 and 1.105-1.113, typically
+/// 1.094-1.097.
 #[test]
 fn the_sewn_top_stays_on_in_every_model() {
-    for (model, sewing, worn_stretch) in [("volino", 1.11, 1.32), ("provot", 1.13, 1.25)] {
+    for (model, sewing, worn_stretch, typical) in [("volino", 1.11, 1.32, 1.07), ("provot", 1.13, 1.25, 1.10)] {
         let worn = wear("top-walk.toml", "torso", &[&format!("simulation.model=\"{model}\"")]);
         worn.assert_stays_on(worn_stretch, 0.30, [-0.05, 0.55]);
-        worn.assert_sewn(1e-3, sewing, 2);
+        worn.assert_sewn(1e-3, sewing, typical);
     }
 }

@@ -4,7 +4,7 @@
 use crate::contacts::{
     ContactBuffers, ContactStats, FrictionMode, add_penetrating, apply_friction, constrain_contacts,
     detect_self_contacts, detect_solid_contacts, linearise_squeeze_friction, project_out, release_pulling,
-    separate_self_contacts, squeeze_friction_forces, stick_frictional_contacts, stick_or_slide,
+    separate_self_contacts, squeeze_friction_forces, stick_frictional_contacts, stick_or_slide, stop_separation,
 };
 use crate::control::{Control, PinPaths};
 use crate::energy::{self, EnergyReport};
@@ -797,6 +797,10 @@ fn uncommitted_step<S: Linearised>(
         squeeze_friction_forces(solid, &ws.new_v);
     }
     stats.sticking = apply_friction(solid, model.masses(), (tau, h), newton, &mut ws.new_x, &mut ws.new_v);
+    if !newton {
+        // Held particles do not bounce off their solid.
+        stop_separation(solid, model.masses(), &mut ws.new_v);
+    }
     if let Some(sc) = model.self_collision() {
         let pairs = &ws.contacts.self_pairs;
         stats.self_separations = separate_self_contacts(model, sc, pairs, tau, &mut ws.new_x, &mut ws.new_v);

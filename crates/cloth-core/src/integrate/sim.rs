@@ -2,7 +2,7 @@
 //! its scratch space.
 
 use crate::apply_strain_limit;
-use crate::contacts::{max_penetration, project_out};
+use crate::contacts::{max_penetration, project_out, restart_history_at_contacts};
 use crate::control::{Control, ControlError, SolidImpulse, SolidMotion};
 use crate::{ClothModel, ClothState, Integrator, IntegratorKind, SolverParams, StepError, StepReport, Vec3, Workspace};
 use std::sync::Arc;
@@ -49,6 +49,14 @@ impl Simulation {
                 report.contacts.projected += project_out(&self.model, x_prev, (*time_s - h, h), contacts, true, x, v);
             }
             report.stages.update_s += t.elapsed().as_secs_f64();
+        }
+        // After every correction of the step (the projection above sweeps
+        // from `x_prev`, the start of the step); not after Newton
+        // iterations, whose solids are penalties.
+        let linearised = matches!(self.integrator.kind(), IntegratorKind::Bdf2 | IntegratorKind::BackwardEuler);
+        if linearised && report.newton.is_none() {
+            let ClothState { x, v, x_prev, v_prev, .. } = &mut self.state;
+            restart_history_at_contacts(&self.workspace.contacts.solid, h, (x, v), (x_prev, v_prev));
         }
         self.model.close_stitches(&self.state.x, &mut self.state.stitches_closed);
         Ok(report)
