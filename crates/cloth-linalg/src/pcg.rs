@@ -39,6 +39,14 @@ impl Default for PcgParams {
     }
 }
 
+impl PcgParams {
+    /// The squared residual norm a solve stops at, `rel_tol^2 |r_ref|^2`,
+    /// from the reference's squared norm `ref_sq`.
+    fn stop_sq(&self, ref_sq: f64) -> f64 {
+        self.rel_tol * self.rel_tol * ref_sq
+    }
+}
+
 /// What a solve did.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct PcgInfo {
@@ -320,7 +328,7 @@ impl Pcg {
             return Err(PcgError::NoMultigridHierarchy);
         }
         let ref_norm = ref_sq.sqrt();
-        let tol_sq = params.rel_tol * params.rel_tol * ref_sq;
+        let tol_sq = params.stop_sq(ref_sq);
         self.precond.apply(a, &self.r, &mut self.s);
         self.c.copy_from_slice(&self.s);
         filter.project(&mut self.c);
@@ -438,7 +446,7 @@ impl Pcg {
 /// contact step's last check of its settled set is often such a solve
 /// (about a third of an iteration's time went to the set-up).
 fn converged_at_start(params: &PcgParams, (ref_sq, r_sq): (f64, f64)) -> Option<PcgInfo> {
-    let converged = r_sq <= params.rel_tol * params.rel_tol * ref_sq;
+    let converged = r_sq <= params.stop_sq(ref_sq);
     converged.then(|| PcgInfo { iterations: 0, rel_residual: r_sq.sqrt() / ref_sq.sqrt(), partial_refill: false })
 }
 
