@@ -18,7 +18,7 @@ mod precond;
 pub use block_sparse::{BlockPattern, BlockSparseMatrix, PatternError};
 pub use cg::{CgScratch, cg_fixed_iterations};
 pub use filter::{Constraint, ConstraintFilter, FilterError};
-pub use multigrid::{Aggregation, Cycle, K_CYCLE_MIN_NODES, Multigrid, MultigridError};
+pub use multigrid::{Aggregation, Cycle, K_CYCLE_MIN_NODES, Multigrid, MultigridError, SMOOTHED_MIN_NODES};
 pub use par::{ROW_CHUNK, dot};
 pub use pcg::{Pcg, PcgError, PcgInfo, PcgParams};
 pub use precond::{Preconditioner, PreconditionerKind};

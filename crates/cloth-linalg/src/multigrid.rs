@@ -40,6 +40,19 @@
 //! visits every coarse level twice as often, so in the caches it loses to
 //! the W-cycle; [`Multigrid::new`] takes it from [`K_CYCLE_MIN_NODES`].
 //!
+//! **A smoothed first level on large grids.** The K-cycle's iterations
+//! still grow where the stiffness outweighs the mass more and more (`h^2 k
+//! / m` per node quadruples with each refinement): on the hanging cloth
+//! 10.7 CG a step at 257 x 257, 19.4 at 513 x 513. The plain aggregates'
+//! piecewise-constant correction is what degrades, not the smoother or the
+//! depth (docs/results/solver-before-after.md, session 30).
+//! [`Multigrid::smoothed`] puts a smoothed-aggregation level (Vaněk,
+//! Mandel & Brezina 1996) above the plain hierarchy: 7.6 CG a step at 513
+//! x 513, 30% less time a step. Its update costs about ten products with
+//! the fine operator and has no partial refill, so models with solids
+//! (contact passes) keep the plain hierarchy, and it pays only from
+//! [`SMOOTHED_MIN_NODES`].
+//!
 //! **Single-precision operators for large levels.** A cycle reads each
 //! level's matrix twice (the residuals after pre- and post-smoothing), PCG
 //! once more for its own product: beyond the caches a step is bound by
@@ -62,6 +75,8 @@ use crate::{
     par::{ROW_CHUNK, chunk_count, dot_with},
 };
 use rayon::prelude::*;
+
+mod smoothed;
 
 /// One level's grouping of nodes: `coarse_of[i]` is node `i`'s aggregate.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -175,6 +190,9 @@ pub struct Multigrid {
     cycle: Cycle,
     /// The finest operator's changed slots in a partial refill.
     fine_dirty: Vec<Dirty>,
+    /// A smoothed-aggregation finest level in place of `levels` and
+    /// `coarsest` (see [`Multigrid::smoothed`]).
+    smoothed: Option<Box<smoothed::SmoothedFirst>>,
 }
 
 /// A slot of a level's operator that a partial refill recomputes: `(slot,
@@ -209,6 +227,18 @@ pub enum Cycle {
 /// few iterations each, which a stronger cycle does not shorten); the
 /// Table-1 one-piece 43.5 -> 40.4 CG, 25% more solve time.
 pub const K_CYCLE_MIN_NODES: usize = 16_000;
+
+/// Fine-level nodes from which a hierarchy solved once per update is worth
+/// a smoothed first level ([`Multigrid::smoothed`]; `ClothModel::multigrid`
+/// takes it for models without solids). Measured on the hanging cloth
+/// (BDF2 at 1/90 s, PCG to 1e-3, 0.2 s, 2 threads; CG a step and ms a step,
+/// plain K-cycle -> smoothed): 129 x 129 8.7 -> 6.3 CG, 74-75 -> 100-102
+/// ms; 257 x 257 10.7 -> 6.7 CG, 442-454 -> 468-517 ms; 513 x 513 19.4 ->
+/// 7.6 CG, 2,429 -> 1,714 ms. Each update costs about ten products with
+/// the fine operator and each cycle reads a first coarse operator of 24.5
+/// blocks a row: below some 100,000 nodes the saved iterations do not pay
+/// for them.
+pub const SMOOTHED_MIN_NODES: usize = 100_000;
 
 /// The coarsest level, solved directly.
 #[derive(Debug, Clone)]
@@ -374,20 +404,12 @@ impl Multigrid {
         aggregations: &[Aggregation],
         blocks: usize,
     ) -> Result<Self, MultigridError> {
+        check_aggregations(fine.n(), aggregations)?;
         let mut levels = Vec::new();
         let mut pattern = fine.clone();
         for (l, agg) in aggregations.iter().enumerate() {
             let n = pattern.n();
-            if agg.coarse_of.len() != n {
-                return Err(MultigridError::SizeMismatch { level: l, expected: n, got: agg.coarse_of.len() });
-            }
-            if agg.coarse_of.iter().any(|&c| c as usize >= agg.n_coarse) {
-                return Err(MultigridError::BadAggregate { level: l });
-            }
             let members = Gather::new(agg.coarse_of.iter().map(|&c| c as usize), agg.n_coarse);
-            if (0..agg.n_coarse).any(|c| members.sources(c).is_empty()) {
-                return Err(MultigridError::BadAggregate { level: l });
-            }
             let pairs: Vec<(usize, usize)> = (0..n)
                 .flat_map(|i| pattern.row_cols(i).iter().map(move |&j| (i, j as usize)))
                 .map(|(i, j)| (agg.coarse_of[i] as usize, agg.coarse_of[j] as usize))
@@ -422,7 +444,52 @@ impl Multigrid {
             pattern = coarse_pattern;
         }
         let cycle = if fine.n() >= K_CYCLE_MIN_NODES { Cycle::K } else { Cycle::W };
-        Ok(Self { levels, coarsest: Coarsest::new(pattern.n()), omega: OMEGA, cycle, fine_dirty: Vec::new() })
+        let coarsest = Coarsest::new(pattern.n());
+        Ok(Self { levels, coarsest, omega: OMEGA, cycle, fine_dirty: Vec::new(), smoothed: None })
+    }
+
+    /// A hierarchy whose finest level is smoothed aggregation (`P = (I -
+    /// omega_p D^-1 A_f) P_0` over `aggregations[0]`, `A_c = P^T A P`)
+    /// above the plain K-cycle hierarchy of `A_c` over the other
+    /// aggregations (see the `smoothed` module). Its iterations stay nearly
+    /// flat as the grid is refined where the plain hierarchy's grow; each
+    /// [`Multigrid::update`] costs about ten products with `A`, and
+    /// [`Multigrid::update_rows`] refills it whole, so it pays on large
+    /// matrices solved once per update, not for contact passes. The first
+    /// update fixes which couplings are strong. Without aggregations it is
+    /// [`Multigrid::new`]'s direct solve. The first update panics if a row
+    /// of `P`, `A P` or `P^T A P` would meet more than 255 aggregates (a
+    /// cloth's meet 4, 16 and 25-50).
+    pub fn smoothed(fine: &BlockPattern, aggregations: &[Aggregation]) -> Result<Self, MultigridError> {
+        Self::smoothed_with_single_precision_from(fine, aggregations, SINGLE_MIN_BLOCKS)
+    }
+
+    /// As [`Multigrid::smoothed`], with `f32` copies of the operators of at
+    /// least `blocks` blocks for the cycle's residuals.
+    pub fn smoothed_with_single_precision_from(
+        fine: &BlockPattern,
+        aggregations: &[Aggregation],
+        blocks: usize,
+    ) -> Result<Self, MultigridError> {
+        check_aggregations(fine.n(), aggregations)?;
+        if aggregations.is_empty() {
+            return Self::with_single_precision_from(fine, aggregations, blocks);
+        }
+        let first = smoothed::SmoothedFirst::new(aggregations, blocks);
+        Ok(Self {
+            levels: Vec::new(),
+            coarsest: Coarsest::new(0),
+            omega: OMEGA,
+            cycle: Cycle::K,
+            fine_dirty: Vec::new(),
+            smoothed: Some(Box::new(first)),
+        })
+    }
+
+    /// Sets the smoother's damping directly (the smoothed level hands its
+    /// own to the hierarchy below it).
+    fn set_omega(&mut self, omega: f64) {
+        self.omega = omega;
     }
 
     /// Sets the smoother's damping for a matrix assembled from PSD element
@@ -444,17 +511,15 @@ impl Multigrid {
     /// definite: it is block-Jacobi on a coarser partition, and an element
     /// touches no more blocks than before.
     pub fn with_pairs(mut self, pairs: &[(usize, usize)]) -> Self {
+        if let Some(first) = &mut self.smoothed {
+            if let Some(partner) = partners(first.fine_n(), pairs) {
+                first.set_partner(partner);
+            }
+            return self;
+        }
         let Some(first) = self.levels.first_mut() else { return self };
         let n = first.inv_diag.len();
-        let mut partner: Vec<u32> = (0..n as u32).collect();
-        let mut any = false;
-        for &(i, j) in pairs {
-            if i < n && j < n && i != j && partner[i] as usize == i && partner[j] as usize == j {
-                (partner[i], partner[j]) = (j as u32, i as u32);
-                any = true;
-            }
-        }
-        if any {
+        if let Some(partner) = partners(n, pairs) {
             first.pairs = Some((partner, vec![Mat3::zeros(); n]));
         }
         self
@@ -470,17 +535,26 @@ impl Multigrid {
     /// Whether [`Multigrid::apply`] is a nonlinear function of its input
     /// (the K-cycle): PCG must then use the flexible update.
     pub fn is_nonlinear(&self) -> bool {
-        self.cycle == Cycle::K && self.levels.len() > 1
+        self.smoothed.is_some() || self.cycle == Cycle::K && self.levels.len() > 1
+    }
+
+    /// Whether the finest level is smoothed aggregation ([`Multigrid::smoothed`]).
+    pub fn is_smoothed(&self) -> bool {
+        self.smoothed.is_some()
     }
 
     /// Number of levels including the finest.
     pub fn depth(&self) -> usize {
-        self.levels.len() + 1
+        self.smoothed.as_ref().map_or(self.levels.len() + 1, |first| first.depth())
     }
 
     /// Rebuilds every level's operator from the fine matrix `a`.
     pub fn update(&mut self, a: &BlockSparseMatrix) {
         let omega = self.omega;
+        if let Some(first) = &mut self.smoothed {
+            first.update(a, omega);
+            return;
+        }
         for l in 0..self.levels.len() {
             let (done, rest) = self.levels.split_at_mut(l);
             let fine = if l == 0 { a } else { &done[l - 1].coarse };
@@ -515,6 +589,10 @@ impl Multigrid {
     /// touches more than a quarter of the blocks refills everything.
     /// Returns whether the refill was partial.
     pub fn update_rows(&mut self, a: &BlockSparseMatrix, changed: &[usize]) -> bool {
+        if self.smoothed.is_some() {
+            self.update(a);
+            return false;
+        }
         let pattern = a.pattern();
         let mut dirty = std::mem::take(&mut self.fine_dirty);
         dirty.clear();
@@ -585,6 +663,10 @@ impl Multigrid {
     /// `z = B r`, one cycle: a symmetric positive definite approximation
     /// of `A^-1 r` for the matrix last passed to [`Multigrid::update`].
     pub fn apply(&mut self, a: &BlockSparseMatrix, r: &[Vec3], z: &mut [Vec3]) {
+        if let Some(first) = &mut self.smoothed {
+            first.apply(a, r, z);
+            return;
+        }
         let Some(first) = self.levels.first_mut() else {
             self.coarsest.b.copy_from_slice(r);
             self.coarsest.solve();
@@ -595,6 +677,42 @@ impl Multigrid {
         cycle(&mut self.levels, &mut self.coarsest, a, true, self.cycle);
         z.copy_from_slice(&self.levels[0].x);
     }
+}
+
+/// Checks that `aggregations[l]` maps the nodes of level `l` (`n` on the
+/// finest, the previous aggregation's aggregates below) onto non-empty
+/// aggregates in range.
+fn check_aggregations(n: usize, aggregations: &[Aggregation]) -> Result<(), MultigridError> {
+    let mut expected = n;
+    for (level, agg) in aggregations.iter().enumerate() {
+        if agg.coarse_of.len() != expected {
+            return Err(MultigridError::SizeMismatch { level, expected, got: agg.coarse_of.len() });
+        }
+        let mut used = vec![false; agg.n_coarse];
+        for &c in &agg.coarse_of {
+            *used.get_mut(c as usize).ok_or(MultigridError::BadAggregate { level })? = true;
+        }
+        if used.contains(&false) {
+            return Err(MultigridError::BadAggregate { level });
+        }
+        expected = agg.n_coarse;
+    }
+    Ok(())
+}
+
+/// Each of `n` nodes' partner in `pairs` (itself when unpaired; pairs that
+/// repeat a node or are out of range are skipped), or `None` when no pair
+/// is kept.
+fn partners(n: usize, pairs: &[(usize, usize)]) -> Option<Vec<u32>> {
+    let mut partner: Vec<u32> = (0..n as u32).collect();
+    let mut any = false;
+    for &(i, j) in pairs {
+        if i < n && j < n && i != j && partner[i] as usize == i && partner[j] as usize == j {
+            (partner[i], partner[j]) = (j as u32, i as u32);
+            any = true;
+        }
+    }
+    any.then_some(partner)
 }
 
 /// `levels[0].x = B levels[0].b`: pre-smooth from zero, correct from the

@@ -10,7 +10,7 @@ use crate::{
     GridPanel, LinkType, Material, Pin, PinMotion, Vec3, Wind,
     laws::{BucklingLaw, BucklingLaws, ScalarLaw, bilinear_spring, linear_spring},
 };
-use cloth_linalg::{Aggregation, BlockPattern, Multigrid};
+use cloth_linalg::{Aggregation, BlockPattern, Multigrid, SMOOTHED_MIN_NODES};
 use serde::{Deserialize, Serialize};
 
 /// Effects computed by a model. An effect that is off costs nothing: no
@@ -830,7 +830,11 @@ impl ClothModel {
     /// smoother is damped for the largest element (links 2, triangles and
     /// Choi & Ko's triples 3, bending triangles 6 nodes), so the cycle is positive
     /// definite. A seam's two sides share their first-level aggregates
-    /// ([`ClothModel::sew_aggregates`]).
+    /// ([`ClothModel::sew_aggregates`]). A model without solids (its matrix
+    /// solved once a step, no contact passes) of at least
+    /// [`SMOOTHED_MIN_NODES`] particles gets a smoothed first level
+    /// ([`Multigrid::smoothed`]): 19.4 -> 7.6 CG a step on the 513 x 513
+    /// hanging cloth.
     pub fn multigrid(&self) -> Multigrid {
         let nodes = self.elements().largest_element().max(2);
         let mut levels = self.grid_aggregations(2, 40);
@@ -838,10 +842,10 @@ impl ClothModel {
             self.sew_aggregates(first);
         }
         let stitched: Vec<(usize, usize)> = self.stitches.iter().map(|s| (s.i as usize, s.j as usize)).collect();
-        Multigrid::new(&self.pattern, &levels)
-            .expect("grid aggregates fit the model")
-            .for_element_size(nodes)
-            .with_pairs(&stitched)
+        let smoothed = self.colliders.is_empty() && self.pattern.n() >= SMOOTHED_MIN_NODES;
+        let hierarchy =
+            if smoothed { Multigrid::smoothed(&self.pattern, &levels) } else { Multigrid::new(&self.pattern, &levels) };
+        hierarchy.expect("grid aggregates fit the model").for_element_size(nodes).with_pairs(&stitched)
     }
 
     /// A multigrid hierarchy of grid aggregates: each level groups
