@@ -791,14 +791,22 @@ fn krylov_second_step(rest: &mut [Level], coarsest: &mut Coarsest, coarse: &Bloc
     let c2_a_c2 = coarse.mul_vec_dot(&next.x, &mut next.r, &mut next.partials);
     let gamma = dot_with(&next.x, &next.v, &mut next.partials);
     let alpha2 = dot_with(&next.x, &next.b, &mut next.partials);
+    let (w1, w2) = krylov_weights(rho1, t1, c2_a_c2, gamma, alpha2);
+    let first = &next.first;
+    next.x.par_iter_mut().enumerate().with_min_len(ROW_CHUNK).for_each(|(i, x)| *x = first[i] * w1 + *x * w2);
+}
+
+/// The weights `(w1, w2)` of `x = w1 c1 + w2 c2` in the K-cycle's coarse
+/// solve ([`krylov_second_step`]) from `rho1 = c1.A c1`, `t1 = (c1.b) /
+/// rho1`, `c2.A c2`, `gamma = c2.A c1` and `alpha2 = c2.r2`; a second
+/// step without positive curvature is dropped.
+fn krylov_weights(rho1: f64, t1: f64, c2_a_c2: f64, gamma: f64, alpha2: f64) -> (f64, f64) {
     let rho2 = c2_a_c2 - gamma * gamma / rho1;
-    let (w1, w2) = if rho2 > 0.0 && (alpha2 / rho2).is_finite() {
+    if rho2 > 0.0 && (alpha2 / rho2).is_finite() {
         (t1 - gamma * alpha2 / (rho1 * rho2), alpha2 / rho2)
     } else {
         (t1, 0.0)
-    };
-    let first = &next.first;
-    next.x.par_iter_mut().enumerate().with_min_len(ROW_CHUNK).for_each(|(i, x)| *x = first[i] * w1 + *x * w2);
+    }
 }
 
 /// `r = b - A x` with the level's `f32` copy of `a` when it has one.

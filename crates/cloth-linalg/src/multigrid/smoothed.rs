@@ -32,7 +32,8 @@
 //! work of a product with `A`).
 
 use super::{
-    Cycle, Multigrid, SinglePrecision, inverse_diagonal_block, invert_pairs, jacobi_from_zero, smoothed, widen,
+    Cycle, Multigrid, SinglePrecision, inverse_diagonal_block, invert_pairs, jacobi_from_zero, krylov_weights,
+    smoothed, widen,
 };
 use crate::par::{ROW_CHUNK, chunk_count, dot_with};
 use crate::{Aggregation, BlockPattern, BlockSparseMatrix, Mat3, Vec3};
@@ -394,12 +395,7 @@ fn coarse_solve(b: &mut Built) {
     let c2_a_c2 = coarse.mul_vec_dot(&b.c2, &mut b.w, partials);
     let gamma = dot_with(&b.c2, &b.v, partials);
     let alpha2 = dot_with(&b.c2, &b.r2, partials);
-    let rho2 = c2_a_c2 - gamma * gamma / rho1;
-    let (w1, w2) = if rho2 > 0.0 && (alpha2 / rho2).is_finite() {
-        (t1 - gamma * alpha2 / (rho1 * rho2), alpha2 / rho2)
-    } else {
-        (t1, 0.0)
-    };
+    let (w1, w2) = krylov_weights(rho1, t1, c2_a_c2, gamma, alpha2);
     let c2 = &b.c2;
     b.c1.par_iter_mut().enumerate().with_min_len(ROW_CHUNK).for_each(|(i, c)| *c = *c * w1 + c2[i] * w2);
 }
