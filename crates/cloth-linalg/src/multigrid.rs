@@ -526,7 +526,10 @@ impl Multigrid {
     }
 
     /// Solves the coarse problems as `cycle` says (`new` takes the K-cycle
-    /// from [`K_CYCLE_MIN_NODES`] fine nodes, else the W-cycle).
+    /// from [`K_CYCLE_MIN_NODES`] fine nodes, else the W-cycle). A
+    /// [`Multigrid::smoothed`] hierarchy has no choice to make: its coarse
+    /// problem is the K-cycle's two flexible CG steps, and the levels below
+    /// take the K-cycle, so `with_cycle` changes nothing there.
     pub fn with_cycle(mut self, cycle: Cycle) -> Self {
         self.cycle = cycle;
         self
