@@ -33,7 +33,7 @@
 
 use super::{
     Cycle, Multigrid, SinglePrecision, inverse_diagonal_block, invert_pairs, jacobi_from_zero, krylov_weights,
-    smoothed, widen,
+    residual, smoothed, widen,
 };
 use crate::par::{ROW_CHUNK, chunk_count, dot_with};
 use crate::{Aggregation, BlockPattern, BlockSparseMatrix, Mat3, Vec3};
@@ -71,12 +71,11 @@ pub(super) struct SmoothedFirst {
 #[derive(Debug, Clone)]
 struct Built {
     /// Blocks a row of `P`, stored `width` to a row: the row's own
-    /// aggregate first, then its strong neighbours' in ascending order,
-    /// then padding (the own aggregate with a zero block).
+    /// aggregate first, then its strong neighbours' in ascending order;
+    /// the `p_len` real entries of a row are followed by unused padding.
     width: usize,
     p_col: Vec<u32>,
     p_val: Vec<Mat3>,
-    /// Real (unpadded) entries of each row.
     p_len: Vec<u8>,
     /// For each slot of the fine pattern, the entry of its row's `P` that
     /// `-omega_p D_i^-1 A_ij` goes to: the neighbour's aggregate for a
@@ -237,7 +236,6 @@ impl SmoothedFirst {
         let mut p_col = vec![0u32; n * width];
         let mut p_len = vec![0u8; n];
         for (i, row) in rows.iter().enumerate() {
-            p_col[i * width..(i + 1) * width].fill(row[0]);
             p_col[i * width..i * width + row.len()].copy_from_slice(row);
             p_len[i] = u8::try_from(row.len()).expect("at most 255 aggregates meet a row");
         }
@@ -364,9 +362,9 @@ impl SmoothedFirst {
                 .sum();
         });
         coarse_solve(b);
-        let (p_col, p_val, e) = (&b.p_col, &b.p_val, &b.c1);
+        let (p_col, p_val, p_len, e) = (&b.p_col, &b.p_val, &b.p_len, &b.c1);
         b.x.par_iter_mut().enumerate().with_min_len(ROW_CHUNK).for_each(|(i, xi)| {
-            for k in i * width..(i + 1) * width {
+            for k in i * width..i * width + p_len[i] as usize {
                 *xi += p_val[k] * e[p_col[k] as usize];
             }
         });
@@ -398,9 +396,4 @@ fn coarse_solve(b: &mut Built) {
     let (w1, w2) = krylov_weights(rho1, t1, c2_a_c2, gamma, alpha2);
     let c2 = &b.c2;
     b.c1.par_iter_mut().enumerate().with_min_len(ROW_CHUNK).for_each(|(i, c)| *c = *c * w1 + c2[i] * w2);
-}
-
-/// `r = b - A x`, with the `f32` copy when there is one.
-fn residual(single: Option<&SinglePrecision>, a: &BlockSparseMatrix, b: &[Vec3], x: &[Vec3], r: &mut [Vec3]) {
-    super::residual(single, a, b, x, r);
 }
