@@ -111,6 +111,8 @@ pub struct SolidShape {
     shape: SharedShape,
     /// Pose of parry's shape in the solid's frame (parry's cylinders run along y; ours along z).
     local: Pose,
+    /// See [`SolidShape::distance_is_lipschitz`]; asked once, at construction.
+    lipschitz: bool,
 }
 
 fn to_parry(v: Vec3) -> Vector {
@@ -181,7 +183,12 @@ impl SolidShape {
                 (SharedShape::halfspace(to_parry(n.normalize())), identity)
             }
         };
-        Ok(Self { shape, local })
+        Ok(Self::new(shape, local))
+    }
+
+    fn new(shape: SharedShape, local: Pose) -> Self {
+        let lipschitz = shape.is_convex();
+        Self { shape, local, lipschitz }
     }
 
     /// A closed, consistently oriented triangle mesh from the OBJ file at
@@ -190,14 +197,14 @@ impl SolidShape {
         for k in 0..3 {
             positive(["scale[0]", "scale[1]", "scale[2]"][k], scale[k])?;
         }
-        Ok(Self { shape: load_mesh(path, scale)?, local: Pose::IDENTITY })
+        Ok(Self::new(load_mesh(path, scale)?, Pose::IDENTITY))
     }
 
     /// Wraps a shape built elsewhere (a rapier collider's), placed at
     /// `local` in the solid's frame. Not checked: parry's constructors
     /// already refused degenerate shapes.
     pub fn from_parry(shape: SharedShape, local: Pose) -> Self {
-        Self { shape, local }
+        Self::new(shape, local)
     }
 
     /// parry's shape and its pose in the solid's frame (to give a
@@ -267,6 +274,17 @@ impl SolidShape {
     pub fn aabb(&self, body: &BodyPose) -> (Vec3, Vec3) {
         let b = self.shape.compute_aabb(&self.pose(body));
         (from_parry(b.mins), from_parry(b.maxs))
+    }
+
+    /// Whether [`SolidShape::closest`]'s signed distance changes by no more
+    /// than the distance its point moves (is 1-Lipschitz), so a distance
+    /// measured once bounds it nearby: true of convex solids (ball,
+    /// cuboid, capsule, cylinder, convex hull, half-space: parry's
+    /// `is_convex`), not taken for granted of the rest: an OBJ mesh's
+    /// inside test (pseudo-normals) may flip the sign away from an open or
+    /// self-crossing surface, and a compound's is its parts'.
+    pub fn distance_is_lipschitz(&self) -> bool {
+        self.lipschitz
     }
 
     /// The closest surface point to `p` (m) and the signed distance of `p`,

@@ -18,23 +18,30 @@ pub enum BroadPhaseError {
     },
 }
 
-/// A voxel grid of cubic cells of edge `voxel` (m), hashed into a table of
-/// buckets. Rebuilding reuses every allocation: call
+/// A voxel grid of cubic cells of edge `voxel` (m): the occupied cells in
+/// an open-addressed hash table (linear probing, at most half full), each
+/// holding the range of its points in a cell-grouped copy of the points.
+/// A query visits cells, not buckets: a cell found in the table hands over
+/// exactly its points, contiguous in memory, and an empty cell costs one
+/// probe or two. Rebuilding reuses every allocation: call
 /// [`VoxelHash::insert_points`] each step.
 #[derive(Debug, Clone)]
 pub struct VoxelHash {
     voxel: f64,
-    /// Bucket of each inserted point.
-    point_bucket: Vec<u32>,
-    /// Integer cell of each inserted point.
-    point_cell: Vec<[i64; 3]>,
-    /// Position of each inserted point, m.
+    /// Position of each inserted point (input order), m.
     point_pos: Vec<Vec3>,
-    /// CSR: points of bucket b are `sorted[start[b]..start[b + 1]]`.
-    start: Vec<u32>,
+    /// Table slot of each inserted point's cell.
+    point_slot: Vec<u32>,
+    /// The cell held by each table slot (meaningful where `slot_len > 0`).
+    slot_cell: Vec<[i64; 3]>,
+    /// Points of slot `s` are `sorted[slot_start[s]..][..slot_len[s]]`;
+    /// `slot_len[s] == 0` marks an empty slot.
+    slot_start: Vec<u32>,
+    slot_len: Vec<u32>,
+    /// Point indices grouped by cell, increasing within a cell.
     sorted: Vec<u32>,
-    /// Counting-sort cursor, kept to avoid allocating on rebuild.
-    fill: Vec<u32>,
+    /// `point_pos` in the order of `sorted`, m.
+    sorted_pos: Vec<Vec3>,
 }
 
 /// Prime multipliers of the classic spatial hash (Teschner et al. 2003).
@@ -52,12 +59,13 @@ impl VoxelHash {
         }
         Ok(Self {
             voxel,
-            point_bucket: Vec::new(),
-            point_cell: Vec::new(),
             point_pos: Vec::new(),
-            start: Vec::new(),
+            point_slot: Vec::new(),
+            slot_cell: vec![[0; 3]],
+            slot_start: vec![0],
+            slot_len: vec![0],
             sorted: Vec::new(),
-            fill: Vec::new(),
+            sorted_pos: Vec::new(),
         })
     }
 
@@ -70,112 +78,145 @@ impl VoxelHash {
         [(p.x / self.voxel).floor() as i64, (p.y / self.voxel).floor() as i64, (p.z / self.voxel).floor() as i64]
     }
 
-    /// The table's length is a power of two, so the bucket is the hash's
-    /// low bits: a mask, where a remainder cost an integer division per
-    /// voxel visited (most of a self-collision query's time).
-    fn bucket(&self, c: [i64; 3]) -> u32 {
+    /// The table's first probe for cell `c`. The table's length is a power
+    /// of two, so this is the hash's low bits: a mask, where a remainder
+    /// cost an integer division per voxel visited.
+    fn home(&self, c: [i64; 3]) -> usize {
         let h = (c[0].wrapping_mul(P1)) ^ (c[1].wrapping_mul(P2)) ^ (c[2].wrapping_mul(P3));
-        (h as u64 & (self.table_len() as u64 - 1)) as u32
+        (h as u64 & (self.slot_len.len() as u64 - 1)) as usize
     }
 
-    fn table_len(&self) -> usize {
-        self.start.len().saturating_sub(1).max(1)
+    /// The slot holding cell `c`, or the empty slot where it would go.
+    /// Terminates: the table is at most half full.
+    fn probe(&self, c: [i64; 3]) -> usize {
+        let mask = self.slot_len.len() - 1;
+        let mut s = self.home(c);
+        while self.slot_len[s] != 0 && self.slot_cell[s] != c {
+            s = (s + 1) & mask;
+        }
+        s
     }
 
-    /// Registers `points` (replacing any earlier set): a counting sort into
-    /// `2 n` buckets or more (a power of two), O(n).
+    /// The slot range of `sorted` holding cell `c`'s points (empty if none).
+    fn cell_range(&self, c: [i64; 3]) -> std::ops::Range<usize> {
+        let s = self.probe(c);
+        let start = self.slot_start[s] as usize;
+        start..start + self.slot_len[s] as usize
+    }
+
+    /// Registers `points` (replacing any earlier set): each point's cell
+    /// found or added in a table of at least `2 n` slots (a power of two),
+    /// then a counting sort of the points by slot, stable in point order.
+    /// O(n).
     pub fn insert_points(&mut self, points: &[Vec3]) -> Result<(), BroadPhaseError> {
         if let Some(index) = points.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
             return Err(BroadPhaseError::NonFinite { what: "point", index });
         }
         let table = (2 * points.len()).next_power_of_two();
-        self.start.clear();
-        self.start.resize(table + 1, 0);
-        self.point_cell.clear();
-        self.point_bucket.clear();
+        self.slot_len.clear();
+        self.slot_len.resize(table, 0);
+        self.slot_cell.resize(table, [0; 3]);
+        self.slot_start.resize(table, 0);
         self.point_pos.clear();
         self.point_pos.extend_from_slice(points);
+        self.point_slot.clear();
         for p in points {
             let c = self.cell_of(p);
-            self.point_cell.push(c);
+            let s = self.probe(c);
+            self.slot_cell[s] = c;
+            self.slot_len[s] += 1;
+            self.point_slot.push(s as u32);
         }
-        for k in 0..points.len() {
-            let b = self.bucket(self.point_cell[k]);
-            self.point_bucket.push(b);
-            self.start[b as usize + 1] += 1;
+        let mut next = 0;
+        for s in 0..table {
+            self.slot_start[s] = next;
+            next += self.slot_len[s];
         }
-        for b in 0..table {
-            self.start[b + 1] += self.start[b];
-        }
+        // Scatter in point order with `slot_start` as the cursor, then
+        // step each cursor back by its count.
         self.sorted.clear();
         self.sorted.resize(points.len(), 0);
-        self.fill.clear();
-        self.fill.extend_from_slice(&self.start[..table]);
-        for (k, &b) in self.point_bucket.iter().enumerate() {
-            self.sorted[self.fill[b as usize] as usize] = k as u32;
-            self.fill[b as usize] += 1;
+        self.sorted_pos.clear();
+        self.sorted_pos.resize(points.len(), Vec3::zeros());
+        for (k, &s) in self.point_slot.iter().enumerate() {
+            let at = self.slot_start[s as usize] as usize;
+            self.sorted[at] = k as u32;
+            self.sorted_pos[at] = points[k];
+            self.slot_start[s as usize] += 1;
+        }
+        for s in 0..table {
+            self.slot_start[s] -= self.slot_len[s];
         }
         Ok(())
     }
 
-    /// Points registered in the cell `c` (and any cell hashing to the same
-    /// bucket: callers filter by distance).
-    fn bucket_points(&self, c: [i64; 3]) -> &[u32] {
-        let b = self.bucket(c) as usize;
-        &self.sorted[self.start[b] as usize..self.start[b + 1] as usize]
-    }
-
-    /// Every pair `(i, j)`, `i < j`, of the inserted `points` closer than
+    /// Every pair `(i, j)`, `i < j`, of the inserted points closer than
     /// `radius` (<= the voxel size), sorted. `skip(i, j)` drops pairs that
     /// should not collide (neighbours in the mesh).
-    pub fn pairs_within(&self, points: &[Vec3], radius: f64, skip: impl Fn(u32, u32) -> bool) -> Vec<(u32, u32)> {
+    pub fn pairs_within(&self, radius: f64, skip: impl Fn(u32, u32) -> bool) -> Vec<(u32, u32)> {
         let mut out = Vec::new();
-        self.pairs_within_into(points, radius, skip, &mut out);
+        self.pairs_within_into(radius, skip, &mut out);
         out
     }
 
     /// [`VoxelHash::pairs_within`] into a reused buffer (cleared first), so
     /// a simulation step does not allocate.
-    pub fn pairs_within_into(
+    pub fn pairs_within_into(&self, radius: f64, skip: impl Fn(u32, u32) -> bool, out: &mut Vec<(u32, u32)>) {
+        out.clear();
+        self.pairs_from_slots(0..self.table_slots(), radius, skip, out);
+        out.sort_unstable();
+    }
+
+    /// Slots of the cell table: [`VoxelHash::pairs_from_slots`] takes
+    /// ranges of `0..table_slots()`.
+    pub fn table_slots(&self) -> usize {
+        self.slot_len.len()
+    }
+
+    /// Appends, unsorted, the pairs of [`VoxelHash::pairs_within`] whose
+    /// lower point's cell sits in table slots `slots`: ranges that cover
+    /// `0..table_slots()` once find every pair once, so callers may split
+    /// the table among threads and sort the union. Visits each occupied
+    /// cell's 27 neighbours once (not once per point).
+    pub fn pairs_from_slots(
         &self,
-        points: &[Vec3],
+        slots: std::ops::Range<usize>,
         radius: f64,
         skip: impl Fn(u32, u32) -> bool,
         out: &mut Vec<(u32, u32)>,
     ) {
-        out.clear();
         assert!(radius <= self.voxel, "pairs_within: radius {radius} exceeds the voxel size {}", self.voxel);
-        assert_eq!(points.len(), self.point_cell.len(), "pairs_within: points differ from the inserted set");
         let r2 = radius * radius;
-        for (i, c) in self.point_cell.iter().enumerate() {
+        for s in slots.filter(|&s| self.slot_len[s] != 0) {
+            let c = self.slot_cell[s];
+            let mine = self.slot_start[s] as usize..(self.slot_start[s] + self.slot_len[s]) as usize;
             for dx in -1..=1 {
                 for dy in -1..=1 {
                     for dz in -1..=1 {
-                        let n = [c[0] + dx, c[1] + dy, c[2] + dz];
-                        let me = i as u32;
-                        for &j in self.bucket_points(n) {
-                            // Each pair once, from its lower index, and only from
-                            // the cell j really is in (buckets may collide).
-                            if j <= me || self.point_cell[j as usize] != n {
-                                continue;
-                            }
-                            // Distance first: `skip` may be the costlier test.
-                            if (points[j as usize] - points[i]).norm_squared() < r2 && !skip(me, j) {
-                                out.push((me, j));
+                        let theirs = self.cell_range([c[0] + dx, c[1] + dy, c[2] + dz]);
+                        for a in mine.clone() {
+                            let (i, pi) = (self.sorted[a], &self.sorted_pos[a]);
+                            for b in theirs.clone() {
+                                // Each pair once, from its lower index.
+                                let j = self.sorted[b];
+                                // Distance first: `skip` may be the costlier test.
+                                if j > i && (self.sorted_pos[b] - pi).norm_squared() < r2 && !skip(i, j) {
+                                    out.push((i, j));
+                                }
                             }
                         }
                     }
                 }
             }
         }
-        out.sort_unstable();
     }
 
     /// Candidate `(point, triangle)` pairs: every inserted point inside a
     /// triangle's bounding box grown by `margin` (m), found through the
-    /// voxels the box touches; in triangle order (then voxel and point
-    /// order: deterministic), without duplicates (a point lies in one voxel,
-    /// each voxel is visited once per triangle). A box that spans more
+    /// voxels the box touches; in triangle order, then voxel order (x
+    /// slowest, z fastest), then point order: deterministic, and the order
+    /// callers accumulate forces in. Without duplicates (a point lies in
+    /// one voxel, each voxel is visited once per triangle). A box that spans more
     /// voxels than there are points is searched point by point instead (in
     /// point order), so the cost per triangle stays O(points). A superset of
     /// the pairs closer than `margin`.
@@ -198,36 +239,104 @@ impl VoxelHash {
         out: &mut Vec<(u32, u32)>,
     ) -> Result<(), BroadPhaseError> {
         out.clear();
-        for (t, tri) in triangles.iter().enumerate() {
-            if !tri.iter().all(|p| p.iter().all(|c| c.is_finite())) {
-                return Err(BroadPhaseError::NonFinite { what: "triangle", index: t });
+        let points = self.point_pos.len() as f64;
+        for (g, group) in triangles.chunks(TRIANGLE_GROUP).enumerate() {
+            let first = g * TRIANGLE_GROUP;
+            let mut boxes = [CellBox::default(); TRIANGLE_GROUP];
+            for (j, tri) in group.iter().enumerate() {
+                if !tri.iter().all(|p| p.iter().all(|c| c.is_finite())) {
+                    return Err(BroadPhaseError::NonFinite { what: "triangle", index: first + j });
+                }
+                let lo = tri[0].inf(&tri[1]).inf(&tri[2]).add_scalar(-margin);
+                let hi = tri[0].sup(&tri[1]).sup(&tri[2]).add_scalar(margin);
+                boxes[j] = self.cell_box(lo, hi);
             }
-            let lo = tri[0].inf(&tri[1]).inf(&tri[2]).add_scalar(-margin);
-            let hi = tri[0].sup(&tri[1]).sup(&tri[2]).add_scalar(margin);
-            let (a, b) = (self.cell_of(&lo), self.cell_of(&hi));
-            let inside = |q: &Vec3| (0..3).all(|k| q[k] >= lo[k] && q[k] <= hi[k]);
-            // A box over more voxels than there are points (a triangle torn
-            // across the scene by a blown-up step) is cheaper to test point
-            // by point: walking its voxels took minutes per step.
-            let cells = (0..3).map(|k| (b[k] as f64 - a[k] as f64 + 1.0).max(1.0)).product::<f64>();
-            if cells > self.point_pos.len() as f64 {
-                let found = self.point_pos.iter().enumerate().filter(|(_, q)| inside(q));
-                out.extend(found.map(|(p, _)| (p as u32, t as u32)));
+            let boxes = &boxes[..group.len()];
+            let union = boxes[1..].iter().fold(boxes[0], |u, b| self.cell_box(u.lo.inf(&b.lo), u.hi.sup(&b.hi)));
+            if union.cells() > points {
+                for (j, cell_box) in boxes.iter().enumerate() {
+                    self.candidates_in(cell_box, (first + j) as u32, out);
+                }
                 continue;
             }
-            for x in a[0]..=b[0] {
-                for y in a[1]..=b[1] {
-                    for z in a[2]..=b[2] {
-                        let c = [x, y, z];
-                        for &p in self.bucket_points(c) {
-                            if self.point_cell[p as usize] == c && inside(&self.point_pos[p as usize]) {
-                                out.push((p, t as u32));
-                            }
-                        }
+            // The group's box walked once, its points parked at the end
+            // of `out` (slot, MAX); each triangle then takes those in its
+            // own box, in the same (voxel, point) order as its own walk.
+            let parked = out.len();
+            union.walk(|c| {
+                let inside = self.cell_range(c).filter(|&k| union.contains(&self.sorted_pos[k]));
+                out.extend(inside.map(|k| (k as u32, u32::MAX)));
+            });
+            let end = out.len();
+            for (j, cell_box) in boxes.iter().enumerate() {
+                for at in parked..end {
+                    let k = out[at].0 as usize;
+                    if cell_box.contains(&self.sorted_pos[k]) {
+                        out.push((self.sorted[k], (first + j) as u32));
                     }
                 }
             }
+            out.drain(parked..end);
         }
         Ok(())
+    }
+
+    /// The cells of the box `[lo, hi]` (m).
+    fn cell_box(&self, lo: Vec3, hi: Vec3) -> CellBox {
+        CellBox { lo, hi, first: self.cell_of(&lo), last: self.cell_of(&hi) }
+    }
+
+    /// Appends `(point, triangle)` for every point in `cell_box`, by its
+    /// voxels (then point order) or, for a box over more voxels than there
+    /// are points (a triangle torn across the scene by a blown-up step:
+    /// walking its voxels took minutes per step), point by point.
+    fn candidates_in(&self, cell_box: &CellBox, triangle: u32, out: &mut Vec<(u32, u32)>) {
+        if cell_box.cells() > self.point_pos.len() as f64 {
+            let found = self.point_pos.iter().enumerate().filter(|(_, q)| cell_box.contains(q));
+            out.extend(found.map(|(p, _)| (p as u32, triangle)));
+            return;
+        }
+        cell_box.walk(|c| {
+            let inside = self.cell_range(c).filter(|&k| cell_box.contains(&self.sorted_pos[k]));
+            out.extend(inside.map(|k| (self.sorted[k], triangle)));
+        });
+    }
+}
+
+/// Triangles whose boxes [`VoxelHash::point_triangle_candidates_into`]
+/// walks together: consecutive triangles of a cloth share most of their
+/// voxels (a quad's two triangles have the same box), and a voxel probed
+/// once serves them all.
+const TRIANGLE_GROUP: usize = 8;
+
+/// An axis-aligned box (m) and the voxels it touches, `first..=last` on
+/// each axis.
+#[derive(Debug, Clone, Copy, Default)]
+struct CellBox {
+    lo: Vec3,
+    hi: Vec3,
+    first: [i64; 3],
+    last: [i64; 3],
+}
+
+impl CellBox {
+    fn contains(&self, q: &Vec3) -> bool {
+        (0..3).all(|k| q[k] >= self.lo[k] && q[k] <= self.hi[k])
+    }
+
+    /// How many voxels it touches (a float: a torn box's count overflows).
+    fn cells(&self) -> f64 {
+        (0..3).map(|k| (self.last[k] as f64 - self.first[k] as f64 + 1.0).max(1.0)).product()
+    }
+
+    /// Calls `f` on each voxel, x slowest, z fastest.
+    fn walk(&self, mut f: impl FnMut([i64; 3])) {
+        for x in self.first[0]..=self.last[0] {
+            for y in self.first[1]..=self.last[1] {
+                for z in self.first[2]..=self.last[2] {
+                    f([x, y, z]);
+                }
+            }
+        }
     }
 }

@@ -30,7 +30,7 @@ fn point_pairs_match_brute_force() {
     let mut hash = VoxelHash::new(0.012).unwrap();
     hash.insert_points(&points).unwrap();
     let skip = |i: u32, j: u32| (i + j).is_multiple_of(7); // an arbitrary exclusion, honoured by both
-    let got = hash.pairs_within(&points, 0.012, skip);
+    let got = hash.pairs_within(0.012, skip);
     let mut expect = Vec::new();
     for i in 0..points.len() {
         for j in i + 1..points.len() {
@@ -41,10 +41,18 @@ fn point_pairs_match_brute_force() {
     }
     assert!(expect.len() > 1000, "a meaningful number of pairs: {}", expect.len());
     assert_eq!(got, expect);
+    // The table split in uneven ranges (threads' shares) finds them once.
+    let slots = hash.table_slots();
+    let mut split = Vec::new();
+    for cut in [0, 1, slots / 7, slots / 3, slots / 3 + 5, slots - 2, slots].windows(2) {
+        hash.pairs_from_slots(cut[0]..cut[1], 0.012, skip, &mut split);
+    }
+    split.sort_unstable();
+    assert_eq!(split, expect);
     // Rebuilding with moved points gives the new answer.
     let moved: Vec<Vec3> = points.iter().map(|p| p * 1.5).collect();
     hash.insert_points(&moved).unwrap();
-    let n_moved = hash.pairs_within(&moved, 0.012, |_, _| false).len();
+    let n_moved = hash.pairs_within(0.012, |_, _| false).len();
     let brute = (0..moved.len())
         .flat_map(|i| (i + 1..moved.len()).map(move |j| (i, j)))
         .filter(|&(i, j)| (moved[i] - moved[j]).norm() < 0.012)
@@ -159,4 +167,53 @@ fn a_huge_triangle_is_searched_point_by_point() {
         assert_eq!(got, expected, "triangle {t}");
     }
     assert_eq!(candidates.iter().filter(|c| c.1 == 0).count(), points.len());
+}
+
+/// The candidates come in the order their consumers sum forces in, so it
+/// is part of the contract: by triangle, then by voxel (x slowest, z
+/// fastest), then by point; a box over more voxels than there are points
+/// point by point. Checked against brute force for ordinary triangles
+/// (walked in groups), a group whose joint box is too large to walk while
+/// each of its boxes is not, and a torn triangle.
+#[test]
+fn triangle_candidates_come_by_triangle_voxel_and_point() {
+    let mut rng = Rng(23);
+    let points = cloud(500, &mut rng);
+    let (voxel, margin) = (0.01, 0.004);
+    let mut triangles: Vec<[Vec3; 3]> = (0..37)
+        .map(|_| {
+            let o = Vec3::new(rng.uniform() * 0.4 - 0.2, rng.uniform() * 0.12 - 0.1, rng.uniform() * 0.02 - 0.01);
+            let e = |r: &mut Rng| Vec3::new(r.uniform() - 0.5, r.uniform() - 0.5, r.uniform() - 0.5) * 0.03;
+            [o, o + e(&mut rng), o + e(&mut rng)]
+        })
+        .collect();
+    // Two boxes of 7 x 7 x 7 voxels (under the 500 points) 30 cm apart:
+    // together they span thousands.
+    let cube = |o: Vec3| [o, o + Vec3::new(0.06, 0.0, 0.03), o + Vec3::new(0.0, 0.06, 0.06)];
+    triangles.splice(8..10, [cube(Vec3::new(-0.2, -0.1, -0.03)), cube(Vec3::new(0.1, -0.1, -0.03))]);
+    triangles[20] = [Vec3::new(-50.0, -50.0, -5.0), Vec3::new(50.0, 0.0, 5.0), Vec3::new(0.0, 50.0, 0.0)];
+    let mut hash = VoxelHash::new(voxel).unwrap();
+    hash.insert_points(&points).unwrap();
+    let got = hash.point_triangle_candidates(&triangles, margin).unwrap();
+    let cell = |q: &Vec3| q.map(|c| (c / voxel).floor() as i64);
+    let mut expected = Vec::new();
+    for (t, tri) in triangles.iter().enumerate() {
+        let lo = tri[0].inf(&tri[1]).inf(&tri[2]).add_scalar(-margin);
+        let hi = tri[0].sup(&tri[1]).sup(&tri[2]).add_scalar(margin);
+        let mut inside: Vec<u32> = (0..points.len() as u32)
+            .filter(|&p| (0..3).all(|k| (lo[k]..=hi[k]).contains(&points[p as usize][k])))
+            .collect();
+        let voxels = (0..3).map(|k| (cell(&hi)[k] - cell(&lo)[k] + 1) as f64).product::<f64>();
+        if voxels <= points.len() as f64 {
+            inside.sort_by_key(|&p| {
+                let c = cell(&points[p as usize]);
+                (c.x, c.y, c.z, p)
+            });
+        }
+        expected.extend(inside.into_iter().map(|p| (p, t as u32)));
+    }
+    assert_eq!(got.iter().filter(|c| c.1 == 20).count(), points.len(), "the torn triangle's box holds every point");
+    assert!(got.iter().filter(|c| c.1 == 8 || c.1 == 9).count() > 30, "the two far boxes find points");
+    assert!(got.len() > 650, "{} candidates", got.len());
+    assert_eq!(got, expected);
 }
