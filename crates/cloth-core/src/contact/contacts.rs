@@ -569,27 +569,8 @@ fn contact(
     SolidContact { distance_m: distance, normal_travel_m: travel, ..held }
 }
 
-/// When `to` (a particle's new position) is closer than `limit` to solid
-/// `c` (posed as `next` at the end of a step of `h` s): the closest point
-/// to `to`, and the surface point to push back to ([`side_of`], with the
-/// closest point to `to` as the fallback). Point queries made are added to
-/// `queries`.
-fn near_surface(
-    c: &crate::Collider,
-    (next, h): (&SolidPose, f64),
-    from: Vec3,
-    to: Vec3,
-    limit: f64,
-    queries: &mut usize,
-) -> Option<(SurfacePoint, SurfacePoint)> {
-    match reach_surface(c, (next, h), from, to, limit, queries) {
-        Reach::Within(at, side) => Some((at, side)),
-        Reach::Beyond { .. } => None,
-    }
-}
-
-/// [`near_surface`]'s answer, with what it learnt when `to` is not within
-/// reach.
+/// What [`reach_surface`] found of solid `c` from a particle's new
+/// position `to`.
 enum Reach {
     /// Closer than the limit: the closest point to `to` and the surface
     /// point to push back to.
@@ -599,7 +580,21 @@ enum Reach {
     Beyond { distance_m: f64 },
 }
 
-/// [`near_surface`], telling how far beyond the limit `to` is.
+impl Reach {
+    /// The two surface points when within reach.
+    fn within(self) -> Option<(SurfacePoint, SurfacePoint)> {
+        match self {
+            Reach::Within(at, side) => Some((at, side)),
+            Reach::Beyond { .. } => None,
+        }
+    }
+}
+
+/// Whether `to` (a particle's new position) is closer than `limit` to
+/// solid `c` (posed as `next` at the end of a step of `h` s): if so the
+/// closest point to `to` and the surface point to push back to
+/// ([`side_of`], with the closest point to `to` as the fallback), else how
+/// far it is at least. Point queries made are added to `queries`.
 fn reach_surface(
     c: &crate::Collider,
     (next, h): (&SolidPose, f64),
@@ -834,7 +829,8 @@ pub fn project_out(
     let mut fix = |i: usize| {
         let mut changed = false;
         for (c, next) in model.colliders().iter().zip(solids_next) {
-            let Some((_, surface)) = near_surface(c, (next, h), x[i], new_x[i], 0.5 * thickness, &mut 0) else {
+            let Some((_, surface)) = reach_surface(c, (next, h), x[i], new_x[i], 0.5 * thickness, &mut 0).within()
+            else {
                 continue;
             };
             let n = surface.normal;
@@ -906,7 +902,7 @@ pub fn collide_after_step(
             let mut slot = 0;
             for (k, (c, (now, next))) in model.colliders().iter().zip(solids_now.iter().zip(solids_next)).enumerate() {
                 let Some((_, surface)) =
-                    near_surface(c, (next, h), x[i], *xi, thickness, &mut stats.narrow_phase_queries)
+                    reach_surface(c, (next, h), x[i], *xi, thickness, &mut stats.narrow_phase_queries).within()
                 else {
                     continue;
                 };
@@ -1314,7 +1310,7 @@ pub fn penalty_contacts(
             // choosing the face a solid swept over the start position
             // stretched the ball-through-curtain's Newton steps to 1.153
             // (1.109 with the face nearest the iterate).
-            let Some((at, side)) = near_surface(c, (next, 0.0), x[i], x_iter[i], thickness, &mut 0) else {
+            let Some((at, side)) = reach_surface(c, (next, 0.0), x[i], x_iter[i], thickness, &mut 0).within() else {
                 continue;
             };
             let plane = if at.distance_m >= 0.0 { at } else { side };
@@ -1359,7 +1355,7 @@ pub fn penalty_watch(model: &ClothModel, x_iter: &[Vec3], p: &[Vec3], a: f64, t_
             if touching {
                 continue;
             }
-            let Some((_, side)) = near_surface(c, (next, 0.0), x_iter[i], end, thickness, &mut 0) else {
+            let Some((_, side)) = reach_surface(c, (next, 0.0), x_iter[i], end, thickness, &mut 0).within() else {
                 continue;
             };
             let gap = side.normal.dot(&(x_iter[i] - side.point));
@@ -2327,13 +2323,14 @@ mod tests {
         };
         let (now, next) = (posed(0.0), posed(0.01));
         let (from, to) = (Vec3::new(0.06, 0.0, 0.035), Vec3::new(0.04, 0.0, 0.047));
-        let (at, side) = near_surface(&collider, (&next, 0.01), from, to, 0.0025, &mut 0).unwrap();
+        let (at, side) = reach_surface(&collider, (&next, 0.01), from, to, 0.0025, &mut 0).within().unwrap();
         assert!((at.normal - Vec3::z()).norm() < 1e-12, "the top face is nearest the end: {at:?}");
         assert!((side.normal - Vec3::x()).norm() < 1e-12, "{side:?}");
         assert!((side.point - Vec3::new(0.07, 0.0, 0.035)).norm() < 1e-12, "{side:?}");
         // A solid at rest never sweeps: a particle inside it keeps the nearest face.
         let still = crate::Collider { motion: crate::PinMotion::Fixed, ..collider.clone() };
-        let (at, side) = near_surface(&still, (&now, 0.01), Vec3::new(0.04, 0.0, 0.035), to, 0.0025, &mut 0).unwrap();
+        let (at, side) =
+            reach_surface(&still, (&now, 0.01), Vec3::new(0.04, 0.0, 0.035), to, 0.0025, &mut 0).within().unwrap();
         assert_eq!(at, side);
     }
 
