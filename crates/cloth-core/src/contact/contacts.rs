@@ -246,9 +246,11 @@ pub struct ContactBuffers {
     /// [`detect_solid_contacts`], then by each [`add_penetrating`] that
     /// measures it again.
     clearance: Vec<Clearance>,
-    /// Per particle, whether the last [`add_penetrating`] gave it a
-    /// contact (its `candidate[0]`).
-    added: Vec<bool>,
+    /// Per particle, whether `candidate` holds what the last
+    /// [`detect_solid_contacts`] or [`add_penetrating`] found for it: they
+    /// write (and read back) only the candidates of particles that have
+    /// one, a contact being a few hundred bytes.
+    has_candidate: Vec<bool>,
     /// The solids at the start and at the end of the current step.
     now: SolidFrames,
     next: SolidFrames,
@@ -485,20 +487,22 @@ pub fn detect_solid_contacts(
     // the predictions below measure them anew.
     bufs.clearance.clear();
     bufs.clearance.resize(n, Clearance::UNKNOWN);
+    bufs.has_candidate.resize(n, false);
     let thickness = model.contact_thickness();
     let reach = thickness * (1.0 + CONTACT_MARGIN);
     let (colliders, masses) = (model.colliders(), model.masses());
     let (solids_now, solids_next) = (bufs.now.at(model, &bufs.external, t), bufs.next.at(model, &bufs.external, t + h));
-    let per_particle = bufs.candidate.par_iter_mut().zip(bufs.probe.par_iter_mut()).zip(bufs.clearance.par_iter_mut());
-    per_particle.enumerate().for_each(|(i, ((cand, probe), clearance))| {
-        *cand = [None; 2];
+    let per_particle = bufs.candidate.par_iter_mut().zip(bufs.probe.par_iter_mut());
+    let per_particle = per_particle.zip(bufs.clearance.par_iter_mut().zip(bufs.has_candidate.par_iter_mut()));
+    per_particle.enumerate().for_each(|(i, ((cand, probe), (clearance, has)))| {
         *probe = (0.0, 0);
+        *has = false;
         if model.is_pinned(i) {
             return;
         }
         let predicted = x[i] + (v[i] * 2.0 - v_prev[i]) * h;
         let mut beyond = f64::INFINITY;
-        let mut nearest = Nearest::new();
+        let mut nearest: Option<Nearest> = None;
         for (k, (c, (now, next))) in colliders.iter().zip(solids_now.iter().zip(solids_next)).enumerate() {
             let mut here = None;
             if now.near(&x[i], reach) {
@@ -531,10 +535,13 @@ pub fn detect_solid_contacts(
                     here.filter(|f| f.distance_m > 0.0).unwrap_or(s)
                 };
                 let travel = normal_travel(surface.normal.dot(&(x[i] - surface.point)), thickness, reach);
-                nearest.offer(s.distance_m, contact(i, k, c, &surface, s.distance_m, travel, next));
+                let found = contact(i, k, c, &surface, s.distance_m, travel, next);
+                nearest.get_or_insert_with(Nearest::new).offer(s.distance_m, found);
             }
         }
-        *cand = nearest.pick(|c| colliders[c.collider as usize].yielding);
+        *clearance = Clearance { from: predicted, distance_m: beyond };
+        let Some(nearest) = nearest else { return };
+        (*cand, *has) = (nearest.pick(|c| colliders[c.collider as usize].yielding), true);
         if let [Some(held), Some(pressed)] = cand
             && pressed.pressed
         {
@@ -543,14 +550,15 @@ pub fn detect_solid_contacts(
             let gap = pressed.normal.dot(&(end - pressed.point));
             pressed.normal_force_n = squeeze_force(gap, thickness, masses[i], h);
         }
-        *clearance = Clearance { from: predicted, distance_m: beyond };
     });
     bufs.solid.clear();
     let mut stats = ContactStats::default();
-    for (cand, probe) in bufs.candidate.iter().zip(&bufs.probe) {
+    for ((cand, probe), has) in bufs.candidate.iter().zip(&bufs.probe).zip(&bufs.has_candidate) {
         stats.max_penetration_m = stats.max_penetration_m.max(probe.0);
         stats.narrow_phase_queries += probe.1 as usize;
-        bufs.solid.extend(cand.iter().flatten());
+        if *has {
+            bufs.solid.extend(cand.iter().flatten());
+        }
     }
     stats.contacts = bufs.solid.len();
     stats
@@ -726,13 +734,13 @@ pub fn add_penetrating(
     let (solid, first_entry) = (&bufs.solid, &bufs.first_entry);
     let limit = 0.5 * thickness;
     let all_lipschitz = colliders.iter().all(|c| c.shape.distance_is_lipschitz());
-    // A particle's candidate is written (and read back) only when it has
-    // one: the candidates are a contact's few hundred bytes a particle, and
-    // clearing and scanning them all each pass was most of a pass.
-    bufs.added.resize(x.len(), false);
-    let candidates = bufs.candidate.par_iter_mut().zip(bufs.clearance.par_iter_mut()).zip(bufs.added.par_iter_mut());
-    candidates.enumerate().for_each(|(i, ((cand, clearance), added))| {
-        *added = false;
+    // Clearing and scanning every particle's candidate each pass was most
+    // of a pass: see `has_candidate`.
+    bufs.has_candidate.resize(x.len(), false);
+    let candidates =
+        bufs.candidate.par_iter_mut().zip(bufs.clearance.par_iter_mut()).zip(bufs.has_candidate.par_iter_mut());
+    candidates.enumerate().for_each(|(i, ((cand, clearance), has))| {
+        *has = false;
         if model.is_pinned(i) {
             return;
         }
@@ -785,20 +793,20 @@ pub fn add_penetrating(
             }
         }
         if let Some(found) = nearest.and_then(|nearest| nearest.pick(|_| false)[0]) {
-            (cand[0], *added) = (Some(found), true);
+            (cand[0], *has) = (Some(found), true);
         }
         if !clear {
             *clearance = Clearance { from: new_x[i], distance_m: beyond };
         }
     });
     let before = bufs.solid.len();
-    let found = bufs.added.iter().zip(&bufs.candidate).filter(|(added, _)| **added);
+    let found = bufs.has_candidate.iter().zip(&bufs.candidate).filter(|(has, _)| **has);
     bufs.solid.extend(found.filter_map(|(_, c)| c[0].as_ref()));
     let added = bufs.solid.len() - before;
     if added > 0 {
         bufs.solid.sort_unstable_by_key(|c| (c.particle, c.collider));
         for range in groups(&bufs.solid) {
-            if bufs.added[bufs.solid[range.start].particle as usize] {
+            if bufs.has_candidate[bufs.solid[range.start].particle as usize] {
                 constrain_particle(&bufs.solid[range], x, filter, &value);
             }
         }
@@ -2053,7 +2061,7 @@ const TRIANGLE_CHUNK: usize = 256;
 
 /// Slots of the spatial hash's cell table per parallel task of the point
 /// pairs (the table has two to four slots a particle).
-const SLOT_CHUNK: usize = 2048;
+const SLOT_CHUNK: usize = 1024;
 
 #[cfg(test)]
 mod tests {
