@@ -32,16 +32,33 @@ pub struct VoxelHash {
     point_pos: Vec<Vec3>,
     /// Table slot of each inserted point's cell.
     point_slot: Vec<u32>,
-    /// The cell held by each table slot (meaningful where `slot_len > 0`).
-    slot_cell: Vec<[i64; 3]>,
-    /// Points of slot `s` are `sorted[slot_start[s]..][..slot_len[s]]`;
-    /// `slot_len[s] == 0` marks an empty slot.
-    slot_start: Vec<u32>,
-    slot_len: Vec<u32>,
+    /// The cell table: a probe reads one slot (32 bytes, half a cache
+    /// line) for the cell, its points and whether the slot is empty.
+    slots: Vec<Slot>,
     /// Point indices grouped by cell, increasing within a cell.
     sorted: Vec<u32>,
     /// `point_pos` in the order of `sorted`, m.
     sorted_pos: Vec<Vec3>,
+}
+
+/// A slot of [`VoxelHash`]'s cell table: an occupied cell and where its
+/// points are in the cell-grouped arrays.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Slot {
+    /// The cell (meaningful when `len > 0`).
+    cell: [i64; 3],
+    /// The cell's points are `sorted[start..start + len]`.
+    start: u32,
+    /// 0 marks an empty slot.
+    len: u32,
+}
+
+impl Slot {
+    const EMPTY: Self = Self { cell: [0; 3], start: 0, len: 0 };
+
+    fn points(&self) -> std::ops::Range<usize> {
+        self.start as usize..(self.start + self.len) as usize
+    }
 }
 
 /// Prime multipliers of the classic spatial hash (Teschner et al. 2003).
@@ -61,9 +78,7 @@ impl VoxelHash {
             voxel,
             point_pos: Vec::new(),
             point_slot: Vec::new(),
-            slot_cell: vec![[0; 3]],
-            slot_start: vec![0],
-            slot_len: vec![0],
+            slots: vec![Slot::EMPTY],
             sorted: Vec::new(),
             sorted_pos: Vec::new(),
         })
@@ -83,15 +98,15 @@ impl VoxelHash {
     /// cost an integer division per voxel visited.
     fn home(&self, c: [i64; 3]) -> usize {
         let h = (c[0].wrapping_mul(P1)) ^ (c[1].wrapping_mul(P2)) ^ (c[2].wrapping_mul(P3));
-        (h as u64 & (self.slot_len.len() as u64 - 1)) as usize
+        (h as u64 & (self.slots.len() as u64 - 1)) as usize
     }
 
     /// The slot holding cell `c`, or the empty slot where it would go.
     /// Terminates: the table is at most half full.
     fn probe(&self, c: [i64; 3]) -> usize {
-        let mask = self.slot_len.len() - 1;
+        let mask = self.slots.len() - 1;
         let mut s = self.home(c);
-        while self.slot_len[s] != 0 && self.slot_cell[s] != c {
+        while self.slots[s].len != 0 && self.slots[s].cell != c {
             s = (s + 1) & mask;
         }
         s
@@ -99,9 +114,7 @@ impl VoxelHash {
 
     /// The slot range of `sorted` holding cell `c`'s points (empty if none).
     fn cell_range(&self, c: [i64; 3]) -> std::ops::Range<usize> {
-        let s = self.probe(c);
-        let start = self.slot_start[s] as usize;
-        start..start + self.slot_len[s] as usize
+        self.slots[self.probe(c)].points()
     }
 
     /// Registers `points` (replacing any earlier set): each point's cell
@@ -113,39 +126,37 @@ impl VoxelHash {
             return Err(BroadPhaseError::NonFinite { what: "point", index });
         }
         let table = (2 * points.len()).next_power_of_two();
-        self.slot_len.clear();
-        self.slot_len.resize(table, 0);
-        self.slot_cell.resize(table, [0; 3]);
-        self.slot_start.resize(table, 0);
+        self.slots.clear();
+        self.slots.resize(table, Slot::EMPTY);
         self.point_pos.clear();
         self.point_pos.extend_from_slice(points);
         self.point_slot.clear();
         for p in points {
             let c = self.cell_of(p);
             let s = self.probe(c);
-            self.slot_cell[s] = c;
-            self.slot_len[s] += 1;
+            self.slots[s].cell = c;
+            self.slots[s].len += 1;
             self.point_slot.push(s as u32);
         }
         let mut next = 0;
-        for s in 0..table {
-            self.slot_start[s] = next;
-            next += self.slot_len[s];
+        for slot in &mut self.slots {
+            slot.start = next;
+            next += slot.len;
         }
-        // Scatter in point order with `slot_start` as the cursor, then
+        // Scatter in point order with `start` as the cursor, then
         // step each cursor back by its count.
         self.sorted.clear();
         self.sorted.resize(points.len(), 0);
         self.sorted_pos.clear();
         self.sorted_pos.resize(points.len(), Vec3::zeros());
         for (k, &s) in self.point_slot.iter().enumerate() {
-            let at = self.slot_start[s as usize] as usize;
+            let at = self.slots[s as usize].start as usize;
             self.sorted[at] = k as u32;
             self.sorted_pos[at] = points[k];
-            self.slot_start[s as usize] += 1;
+            self.slots[s as usize].start += 1;
         }
-        for s in 0..table {
-            self.slot_start[s] -= self.slot_len[s];
+        for slot in &mut self.slots {
+            slot.start -= slot.len;
         }
         Ok(())
     }
@@ -170,7 +181,7 @@ impl VoxelHash {
     /// Slots of the cell table: [`VoxelHash::pairs_from_slots`] takes
     /// ranges of `0..table_slots()`.
     pub fn table_slots(&self) -> usize {
-        self.slot_len.len()
+        self.slots.len()
     }
 
     /// Appends, unsorted, the pairs of [`VoxelHash::pairs_within`] whose
@@ -187,9 +198,8 @@ impl VoxelHash {
     ) {
         assert!(radius <= self.voxel, "pairs_within: radius {radius} exceeds the voxel size {}", self.voxel);
         let r2 = radius * radius;
-        for s in slots.filter(|&s| self.slot_len[s] != 0) {
-            let c = self.slot_cell[s];
-            let mine = self.slot_start[s] as usize..(self.slot_start[s] + self.slot_len[s]) as usize;
+        for slot in self.slots[slots].iter().filter(|slot| slot.len != 0) {
+            let (c, mine) = (slot.cell, slot.points());
             for dx in -1..=1 {
                 for dy in -1..=1 {
                     for dz in -1..=1 {
