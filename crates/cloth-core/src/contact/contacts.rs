@@ -589,6 +589,15 @@ enum Reach {
 }
 
 impl Reach {
+    /// A lower bound on `to`'s signed distance, m (within reach: the
+    /// closest point's distance itself).
+    fn distance_at_least(&self) -> f64 {
+        match self {
+            Reach::Within(at, _) => at.distance_m,
+            Reach::Beyond { distance_m } => *distance_m,
+        }
+    }
+
     /// The two surface points when within reach.
     fn within(self) -> Option<(SurfacePoint, SurfacePoint)> {
         match self {
@@ -771,18 +780,11 @@ pub fn add_penetrating(
             if clear && lipschitz {
                 continue;
             }
-            let (s, surface) = match reach_surface(c, (next, h), x[i], new_x[i], limit, &mut 0) {
-                Reach::Within(s, surface) => (s, surface),
-                Reach::Beyond { distance_m } => {
-                    if lipschitz {
-                        beyond = beyond.min(distance_m);
-                    }
-                    continue;
-                }
-            };
+            let reach = reach_surface(c, (next, h), x[i], new_x[i], limit, &mut 0);
             if lipschitz {
-                beyond = beyond.min(s.distance_m);
+                beyond = beyond.min(reach.distance_at_least());
             }
+            let Some((s, surface)) = reach.within() else { continue };
             let distinct = existing.is_none_or(|e| {
                 e.collider as usize != k && (-OPPOSED_COS..=PARALLEL_COS).contains(&e.normal.dot(&surface.normal))
             });
