@@ -166,6 +166,24 @@ impl BlockSparseMatrix {
         (&self.pattern, &mut self.values)
     }
 
+    /// Makes the matrix symmetric bit for bit from its upper triangle:
+    /// each block below the diagonal becomes the transpose of its mirror,
+    /// `A_ji = A_ij^T` for `i < j`, and each diagonal block its symmetric
+    /// part `(A_ii + A_ii^T) / 2`. For a symmetric matrix of which only
+    /// the upper triangle was computed.
+    pub fn symmetric_from_upper(&mut self) {
+        self.revision = next_revision();
+        let pattern = &self.pattern;
+        for i in 0..pattern.n() {
+            let diag = pattern.diag_slot(i);
+            for slot in pattern.row_range(i).start..diag {
+                self.values[slot] = self.values[pattern.mirror_slot(slot)].transpose();
+            }
+            let d = self.values[diag];
+            self.values[diag] = (d + d.transpose()) * 0.5;
+        }
+    }
+
     /// The diagonal block of row `i`.
     pub fn diag(&self, i: usize) -> &Mat3 {
         &self.values[self.pattern.diag[i]]

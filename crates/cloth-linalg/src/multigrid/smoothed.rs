@@ -29,7 +29,9 @@
 //! the coarse operator's pattern and the hierarchy below for good. Later
 //! matrices keep the pattern and refill the values: each update recomputes
 //! `P` (one pass over `A`) and the triple product (about ten times the
-//! work of a product with `A`).
+//! work of a product with `A`), summing only the upper triangle of the
+//! symmetric `A_c` and mirroring the lower one (the refill's triple
+//! product 97-128 -> 64-77 ms at 513 x 513 particles, the mirror 13-16).
 
 use super::{
     Cycle, Multigrid, SinglePrecision, inverse_diagonal_block, invert_pairs, jacobi_from_zero, krylov_weights,
@@ -97,6 +99,12 @@ struct Built {
     /// Where `P_e^T (A P)_iq` goes in coarse row `c`, for the `m`-th entry
     /// `e` of `t_src` (row `i`): `coarse_at[m * ap_width + q]`.
     coarse_at: Vec<u8>,
+    /// The first `q` whose block lands on or right of coarse row `c`'s
+    /// diagonal, for the `m`-th entry of `t_src` (a row of `A P` lists
+    /// its aggregates ascending): `A_c` is symmetric, so only its upper
+    /// triangle is summed, the lower one mirrored
+    /// ([`BlockSparseMatrix::symmetric_from_upper`]).
+    upper_from: Vec<u8>,
     /// `P^T A P`.
     coarse: BlockSparseMatrix,
     /// The plain aggregation hierarchy of `coarse`, K-cycle.
@@ -195,16 +203,18 @@ impl SmoothedFirst {
             }
         });
         let (ap_val, ap_len, coarse_at, t_ptr, t_src) = (&b.ap_val, &b.ap_len, &b.coarse_at, &b.t_ptr, &b.t_src);
+        let upper_from = &b.upper_from;
         b.coarse.fill_rows(|c, out| {
             out.iter_mut().for_each(|o| *o = Mat3::zeros());
             for m in t_ptr[c] as usize..t_ptr[c + 1] as usize {
                 let e = t_src[m] as usize;
                 let (i, p_t) = (e / width, p_val[e].transpose());
-                for q in 0..ap_len[i] as usize {
+                for q in upper_from[m] as usize..ap_len[i] as usize {
                     out[coarse_at[m * ap_width + q] as usize] += p_t * ap_val[i * ap_width + q];
                 }
             }
         });
+        b.coarse.symmetric_from_upper();
         b.inner.set_omega(omega);
         b.inner.update(&b.coarse);
     }
@@ -299,9 +309,12 @@ impl SmoothedFirst {
             })
             .collect();
         let mut coarse_at = vec![0u8; t_src.len() * ap_width];
+        let mut upper_from = vec![0u8; t_src.len()];
         for (c, cols) in coarse_rows.iter().enumerate() {
             for m in t_ptr[c] as usize..t_ptr[c + 1] as usize {
-                for (q, d) in ap_rows[t_src[m] as usize / width].iter().enumerate() {
+                let ap_row = &ap_rows[t_src[m] as usize / width];
+                upper_from[m] = ap_row.partition_point(|&d| (d as usize) < c) as u8;
+                for (q, d) in ap_row.iter().enumerate() {
                     let at = cols.binary_search(d).expect("listed above");
                     coarse_at[m * ap_width + q] = u8::try_from(at).expect("at most 255 blocks a coarse row");
                 }
@@ -327,6 +340,7 @@ impl SmoothedFirst {
             ap_len,
             ap_at,
             coarse_at,
+            upper_from,
             coarse: BlockSparseMatrix::new(coarse_pattern),
             inner,
             single: (pattern.nnz_blocks() >= self.single_from).then(|| SinglePrecision::new(pattern)),
@@ -396,4 +410,90 @@ fn coarse_solve(b: &mut Built) {
     let (w1, w2) = krylov_weights(rho1, t1, c2_a_c2, gamma, alpha2);
     let c2 = &b.c2;
     b.c1.par_iter_mut().enumerate().with_min_len(ROW_CHUNK).for_each(|(i, c)| *c = *c * w1 + c2[i] * w2);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// 2 x 2 aggregates of a `side x side` grid (side even).
+    fn quads(side: usize) -> Aggregation {
+        let coarse_of = (0..side * side).map(|i| ((i % side) / 2 + (i / side) / 2 * (side / 2)) as u32).collect();
+        Aggregation { coarse_of, n_coarse: side * side / 4 }
+    }
+
+    /// A cloth-like operator on a `side x side` grid: links to the eight
+    /// nearest nodes and the interlaced ones two apart, each `k u u^T`
+    /// with its own direction and stiffness, plus a mass on the diagonal.
+    fn grid_operator(side: usize) -> BlockSparseMatrix {
+        let node = |x: usize, y: usize| y * side + x;
+        let mut links = Vec::new();
+        for y in 0..side {
+            for x in 0..side {
+                for (dx, dy) in [(1, 0), (0, 1), (1, 1), (2, 0), (0, 2)] {
+                    if x + dx < side && y + dy < side {
+                        links.push((node(x, y), node(x + dx, y + dy)));
+                    }
+                    if dx == 1 && dy == 1 && x >= 1 && y + 1 < side {
+                        links.push((node(x, y), node(x - 1, y + 1)));
+                    }
+                }
+            }
+        }
+        let mut a = BlockSparseMatrix::new(BlockPattern::from_pairs(side * side, links.iter().copied()).unwrap());
+        let pattern = a.pattern().clone();
+        let values = a.values_mut();
+        for i in 0..side * side {
+            values[pattern.diag_slot(i)] = Mat3::identity() * 1e-3;
+        }
+        for (e, &(i, j)) in links.iter().enumerate() {
+            let t = e as f64;
+            let u = Vec3::new(1.0 + 0.3 * t.sin(), 0.2 * (2.0 * t).cos(), 0.1 * (3.0 * t).sin()).normalize();
+            let k = u * u.transpose() * (50.0 + 30.0 * (0.7 * t).sin());
+            for (r, c, sign) in [(i, i, 1.0), (j, j, 1.0), (i, j, -1.0), (j, i, -1.0)] {
+                values[pattern.slot(r, c).unwrap()] += k * sign;
+            }
+        }
+        a
+    }
+
+    /// The coarse operator is the Galerkin product `P^T A P` (summed here
+    /// block by block over every fine pair, to roundoff), zero outside its
+    /// pattern, and symmetric bit for bit (its lower triangle mirrored).
+    #[test]
+    fn coarse_operator_is_the_symmetric_galerkin_product() {
+        let side = 12;
+        let a = grid_operator(side);
+        let mut first = SmoothedFirst::new(&[quads(side), quads(side / 2)], usize::MAX);
+        first.update(&a, 0.7);
+        let b = first.built.as_ref().unwrap();
+        let nc = side * side / 4;
+        let mut dense = vec![Mat3::zeros(); nc * nc];
+        let p_row =
+            |i: usize| (i * b.width..i * b.width + b.p_len[i] as usize).map(|k| (b.p_col[k] as usize, b.p_val[k]));
+        for i in 0..side * side {
+            for (s, &j) in a.pattern().row_range(i).zip(a.pattern().row_cols(i)) {
+                for (c, p_ic) in p_row(i) {
+                    for (d, p_jd) in p_row(j as usize) {
+                        dense[c * nc + d] += p_ic.transpose() * a.values()[s] * p_jd;
+                    }
+                }
+            }
+        }
+        let scale = dense.iter().map(|m| m.norm()).fold(0.0, f64::max);
+        let coarse = &b.coarse;
+        let mut worst: f64 = 0.0;
+        for c in 0..nc {
+            for d in 0..nc {
+                let stored = coarse.pattern().slot(c, d).map_or(Mat3::zeros(), |s| coarse.values()[s]);
+                worst = worst.max((stored - dense[c * nc + d]).norm());
+                if let Some(s) = coarse.pattern().slot(c, d) {
+                    let mirror = coarse.values()[coarse.pattern().mirror_slot(s)].transpose();
+                    assert!(stored.iter().zip(mirror.iter()).all(|(x, y)| x.to_bits() == y.to_bits()), "({c}, {d})");
+                }
+            }
+        }
+        // Measured 7.7e-16 of the largest block (summation order).
+        assert!(worst <= 2e-15 * scale, "worst block difference {worst:e} against {scale:e}");
+    }
 }
