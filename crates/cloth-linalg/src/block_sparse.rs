@@ -202,6 +202,22 @@ impl BlockSparseMatrix {
         fill_range(&self.pattern.row_ptr, 0..n, &mut self.values, 0, &fill);
     }
 
+    /// Edits the matrix in parallel, one task per chunk of [`ROW_CHUNK`]
+    /// rows: `edit(pattern, rows, first_slot, blocks, own)` gets chunk
+    /// `k`'s rows, the slot of their first block, their blocks (`blocks[0]`
+    /// is slot `first_slot`) and `own = &mut per_chunk[k]` (the chunk's
+    /// scratch or output). `per_chunk` has one entry per chunk, `n.div_ceil(ROW_CHUNK)`.
+    pub fn edit_row_chunks<T, F>(&mut self, per_chunk: &mut [T], edit: F)
+    where
+        T: Send,
+        F: Fn(&BlockPattern, Range<usize>, usize, &mut [Mat3], &mut T) + Sync,
+    {
+        let chunks = self.n().div_ceil(ROW_CHUNK);
+        assert_eq!(per_chunk.len(), chunks, "edit_row_chunks: one entry per chunk of {ROW_CHUNK} rows");
+        self.revision = next_revision();
+        edit_chunks(&self.pattern, 0..chunks, &mut self.values, 0, per_chunk, &edit);
+    }
+
     /// Row `i` of `A x`.
     #[inline]
     pub fn row_times(&self, i: usize, x: &[Vec3]) -> Vec3 {
@@ -319,6 +335,35 @@ where
     rayon::join(
         || fill_range(row_ptr, rows.start..mid, lo, base, fill),
         || fill_range(row_ptr, mid..rows.end, hi, row_ptr[mid], fill),
+    );
+}
+
+/// [`BlockSparseMatrix::edit_row_chunks`] on chunks `chunks`, whose blocks
+/// are `vals` (starting at slot `base`) and whose own entries `own`.
+fn edit_chunks<T, F>(
+    pattern: &BlockPattern,
+    chunks: Range<usize>,
+    vals: &mut [Mat3],
+    base: usize,
+    own: &mut [T],
+    edit: &F,
+) where
+    T: Send,
+    F: Fn(&BlockPattern, Range<usize>, usize, &mut [Mat3], &mut T) + Sync,
+{
+    let first_row = |chunk: usize| (chunk * ROW_CHUNK).min(pattern.n());
+    if chunks.len() == 1 {
+        let rows = first_row(chunks.start)..first_row(chunks.end);
+        edit(pattern, rows, base, vals, &mut own[0]);
+        return;
+    }
+    let mid = chunks.start + chunks.len() / 2;
+    let split = pattern.row_ptr[first_row(mid)];
+    let (lo, hi) = vals.split_at_mut(split - base);
+    let (own_lo, own_hi) = own.split_at_mut(mid - chunks.start);
+    rayon::join(
+        || edit_chunks(pattern, chunks.start..mid, lo, base, own_lo, edit),
+        || edit_chunks(pattern, mid..chunks.end, hi, split, own_hi, edit),
     );
 }
 

@@ -118,8 +118,9 @@ pub struct Pcg {
     /// from when particles are constrained (allocated on first use; see
     /// `filter_in_place`).
     filtered: Option<BlockSparseMatrix>,
-    /// Original blocks changed by [`Pcg::solve_in_place`], for restoring.
-    saved_blocks: Vec<(usize, Mat3)>,
+    /// Original blocks changed by `filter_in_place`, for restoring: one
+    /// list per chunk of [`ROW_CHUNK`] rows.
+    saved_blocks: Vec<Vec<(usize, Mat3)>>,
     /// What [`Pcg::solve_in_place`] last built the multigrid hierarchy
     /// from: the unfiltered matrix's [`BlockSparseMatrix::revision`] and
     /// the filter's projectors by particle (see [`Pcg::hierarchy_changes`]).
@@ -176,7 +177,7 @@ impl Pcg {
         f.values_mut().par_chunks_mut(ROW_CHUNK).zip(a.values().par_chunks(ROW_CHUNK)).for_each(|(fv, av)| {
             fv.copy_from_slice(av);
         });
-        filter_in_place(&mut f, filter, None);
+        filter_in_place(&mut f, filter, &mut self.saved_blocks);
         // S A S c = S (S A S + (I - S) d) c for c = S c: iterating on the
         // filtered copy gives the same iterates.
         let result = self.iterate(&f, filter, params, x, start, None);
@@ -216,12 +217,9 @@ impl Pcg {
         let changed_rows = partial.then_some(&changed[..]);
         let result = if needs_filtered_hierarchy(params, filter) {
             let mut saved = std::mem::take(&mut self.saved_blocks);
-            filter_in_place(a, filter, Some(&mut saved));
+            filter_in_place(a, filter, &mut saved);
             let result = self.iterate(a, filter, params, x, start, changed_rows);
-            let values = a.values_mut();
-            for &(slot, block) in &saved {
-                values[slot] = block;
-            }
+            restore_filtered(a, &mut saved);
             self.saved_blocks = saved;
             result
         } else {
@@ -465,38 +463,53 @@ fn needs_filtered_hierarchy(params: &PcgParams, filter: &ConstraintFilter) -> bo
 /// on a fine cloth at 1/90 s), a contact made its aggregate's coarse
 /// block far stiffer along the contact normal than the cloth around it,
 /// and the coarse levels stopped correcting it (the drape at 101 x 101,
-/// E = 20 N/m, V-cycle: 62 -> 53 CG a step with `d`). When `saved` is given, the
-/// original of every block changed is pushed to it first (each once), so
-/// the caller can restore `A` exactly. Each block is touched by at most
-/// one row and one column projection (a constrained diagonal block by its
-/// row's alone), so the result does not depend on the filter's entry order.
-fn filter_in_place(a: &mut BlockSparseMatrix, filter: &ConstraintFilter, mut saved: Option<&mut Vec<(usize, Mat3)>>) {
-    if let Some(saved) = saved.as_deref_mut() {
+/// E = 20 N/m, V-cycle: 62 -> 53 CG a step with `d`). The original of
+/// every block changed goes to `saved` first (each once, one list per
+/// chunk of [`ROW_CHUNK`] rows), so [`restore_filtered`] can put `A` back
+/// exactly. Each block is computed from its original alone (`S_i A_ij`,
+/// then `S_j` on the right), so the result does not depend on the
+/// filter's entry order nor on the threads.
+fn filter_in_place(a: &mut BlockSparseMatrix, filter: &ConstraintFilter, saved: &mut Vec<Vec<(usize, Mat3)>>) {
+    saved.resize_with(a.n().div_ceil(ROW_CHUNK), Vec::new);
+    // Each changed block belongs to one row: its own when the row is
+    // constrained (`S_i A_ij S_j`), else its column's (`A_ij S_j`). So the
+    // chunks of rows are independent, and each keeps its own originals.
+    a.edit_row_chunks(saved, |pattern, rows, first_slot, blocks, saved| {
         saved.clear();
-    }
-    let (pattern, values) = a.pattern_and_values_mut();
-    for (i, s, _) in filter.iter() {
-        let diag = pattern.diag_slot(i);
-        for slot in pattern.row_range(i) {
-            let block = values[slot];
-            if let Some(saved) = saved.as_deref_mut() {
-                saved.push((slot, block));
+        for i in rows {
+            let slots = pattern.row_range(i).zip(pattern.row_cols(i)).map(|(slot, &j)| (slot, j as usize));
+            if filter.is_free(i) {
+                for (slot, j) in slots.filter(|&(_, j)| !filter.is_free(j)) {
+                    let block = &mut blocks[slot - first_slot];
+                    saved.push((slot, *block));
+                    *block *= filter.projector(j);
+                }
+                continue;
             }
-            values[slot] =
-                if slot == diag { s * block * s + (Mat3::identity() - s) * own_scale(&block) } else { s * block };
-        }
-    }
-    for (j, s, _) in filter.iter() {
-        for (i, slot) in pattern.row_cols(j).iter().zip(pattern.row_range(j)).filter(|&(&i, _)| i as usize != j) {
-            let slot = pattern.mirror_slot(slot);
-            let block = values[slot];
-            // Blocks of constrained rows were saved in the row pass.
-            if let Some(saved) = saved.as_deref_mut().filter(|_| filter.is_free(*i as usize)) {
-                saved.push((slot, block));
+            let (s, diag) = (filter.projector(i), pattern.diag_slot(i));
+            for (slot, j) in slots {
+                let block = &mut blocks[slot - first_slot];
+                let b = *block;
+                saved.push((slot, b));
+                *block = if slot == diag {
+                    s * b * s + (Mat3::identity() - s) * own_scale(&b)
+                } else if filter.is_free(j) {
+                    s * b
+                } else {
+                    s * b * filter.projector(j)
+                };
             }
-            values[slot] = block * s;
         }
-    }
+    });
+}
+
+/// Puts back the blocks [`filter_in_place`] saved, bit for bit.
+fn restore_filtered(a: &mut BlockSparseMatrix, saved: &mut [Vec<(usize, Mat3)>]) {
+    a.edit_row_chunks(saved, |_, _, first_slot, blocks, saved| {
+        for &(slot, block) in saved.iter() {
+            blocks[slot - first_slot] = block;
+        }
+    });
 }
 
 /// `tr(A_ii) / 3`, or 1 when that is not a positive number.
@@ -511,11 +524,36 @@ mod tests {
     use crate::{BlockPattern, Constraint};
 
     /// `filter_in_place` equals `S A S + (I - S) tr(A_ii) / 3` computed
-    /// block by block.
+    /// block by block, and `restore_filtered` gives back `A`: on five
+    /// particles (one chunk of rows), and on 600 in three chunks with
+    /// couplings across the chunks' borders (each chunk's task then
+    /// changes blocks whose mirrors another task changes).
     #[test]
     fn filtered_operator_is_s_a_s_plus_the_constrained_directions_own_scale() {
-        let n = 5;
-        let pattern = BlockPattern::from_pairs(n, [(0, 1), (1, 2), (2, 3), (3, 4), (0, 4), (1, 3)]).unwrap();
+        let five = [(0, 1), (1, 2), (2, 3), (3, 4), (0, 4), (1, 3)];
+        let kinds = [
+            (1, Constraint::OneDirection { normal: Vec3::new(1.0, 2.0, 2.0) }),
+            (3, Constraint::Fixed),
+            (4, Constraint::TwoDirections { n: Vec3::x(), m: Vec3::new(0.0, 1.0, 1.0) }),
+        ];
+        check_filter(5, &five, &kinds);
+        let n = 600;
+        assert!(n > 2 * ROW_CHUNK);
+        let mut pairs: Vec<(usize, usize)> = (0..n - 7).flat_map(|i| [(i, i + 1), (i, i + 7)]).collect();
+        pairs.extend([(0, n - 1), (100, 400), (ROW_CHUNK - 1, ROW_CHUNK), (5, 2 * ROW_CHUNK + 5)]);
+        let kinds: Vec<_> = (0..n)
+            .filter_map(|i| match i % 7 {
+                0 => Some((i, Constraint::Fixed)),
+                2 | 5 => Some((i, Constraint::OneDirection { normal: Vec3::new(1.0, i as f64, 2.0) })),
+                3 => Some((i, Constraint::TwoDirections { n: Vec3::z(), m: Vec3::new(1.0, 1.0, 0.5) })),
+                _ => None,
+            })
+            .collect();
+        check_filter(n, &pairs, &kinds);
+    }
+
+    fn check_filter(n: usize, pairs: &[(usize, usize)], constraints: &[(usize, Constraint)]) {
+        let pattern = BlockPattern::from_pairs(n, pairs.iter().copied()).unwrap();
         let mut a = BlockSparseMatrix::new(pattern.clone());
         let cols: Vec<Vec<u32>> = (0..n).map(|i| pattern.row_cols(i).to_vec()).collect();
         // A symmetric matrix with distinct entries: A_ij = M(i + j) + M(i + j)^T.
@@ -529,26 +567,24 @@ mod tests {
             }
         });
         let mut filter = ConstraintFilter::new(n);
-        filter.set(1, Constraint::OneDirection { normal: Vec3::new(1.0, 2.0, 2.0) }, Vec3::zeros()).unwrap();
-        filter.set(3, Constraint::Fixed, Vec3::zeros()).unwrap();
-        filter.set(4, Constraint::TwoDirections { n: Vec3::x(), m: Vec3::new(0.0, 1.0, 1.0) }, Vec3::zeros()).unwrap();
+        for &(i, c) in constraints {
+            filter.set(i, c, Vec3::zeros()).unwrap();
+        }
         let mut f = a.clone();
         let mut saved = Vec::new();
-        filter_in_place(&mut f, &filter, Some(&mut saved));
+        filter_in_place(&mut f, &filter, &mut saved);
         for (i, j, got) in f.blocks() {
             let mut expected = filter.projector(i) * block(i, j) * filter.projector(j);
             if i == j {
                 expected += (Mat3::identity() - filter.projector(i)) * block(i, i).trace() / 3.0;
             }
-            assert!((got - expected).norm() < 1e-12, "block ({i}, {j})");
+            assert!((got - expected).norm() <= 1e-15 * block(i, j).norm(), "block ({i}, {j}) of {n}");
         }
         // Restoring the saved blocks gives back A exactly.
-        let mut slots: Vec<usize> = saved.iter().map(|s| s.0).collect();
+        let mut slots: Vec<usize> = saved.iter().flatten().map(|s| s.0).collect();
         slots.sort_unstable();
         assert!(slots.windows(2).all(|w| w[0] != w[1]), "a block saved twice");
-        for &(slot, block) in &saved {
-            f.values_mut()[slot] = block;
-        }
+        restore_filtered(&mut f, &mut saved);
         assert_eq!(f.values(), a.values());
     }
 }
