@@ -387,6 +387,33 @@ mod tests {
         }
     }
 
+    /// Each chunk's task gets its own rows (all of them, once), the slot
+    /// of their first block, exactly their blocks, and its own entry of
+    /// `per_chunk`; the last chunk is a short one.
+    #[test]
+    fn edit_row_chunks_hands_each_task_its_rows_blocks_and_entry() {
+        let n = 2 * ROW_CHUNK + 37;
+        let pairs: Vec<_> = (0..n - 5).flat_map(|i| [(i, i + 1), (i, i + 5)]).collect();
+        let mut a = BlockSparseMatrix::new(BlockPattern::from_pairs(n, pairs).unwrap());
+        let mut seen = vec![(0..0, usize::MAX); n.div_ceil(ROW_CHUNK)];
+        a.edit_row_chunks(&mut seen, |pattern, rows, first_slot, blocks, seen| {
+            assert_eq!(blocks.len(), pattern.row_range(rows.end - 1).end - first_slot);
+            for i in rows.clone() {
+                for slot in pattern.row_range(i) {
+                    blocks[slot - first_slot] = Mat3::from_element(i as f64);
+                }
+            }
+            *seen = (rows, first_slot);
+        });
+        for (k, (rows, first_slot)) in seen.iter().enumerate() {
+            assert_eq!(*rows, k * ROW_CHUNK..((k + 1) * ROW_CHUNK).min(n));
+            assert_eq!(*first_slot, a.pattern().row_range(rows.start).start);
+        }
+        for (i, _, b) in a.blocks() {
+            assert_eq!(*b, Mat3::from_element(i as f64), "row {i}");
+        }
+    }
+
     #[test]
     fn pattern_rejects_out_of_range() {
         assert_eq!(BlockPattern::from_pairs(2, [(0, 2)]), Err(PatternError::OutOfRange { i: 0, j: 2, n: 2 }));
