@@ -197,9 +197,17 @@ impl BlockSparseMatrix {
     where
         F: Fn(usize, &mut [Mat3]) + Sync,
     {
-        let n = self.n();
+        // `()` per task: a Vec of them does not allocate.
+        let mut tasks = vec![(); self.n().div_ceil(FILL_ROWS_PER_TASK)];
         self.revision = next_revision();
-        fill_range(&self.pattern.row_ptr, 0..n, &mut self.values, 0, &fill);
+        let fill_chunk =
+            |pattern: &BlockPattern, rows: Range<usize>, first_slot: usize, blocks: &mut [Mat3], _: &mut ()| {
+                for i in rows {
+                    let range = pattern.row_range(i);
+                    fill(i, &mut blocks[range.start - first_slot..range.end - first_slot]);
+                }
+            };
+        edit_chunks(&self.pattern, FILL_ROWS_PER_TASK, 0..tasks.len(), &mut self.values, 0, &mut tasks, &fill_chunk);
     }
 
     /// Edits the matrix in parallel, one task per chunk of [`ROW_CHUNK`]
@@ -215,7 +223,7 @@ impl BlockSparseMatrix {
         let chunks = self.n().div_ceil(ROW_CHUNK);
         assert_eq!(per_chunk.len(), chunks, "edit_row_chunks: one entry per chunk of {ROW_CHUNK} rows");
         self.revision = next_revision();
-        edit_chunks(&self.pattern, 0..chunks, &mut self.values, 0, per_chunk, &edit);
+        edit_chunks(&self.pattern, ROW_CHUNK, 0..chunks, &mut self.values, 0, per_chunk, &edit);
     }
 
     /// Row `i` of `A x`.
@@ -320,28 +328,13 @@ fn block_times(b: &Mat3, x: &Vec3) -> [f64; 3] {
 /// Rows per leaf task of [`BlockSparseMatrix::fill_rows`].
 const FILL_ROWS_PER_TASK: usize = 128;
 
-fn fill_range<F>(row_ptr: &[usize], rows: Range<usize>, vals: &mut [Mat3], base: usize, fill: &F)
-where
-    F: Fn(usize, &mut [Mat3]) + Sync,
-{
-    if rows.len() <= FILL_ROWS_PER_TASK {
-        for i in rows {
-            fill(i, &mut vals[row_ptr[i] - base..row_ptr[i + 1] - base]);
-        }
-        return;
-    }
-    let mid = rows.start + rows.len() / 2;
-    let (lo, hi) = vals.split_at_mut(row_ptr[mid] - base);
-    rayon::join(
-        || fill_range(row_ptr, rows.start..mid, lo, base, fill),
-        || fill_range(row_ptr, mid..rows.end, hi, row_ptr[mid], fill),
-    );
-}
-
-/// [`BlockSparseMatrix::edit_row_chunks`] on chunks `chunks`, whose blocks
-/// are `vals` (starting at slot `base`) and whose own entries `own`.
+/// Runs `edit` on chunks `chunks` of `chunk_rows` rows each (the last one
+/// may be short), splitting them in halves over rayon's threads; their
+/// blocks are `vals` (starting at slot `base`), their own entries `own`.
+/// [`BlockSparseMatrix::edit_row_chunks`] and [`BlockSparseMatrix::fill_rows`].
 fn edit_chunks<T, F>(
     pattern: &BlockPattern,
+    chunk_rows: usize,
     chunks: Range<usize>,
     vals: &mut [Mat3],
     base: usize,
@@ -351,10 +344,11 @@ fn edit_chunks<T, F>(
     T: Send,
     F: Fn(&BlockPattern, Range<usize>, usize, &mut [Mat3], &mut T) + Sync,
 {
-    let first_row = |chunk: usize| (chunk * ROW_CHUNK).min(pattern.n());
-    if chunks.len() == 1 {
-        let rows = first_row(chunks.start)..first_row(chunks.end);
-        edit(pattern, rows, base, vals, &mut own[0]);
+    let first_row = |chunk: usize| (chunk * chunk_rows).min(pattern.n());
+    if chunks.len() <= 1 {
+        if let Some(own) = own.first_mut() {
+            edit(pattern, first_row(chunks.start)..first_row(chunks.end), base, vals, own);
+        }
         return;
     }
     let mid = chunks.start + chunks.len() / 2;
@@ -362,8 +356,8 @@ fn edit_chunks<T, F>(
     let (lo, hi) = vals.split_at_mut(split - base);
     let (own_lo, own_hi) = own.split_at_mut(mid - chunks.start);
     rayon::join(
-        || edit_chunks(pattern, chunks.start..mid, lo, base, own_lo, edit),
-        || edit_chunks(pattern, mid..chunks.end, hi, split, own_hi, edit),
+        || edit_chunks(pattern, chunk_rows, chunks.start..mid, lo, base, own_lo, edit),
+        || edit_chunks(pattern, chunk_rows, mid..chunks.end, hi, split, own_hi, edit),
     );
 }
 
@@ -412,6 +406,10 @@ mod tests {
         for (i, _, b) in a.blocks() {
             assert_eq!(*b, Mat3::from_element(i as f64), "row {i}");
         }
+        // No rows: no chunk, no task.
+        let mut empty = BlockSparseMatrix::new(BlockPattern::from_pairs(0, []).unwrap());
+        empty.edit_row_chunks(&mut [] as &mut [()], |_, _, _, _, _| panic!("a task without rows"));
+        empty.fill_rows(|_, _| panic!("a row of none"));
     }
 
     #[test]
