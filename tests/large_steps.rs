@@ -285,3 +285,170 @@ fn newton_trigger_leaves_steps_it_does_not_trigger_alone() {
         assert!(cloth_tests::same_bits(&single, &untriggered), "{scene}: not the single step's bits");
     }
 }
+
+/// What the energy monitor saw of an explicit run: windows flagged, the
+/// stretch at the end of the first flagged one (`NAN`: none) and the steps
+/// from it to the run's end, the largest stretch, whether the run stopped
+/// on a non-finite state, and reports at steps that are not a multiple of
+/// `ENERGY_WINDOW` (none expected).
+#[derive(Debug)]
+struct Watched {
+    flagged: usize,
+    first: f64,
+    steps_after_first: u64,
+    worst: f64,
+    non_finite: bool,
+    misplaced: usize,
+}
+
+/// Runs `hang.toml` (21 x 21, Provot's springs, symplectic Euler) at step
+/// `h` for 1 s or until a step fails.
+fn explicit_hang(h: f64) -> Watched {
+    let (mut sim, _) = simulation(
+        "hang.toml",
+        &[
+            "panels.0.particles=[21, 21]",
+            "pins.0.nodes=[[0, 20], [20, 20]]",
+            "simulation.model=\"provot\"",
+            "simulation.integrator=\"symplectic-euler\"",
+        ],
+    );
+    let mut w =
+        Watched { flagged: 0, first: f64::NAN, steps_after_first: 0, worst: 0.0, non_finite: false, misplaced: 0 };
+    for _ in 0..(1.0 / h).round() as u64 {
+        w.steps_after_first += u64::from(w.flagged > 0);
+        let r = match sim.step(h) {
+            Ok(r) => r,
+            Err(e) => {
+                w.non_finite = matches!(e, cloth_core::StepError::NonFinite { .. });
+                break;
+            }
+        };
+        let stretch = sim.model().max_stretch_ratio(&sim.state().x);
+        w.worst = w.worst.max(stretch);
+        if let Some(e) = r.energy {
+            w.misplaced += usize::from(!sim.state().steps.is_multiple_of(cloth_core::ENERGY_WINDOW));
+            if e.flagged && w.flagged == 0 {
+                w.first = stretch;
+            }
+            w.flagged += usize::from(e.flagged);
+        }
+    }
+    w
+}
+
+/// An explicit step beyond its stability limit multiplies the cloth's
+/// energy every step, and a run may stay finite all along (the 101 x 101
+/// drape at 0.4 ms with Provot's springs reached a stretch of 1.9e93 and
+/// exited 0). The explicit integrators' energy windows flag every run
+/// that blows up, well before it overflows, and none at the steps that do
+/// not. Measured on this cloth: stable to 1.1 ms (stretch 1.283 at every
+/// step size), blown up from 1.2 ms; the first flagged window came 79-289
+/// steps before the state overflowed.
+#[test]
+fn explicit_steps_beyond_their_stability_limit_are_flagged() {
+    for h in [2e-4, 5e-4, 1e-3, 1.1e-3] {
+        let w = explicit_hang(h);
+        eprintln!("h = {h:e} s: {w:?}");
+        assert_eq!(w.misplaced, 0);
+        assert!(w.flagged == 0 && w.worst < 1.3 && !w.non_finite, "stable step {h} s: {w:?}");
+    }
+    for h in [1.2e-3, 1.4e-3, 1.8e-3, 2e-3, 4e-3] {
+        let w = explicit_hang(h);
+        eprintln!("h = {h:e} s: {w:?}");
+        assert_eq!(w.misplaced, 0);
+        assert!(w.worst > 100.0 || w.non_finite, "step {h} s was meant to blow up: {w:?}");
+        assert!(w.flagged > 0, "step {h} s blew up unflagged: {w:?}");
+        assert!(w.steps_after_first >= 4 * cloth_core::ENERGY_WINDOW, "step {h} s flagged late: {w:?}");
+    }
+}
+
+/// The explicit integrators' energy windows balance the work done on the
+/// cloth: a flag (16 x 11) in a gusty wind with its pinned edge shaken up
+/// and down at 5 Hz, classic RK4 at 0.2 ms (far inside its stability
+/// limit), no dampers, so the energy changes by the wind's and the pins'
+/// work alone. Each window's gain stays within `TOL` of the energy in play
+/// while the wind's and the pins' works are each far larger: leaving
+/// either out of the balance fails.
+#[test]
+fn explicit_energy_windows_balance_the_work_of_wind_and_pins() {
+    const TOL: f64 = 1.5e-4;
+    let (mut sim, cfg) = simulation(
+        "flag.toml",
+        &[
+            "panels.0.particles=[16, 11]",
+            "simulation.integrator=\"rk4\"",
+            "simulation.dt_s=2e-4",
+            "simulation.duration_s=0.5",
+            "simulation.effects=[\"gravity\", \"wind\", \"aerodynamics\"]",
+            "pins.0.motion={ kind = \"oscillate\", amplitude_m = [0.0, 0.0, 0.02], frequency_hz = 5.0 }",
+        ],
+    );
+    // Per window, of the energy in play: |gain|, |wind's work|, |pins' work|.
+    let (mut gains, mut wind, mut pins) = (Vec::new(), Vec::new(), Vec::new());
+    let mut before = None;
+    for _ in 0..cfg.steps {
+        let r = sim.step(cfg.dt_s).unwrap();
+        let Some(e) = r.energy else { continue };
+        if let Some((k0, e0)) = before {
+            let in_play: f64 = k0 + e0 + e.kinetic_j + e.elastic_j + e.pin_work_j.abs() + e.external_work_j.abs();
+            gains.push(e.gain_j.abs() / in_play);
+            wind.push(e.external_work_j.abs() / in_play);
+            pins.push(e.pin_work_j.abs() / in_play);
+        }
+        assert!(!e.flagged, "t = {}: {e:?}", sim.time());
+        before = Some((e.kinetic_j, e.elastic_j));
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let worst = gains.iter().copied().fold(0.0, f64::max);
+    let (gain, wind, pins) = (median(&mut gains), median(&mut wind), median(&mut pins));
+    eprintln!(
+        "of the energy in play, median window: gain {gain:.2e} (worst {worst:.2e}), wind's work {wind:.2e}, pins' {pins:.2e}"
+    );
+    assert!(worst < TOL, "a window's gain is {worst} of the energy in play");
+    assert!(wind > 10.0 * gain && pins > 10.0 * gain, "works too small to test the balance: wind {wind}, pins {pins}");
+}
+
+/// The same balance with the control's forces, the one load that comes and
+/// goes: the hanging cloth (11 x 11, Provot's springs, no dampers) pushed
+/// sideways for 0.1 s, then let go, under RK4 at 0.2 ms. Every window
+/// balances to `TOL` of the energy in play (measured 4.1e-10), the push's
+/// windows (its work up to 3.3e-2 of it) and those after it: with the
+/// push still counted once it stopped, 5.2e-4.
+#[test]
+fn explicit_energy_windows_balance_a_push_that_stops() {
+    const TOL: f64 = 5e-10;
+    let (mut sim, cfg) = simulation(
+        "hang.toml",
+        &[
+            "panels.0.particles=[11, 11]",
+            "pins.0.nodes=[[0, 10], [10, 10]]",
+            "simulation.model=\"provot\"",
+            "simulation.integrator=\"rk4\"",
+            "simulation.dt_s=2e-4",
+            "simulation.duration_s=0.3",
+            "simulation.effects=[\"gravity\"]",
+        ],
+    );
+    let push = vec![cloth_core::Vec3::new(2e-3, 0.0, 0.0); sim.model().particle_count()];
+    sim.set_external_forces(&push).unwrap();
+    let (mut worst, mut pushed_work, mut before) = (0.0f64, 0.0f64, None);
+    for _ in 0..cfg.steps {
+        if sim.time() >= 0.1 {
+            sim.clear_external_forces();
+        }
+        let r = sim.step(cfg.dt_s).unwrap();
+        let Some(e) = r.energy else { continue };
+        if let Some((k0, e0)) = before {
+            let in_play: f64 = k0 + e0 + e.kinetic_j + e.elastic_j + e.pin_work_j.abs() + e.external_work_j.abs();
+            worst = worst.max(e.gain_j.abs() / in_play);
+            pushed_work = pushed_work.max(e.external_work_j.abs() / in_play);
+        }
+        before = Some((e.kinetic_j, e.elastic_j));
+    }
+    eprintln!("of the energy in play: gain up to {worst:.2e}; the push's work up to {pushed_work:.2e} of a window's");
+    assert!(worst < TOL, "a window's gain is {worst} of the energy in play");
+}

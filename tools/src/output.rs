@@ -190,10 +190,13 @@ pub struct EnergySummary {
     pub dissipated_total_j: f64,
     /// Energy the steps created beyond their loads (negative: numerical dissipation).
     pub gain_total_j: f64,
-    /// Largest gain of one step.
+    /// Largest gain of one step (explicit integrators: of one window of
+    /// `cloth_core::ENERGY_WINDOW` steps, whose dissipation is not
+    /// measured).
     pub gain_max_j: f64,
-    /// Steps whose growth (gain without the dissipation) exceeded the
-    /// tolerance (`cloth_core::GAIN_TOLERANCE` of the energy in play).
+    /// Steps (explicit integrators: windows) whose growth (gain without
+    /// the dissipation) exceeded the tolerance (`cloth_core::GAIN_TOLERANCE`
+    /// of the energy in play).
     pub flagged_steps: u64,
     /// BDF2 steps retaken as backward Euler because they were flagged.
     pub retaken_as_backward_euler_steps: u64,

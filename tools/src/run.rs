@@ -467,7 +467,30 @@ pub fn run(args: &RunArgs) -> Result<()> {
             summary.stage_wall_s.self_collision
         );
     }
+    if let Some(line) = summary.energy.as_ref().and_then(|e| energy_warning(&summary.integrator, e.flagged_steps)) {
+        eprintln!("{}: {line}", args.scene.display());
+    }
     Ok(())
+}
+
+/// What `cloth run` says when the energy monitor flagged windows of an
+/// explicit integrator's steps (`None` for the implicit ones, whose
+/// flagged steps BDF2 retakes and `summary.json` counts, and when none
+/// was flagged): past its stability limit an explicit step multiplies the
+/// energy every step, and the run may stay finite while it blows up.
+fn energy_warning(integrator: &str, flagged: u64) -> Option<String> {
+    let kind = cloth_core::IntegratorKind::ALL.into_iter().find(|k| k.name() == integrator);
+    if flagged == 0 || kind.is_none_or(|k| k.is_implicit()) {
+        return None;
+    }
+    let windows = if flagged == 1 { "window" } else { "windows" };
+    Some(format!(
+        "warning: {flagged} {windows} of {} steps gained more than {:.0}% of the energy in play beyond the work \
+         done on the cloth: an explicit step beyond its stability limit does that; try a smaller \
+         simulation.dt_s or an implicit integrator (summary.json: energy)",
+        cloth_core::ENERGY_WINDOW,
+        cloth_core::GAIN_TOLERANCE * 100.0
+    ))
 }
 
 /// `cloth time`: runs a scene `repeat` times and prints one Markdown table

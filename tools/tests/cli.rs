@@ -119,6 +119,39 @@ fn a_run_that_goes_non_finite_says_where_and_when() {
     assert!(s["error"].as_str().unwrap().contains("particle"));
 }
 
+/// An explicit run past its stability limit that ends while still finite
+/// (the hanging cloth, 21 x 21, Provot's springs, symplectic Euler at 2 ms
+/// for 0.1 s: stretch 1.7e44 in 50 steps) exits 0, as it did before, but
+/// says that its energy windows gained energy, and `summary.json` counts
+/// them; the same run at 0.2 ms says nothing.
+#[test]
+fn an_explicit_run_that_blows_up_without_overflowing_is_flagged() {
+    let run = |name: &str, dt: &str| {
+        let out = out_dir(name);
+        let output = cloth()
+            .args(["run", scene("hang.toml").to_str().unwrap(), "--quiet"])
+            .args(["--set", "panels.0.particles=[21, 21]", "--set", "pins.0.nodes=[[0, 20], [20, 20]]"])
+            .args(["--set", "simulation.model=\"provot\"", "--set", "simulation.integrator=\"symplectic-euler\""])
+            .args(["--set", &format!("simulation.dt_s={dt}"), "--set", "simulation.duration_s=0.1"])
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        let s: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+        (String::from_utf8_lossy(&output.stderr).into_owned(), s)
+    };
+    let (err, s) = run("explicit-unstable", "2e-3");
+    assert_eq!(s["finite"], true);
+    assert!(s["max_stretch_ratio"].as_f64().unwrap() > 100.0, "{s}");
+    assert!(s["energy"]["flagged_steps"].as_u64().unwrap() > 0, "{s}");
+    assert!(err.contains("warning") && err.contains("stability limit") && err.contains("dt_s"), "{err}");
+    let (err, s) = run("explicit-stable", "2e-4");
+    assert_eq!(s["energy"]["flagged_steps"], 0, "{s}");
+    assert!(!err.contains("warning"), "{err}");
+}
+
 #[test]
 fn time_prints_a_table_row_of_medians() {
     let out = cloth()

@@ -25,6 +25,7 @@ pub mod scene;
 pub use contact::{colliders, contacts};
 pub use integrate::control;
 pub use integrate::energy::{EnergyReport, GAIN_TOLERANCE};
+pub use integrate::explicit::ENERGY_WINDOW;
 use integrate::{energy, explicit, integrator, matrix_free, newton, sim, state};
 pub use model::seams::{self, SeamSide, SeamSpec, Stitch};
 use model::{constraints, keyframes, material, pins, topology};

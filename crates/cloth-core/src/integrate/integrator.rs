@@ -221,8 +221,11 @@ pub struct StepReport {
     pub contacts: ContactStats,
     /// The Newton iterations (`None` for the single linearised step).
     pub newton: Option<NewtonReport>,
-    /// The step's energy balance (implicit integrators with an assembled
-    /// matrix; `None` for the others).
+    /// The step's energy balance: every step of the integrators with an
+    /// assembled matrix; for the explicit ones the balance of the last
+    /// [`crate::ENERGY_WINDOW`] steps, at each step whose count is a
+    /// multiple of it (`None` at the others and for
+    /// `backward-euler-fixed-cg`).
     pub energy: Option<EnergyReport>,
     /// BDF2 only: the step gained energy beyond what its loads explain
     /// ([`EnergyReport::flagged`]) and was retaken as a backward-Euler
@@ -355,7 +358,7 @@ pub struct Workspace {
     /// Force each pin exerted on its particle in the last step, N.
     pub(crate) pin_forces: Vec<Vec3>,
     /// Scratch of the energy monitor.
-    energy: crate::forces::EnergyBuffers,
+    pub(crate) energy: crate::forces::EnergyBuffers,
 }
 
 impl Workspace {
