@@ -112,6 +112,13 @@ impl ExplicitBuffers {
             window: None,
         }
     }
+
+    /// Ends the energy window: the next step starts a new one from its
+    /// own state (a restored snapshot may hold the step count the window
+    /// expects and another state).
+    pub(crate) fn end_energy_window(&mut self) {
+        self.window = None;
+    }
 }
 
 /// Steps over which an explicit integrator's energy is balanced: the
@@ -128,8 +135,8 @@ pub const ENERGY_WINDOW: u64 = 16;
 /// The energy balance of the explicit steps since the window began: the
 /// mechanical energy at its start and the work done on the cloth since,
 /// J. It goes on only from the state the last step left (`state.steps ==
-/// next_steps`); anything else (the first step, a restored snapshot)
-/// starts a new one.
+/// next_steps`, and no snapshot restored since); anything else starts a
+/// new one.
 #[derive(Debug, Clone, Copy)]
 struct EnergyWindow {
     next_steps: u64,

@@ -211,6 +211,9 @@ impl Simulation {
             return Err(StepError::NonFinite { step: snapshot.steps, time_s: snapshot.time_s, particle, quantity });
         }
         self.state.clone_from(snapshot);
+        if let Some(explicit) = self.workspace.explicit.as_mut() {
+            explicit.end_energy_window();
+        }
         Ok(())
     }
 }
