@@ -363,6 +363,31 @@ fn explicit_steps_beyond_their_stability_limit_are_flagged() {
     }
 }
 
+/// Steps `sim` `steps` times at `h` (calling `before_step` first each
+/// time) and hands each explicit energy window's report to `window` with
+/// the energy in play over it: the kinetic and elastic energies at both
+/// ends and the works' magnitudes (the first window, which has no report
+/// before it, is only checked for a flag).
+fn energy_windows(
+    sim: &mut cloth_core::Simulation,
+    (h, steps): (f64, u64),
+    mut before_step: impl FnMut(&mut cloth_core::Simulation),
+    mut window: impl FnMut(&cloth_core::EnergyReport, f64),
+) {
+    let mut before = None;
+    for _ in 0..steps {
+        before_step(sim);
+        let r = sim.step(h).unwrap();
+        let Some(e) = r.energy else { continue };
+        assert!(!e.flagged, "t = {}: {e:?}", sim.time());
+        if let Some((k0, e0)) = before {
+            let works = e.pin_work_j.abs() + e.external_work_j.abs() + e.contact_work_j.abs();
+            window(&e, k0 + e0 + e.kinetic_j + e.elastic_j + works);
+        }
+        before = Some((e.kinetic_j, e.elastic_j));
+    }
+}
+
 /// The explicit integrators' energy windows balance the work done on the
 /// cloth: a flag (16 x 11) in a gusty wind with its pinned edge shaken up
 /// and down at 5 Hz, classic RK4 at 0.2 ms (far inside its stability
@@ -386,19 +411,16 @@ fn explicit_energy_windows_balance_the_work_of_wind_and_pins() {
     );
     // Per window, of the energy in play: |gain|, |wind's work|, |pins' work|.
     let (mut gains, mut wind, mut pins) = (Vec::new(), Vec::new(), Vec::new());
-    let mut before = None;
-    for _ in 0..cfg.steps {
-        let r = sim.step(cfg.dt_s).unwrap();
-        let Some(e) = r.energy else { continue };
-        if let Some((k0, e0)) = before {
-            let in_play: f64 = k0 + e0 + e.kinetic_j + e.elastic_j + e.pin_work_j.abs() + e.external_work_j.abs();
+    energy_windows(
+        &mut sim,
+        (cfg.dt_s, cfg.steps),
+        |_| {},
+        |e, in_play| {
             gains.push(e.gain_j.abs() / in_play);
             wind.push(e.external_work_j.abs() / in_play);
             pins.push(e.pin_work_j.abs() / in_play);
-        }
-        assert!(!e.flagged, "t = {}: {e:?}", sim.time());
-        before = Some((e.kinetic_j, e.elastic_j));
-    }
+        },
+    );
     let median = |v: &mut Vec<f64>| {
         v.sort_by(f64::total_cmp);
         v[v.len() / 2]
@@ -435,20 +457,16 @@ fn explicit_energy_windows_balance_a_push_that_stops() {
     );
     let push = vec![cloth_core::Vec3::new(2e-3, 0.0, 0.0); sim.model().particle_count()];
     sim.set_external_forces(&push).unwrap();
-    let (mut worst, mut pushed_work, mut before) = (0.0f64, 0.0f64, None);
-    for _ in 0..cfg.steps {
+    let (mut worst, mut pushed_work) = (0.0f64, 0.0f64);
+    let stop = |sim: &mut cloth_core::Simulation| {
         if sim.time() >= 0.1 {
             sim.clear_external_forces();
         }
-        let r = sim.step(cfg.dt_s).unwrap();
-        let Some(e) = r.energy else { continue };
-        if let Some((k0, e0)) = before {
-            let in_play: f64 = k0 + e0 + e.kinetic_j + e.elastic_j + e.pin_work_j.abs() + e.external_work_j.abs();
-            worst = worst.max(e.gain_j.abs() / in_play);
-            pushed_work = pushed_work.max(e.external_work_j.abs() / in_play);
-        }
-        before = Some((e.kinetic_j, e.elastic_j));
-    }
+    };
+    energy_windows(&mut sim, (cfg.dt_s, cfg.steps), stop, |e, in_play| {
+        worst = worst.max(e.gain_j.abs() / in_play);
+        pushed_work = pushed_work.max(e.external_work_j.abs() / in_play);
+    });
     eprintln!("of the energy in play: gain up to {worst:.2e}; the push's work up to {pushed_work:.2e} of a window's");
     assert!(worst < TOL, "a window's gain is {worst} of the energy in play");
 }

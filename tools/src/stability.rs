@@ -282,6 +282,7 @@ fn integrators(quick: bool) -> &'static [&'static str] {
 /// Runs the whole suite; `quick` keeps one variant of each case.
 pub fn run_suite(quick: bool) -> Vec<Row> {
     let mut rows = step_sizes(quick);
+    rows.extend(explicit_stability_limit(quick));
     rows.extend(stiffness_ratios(quick));
     rows.extend(crumpled(quick));
     rows.extend(yanked(quick));
@@ -352,6 +353,67 @@ fn step_sizes(quick: bool) -> Vec<Row> {
                         p.stretch_at_most(USUAL_STRETCH)
                     } else {
                         p.ran().map(|()| format!("stretch {:.1}", p.worst_stretch))
+                    };
+                    case.row(Some(&p), verdict)
+                }
+                Err(e) => case.row(None, Err(e)),
+            });
+        }
+    }
+    rows
+}
+
+/// Symplectic Euler at a step inside and a step past its stability limit
+/// (the base scene: 1 ms holds for Choi & Ko's and Provot's links, 2 ms
+/// blows up). Past the limit the energy grows by a factor every step and
+/// the run may stay finite for a long while (a 101 x 101 drape reached a
+/// stretch of 1.9e93, exit 0): the explicit integrators' energy windows
+/// must flag it at least a window before it overflows (or the run ends),
+/// and flag nothing inside the limit.
+fn explicit_stability_limit(quick: bool) -> Vec<Row> {
+    let models: &[&str] = if quick { &["choi-ko"] } else { &["choi-ko", "provot"] };
+    let mut rows = Vec::new();
+    for &model in models {
+        for (h, stable) in [(1e-3, true), (2e-3, false)] {
+            let requirement = if stable {
+                "finite; stretch <= 1.3; no energy window flagged"
+            } else {
+                "blows up; energy windows flagged a window or more before it stops"
+            };
+            let case = Case::new("explicit step", format!("h = {h:.0e} s"), requirement)
+                .integrator("symplectic-euler")
+                .model(model)
+                .set("simulation.dt_s", format!("{h:e}"))
+                .set("simulation.duration_s", 0.5);
+            let (mut flagged, mut first) = (0u64, None);
+            let run = case.run(
+                |_| {},
+                |sim, report| {
+                    if report.energy.is_some_and(|e| e.flagged) {
+                        flagged += 1;
+                        first = first.or(Some(sim.state().steps));
+                    }
+                },
+            );
+            rows.push(match run {
+                Ok((p, _)) => {
+                    let verdict = if stable {
+                        // Provot's linear springs hang at 1.28 at any step.
+                        p.stretch_at_most(1.3).and_then(|m| {
+                            if flagged == 0 { Ok(m) } else { Err(format!("{m}, {flagged} windows flagged")) }
+                        })
+                    } else {
+                        let end = p.steps + u64::from(p.error.is_some());
+                        let blew_up = p.error.is_some() || p.worst_stretch > 2.0;
+                        match first {
+                            Some(k) if blew_up && k + cloth_core::ENERGY_WINDOW <= end => {
+                                Ok(format!("{flagged} windows flagged, the first at step {k} of {end}"))
+                            }
+                            Some(k) => {
+                                Err(format!("first flagged at step {k} of {end}; stretch {:.3}", p.worst_stretch))
+                            }
+                            None => Err(format!("no window flagged in {end} steps; stretch {:.3}", p.worst_stretch)),
+                        }
                     };
                     case.row(Some(&p), verdict)
                 }
