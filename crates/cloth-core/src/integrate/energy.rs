@@ -115,9 +115,7 @@ impl StepEnergy<'_> {
     /// The balance; `after` is [`mechanical`] of the new state.
     pub(crate) fn report(&self, model: &ClothModel, after: (f64, f64, f64)) -> EnergyReport {
         let dx = |i: usize| self.new_x[i] - self.x[i];
-        let pin_work: f64 = self.pins.particles().zip(self.pin_forces).map(|(i, f)| f.dot(&dx(i))).sum();
-        let external_work = self.external.map_or(0.0, |f| (0..f.len()).map(|i| f[i].dot(&dx(i))).sum());
-        let contact_work: f64 = self.contacts.iter().map(|c| c.impulse_n_s.dot(&c.solid_velocity)).sum();
+        let works = works((self.x, self.new_x), (self.pins, self.pin_forces), self.external, self.contacts);
         // The dampers' and drag's work over the step's displacement, at
         // the new velocity they are evaluated at: `v'^T C dx`.
         let v = self.new_v;
@@ -134,8 +132,26 @@ impl StepEnergy<'_> {
             let (i, j) = (s.i as usize, s.j as usize);
             dissipated += s.dashpot(closed) * (v[j] - v[i]).dot(&(dx(j) - dx(i)));
         }
-        balance(self.before, after, (pin_work, external_work, contact_work), dissipated)
+        balance(self.before, after, works, dissipated)
     }
+}
+
+/// The work done on the cloth over a step from `x` to `new_x`, J: by the
+/// pins (each particle's mean pin force over its displacement), by the
+/// external forces (when present, over the displacement) and by the solids
+/// through `contacts` (each impulse times the solid's velocity there), as
+/// `(pins, external, contacts)`.
+pub(crate) fn works(
+    (x, new_x): (&[Vec3], &[Vec3]),
+    (pins, pin_forces): (crate::control::PinPaths<'_>, &[Vec3]),
+    external: Option<&[Vec3]>,
+    contacts: &[crate::contacts::SolidContact],
+) -> (f64, f64, f64) {
+    let dx = |i: usize| new_x[i] - x[i];
+    let pin_work: f64 = pins.particles().zip(pin_forces).map(|(i, f)| f.dot(&dx(i))).sum();
+    let external_work = external.map_or(0.0, |f| (0..f.len()).map(|i| f[i].dot(&dx(i))).sum());
+    let contact_work: f64 = contacts.iter().map(|c| c.impulse_n_s.dot(&c.solid_velocity)).sum();
+    (pin_work, external_work, contact_work)
 }
 
 /// The balance of mechanical energies `before` and `after` (kinetic,

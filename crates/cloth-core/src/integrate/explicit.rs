@@ -475,10 +475,10 @@ fn balance_window(
             contact_work: 0.0,
         },
     };
-    let dx = |i: usize| new_x[i] - state.x[i];
-    let pin_work: f64 = pins.particles().zip(pin_forces.iter()).map(|(i, f)| f.dot(&dx(i))).sum();
-    let external_work: f64 = bufs.external.iter().enumerate().map(|(i, f)| f.dot(&dx(i))).sum();
-    let contact_work: f64 = contacts.solid.iter().map(|c| c.impulse_n_s.dot(&c.solid_velocity)).sum();
+    let external = (!bufs.external.is_empty()).then_some(&bufs.external[..]);
+    let step = (&state.x[..], &new_x[..]);
+    let (pin_work, external_work, contact_work) =
+        crate::energy::works(step, (pins, &pin_forces[..]), external, &contacts.solid);
     let window = EnergyWindow {
         next_steps: state.steps + 1,
         pin_work: window.pin_work + pin_work,
