@@ -501,7 +501,7 @@ pub fn time(scene: &Path, overrides: &[String], threads: usize, repeat: usize) -
     }
     let mut runs = Vec::with_capacity(repeat);
     for _ in 0..repeat {
-        let s = simulate(scene, overrides, threads, None, false)?;
+        let s = simulate(scene, overrides, threads, None, true)?;
         if let Some(e) = &s.error {
             bail!("{}: {e}", scene.display());
         }

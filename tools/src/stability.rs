@@ -904,32 +904,42 @@ pub fn markdown(rows: &[Row]) -> String {
 }
 
 /// Every row as CSV.
-pub fn csv(rows: &[Row]) -> String {
-    let mut s = String::from(
-        "case,variant,integrator,model,requirement,outcome,worst_stretch,penetration_m,cg_per_step,wall_s,holds,measured\n",
-    );
-    let quote = |t: &str| format!("\"{}\"", t.replace('"', "'"));
+pub fn csv(rows: &[Row]) -> anyhow::Result<crate::table::CsvTable> {
+    let mut table = crate::table::CsvTable::new(&[
+        "case",
+        "variant",
+        "integrator",
+        "model",
+        "requirement",
+        "outcome",
+        "worst_stretch",
+        "penetration_m",
+        "cg_per_step",
+        "wall_s",
+        "holds",
+        "measured",
+    ]);
     for r in rows {
         let (holds, measured) = match &r.verdict {
             Ok(m) => (true, m),
             Err(e) => (false, e),
         };
-        s.push_str(&format!(
-            "{},{},{},{},{},{},{:.4},{:.3e},{:.1},{:.3},{holds},{}\n",
-            quote(r.case),
-            quote(&r.variant),
-            quote(&r.integrator),
-            r.model,
-            quote(&r.requirement),
-            quote(&r.outcome),
-            r.worst_stretch,
-            r.penetration_m,
-            r.cg_per_step,
-            r.wall_s,
-            quote(measured)
-        ));
+        table.row([
+            r.case.to_string(),
+            r.variant.clone(),
+            r.integrator.clone(),
+            r.model.to_string(),
+            r.requirement.clone(),
+            r.outcome.clone(),
+            format!("{:.4}", r.worst_stretch),
+            format!("{:.3e}", r.penetration_m),
+            format!("{:.1}", r.cg_per_step),
+            format!("{:.3}", r.wall_s),
+            holds.to_string(),
+            measured.clone(),
+        ])?;
     }
-    s
+    Ok(table)
 }
 
 /// A rigid ball from 1e-3 to 1e3 times the cloth's mass dropped at 1 m/s

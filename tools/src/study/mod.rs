@@ -1,0 +1,245 @@
+//! `cloth study`: reproduce and extend Volino & Magnenat-Thalmann's (2001)
+//! comparison of integration methods. Each study writes CSV (every run),
+//! Markdown (tables with the machine and the command) and SVG (plots).
+//!
+//! One module a family: [`volino`] (the free fall, drape, cost and
+//! work-precision comparisons of the paper), [`solver`] (cost against size,
+//! large steps, bending, co-simulation and the hard-case suite). This file
+//! holds what they share: the methods, a monitored run, the output files.
+
+mod solver;
+mod volino;
+
+pub use solver::{bending, cosim, large_steps, scaling, stability};
+pub use volino::{cost, drape, freefall, precision};
+
+use anyhow::{Context, Result};
+use cloth_core::Simulation;
+use cloth_core::scene::Scene;
+use cloth_tools::table::CsvTable;
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Options shared by the studies.
+pub struct StudyArgs {
+    pub out: PathBuf,
+    pub threads: usize,
+    /// A small sweep (for tests): two K values, three methods, one model.
+    pub quick: bool,
+}
+
+/// One integration method as the studies run it.
+struct Method {
+    label: &'static str,
+    overrides: &'static [&'static str],
+}
+
+const METHODS: &[Method] = &[
+    Method { label: "symplectic Euler", overrides: &["simulation.integrator=symplectic-euler"] },
+    Method { label: "midpoint", overrides: &["simulation.integrator=midpoint"] },
+    Method { label: "RK4", overrides: &["simulation.integrator=rk4"] },
+    Method { label: "DOPRI5 tol 1e-4", overrides: &["simulation.integrator=dopri5", "solver.error_tolerance=1e-4"] },
+    Method {
+        label: "BE 1 CG",
+        overrides: &["simulation.integrator=backward-euler-fixed-cg", "solver.fixed_cg_iterations=1"],
+    },
+    Method {
+        label: "BE 2 CG",
+        overrides: &["simulation.integrator=backward-euler-fixed-cg", "solver.fixed_cg_iterations=2"],
+    },
+    Method {
+        label: "BE 4 CG",
+        overrides: &["simulation.integrator=backward-euler-fixed-cg", "solver.fixed_cg_iterations=4"],
+    },
+    Method {
+        label: "BE 8 CG",
+        overrides: &["simulation.integrator=backward-euler-fixed-cg", "solver.fixed_cg_iterations=8"],
+    },
+    Method { label: "BE PCG", overrides: &["simulation.integrator=backward-euler", "solver.rel_tol=1e-6"] },
+    Method { label: "BDF2 PCG", overrides: &["simulation.integrator=bdf2", "solver.rel_tol=1e-6"] },
+];
+
+/// What a monitored run measured.
+struct RunStats {
+    /// False when a step failed or a link blew up.
+    stable: bool,
+    max_stretch: f64,
+    steps: u64,
+    force_evaluations: u64,
+    cg_iterations: u64,
+    /// Wall time inside `step` only (monitoring excluded), s.
+    step_wall_s: f64,
+    /// Newton corrections, line-search halvings and steps left above the
+    /// Newton tolerance (`solver.newton_iterations > 1`).
+    newton_corrections: u64,
+    newton_backtracks: u64,
+    newton_unconverged: u64,
+    /// The error of a failed step.
+    error: Option<String>,
+}
+
+/// A link stretched beyond this ratio means the run blew up.
+const BLOWN_UP_STRETCH: f64 = 2.0;
+
+/// Runs a scene step by step; after each step `watch(sim, t_before)` may
+/// stop the run by returning true. Stops as unstable when a step fails or a
+/// link stretches beyond [`BLOWN_UP_STRETCH`].
+fn monitored_run(
+    scene: &Path,
+    overrides: &[String],
+    pool: &rayon::ThreadPool,
+    watch: impl FnMut(&Simulation, f64) -> bool,
+) -> Result<(RunStats, Simulation)> {
+    run_until(scene, overrides, pool, BLOWN_UP_STRETCH, watch)
+}
+
+/// [`monitored_run`] with the blow-up stretch given (`f64::INFINITY`: run
+/// on however far links stretch).
+fn run_until(
+    scene: &Path,
+    overrides: &[String],
+    pool: &rayon::ThreadPool,
+    blown_up_stretch: f64,
+    mut watch: impl FnMut(&Simulation, f64) -> bool,
+) -> Result<(RunStats, Simulation)> {
+    let parsed = Scene::parse_file(scene, overrides)?;
+    let (model, cfg) =
+        parsed.build().map_err(|kind| cloth_core::scene::SceneError { file: scene.to_path_buf(), kind })?;
+    let mut sim = cfg.simulation(model);
+    let mut run = RunStats {
+        stable: true,
+        max_stretch: 1.0,
+        steps: 0,
+        force_evaluations: 0,
+        cg_iterations: 0,
+        step_wall_s: 0.0,
+        newton_corrections: 0,
+        newton_backtracks: 0,
+        newton_unconverged: 0,
+        error: None,
+    };
+    let bar = run_progress(scene, cfg.steps);
+    for _ in 0..cfg.steps {
+        bar.inc(1);
+        let t_prev = sim.time();
+        let t = Instant::now();
+        let result = pool.install(|| sim.step(cfg.dt_s));
+        run.step_wall_s += t.elapsed().as_secs_f64();
+        let report = match result {
+            Ok(r) => r,
+            Err(e) => {
+                (run.stable, run.error) = (false, Some(e.to_string()));
+                break;
+            }
+        };
+        run.steps += 1;
+        run.force_evaluations += report.force_evaluations as u64;
+        run.cg_iterations += report.cg_iterations as u64;
+        if let Some(n) = report.newton {
+            run.newton_corrections += n.corrections as u64;
+            run.newton_backtracks += n.backtracks as u64;
+            run.newton_unconverged += u64::from(!n.converged);
+        }
+        let x = &sim.state().x;
+        let stretch = sim.model().max_stretch_ratio(x);
+        run.max_stretch = run.max_stretch.max(stretch);
+        if stretch.is_nan() || stretch >= blown_up_stretch {
+            run.stable = false;
+            break;
+        }
+        if watch(&sim, t_prev) {
+            break;
+        }
+    }
+    bar.finish_and_clear();
+    Ok((run, sim))
+}
+
+/// A progress bar over one run's steps, drawn on a terminal only (a study
+/// runs the same scene dozens of times, some for minutes).
+fn run_progress(scene: &Path, steps: u64) -> ProgressBar {
+    let bar = ProgressBar::new(steps);
+    bar.set_style(
+        ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} steps  {msg}")
+            .expect("static template")
+            .progress_chars("=> "),
+    );
+    bar.set_message(scene.file_name().map_or(String::new(), |f| f.to_string_lossy().into_owned()));
+    bar
+}
+
+/// The thread pool of a study, after creating its output directory.
+fn setup(args: &StudyArgs) -> Result<rayon::ThreadPool> {
+    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    Ok(rayon::ThreadPoolBuilder::new().num_threads(args.threads).build()?)
+}
+
+/// Title, machine, threads and the command that produced a result file.
+fn header(title: &str, study: &str, args: &StudyArgs) -> String {
+    let cpu = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|t| {
+            t.lines()
+                .find(|l| l.starts_with("model name"))
+                .map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string())
+        })
+        .unwrap_or_else(|| "unknown CPU".into());
+    let cores = std::thread::available_parallelism().map_or(0, |n| n.get());
+    format!(
+        "# {title}\n\nMachine: {cpu}, {cores} cores; {} threads. Produced by \
+         `cargo run --release -p cloth-tools -- study {study} --out {}{}`.\n\n",
+        args.threads,
+        args.out.display(),
+        if args.quick { " --quick" } else { "" }
+    )
+}
+
+/// Overrides for a square grid of `n x n` particles on the hanging-cloth or
+/// draping fixtures (pins follow the grid size).
+fn grid(n: usize, pins: &str) -> Vec<String> {
+    let last = n - 1;
+    let mut o = vec![format!("panels.0.particles=[{n}, {n}]")];
+    if pins == "corners" {
+        o.push(format!("pins.0.nodes=[[0, {last}], [{last}, {last}]]"));
+    }
+    o
+}
+
+fn with(method: &Method, extra: Vec<String>) -> Vec<String> {
+    method.overrides.iter().map(|s| s.to_string()).chain(extra).collect()
+}
+
+fn write_outputs(out: &Path, name: &str, csv: CsvTable, md: &str, plots: &[(String, String)]) -> Result<()> {
+    std::fs::write(out.join(format!("{name}.csv")), csv.into_string()?)?;
+    std::fs::write(out.join(format!("{name}.md")), md)?;
+    for (file, svg) in plots {
+        std::fs::write(out.join(file), svg)?;
+    }
+    println!("wrote {}/{name}.csv, {name}.md and {} plot(s)", out.display(), plots.len());
+    Ok(())
+}
+
+/// Slope of the least-squares line through `(x, y)` points (NaN for fewer than two).
+fn least_squares_slope(points: &[(f64, f64)]) -> f64 {
+    let n = points.len() as f64;
+    let (mx, my) = (points.iter().map(|p| p.0).sum::<f64>() / n, points.iter().map(|p| p.1).sum::<f64>() / n);
+    let sxy: f64 = points.iter().map(|(x, y)| (x - mx) * (y - my)).sum();
+    let sxx: f64 = points.iter().map(|(x, _)| (x - mx) * (x - mx)).sum();
+    sxy / sxx
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn least_squares_slope_of_a_line_and_of_noise_around_it() {
+        let line: Vec<(f64, f64)> = (0..5).map(|k| (k as f64, 1.05 * k as f64 - 3.0)).collect();
+        assert!((least_squares_slope(&line) - 1.05).abs() < 1e-14);
+        // About y = x, by hand: sxy = 4.8, sxx = 5.
+        let noisy: Vec<(f64, f64)> = [(0.0, 0.1), (1.0, 0.9), (2.0, 2.1), (3.0, 2.9)].to_vec();
+        assert!((least_squares_slope(&noisy) - 0.96).abs() < 1e-12, "{}", least_squares_slope(&noisy));
+        assert!(least_squares_slope(&[(1.0, 2.0)]).is_nan());
+    }
+}
