@@ -4,3 +4,12 @@
 
 pub mod colliders;
 pub mod contacts;
+
+mod active_set;
+mod contact_laws;
+mod detect;
+mod penalty;
+mod projection;
+mod response;
+mod self_collision;
+mod types;

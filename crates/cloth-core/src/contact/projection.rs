@@ -1,0 +1,166 @@
+//! The safety net after a solve and the path without a matrix: moving
+//! particles left inside a solid back to its surface, and the diagnostic
+//! deepest penetration.
+
+use super::contacts::*;
+use crate::control::Control;
+use crate::{ClothModel, Vec3};
+use cloth_linalg::ROW_CHUNK;
+use rayon::prelude::*;
+
+/// The safety net after the active set: particles that still end closer
+/// than half the thickness to a solid at `t_next` are moved back to the
+/// thickness along the normal of the side they came from, and lose their
+/// velocity into the solid (relative to it). Only particles released this
+/// step are checked, or every particle when `all` (the active set ran out
+/// of passes with contacts still being added: large steps). Positions move
+/// without a matching velocity, so this is a projection, not a force; in
+/// ordinary steps it finds nothing. Returns the number of particles moved.
+pub(crate) fn project_out(
+    model: &ClothModel,
+    x: &[Vec3],
+    (t, h): (f64, f64),
+    bufs: &mut ContactBuffers,
+    all: bool,
+    new_x: &mut [Vec3],
+    new_v: &mut [Vec3],
+) -> usize {
+    let thickness = model.contact_thickness();
+    let solids_next = bufs.next.at(model, &bufs.external, t + h);
+    let mut moved = 0;
+    let mut fix = |i: usize| {
+        let mut changed = false;
+        for (c, next) in model.colliders().iter().zip(solids_next) {
+            let Some((_, surface)) = reach_surface(c, (next, h), x[i], new_x[i], 0.5 * thickness, &mut 0).within()
+            else {
+                continue;
+            };
+            let n = surface.normal;
+            let gap = n.dot(&(new_x[i] - surface.point));
+            if gap < thickness {
+                new_x[i] += n * (thickness - gap);
+                let inward = n.dot(&(new_v[i] - next.velocity_at(surface.point)));
+                if inward < 0.0 {
+                    new_v[i] -= n * inward;
+                }
+                changed = true;
+            }
+        }
+        changed
+    };
+    if all {
+        for i in (0..x.len()).filter(|&i| !model.is_pinned(i)) {
+            moved += usize::from(fix(i));
+        }
+    } else {
+        for c in bufs.solid.iter().filter(|c| !c.active) {
+            moved += usize::from(fix(c.particle as usize));
+        }
+    }
+    moved
+}
+
+/// Collision response for integrators without an assembled matrix (the
+/// explicit ones and the fixed-iteration matrix-free backward Euler), after
+/// the step, as in Provot (1995) and Bridson et al. (2002): a particle
+/// ending closer than the thickness to a solid (at `t_next`) is moved back
+/// to it along the normal of the side it came from, its velocity into the
+/// solid is removed (an inelastic impulse `dv_n`), and its tangential
+/// velocity relative to the solid loses at most `mu dv_n`, all of it when
+/// that suffices (static friction: under gravity `dv_n = h g cos(theta)`
+/// per step, so this is Coulomb's `mu m g cos(theta)`); the position moves
+/// back by `h` times the tangential velocity removed. `x` are the
+/// positions at the start of the step, at time `t`; the step is `h`. The
+/// reported penetration is that of the start positions, as for the
+/// implicit integrators.
+pub(crate) fn collide_after_step(
+    model: &ClothModel,
+    x: &[Vec3],
+    (t, h): (f64, f64),
+    bufs: &mut ContactBuffers,
+    new_x: &mut [Vec3],
+    new_v: &mut [Vec3],
+) -> ContactStats {
+    let thickness = model.contact_thickness();
+    let t_next = t + h;
+    bufs.candidate.resize(x.len(), [None; 2]);
+    let (solids_now, solids_next) =
+        (bufs.now.at(model, &bufs.external, t), bufs.next.at(model, &bufs.external, t_next));
+    let masses = model.masses();
+    // Particles are independent; the counters add and the depth is a
+    // maximum, so the parallel reduction is exact in any order.
+    let stats = new_x
+        .par_iter_mut()
+        .zip(new_v.par_iter_mut())
+        .zip(bufs.candidate.par_iter_mut())
+        .enumerate()
+        .with_min_len(ROW_CHUNK)
+        .map(|(i, ((xi, vi), cand))| {
+            let mut stats = ContactStats::default();
+            *cand = [None; 2];
+            if model.is_pinned(i) {
+                return stats;
+            }
+            let mut slot = 0;
+            for (k, (c, (now, next))) in model.colliders().iter().zip(solids_now.iter().zip(solids_next)).enumerate() {
+                let Some((_, surface)) =
+                    reach_surface(c, (next, h), x[i], *xi, thickness, &mut stats.narrow_phase_queries).within()
+                else {
+                    continue;
+                };
+                let before = c.shape.closest(now.pose(), x[i]);
+                stats.max_penetration_m = stats.max_penetration_m.max(-before.distance_m);
+                stats.narrow_phase_queries += 1;
+                let n = surface.normal;
+                let gap = n.dot(&(*xi - surface.point));
+                if gap < thickness {
+                    *xi += n * (thickness - gap);
+                }
+                let solid_v = next.velocity_at(surface.point);
+                let rel = *vi - solid_v;
+                let inward = n.dot(&rel);
+                let v_before = *vi;
+                if inward < 0.0 {
+                    let tangential = rel - n * inward;
+                    let speed = tangential.norm();
+                    let budget = c.friction * -inward;
+                    let slip = if speed <= budget { Vec3::zeros() } else { tangential * (1.0 - budget / speed) };
+                    stats.sticking += usize::from(speed <= budget && c.friction > 0.0);
+                    *vi = solid_v + slip;
+                    // The step moved the particle with the velocity before
+                    // friction: take back that part of the slide (x' = x + h v').
+                    *xi += (slip - tangential) * h;
+                }
+                if slot < 2 {
+                    let mut contact = contact(i, k, c, &surface, gap, 0.0, next);
+                    contact.impulse_n_s = (*vi - v_before) * masses[i];
+                    contact.normal_force_n = n.dot(&contact.impulse_n_s) / h;
+                    cand[slot] = Some(contact);
+                    slot += 1;
+                }
+                stats.contacts = 1;
+            }
+            stats
+        })
+        .reduce(ContactStats::default, |mut a, b| {
+            a += b;
+            a
+        });
+    bufs.solid.clear();
+    bufs.solid.extend(bufs.candidate.iter().flatten().flatten());
+    stats
+}
+
+/// Deepest any particle at positions `x` is inside a solid at time `t`, m
+/// (0 when none is inside), with externally driven solids where `control`
+/// puts them. A diagnostic: it queries every particle near every solid.
+pub(crate) fn max_penetration(model: &ClothModel, control: &Control, x: &[Vec3], t: f64) -> f64 {
+    let mut deepest: f64 = 0.0;
+    let mut frames = SolidFrames::default();
+    for (c, s) in model.colliders().iter().zip(frames.at(model, control.solid_motions(), t)) {
+        for p in x.iter().filter(|p| s.near(p, 0.0)) {
+            deepest = deepest.max(-c.shape.closest(s.pose(), *p).distance_m);
+        }
+    }
+    deepest
+}

@@ -1,0 +1,310 @@
+//! Cloth-cloth contacts: particle-particle and particle-triangle pairs
+//! found through the voxel hash, their repulsion, and the separation
+//! after the step.
+
+use super::contacts::*;
+use crate::colliders::SelfCollision;
+use crate::laws::{self, pair_stiffness};
+use crate::{ClothModel, Mat3, Vec3};
+use cloth_collide::{VoxelHash, closest_point_on_triangle};
+use rayon::prelude::*;
+
+/// Whether particles `a` and `b` share a link (they never repel).
+pub(crate) fn linked(model: &ClothModel, a: usize, b: usize) -> bool {
+    model.incidence(a).iter().any(|inc| inc.other as usize == b)
+}
+
+/// Finds self-collision pairs at positions `x` into `bufs.self_pairs` and
+/// the repulsion forces and diagonal stiffness into `bufs.self_force` and
+/// `bufs.self_stiffness`. Returns the particle at fault if a position is
+/// not finite.
+///
+/// Pairs are gathered within 1.5 thicknesses plus the distance the two
+/// particles cover towards each other at their speeds in the step `h`
+/// (up to the voxel size), so
+/// [`separate_self_contacts`] can still tell which side each particle
+/// was on after the step. Particle pairs closer than the thickness repel
+/// unless linked. With
+/// `point_triangle`, each particle also finds its nearest triangle (not
+/// containing it or a particle linked to it) whose closest point is inside
+/// the triangle or on an edge (vertices are the particle pairs' job), so
+/// a particle cannot slip through the middle of a quad.
+pub(crate) fn detect_self_contacts(
+    model: &ClothModel,
+    sc: &SelfCollision,
+    x: &[Vec3],
+    v: &[Vec3],
+    h: f64,
+    bufs: &mut ContactBuffers,
+) -> Result<ContactStats, usize> {
+    let n = x.len();
+    let fastest = v.iter().map(|v| v.norm()).fold(0.0, f64::max);
+    let radius = (SELF_SLACK * sc.thickness_m + 2.0 * h * fastest).min(sc.voxel_m);
+    // Taken out of the buffers while they are filled; put back below.
+    let mut hash = match bufs.hash.take() {
+        Some(hash) => hash,
+        None => VoxelHash::new(sc.voxel_m).map_err(|_| 0usize)?,
+    };
+    hash.insert_points(x).map_err(|e| match e {
+        cloth_collide::BroadPhaseError::NonFinite { index, .. } => index,
+        cloth_collide::BroadPhaseError::InvalidVoxelSize(_) => 0,
+    })?;
+    let th = sc.thickness_m;
+    bufs.self_pairs.clear();
+    // A pair is kept when it could close the gap to the thickness within
+    // the step: its distance is below the thickness (with some slack for
+    // accelerations) plus what the two particles travel at their speeds.
+    let reach = |d: f64, speed: f64| d < SELF_SLACK * th + h * speed;
+    // The cell table in fixed chunks, in parallel; the union sorted, so
+    // the pairs do not depend on the number of threads.
+    let slot_chunks = hash.table_slots().div_ceil(SLOT_CHUNK);
+    bufs.pair_chunks.resize_with(slot_chunks, Vec::new);
+    bufs.pair_chunks.par_iter_mut().enumerate().for_each(|(k, pairs)| {
+        pairs.clear();
+        let slots = k * SLOT_CHUNK..((k + 1) * SLOT_CHUNK).min(hash.table_slots());
+        hash.pairs_from_slots(slots, radius, |a, b| linked(model, a as usize, b as usize), pairs);
+    });
+    bufs.candidate_pairs.clear();
+    bufs.candidate_pairs.extend(bufs.pair_chunks.iter().flatten());
+    bufs.candidate_pairs.sort_unstable();
+    for &(a, b) in &bufs.candidate_pairs {
+        let (a, b) = (a as usize, b as usize);
+        let diff = x[a] - x[b];
+        let d = diff.norm();
+        if !reach(d, v[a].norm() + v[b].norm()) {
+            continue;
+        }
+        let direction = if d > 1e-12 * th {
+            diff / d
+        } else {
+            // Coincident: separate along the rest-shape direction.
+            (model.rest_positions()[a] - model.rest_positions()[b]).normalize()
+        };
+        bufs.self_pairs.push(SelfContact {
+            particle: a as u32,
+            others: [b as u32; 3],
+            weights: [1.0, 0.0, 0.0],
+            direction,
+            distance_m: d,
+            repels: true,
+        });
+    }
+    if sc.point_triangle {
+        point_triangle_contacts(model, radius, x, &hash, bufs, |p, tri, d| {
+            reach(d, v[p].norm() + tri.iter().map(|&c| v[c as usize].norm()).fold(0.0, f64::max))
+        });
+    }
+    bufs.hash = Some(hash);
+    bufs.self_force.resize(n, Vec3::zeros());
+    bufs.self_stiffness.resize(n, Mat3::zeros());
+    bufs.self_force.iter_mut().for_each(|f| *f = Vec3::zeros());
+    bufs.self_stiffness.iter_mut().for_each(|k| *k = Mat3::zeros());
+    for c in bufs.self_pairs.iter().filter(|c| c.repels) {
+        let law = laws::repulsion(c.distance_m, th, sc.stiffness_n_m);
+        // phi < 0: the particle is pushed along `direction`, the other side back.
+        let f = c.direction * -law.phi;
+        let block = pair_stiffness(&c.direction, c.distance_m, &law, false);
+        let p = c.particle as usize;
+        bufs.self_force[p] += f;
+        bufs.self_stiffness[p] += block;
+        for (&o, &w) in c.others.iter().zip(&c.weights) {
+            if w != 0.0 {
+                bufs.self_force[o as usize] -= f * w;
+                bufs.self_stiffness[o as usize] += block * (w * w);
+            }
+        }
+    }
+    let touching = bufs.self_pairs.iter().filter(|c| c.repels && c.distance_m < th).count();
+    Ok(ContactStats { self_contacts: touching, hash_builds: 1, ..Default::default() })
+}
+
+/// Self-collision pairs are gathered up to this many thicknesses (plus
+/// the distance the pair can close in the step).
+pub(crate) const SELF_SLACK: f64 = 1.5;
+
+/// Fraction of the self-collision thickness below which
+/// [`separate_self_contacts`] pushes pairs apart after a step.
+pub const MIN_SELF_GAP: f64 = 0.75;
+
+/// After a step: every self-collision pair found at the start whose gap,
+/// measured along its start-of-step direction (so a particle that crossed
+/// the other layer has a negative gap), fell below `MIN_SELF_GAP` times the
+/// thickness is pushed apart to it, momentum-conserving with inverse-mass
+/// weights (a few Gauss-Seidel passes), no particle by more than the gap's
+/// deficit; velocities change by the position change over `tau`, as for
+/// friction. This is the safety net behind the
+/// repulsion forces for impacts faster than one step can resolve.
+/// Returns the number of corrections.
+pub(crate) fn separate_self_contacts(
+    model: &ClothModel,
+    sc: &SelfCollision,
+    pairs: &[SelfContact],
+    tau: f64,
+    new_x: &mut [Vec3],
+    new_v: &mut [Vec3],
+) -> usize {
+    const PASSES: usize = 4;
+    let target = MIN_SELF_GAP * sc.thickness_m;
+    let inv_mass = |i: usize| if model.is_pinned(i) { 0.0 } else { 1.0 / model.masses()[i] };
+    let mut corrections = 0;
+    for _ in 0..PASSES {
+        let mut any = false;
+        for c in pairs {
+            let p = c.particle as usize;
+            let other =
+                c.others.iter().zip(&c.weights).fold(Vec3::zeros(), |acc, (&o, &w)| acc + new_x[o as usize] * w);
+            let gap = (new_x[p] - other).dot(&c.direction);
+            if gap >= target {
+                continue;
+            }
+            let w_sum =
+                inv_mass(p) + c.others.iter().zip(&c.weights).map(|(&o, &w)| w * w * inv_mass(o as usize)).sum::<f64>();
+            if w_sum <= 0.0 {
+                continue;
+            }
+            let deficit = target - gap;
+            let lambda = deficit / w_sum;
+            // No particle moves further than the gap it closes. This binds
+            // only when the particle is pinned or more than 4 times as heavy
+            // as a corner it pushes (w (1 - w) / m_o <= 1 / m_p otherwise):
+            // then a triangle whose nearest corner is pinned moves its free
+            // corners almost alone, and with their small weights w the
+            // projection would throw them by deficit / w.
+            let mut push = |i: usize, amount: f64| {
+                let dx = c.direction * amount.clamp(-deficit, deficit);
+                new_x[i] += dx;
+                new_v[i] += dx / tau;
+            };
+            push(p, lambda * inv_mass(p));
+            for (&o, &w) in c.others.iter().zip(&c.weights) {
+                if w != 0.0 {
+                    push(o as usize, -lambda * w * inv_mass(o as usize));
+                }
+            }
+            corrections += 1;
+            any = true;
+        }
+        if !any {
+            break;
+        }
+    }
+    corrections
+}
+
+/// Particle-triangle pairs within `radius` (see [`detect_self_contacts`])
+/// kept when `keep(particle, triangle, distance)`; each particle's nearest
+/// triangle repels it (one force per particle: a particle over an edge
+/// would otherwise be pushed by both triangles), all are kept apart after
+/// the step.
+pub(crate) fn point_triangle_contacts(
+    model: &ClothModel,
+    radius: f64,
+    x: &[Vec3],
+    hash: &VoxelHash,
+    bufs: &mut ContactBuffers,
+    keep: impl Fn(usize, [u32; 3], f64) -> bool + Sync,
+) {
+    let triangles = model.triangles();
+    if bufs.excluded_ptr.len() != triangles.len() + 1 {
+        build_exclusions(model, &mut bufs.excluded_ptr, &mut bufs.excluded);
+    }
+    bufs.corners.clear();
+    bufs.corners.extend(triangles.iter().map(|t| t.map(|k| x[k as usize])));
+    let (excluded_ptr, excluded) = (&bufs.excluded_ptr, &bufs.excluded);
+    // Triangles in fixed chunks, in parallel; each chunk keeps its own
+    // buffers (reused across steps) and the chunks are merged in order, so
+    // the result does not depend on the number of threads.
+    let chunks = triangles.len().div_ceil(TRIANGLE_CHUNK);
+    bufs.triangle_chunks.resize_with(chunks, Default::default);
+    let corners = &bufs.corners;
+    bufs.triangle_chunks.par_iter_mut().enumerate().for_each(|(k, (candidates, found))| {
+        found.clear();
+        let first = k * TRIANGLE_CHUNK;
+        let mine = &corners[first..(first + TRIANGLE_CHUNK).min(corners.len())];
+        if hash.point_triangle_candidates_into(mine, radius, candidates).is_err() {
+            return;
+        }
+        for &(p, t_local) in candidates.iter() {
+            let t = first + t_local as usize;
+            let (p, tri) = (p as usize, triangles[t]);
+            let never = &excluded[excluded_ptr[t] as usize..excluded_ptr[t + 1] as usize];
+            if never.binary_search(&(p as u32)).is_ok() {
+                continue;
+            }
+            let [a, b, c] = corners[t];
+            let (q, w) = closest_point_on_triangle(x[p], a, b, c);
+            let d = (x[p] - q).norm();
+            let at_vertex = w.iter().any(|&wk| wk > 1.0 - 1e-9);
+            if d >= radius || at_vertex || !keep(p, tri, d) {
+                continue;
+            }
+            let normal = (b - a).cross(&(c - a));
+            let direction = if d > 1e-12 * radius {
+                (x[p] - q) / d
+            } else if normal.norm() > 0.0 {
+                normal.normalize()
+            } else {
+                continue;
+            };
+            found.push(SelfContact {
+                particle: p as u32,
+                others: tri,
+                weights: w,
+                direction,
+                distance_m: d,
+                repels: false,
+            });
+        }
+    });
+    bufs.nearest.clear();
+    bufs.nearest.resize(x.len(), u32::MAX);
+    for (_, found) in &bufs.triangle_chunks {
+        for contact in found {
+            let p = contact.particle as usize;
+            let nearest = bufs.nearest[p] as usize;
+            if bufs.self_pairs.get(nearest).is_none_or(|old| contact.distance_m < old.distance_m) {
+                bufs.nearest[p] = bufs.self_pairs.len() as u32;
+            }
+            bufs.self_pairs.push(*contact);
+        }
+    }
+    for &k in bufs.nearest.iter().filter(|&&k| k != u32::MAX) {
+        bufs.self_pairs[k as usize].repels = true;
+    }
+}
+
+/// For each triangle, the sorted particles it never repels: its corners
+/// and the particles linked to a corner.
+pub(crate) fn build_exclusions(model: &ClothModel, ptr: &mut Vec<u32>, list: &mut Vec<u32>) {
+    ptr.clear();
+    list.clear();
+    ptr.push(0);
+    for tri in model.triangles() {
+        let start = list.len();
+        for &c in tri {
+            list.push(c);
+            list.extend(model.incidence(c as usize).iter().map(|inc| inc.other));
+        }
+        list[start..].sort_unstable();
+        let mut unique = start;
+        for k in start..list.len() {
+            if k == start || list[k] != list[unique - 1] {
+                list[unique] = list[k];
+                unique += 1;
+            }
+        }
+        list.truncate(unique);
+        ptr.push(list.len() as u32);
+    }
+}
+
+/// Scratch of one chunk of the particle-triangle search: broad-phase
+/// candidates `(particle, triangle within the chunk)` and the pairs found.
+pub(crate) type TriangleChunk = (Vec<(u32, u32)>, Vec<SelfContact>);
+
+/// Triangles per parallel chunk of the particle-triangle search.
+pub(crate) const TRIANGLE_CHUNK: usize = 256;
+
+/// Slots of the spatial hash's cell table per parallel task of the point
+/// pairs (the table has two to four slots a particle).
+pub(crate) const SLOT_CHUNK: usize = 1024;

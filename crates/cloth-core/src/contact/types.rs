@@ -1,0 +1,262 @@
+//! The contact data a step carries: solid contacts, self contacts, the
+//! per-step counters and the buffers reused from step to step.
+
+use super::contacts::*;
+use crate::control::{Control, SolidMotion};
+use crate::{Mat3, Vec3};
+use cloth_collide::VoxelHash;
+
+/// A particle held on a solid's surface during one step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SolidContact {
+    /// The particle.
+    pub particle: u32,
+    /// Index of the solid in the model's colliders.
+    pub collider: u32,
+    /// Closest point of the solid's surface at `t + h`, m.
+    pub point: Vec3,
+    /// Signed distance of the particle's predicted position from the
+    /// surface, m (negative inside).
+    pub distance_m: f64,
+    /// Unit outward normal of the solid at the contact.
+    pub normal: Vec3,
+    /// Normal displacement over the step that puts the particle on the
+    /// offset surface at `t + h`, m.
+    pub normal_travel_m: f64,
+    /// Velocity of the solid at `t + h`, m/s.
+    pub solid_velocity: Vec3,
+    /// Coulomb coefficient.
+    pub friction: f64,
+    /// Force the constraint exerts along the normal, N (>= 0 once solved).
+    pub normal_force_n: f64,
+    /// Impulse the solid gave the particle over the step, N s: the normal
+    /// force times the step plus friction (the solid received the opposite).
+    pub impulse_n_s: Vec3,
+    /// False once released because it pulled.
+    pub active: bool,
+    /// Squeezed: the particle is also held by a solid on the opposite side
+    /// (a cloth between a box and a table). It cannot be held by both, so
+    /// this one presses with [`squeeze_force`] instead of a constraint;
+    /// `normal_force_n` is that force.
+    pub pressed: bool,
+    /// Friction inside the implicit solve, of a squeezed particle
+    /// ([`linearise_squeeze_friction`]) or of a held one in Newton
+    /// iterations ([`linearise_contact_friction`]), linearised as
+    /// `f = e - C v`: `C`, N s/m, ...
+    pub solve_damping: Mat3,
+    /// ... `e`, N, ...
+    pub solve_constant_n: Vec3,
+    /// The force it exerted at the solved velocity, N
+    /// ([`squeeze_friction_forces`]); [`apply_friction`] settles the rest
+    /// within the Coulomb bound.
+    pub solve_friction_n: Vec3,
+    /// The bound `mu N` of the last [`linearise_contact_friction`], N (the
+    /// line search's dissipation uses the same one).
+    pub solve_limit_n: f64,
+    /// Where this contact's friction is decided (see [`FrictionMode`]).
+    pub friction_mode: FrictionMode,
+    /// For [`FrictionMode::Stick`]: the tangential travel of the solid's
+    /// surface over the step, `h (I - n n^T) v_solid`, m.
+    pub tangent_travel_m: Vec3,
+    /// Whether this step's passes already turned it back from sliding to
+    /// sticking once ([`stick_or_slide`]).
+    pub turned_back: bool,
+}
+
+/// Where a contact's Coulomb friction is decided in an implicit step.
+///
+/// After the solve ([`apply_friction`]) the particle alone meets the
+/// friction: its slip is stopped when `mu N tau / m` suffices. That is
+/// right for a particle on its own, but a particle linked to the rest of
+/// the cloth slips under the force of a whole stiff cluster, so its slip
+/// speed understates the force to be resisted and it sticks where
+/// Coulomb would let it slide: where the cloth's own tension presses it
+/// onto a solid (the pole of a ball pushing through a curtain: `N` from the
+/// wrapped tension, the particle held while the cloth around it
+/// stretches to twice its length). In the solve, the decision is made on
+/// the force: the contact first holds the particle on the moving surface
+/// (a full constraint), and where the tangential part of the constraint
+/// force exceeds `mu N` it slides instead, the friction `mu N` pointing
+/// along that force (implicit Coulomb friction: the force needed to
+/// stick, projected onto the friction cone). Baraff & Witkin 1998 hold
+/// contacts the same way, with constraints in the filtered solve.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum FrictionMode {
+    /// [`apply_friction`] after the solve: particles squeezed between two
+    /// solids or held by two, solids whose motion from outside is a guess
+    /// (see [`stick_frictional_contacts`]), integrators without a matrix,
+    /// Newton iterations (which smooth friction into their potential).
+    #[default]
+    AfterSolve,
+    /// In the solve, stuck: the particle moves with the surface.
+    Stick,
+    /// In the solve, sliding: the normal constrained, and a constant
+    /// force `mu N` (`solve_constant_n`) in the right-hand side.
+    Slide,
+}
+
+impl SolidContact {
+    /// A contact of `particle` held on solid `collider` at the surface
+    /// `point` (m) with outward `normal`, the solid moving at
+    /// `solid_velocity` (m/s), Coulomb `friction`: active, on the surface
+    /// (no distance or travel), no force or impulse yet, nothing in the
+    /// solve.
+    pub fn new(
+        particle: usize,
+        collider: usize,
+        point: Vec3,
+        normal: Vec3,
+        solid_velocity: Vec3,
+        friction: f64,
+    ) -> Self {
+        Self {
+            particle: particle as u32,
+            collider: collider as u32,
+            point,
+            distance_m: 0.0,
+            normal,
+            normal_travel_m: 0.0,
+            solid_velocity,
+            friction,
+            normal_force_n: 0.0,
+            impulse_n_s: Vec3::zeros(),
+            active: true,
+            pressed: false,
+            solve_damping: Mat3::zeros(),
+            solve_constant_n: Vec3::zeros(),
+            solve_friction_n: Vec3::zeros(),
+            solve_limit_n: 0.0,
+            friction_mode: FrictionMode::AfterSolve,
+            tangent_travel_m: Vec3::zeros(),
+            turned_back: false,
+        }
+    }
+}
+
+/// A pair of cloth pieces closer than the self-collision thickness.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SelfContact {
+    /// The particle pushed along `direction`.
+    pub particle: u32,
+    /// The other side: a particle (weights `[1, 0, 0]`) or a triangle's corners.
+    pub others: [u32; 3],
+    /// Barycentric weights of the closest point on the other side.
+    pub weights: [f64; 3],
+    /// Unit direction from the other side to the particle.
+    pub direction: Vec3,
+    /// Distance, m.
+    pub distance_m: f64,
+    /// Whether it exerts a repulsion force (particle pairs, and each
+    /// particle's nearest triangle); all pairs are kept apart after the step.
+    pub repels: bool,
+}
+
+/// What collision handling did in one step.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ContactStats {
+    /// Cloth-solid contacts held at the end of the step.
+    pub contacts: usize,
+    /// Contacts released because their force pulled.
+    pub released: usize,
+    /// Contacts added after a solve left a free particle inside a solid.
+    pub added: usize,
+    /// Particles moved out of a solid after the step (see [`project_out`]).
+    pub projected: usize,
+    /// Contacts held by static friction (no tangential slip).
+    pub sticking: usize,
+    /// Deepest particle inside a solid at the start of the step, m (0 when none).
+    pub max_penetration_m: f64,
+    /// Self-collision pairs closer than the thickness (particle-particle
+    /// plus particle-triangle).
+    pub self_contacts: usize,
+    /// Pairs pushed apart after the step by [`separate_self_contacts`].
+    pub self_separations: usize,
+    /// Narrow-phase point queries against solids.
+    pub narrow_phase_queries: usize,
+    /// Spatial hash rebuilds (self-collision broad phase).
+    pub hash_builds: usize,
+}
+
+impl std::ops::AddAssign for ContactStats {
+    /// Sums counters; keeps the larger penetration.
+    fn add_assign(&mut self, o: Self) {
+        self.contacts += o.contacts;
+        self.released += o.released;
+        self.added += o.added;
+        self.projected += o.projected;
+        self.sticking += o.sticking;
+        self.max_penetration_m = self.max_penetration_m.max(o.max_penetration_m);
+        self.self_contacts += o.self_contacts;
+        self.self_separations += o.self_separations;
+        self.narrow_phase_queries += o.narrow_phase_queries;
+        self.hash_builds += o.hash_builds;
+    }
+}
+
+/// Scratch space of collision handling, sized once per model.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct ContactBuffers {
+    /// Cloth-solid contacts of the current step, sorted by particle; a
+    /// particle touching two solids (a corner, overlapping solids) has two
+    /// consecutive entries.
+    pub solid: Vec<SolidContact>,
+    /// Solids a Newton correction would carry a particle into (see
+    /// [`penalty_watch`]): the line search's penalty sees them too.
+    pub watch: Vec<SolidContact>,
+    /// Self-collision pairs of the current step.
+    pub self_pairs: Vec<SelfContact>,
+    /// Per-particle candidates of the narrow phase (before compaction).
+    pub(crate) candidate: Vec<[Option<SolidContact>; 2]>,
+    /// Per-particle penetration depth and query count.
+    pub(crate) probe: Vec<(f64, u32)>,
+    /// First entry of each particle in `solid`, or `u32::MAX`.
+    pub(crate) first_entry: Vec<u32>,
+    /// Per particle, what was last learnt of its distance to the solids at
+    /// the end of the current step: set from its predicted position by
+    /// [`detect_solid_contacts`], then by each [`add_penetrating`] that
+    /// measures it again.
+    pub(crate) clearance: Vec<Clearance>,
+    /// Per particle, whether `candidate` holds what the last
+    /// [`detect_solid_contacts`] or [`add_penetrating`] found for it: they
+    /// write (and read back) only the candidates of particles that have
+    /// one, a contact being a few hundred bytes.
+    pub(crate) has_candidate: Vec<bool>,
+    /// The solids at the start and at the end of the current step.
+    pub(crate) now: SolidFrames,
+    pub(crate) next: SolidFrames,
+    /// Motions of externally driven solids for the current step.
+    pub(crate) external: Vec<Option<SolidMotion>>,
+    pub(crate) hash: Option<VoxelHash>,
+    pub(crate) corners: Vec<[Vec3; 3]>,
+    /// Broad-phase output, reused.
+    pub(crate) candidate_pairs: Vec<(u32, u32)>,
+    /// Per chunk of the hash's cell table: the point pairs found from it.
+    pub(crate) pair_chunks: Vec<Vec<(u32, u32)>>,
+    /// Per chunk of triangles: broad-phase candidates and the pairs found.
+    pub(crate) triangle_chunks: Vec<TriangleChunk>,
+    /// CSR, built once per model: for each triangle, the sorted particles
+    /// it never repels (its corners and every particle linked to one).
+    pub(crate) excluded_ptr: Vec<u32>,
+    pub(crate) excluded: Vec<u32>,
+    /// Self-collision forces, N.
+    pub self_force: Vec<Vec3>,
+    /// Self-collision stiffness on the diagonal, `-df_i/dx_i`, N/m.
+    pub self_stiffness: Vec<Mat3>,
+    /// Friction of squeezed particles as damping on the diagonal,
+    /// `-df_i/dv_i`, N s/m ([`linearise_squeeze_friction`]).
+    pub friction_damping: Vec<Mat3>,
+    /// Per particle, its nearest triangle's entry in `self_pairs` (or `u32::MAX`).
+    pub(crate) nearest: Vec<u32>,
+}
+
+impl ContactBuffers {
+    /// Takes the motions of externally driven solids for the next step
+    /// from `control` (and forgets solid poses computed before, since a
+    /// repeated step may move them differently).
+    pub(crate) fn set_external(&mut self, control: &Control) {
+        self.external.clear();
+        self.external.extend_from_slice(control.solid_motions());
+        self.now.time = None;
+        self.next.time = None;
+    }
+}
