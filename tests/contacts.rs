@@ -84,6 +84,7 @@ fn incline_holds_below_the_friction_angle_and_slides_at_coulombs_rate_above() {
 /// and the layers really do touch (self contacts are found). Checked at
 /// every step.
 #[test]
+#[ignore = "slow tier: cargo test --release -- --ignored"]
 fn folded_cloth_never_passes_through_itself() {
     let (mut sim, cfg) = simulation("fold.toml", &[]);
     let thickness = sim.model().self_collision().unwrap().thickness_m;
@@ -121,6 +122,7 @@ fn deepest_penetration(sim: &mut Simulation, dt: f64, steps: u64) -> (f64, usize
 /// is ever deeper than 0.5 mm (a tenth of the thickness) inside a solid,
 /// and the cloth really rests on it (on the ball: at the thickness).
 #[test]
+#[ignore = "slow tier: cargo test --release -- --ignored"]
 fn drapes_stay_outside_their_solids() {
     const TOLERANCE_M: f64 = 5e-4;
     // The fewest contacts that show the cloth really rests on (or is pushed

@@ -22,6 +22,7 @@ fn curtain_and_ball(external: bool, v: f64) -> Simulation {
 }
 
 #[test]
+#[ignore = "slow tier: cargo test --release -- --ignored"]
 fn an_external_solid_moves_the_cloth_as_the_same_solid_on_a_path() {
     let (v, h, steps) = (0.5, 1.0 / 90.0, 100);
     let (mut on_path, mut driven) = (curtain_and_ball(false, v), curtain_and_ball(true, v));
@@ -158,6 +159,7 @@ fn contact_impulses_are_the_momentum_the_cloth_gains() {
 }
 
 #[test]
+#[ignore = "slow tier: cargo test --release -- --ignored"]
 fn pin_reactions_carry_the_weight_of_a_hanging_cloth() {
     for integrator in ["backward-euler", "bdf2", "backward-euler-fixed-cg"] {
         let set = format!("simulation.integrator=\"{integrator}\"");

@@ -28,6 +28,7 @@ fn stderr(o: &Output) -> String {
 /// deliberate change to the physics: `cargo run --release -p cloth-tools
 /// -- regress --update`, and commit the goldens with the change.
 #[test]
+#[ignore = "slow tier: cargo test --release -- --ignored"]
 fn every_fixture_matches_its_golden() {
     let o = regress(&[]);
     print!("{}", stdout(&o));

@@ -5,6 +5,7 @@
 use cloth_tools::stability::{markdown, run_suite};
 
 #[test]
+#[ignore = "slow tier: cargo test --release -- --ignored"]
 fn every_hard_case_meets_its_requirement() {
     let rows = run_suite(false);
     println!("{}", markdown(&rows));

@@ -128,6 +128,7 @@ fn ball_energy(run: &CoupledRun, g: f64) -> f64 {
 /// at its corners: the iterated master stays stable (never gains energy);
 /// the staggered one is printed for comparison.
 #[test]
+#[ignore = "slow tier: cargo test --release -- --ignored"]
 fn mass_ratios_from_1e_3_to_1e3_stay_stable_with_the_iterated_master() {
     let pins = "[[pins]]\nnodes = [[0, 0], [12, 0], [0, 12], [12, 12]]\n";
     let cloth_mass = 0.1 * 0.36;

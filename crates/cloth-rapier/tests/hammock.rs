@@ -10,6 +10,7 @@ fn fixture(name: &str) -> PathBuf {
 }
 
 #[test]
+#[ignore = "slow tier: cargo test --release -- --ignored"]
 fn the_hammock_holds_the_ball_and_the_posts_carry_both() {
     let scene = CoupledScene::load(&fixture("hammock.toml"), &[]).unwrap();
     let mut run = scene.build().unwrap();

@@ -43,6 +43,7 @@ fn run(velocity: f64, duration: f64) -> (CoupledRun, Vec<Sample>) {
 }
 
 #[test]
+#[ignore = "slow tier: cargo test --release -- --ignored"]
 fn a_slow_pull_carries_the_box() {
     // Slow: 0.1 m/s for 1 s, far below what friction can follow (mu g = 3.9 m/s^2).
     let (_, slow) = run(0.1, 1.0);
@@ -62,6 +63,7 @@ fn a_slow_pull_carries_the_box() {
 /// thickness onto the table, whose friction (the average of the box's
 /// 0.4 and the table's 0.2, rapier's default rule) stops it at `mu_t g`.
 #[test]
+#[ignore = "slow tier: cargo test --release -- --ignored"]
 fn a_yank_leaves_the_box_slipping_at_coulomb_s_rate() {
     let (mu_box, mu_table, g) = (0.4, 0.5 * (0.4 + 0.2), 9.81);
     let (run, fast) = run(4.0, 0.35);
