@@ -52,6 +52,11 @@ pub use state::ClothState;
 pub use topology::{Diagonals, GridPanel, LinkType, PanelError, PanelMesh};
 pub use wind::{Wind, WindProfile};
 
+// The README's Rust example, compiled and run as a doctest.
+#[cfg(doctest)]
+#[doc = include_str!("../../../README.md")]
+pub struct ReadmeDoctests;
+
 /// A 3-vector of `f64`.
 pub type Vec3 = nalgebra::Vector3<f64>;
 /// A 3x3 matrix of `f64`.
