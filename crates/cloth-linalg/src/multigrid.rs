@@ -1,74 +1,30 @@
 //! An aggregation multigrid cycle, used as a PCG preconditioner.
 //!
 //! Block-Jacobi needs more iterations the stiffer the cloth and the finer
-//! the grid (its condition number grows like `h^2 k / m`). A multigrid
-//! cycle damps the smooth error that Jacobi cannot: each level groups nodes
-//! into aggregates (piecewise-constant prolongation `P`, restriction
-//! `P^T`), the coarse operator is the Galerkin product `P^T A P` (a block
-//! sum, so its pattern is built once and each refill costs about one
-//! SpMV), the smoother is damped block-Jacobi before and after the coarse
-//! correction, and the coarsest level is solved by dense Cholesky. The
-//! W-cycle is symmetric, so PCG stays conjugate-gradient; the K-cycle
-//! (below) is not a fixed matrix, and PCG takes the flexible update.
+//! the grid (its condition number grows like `h^2 k / m`); a multigrid
+//! cycle damps the smooth error that Jacobi cannot. Each level groups
+//! nodes into aggregates (piecewise-constant prolongation `P`, restriction
+//! `P^T`), the coarse operator is the Galerkin block sum `P^T A P` (its
+//! pattern built once, each refill about one SpMV), damped block-Jacobi
+//! smooths before and after the coarse correction, and the coarsest level
+//! is solved by dense Cholesky.
 //!
-//! **W below the first coarse level.** Piecewise-constant aggregates
-//! correct smooth error less well the more levels lie between a grid and
-//! the coarsest one, so a V-cycle's PCG iterations grow with the grid
-//! (the hanging cloth at 1/90 s, BDF2, `rel_tol = 1e-3`: 13.1, 20.1 and
-//! 31.9 a step at 65 x 65, 129 x 129 and 257 x 257 particles). Solving
-//! every coarse problem below the first by two cycles instead of one (a
-//! W-cycle that visits level 1 once, level 2 twice, level 3 four times)
-//! takes 11.2, 13.6 and 17.9 for about 10% more arithmetic a cycle
-//! (levels shrink 4x, so level `l >= 1` costs `2^(l-1) / 4^l` of the
-//! finest). The first coarse problem is solved by one cycle: two cost a
-//! quarter more and saved no time. In the caches (3-5k particles) the
-//! extra visits to small levels cost about what the saved iterations
-//! gain; beyond them the W-cycle halves the solve (docs/results/
-//! solver-before-after.md).
+//! - **W below the first coarse level** ([`Cycle::W`]): every coarse
+//!   problem below the first is solved by two cycles, which keeps the
+//!   iterations from growing with the grid for about 10% more arithmetic.
+//! - **K-cycle on large grids** ([`Cycle::K`]; Notay & Vassilevski 2008,
+//!   from [`K_CYCLE_MIN_NODES`]): two steps of flexible CG on each coarse
+//!   problem; PCG then takes the flexible update.
+//! - **A smoothed first level** ([`Multigrid::smoothed`]; Vaněk, Mandel &
+//!   Brezina 1996, from [`SMOOTHED_MIN_NODES`]) for matrices solved once a
+//!   step: plain aggregates correct less well as `h^2 k / m` grows.
+//! - **`f32` operators** on levels of at least 500,000 blocks: the
+//!   cycle's residuals read a rounded copy and accumulate in `f64`, so the
+//!   preconditioner stays symmetric positive definite and PCG's own
+//!   products keep full precision.
 //!
-//! **K-cycle on large grids.** The W-cycle's two stationary cycles on a
-//! coarse problem still leave its iterations growing with the grid (17.4
-//! CG a step on the 257 x 257 hanging cloth, 30.6 at 513 x 513). The
-//! K-cycle ([`Cycle::K`]; Notay & Vassilevski 2008) solves every coarse
-//! problem, the first one too, by two steps of flexible CG preconditioned
-//! by the next level's cycle: the coarse correction is then the best
-//! combination of the two cycles' results in the coarse operator's energy
-//! rather than their fixed sum, which keeps the iterations nearly flat
-//! (7.9 / 8.8 / 8.7 / 10.7 a step at 33 / 65 / 129 / 257; at 513 x 513,
-//! 19.4, where the cloth stretches to 2.85 at its pinned corners). It
-//! costs two coarse products per coarse visit (the W-cycle one) and
-//! visits every coarse level twice as often, so in the caches it loses to
-//! the W-cycle; [`Multigrid::new`] takes it from [`K_CYCLE_MIN_NODES`].
-//!
-//! **A smoothed first level on large grids.** The K-cycle's iterations
-//! still grow where the stiffness outweighs the mass more and more (`h^2 k
-//! / m` per node quadruples with each refinement): on the hanging cloth
-//! 10.7 CG a step at 257 x 257, 19.4 at 513 x 513. The plain aggregates'
-//! piecewise-constant correction is what degrades, not the smoother or the
-//! depth (docs/results/solver-before-after.md, session 30).
-//! [`Multigrid::smoothed`] puts a smoothed-aggregation level (Vaněk,
-//! Mandel & Brezina 1996) above the plain hierarchy: 7.6 CG a step at 513
-//! x 513, 30% less time a step. Its update costs about ten products with
-//! the fine operator and has no partial refill, so models with solids
-//! (contact passes) keep the plain hierarchy, and it pays only from
-//! [`SMOOTHED_MIN_NODES`].
-//!
-//! **Single-precision operators for large levels.** A cycle reads each
-//! level's matrix twice (the residuals after pre- and post-smoothing), PCG
-//! once more for its own product: beyond the caches a step is bound by
-//! memory traffic. On levels of at least [`SINGLE_MIN_BLOCKS`] blocks the
-//! cycle's residuals read an `f32` copy of the operator (refilled by
-//! [`Multigrid::update`]) and accumulate in `f64`: the preconditioner is a
-//! different but equally symmetric positive definite approximation of
-//! `A^-1` (rounding a symmetric matrix keeps it symmetric; the smoother's
-//! damping keeps a 30% margin that a relative change of `1e-7` cannot use
-//! up), PCG's own products and therefore the answer keep full precision.
-//! 257 x 257 hanging cloth: the solve ~410 -> ~295 ms a step with the same
-//! iterations. Smaller levels read the `f64` operator: in the caches the
-//! copy's refill at every solve and the conversion per block cost more
-//! than the halved traffic saves (the Table-1 one-piece, 5,458 particles:
-//! solve 36-38 -> 33 ms a step; the default hanging cloth 3.8 -> 3.5 ms
-//! a step; neutral at 129 x 129).
+//! Measurements behind each choice: `docs/results/solver-before-after.md`
+//! and `docs/results/scaling.md`.
 
 use crate::{
     BlockPattern, BlockSparseMatrix, Mat3, Vec3,
@@ -76,7 +32,14 @@ use crate::{
 };
 use rayon::prelude::*;
 
+mod coarsest;
+mod kernels;
+mod single;
 mod smoothed;
+
+use coarsest::*;
+use kernels::*;
+use single::*;
 
 /// One level's grouping of nodes: `coarse_of[i]` is node `i`'s aggregate.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -239,144 +202,6 @@ pub const K_CYCLE_MIN_NODES: usize = 16_000;
 /// blocks a row: below some 100,000 nodes the saved iterations do not pay
 /// for them.
 pub const SMOOTHED_MIN_NODES: usize = 100_000;
-
-/// The coarsest level, solved directly.
-#[derive(Debug, Clone)]
-struct Coarsest {
-    /// Dense operator, row-major, factorised in place: its lower triangle
-    /// becomes the Cholesky factor `L`. Row-major so that the inner loops
-    /// of [`cholesky_in_place`] run along rows (refactorised at every
-    /// solve, the 108 x 108 factor of the 41 x 41 drape was 3.9% of its
-    /// single-thread profile as a column-major `DMatrix`, 2.5% now).
-    factor: Vec<f64>,
-    /// `L^T`, row-major: the rows the solves run along.
-    factor_t: Vec<f64>,
-    /// Whether the factorisation succeeded (else: block-Jacobi).
-    ok: bool,
-    /// The solves' right-hand side and solution, and the factorisation's
-    /// scratch column (3 per node: the dense operator's dimension).
-    rhs: Vec<f64>,
-    inv_diag: Vec<Mat3>,
-    b: Vec<Vec3>,
-    x: Vec<Vec3>,
-}
-
-impl Coarsest {
-    fn new(n: usize) -> Self {
-        let dim = 3 * n;
-        Self {
-            factor: vec![0.0; dim * dim],
-            factor_t: vec![0.0; dim * dim],
-            ok: false,
-            rhs: vec![0.0; dim],
-            inv_diag: vec![Mat3::identity(); n],
-            b: vec![Vec3::zeros(); n],
-            x: vec![Vec3::zeros(); n],
-        }
-    }
-
-    /// Factorises `a` (block-Jacobi if it is not positive definite).
-    fn update(&mut self, a: &BlockSparseMatrix) {
-        inverse_diagonal(a, 1.0, &mut self.inv_diag);
-        let dim = self.rhs.len();
-        self.factor.fill(0.0);
-        for (i, j, b) in a.blocks() {
-            for r in 0..3 {
-                for c in 0..3 {
-                    self.factor[(3 * i + r) * dim + 3 * j + c] = b[(r, c)];
-                }
-            }
-        }
-        self.ok = cholesky_in_place(&mut self.factor, dim, &mut self.rhs);
-        if self.ok {
-            transpose_lower(&self.factor, dim, &mut self.factor_t);
-        }
-    }
-
-    /// `x = A^-1 b` by the stored factor.
-    fn solve(&mut self) {
-        if !self.ok {
-            self.x.iter_mut().zip(&self.b).zip(&self.inv_diag).for_each(|((xi, bi), di)| *xi = di * bi);
-            return;
-        }
-        for (i, bi) in self.b.iter().enumerate() {
-            self.rhs[3 * i..3 * i + 3].copy_from_slice(bi.as_slice());
-        }
-        cholesky_solve_in_place(&self.factor_t, &mut self.rhs);
-        for (i, xi) in self.x.iter_mut().enumerate() {
-            *xi = Vec3::from_column_slice(&self.rhs[3 * i..3 * i + 3]);
-        }
-    }
-}
-
-/// A block matrix with `f32` blocks (column-major, like [`Mat3`]) on a
-/// given pattern: a level's operator for the cycle's residuals.
-#[derive(Debug, Clone)]
-struct SinglePrecision {
-    blocks: Vec<[f32; 9]>,
-}
-
-impl SinglePrecision {
-    fn new(pattern: &BlockPattern) -> Self {
-        Self { blocks: vec![[0.0; 9]; pattern.nnz_blocks()] }
-    }
-
-    /// Rounds the symmetric part of `a` (same pattern), `(A_ij + A_ji^T) / 2`,
-    /// into this copy. Rounding `A` itself would not do: an assembly's
-    /// `A_ij` and `A_ji^T` may differ in their last bit, which rounding to
-    /// `f32` can turn into a relative `6e-8`, and the cycle would no longer
-    /// be symmetric to roundoff. The two sums are the same IEEE sums, so
-    /// the copy is symmetric bit for bit.
-    fn copy_from(&mut self, a: &BlockSparseMatrix) {
-        self.blocks.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(chunk, to)| {
-            for (k, t) in to.iter_mut().enumerate() {
-                *t = rounded_symmetric(a, chunk * ROW_CHUNK + k);
-            }
-        });
-    }
-
-    /// As [`SinglePrecision::copy_from`] for one slot.
-    fn copy_slot(&mut self, a: &BlockSparseMatrix, slot: usize) {
-        self.blocks[slot] = rounded_symmetric(a, slot);
-    }
-
-    /// `r = b - A x` on `pattern` (this copy's), accumulated in `f64`,
-    /// parallel over rows.
-    fn residual(&self, pattern: &BlockPattern, b: &[Vec3], x: &[Vec3], r: &mut [Vec3]) {
-        let rows = r.par_chunks_mut(ROW_CHUNK).zip(b.par_chunks(ROW_CHUNK));
-        rows.enumerate().for_each(|(chunk, (rs, bs))| {
-            for (k, (ri, bi)) in rs.iter_mut().zip(bs).enumerate() {
-                let i = chunk * ROW_CHUNK + k;
-                let mut a = [0.0f64; 3];
-                for (m, &c) in self.blocks[pattern.row_range(i)].iter().zip(pattern.row_cols(i)) {
-                    let xc = &x[c as usize];
-                    // Column by column: converting all nine entries first
-                    // made this 17% slower than the f64 product in cache.
-                    for k in 0..3 {
-                        let column = [f64::from(m[3 * k]), f64::from(m[3 * k + 1]), f64::from(m[3 * k + 2])];
-                        a[0] += column[0] * xc[k];
-                        a[1] += column[1] * xc[k];
-                        a[2] += column[2] * xc[k];
-                    }
-                }
-                *ri = bi - Vec3::from(a);
-            }
-        });
-    }
-}
-
-/// `(A_ij + A_ji^T) / 2` at `slot` (of `(i, j)`), rounded to `f32`.
-fn rounded_symmetric(a: &BlockSparseMatrix, slot: usize) -> [f32; 9] {
-    let values = a.values();
-    let sym = (values[slot] + values[a.pattern().mirror_slot(slot)].transpose()) * 0.5;
-    std::array::from_fn(|k| sym.as_slice()[k] as f32)
-}
-
-/// Blocks from which a level's operator gets an `f32` copy for the
-/// cycle's residuals: 36 MB of `f64` blocks, beyond this machine's 32 MB
-/// L3 (measured, hanging cloth: neutral at 129 x 129, 278k blocks; the
-/// solve 20% faster at 257 x 257, 1.1M blocks).
-const SINGLE_MIN_BLOCKS: usize = 500_000;
 
 /// Smoother damping for matrices of two-node elements (links). The
 /// symmetric cycle is positive definite when `2 D / omega - A` is. A sum
@@ -818,157 +643,6 @@ fn residual(single: Option<&SinglePrecision>, a: &BlockSparseMatrix, b: &[Vec3],
         Some(single) => single.residual(a.pattern(), b, x, r),
         None => a.residual(b, x, r),
     }
-}
-
-/// Overwrites the lower triangle of the SPD `n x n` row-major matrix `a`
-/// with its Cholesky factor `L` (`a = L L^T`), without allocating (`column`
-/// holds `n` scratch entries). Returns false if `a` is not positive
-/// definite.
-///
-/// Right-looking: step `j` finishes column `j` and subtracts `L_ij L_kj`
-/// from every entry `(i, k)` below and right of it, a loop along rows
-/// without a dependency between its entries (the left-looking dot product
-/// `a_ik - sum_j L_ij L_kj` waited on each subtraction). Each entry still
-/// receives the same subtractions in the same order (`j` ascending), then
-/// the same division: the same factor bit for bit.
-fn cholesky_in_place(a: &mut [f64], n: usize, column: &mut [f64]) -> bool {
-    for j in 0..n {
-        let (head, tail) = a.split_at_mut((j + 1) * n);
-        let d = head[j * n + j];
-        if !(d > 0.0 && d.is_finite()) {
-            return false;
-        }
-        let d = d.sqrt();
-        head[j * n + j] = d;
-        for (row_k, l_kj) in tail.chunks_exact_mut(n).zip(column.iter_mut()) {
-            row_k[j] /= d;
-            *l_kj = row_k[j];
-        }
-        for (m, row_i) in tail.chunks_exact_mut(n).enumerate() {
-            let l_ij = row_i[j];
-            for (a_ik, &l_kj) in row_i[j + 1..=j + 1 + m].iter_mut().zip(&column[..=m]) {
-                *a_ik -= l_ij * l_kj;
-            }
-        }
-    }
-    true
-}
-
-/// `l_t = L^T` for the lower triangle `L` of the `n x n` row-major `l`
-/// (only `l_t`'s upper triangle is written).
-fn transpose_lower(l: &[f64], n: usize, l_t: &mut [f64]) {
-    for i in 0..n {
-        for k in 0..=i {
-            l_t[k * n + i] = l[i * n + k];
-        }
-    }
-}
-
-/// Solves `L L^T x = b` in place given `l_t`, the transpose of the factor
-/// from [`cholesky_in_place`] (row-major). The forward
-/// substitution runs by columns (`b_i -= L_ik b_k` for all `i > k` once
-/// `b_k` is final: each `b_i` gets the subtractions in the order of the
-/// dot product `b_i - sum_k L_ik b_k`, so the same bits, with no chain of
-/// dependent subtractions); the backward one keeps the dot product (by
-/// columns it would subtract in the opposite order).
-fn cholesky_solve_in_place(l_t: &[f64], b: &mut [f64]) {
-    let n = b.len();
-    for k in 0..n {
-        let (done, rest) = b.split_at_mut(k + 1);
-        let row = &l_t[k * n..(k + 1) * n];
-        done[k] /= row[k];
-        let b_k = done[k];
-        for (b_i, &l_ik) in rest.iter_mut().zip(&row[k + 1..]) {
-            *b_i -= l_ik * b_k;
-        }
-    }
-    for i in (0..n).rev() {
-        let row = &l_t[i * n..(i + 1) * n];
-        let mut s = b[i];
-        for (&l_ki, &b_k) in row[i + 1..].iter().zip(&b[i + 1..]) {
-            s -= l_ki * b_k;
-        }
-        b[i] = s / row[i];
-    }
-}
-
-/// `inv[i] = omega * A_ii^-1` (identity where a block is not positive definite).
-fn inverse_diagonal(a: &BlockSparseMatrix, omega: f64, inv: &mut [Mat3]) {
-    inv.par_iter_mut().enumerate().with_min_len(ROW_CHUNK).for_each(|(i, p)| {
-        *p = inverse_diagonal_block(a, omega, i);
-    });
-}
-
-/// `omega * A_ii^-1` (the identity where the block is not positive definite).
-fn inverse_diagonal_block(a: &BlockSparseMatrix, omega: f64, i: usize) -> Mat3 {
-    a.diag(i).cholesky().map_or_else(Mat3::identity, |c| c.inverse()) * omega
-}
-
-/// The pairs' damped inverse blocks (see [`invert_pair`]), over `inv_diag`'s
-/// point blocks.
-fn invert_pairs(a: &BlockSparseMatrix, omega: f64, partner: &[u32], inv_diag: &mut [Mat3], inv_off: &mut [Mat3]) {
-    for (i, &j) in partner.iter().enumerate() {
-        if j as usize > i {
-            invert_pair(a, omega, (i, j as usize), inv_diag, inv_off);
-        }
-    }
-}
-
-/// The pair `i < j`'s damped inverse `omega [A_ii A_ij; A_ji A_jj]^-1`
-/// into the diagonal and off-diagonal slots. A pair whose block is not
-/// positive definite (or not stored) keeps its two point blocks in
-/// `inv_diag` and no coupling.
-fn invert_pair(a: &BlockSparseMatrix, omega: f64, (i, j): (usize, usize), inv_diag: &mut [Mat3], inv_off: &mut [Mat3]) {
-    (inv_off[i], inv_off[j]) = (Mat3::zeros(), Mat3::zeros());
-    let Some(slot) = a.pattern().slot(i, j) else { return };
-    let mut m = nalgebra::Matrix6::<f64>::zeros();
-    let (aij, aji) = (a.values()[slot], a.values()[slot].transpose());
-    m.fixed_view_mut::<3, 3>(0, 0).copy_from(a.diag(i));
-    m.fixed_view_mut::<3, 3>(0, 3).copy_from(&aij);
-    m.fixed_view_mut::<3, 3>(3, 0).copy_from(&aji);
-    m.fixed_view_mut::<3, 3>(3, 3).copy_from(a.diag(j));
-    let Some(c) = m.cholesky() else { return };
-    let inv = c.inverse() * omega;
-    inv_diag[i] = inv.fixed_view::<3, 3>(0, 0).into_owned();
-    inv_off[i] = inv.fixed_view::<3, 3>(0, 3).into_owned();
-    inv_off[j] = inv.fixed_view::<3, 3>(3, 0).into_owned();
-    inv_diag[j] = inv.fixed_view::<3, 3>(3, 3).into_owned();
-}
-
-/// `coarse`'s blocks as the sums of the fine blocks `block(s)` over each
-/// coarse slot's fine slots `s`, in `slots`' order, parallel over slots.
-fn galerkin(slots: &Gather, coarse: &mut BlockSparseMatrix, block: impl Fn(usize) -> Mat3 + Sync) {
-    coarse.values_mut().par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(c, chunk)| {
-        for (k, v) in chunk.iter_mut().enumerate() {
-            *v = slots.sources(c * ROW_CHUNK + k).iter().map(|&s| block(s as usize)).sum();
-        }
-    });
-}
-
-/// An `f32` block as a [`Mat3`].
-fn widen(block: &[f32; 9]) -> Mat3 {
-    Mat3::from_iterator(block.iter().map(|&v| f64::from(v)))
-}
-
-/// The smoother's correction at node `i` for residual `r`.
-#[inline]
-fn smoothed(inv_diag: &[Mat3], pairs: Option<&(Vec<u32>, Vec<Mat3>)>, r: &[Vec3], i: usize) -> Vec3 {
-    let own = inv_diag[i] * r[i];
-    match pairs {
-        Some((partner, inv_off)) if partner[i] as usize != i => own + inv_off[i] * r[partner[i] as usize],
-        _ => own,
-    }
-}
-
-fn jacobi_from_zero(inv_diag: &[Mat3], pairs: Option<&(Vec<u32>, Vec<Mat3>)>, b: &[Vec3], x: &mut [Vec3]) {
-    x.par_iter_mut().enumerate().with_min_len(ROW_CHUNK).for_each(|(i, xi)| *xi = smoothed(inv_diag, pairs, b, i));
-}
-
-/// `target[c] = sum of src over aggregate c`, in member order.
-fn restrict(members: &Gather, src: &[Vec3], target: &mut [Vec3]) {
-    target.par_iter_mut().enumerate().with_min_len(ROW_CHUNK / 4).for_each(|(c, t)| {
-        *t = members.sources(c).iter().map(|&i| src[i as usize]).sum();
-    });
 }
 
 #[cfg(test)]

@@ -12,3 +12,4 @@ pub(crate) mod matrix_free;
 pub(crate) mod newton;
 pub(crate) mod sim;
 pub(crate) mod state;
+pub(crate) mod step_types;

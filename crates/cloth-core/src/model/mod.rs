@@ -3,6 +3,7 @@
 //! its topology and material, and the interaction laws with the loops that
 //! evaluate them. Nothing here changes during a run.
 
+mod build_parts;
 mod cloth_model;
 pub(crate) mod constraints;
 pub mod element_laws;
@@ -13,7 +14,9 @@ pub mod laws;
 pub(crate) mod material;
 pub(crate) mod pins;
 pub mod seams;
+mod spec;
 pub(crate) mod topology;
 pub mod wind;
 
 pub use cloth_model::*;
+pub use spec::*;

@@ -1,0 +1,394 @@
+//! What one step takes and gives back: the integrator's kind, the
+//! solver's parameters, the step's report and error, and the workspace
+//! the integrators reuse from step to step.
+
+use super::integrator::{BackwardEuler, Bdf2, Integrator};
+use crate::contacts::{ContactBuffers, ContactStats};
+use crate::energy::EnergyReport;
+use crate::explicit::ExplicitBuffers;
+use crate::{ClothModel, Vec3, forces::SystemBuffers};
+use cloth_linalg::{ConstraintFilter, Pcg, PcgError, PcgParams, PreconditionerKind};
+use serde::{Deserialize, Serialize};
+
+/// Default of [`SolverParams::max_contact_passes`]: a safety bound, not a
+/// budget. The active set must settle: a stuck contact holds the load off
+/// the stuck ones behind it, so a cloth pulled across a table is released
+/// one row a pass; a low cap leaves rows stuck beyond their Coulomb bound
+/// and the pins pump that into the links (`docs/contacts.md`).
+pub(crate) const MAX_CONTACT_PASSES: usize = 30;
+
+/// Default of [`SolverParams::settling_iterations`].
+pub(crate) const SETTLING_ITERATIONS: usize = 4;
+
+/// Which integrator a simulation uses (scene name in brackets).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum IntegratorKind {
+    /// Forward Euler (`forward-euler`): order 1, one force evaluation.
+    ForwardEuler,
+    /// Symplectic (semi-implicit) Euler (`symplectic-euler`): order 1.
+    SymplecticEuler,
+    /// Explicit midpoint (`midpoint`): order 2, two force evaluations.
+    Midpoint,
+    /// Classic Runge-Kutta (`rk4`): order 4, four force evaluations.
+    Rk4,
+    /// Dormand-Prince 5(4) with adaptive substeps (`dopri5`): order 5,
+    /// error controlled by [`SolverParams::error_tolerance`].
+    Dopri5,
+    /// Backward Euler, Baraff & Witkin (1998) (`backward-euler`): first
+    /// order, strongly damping; PCG to a tolerance.
+    BackwardEuler,
+    /// Backward Euler with a fixed number of matrix-free, mass-scaled CG
+    /// iterations (`backward-euler-fixed-cg`), Volino & Magnenat-Thalmann
+    /// (2001); the count is [`SolverParams::fixed_cg_iterations`].
+    BackwardEulerFixedCg,
+    /// Bdf2 (`bdf2`): second-order BDF, Choi & Ko (2002) Eq. 20; starts with
+    /// one backward-Euler step.
+    Bdf2,
+}
+
+impl IntegratorKind {
+    /// Every kind, in the order above.
+    pub const ALL: [IntegratorKind; 8] = [
+        IntegratorKind::ForwardEuler,
+        IntegratorKind::SymplecticEuler,
+        IntegratorKind::Midpoint,
+        IntegratorKind::Rk4,
+        IntegratorKind::Dopri5,
+        IntegratorKind::BackwardEuler,
+        IntegratorKind::BackwardEulerFixedCg,
+        IntegratorKind::Bdf2,
+    ];
+
+    /// The integrator.
+    pub fn build(self) -> Box<dyn Integrator> {
+        match self {
+            IntegratorKind::BackwardEuler => Box::new(BackwardEuler),
+            IntegratorKind::Bdf2 => Box::new(Bdf2),
+            IntegratorKind::BackwardEulerFixedCg => Box::new(crate::matrix_free::BackwardEulerFixedCg),
+            explicit => Box::new(crate::explicit::Explicit(explicit)),
+        }
+    }
+
+    /// Name as written in scene files.
+    pub fn name(self) -> &'static str {
+        match self {
+            IntegratorKind::ForwardEuler => "forward-euler",
+            IntegratorKind::SymplecticEuler => "symplectic-euler",
+            IntegratorKind::Midpoint => "midpoint",
+            IntegratorKind::Rk4 => "rk4",
+            IntegratorKind::Dopri5 => "dopri5",
+            IntegratorKind::BackwardEuler => "backward-euler",
+            IntegratorKind::BackwardEulerFixedCg => "backward-euler-fixed-cg",
+            IntegratorKind::Bdf2 => "bdf2",
+        }
+    }
+
+    /// Whether the integrator solves a linear system each step.
+    pub fn is_implicit(self) -> bool {
+        matches!(self, IntegratorKind::BackwardEuler | IntegratorKind::BackwardEulerFixedCg | IntegratorKind::Bdf2)
+    }
+}
+
+/// Every solver setting of a simulation, in one place.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SolverParams {
+    /// PCG tolerance, iteration cap and preconditioner (implicit integrators).
+    pub pcg: PcgParams,
+    /// Accept the last PCG iterate when `max_iter` is reached (the step is
+    /// then reported as unconverged) instead of failing the step.
+    pub accept_unconverged: bool,
+    /// Local error tolerance of the adaptive integrator (relative, and
+    /// absolute in m and m/s). Default 1e-4.
+    pub error_tolerance: f64,
+    /// Most substeps (accepted plus rejected) the adaptive integrator may
+    /// take within one step before giving up. Default 100000.
+    pub max_substeps: usize,
+    /// CG iterations per step of `backward-euler-fixed-cg`. Default 4.
+    pub fixed_cg_iterations: usize,
+    /// Most linear solves per step of `backward-euler` and `bdf2`: 1 is
+    /// Choi & Ko's and Baraff & Witkin's single linearised step; more
+    /// adds Newton corrections with a line search on the incremental
+    /// potential, solids then acting as penalties and their friction as a
+    /// dissipation potential (see [`NewtonReport`]). Default 1.
+    pub newton_iterations: usize,
+    /// Newton stops once the step equation's residual, as a distance
+    /// (`|r_i| dx/du / m_i`, the distance a particle would still move under
+    /// its unbalanced force alone), is below this everywhere, m. Default 1e-6.
+    pub newton_tolerance_m: f64,
+    /// With `newton_iterations > 1`, the Newton iterations run only on
+    /// steps whose single linearised step misjudged some link's tension
+    /// by more than this share of `k_s L` (its stiffness times its rest
+    /// length: 0.25 is a quarter of the link's length in strain; see
+    /// `newton::tension_linearisation_error`); the other steps are the
+    /// single linearised step, bit for bit. 0 (default): Newton on every
+    /// step. Measured on the fixtures (h = 1/90 s), the worst step's error:
+    /// 0.04 hang, 0.06 curtain, 0.14 drape-sphere, 0.22 flag, 0.29
+    /// top-walk, 0.72 one-piece-walk; 0.47 when a ball at 3 m/s hits a
+    /// curtain (`cloth study stability`).
+    pub newton_trigger: f64,
+    /// `bdf2` retakes a step as backward Euler when the energy monitor
+    /// flags it ([`EnergyReport::flagged`]). Default true.
+    pub energy_guard: bool,
+    /// Most re-solves of one step's contact active set (contacts released,
+    /// added, switched between sticking and sliding). The default, 30, is a
+    /// bound, not a budget: the set settles, Coulomb's bound holds. Fewer
+    /// trade friction for time: a stuck contact holds the load off those
+    /// behind it, so where the passes run out contacts stay stuck beyond
+    /// their bound (at 3: 162 against 248 ms a frame for the Table-1
+    /// one-piece, but a cloth pulled off a table at 4 m/s flies off at 4
+    /// times its frictionless kinetic energy, `cloth study stability`).
+    pub max_contact_passes: usize,
+    /// CG iterations of each solve while a step's contact set is still
+    /// settling: the first solve of a step that starts with solid contacts
+    /// and every re-solve after a pass changed the set. The set settles on
+    /// these rough solves (they only decide which contacts hold, stick or
+    /// slide); then one solve to `rel_tol` and a last check of the set end
+    /// the step, as every pass's solve did before. 0: every solve to
+    /// `rel_tol`. Default 4: CG a step halved on the contact fixtures
+    /// (drape-cube 84.1 -> 39.1, table 70.7 -> 35.3, the Table-1 one-piece
+    /// 61.0 -> 30.8 in its first second), their wall time 13-42% lower;
+    /// 3 and 5 did no better.
+    pub settling_iterations: usize,
+}
+
+impl Default for SolverParams {
+    /// Relative tolerance 1e-4, at most 1000 iterations, the multigrid
+    /// preconditioner (built from the model's grids), unconverged solves
+    /// accepted and counted; adaptive error tolerance 1e-4.
+    fn default() -> Self {
+        Self {
+            pcg: PcgParams { preconditioner: PreconditionerKind::Multigrid, ..PcgParams::default() },
+            accept_unconverged: true,
+            error_tolerance: 1e-4,
+            max_substeps: 100_000,
+            fixed_cg_iterations: 4,
+            newton_iterations: 1,
+            newton_tolerance_m: 1e-6,
+            newton_trigger: 0.0,
+            energy_guard: true,
+            max_contact_passes: MAX_CONTACT_PASSES,
+            settling_iterations: SETTLING_ITERATIONS,
+        }
+    }
+}
+
+/// Wall time per stage of one step, s.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StageTimes {
+    /// Evaluating interaction laws on links (forces and Jacobian blocks).
+    pub forces_s: f64,
+    /// Gathering into the matrix and right-hand side; pin constraints.
+    pub assembly_s: f64,
+    /// PCG.
+    pub solve_s: f64,
+    /// State update and finiteness check.
+    pub update_s: f64,
+    /// Cloth-solid narrow phase (0 without colliders).
+    pub collision_s: f64,
+    /// Self-collision: spatial hash, pair tests and repulsion (0 when off).
+    pub self_collision_s: f64,
+}
+
+impl std::ops::AddAssign for StageTimes {
+    fn add_assign(&mut self, o: Self) {
+        self.forces_s += o.forces_s;
+        self.assembly_s += o.assembly_s;
+        self.solve_s += o.solve_s;
+        self.update_s += o.update_s;
+        self.collision_s += o.collision_s;
+        self.self_collision_s += o.self_collision_s;
+    }
+}
+
+/// What one step did.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StepReport {
+    /// Force (and, for implicit methods, Jacobian) evaluations.
+    pub force_evaluations: usize,
+    /// Accepted substeps (1 except for the adaptive integrator).
+    pub substeps: usize,
+    /// Rejected substeps of the adaptive integrator.
+    pub rejected_steps: usize,
+    /// Links shortened by the deformation constraints after the step.
+    pub strain_corrections: usize,
+    /// PCG iterations.
+    pub cg_iterations: usize,
+    /// Final relative residual of PCG.
+    pub rel_residual: f64,
+    /// False when PCG hit `max_iter` and its last iterate was accepted.
+    pub converged: bool,
+    /// Time per stage.
+    pub stages: StageTimes,
+    /// Collision counters.
+    pub contacts: ContactStats,
+    /// The Newton iterations (`None` for the single linearised step).
+    pub newton: Option<NewtonReport>,
+    /// The step's energy balance: every step of the integrators with an
+    /// assembled matrix; for the explicit ones the balance of the last
+    /// [`crate::ENERGY_WINDOW`] steps, at each step whose count is a
+    /// multiple of it (`None` at the others and for
+    /// `backward-euler-fixed-cg`).
+    pub energy: Option<EnergyReport>,
+    /// BDF2 only: the step gained energy beyond what its loads explain
+    /// ([`EnergyReport::flagged`]) and was retaken as a backward-Euler
+    /// step, which also restarts BDF2's history.
+    pub retaken_as_backward_euler: bool,
+}
+
+/// What the Newton iterations of an implicit step did (see
+/// [`SolverParams::newton_iterations`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct NewtonReport {
+    /// Newton corrections after the first linearised solve.
+    pub corrections: usize,
+    /// Halvings of the correction by the line search, all corrections.
+    pub backtracks: usize,
+    /// Elastic energy evaluations of the line search.
+    pub energy_evaluations: usize,
+    /// Residual of the step equation at the final iterate as a distance,
+    /// `max_i |r_i| a / m_i` (m; `a = dx/du`).
+    pub residual_m: f64,
+    /// Whether the residual met [`SolverParams::newton_tolerance_m`].
+    pub converged: bool,
+}
+
+/// Why a step failed. The state is left as it was before the step.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum StepError {
+    /// The step size is not a finite positive number.
+    #[error("invalid time step {h} s: must be finite and > 0")]
+    InvalidTimeStep {
+        /// The offending step, s.
+        h: f64,
+    },
+    /// The linear solve failed.
+    #[error("step {step} (t = {time_s} s): linear solve failed: {source}")]
+    Solver {
+        /// Index of the failed step (1-based).
+        step: u64,
+        /// Time at the start of the step, s.
+        time_s: f64,
+        /// The solver's error.
+        source: PcgError,
+    },
+    /// The new state is not finite.
+    #[error("step {step} (t = {time_s} s): particle {particle} has a non-finite {quantity}")]
+    NonFinite {
+        /// Index of the failed step (1-based).
+        step: u64,
+        /// Time at the start of the step, s.
+        time_s: f64,
+        /// First offending particle.
+        particle: usize,
+        /// "position" or "velocity".
+        quantity: &'static str,
+    },
+    /// The adaptive integrator's step size collapsed (the error could not
+    /// be met), or it needed more substeps than allowed.
+    #[error("step {step} (t = {time_s} s): adaptive step size fell to {h} s after {attempts} substeps")]
+    StepSizeUnderflow {
+        /// Index of the failed step (1-based).
+        step: u64,
+        /// Time reached, s.
+        time_s: f64,
+        /// Last step size tried, s.
+        h: f64,
+        /// Substeps attempted (accepted and rejected).
+        attempts: usize,
+    },
+    /// The model asks for self-collision, which only the assembled implicit
+    /// integrators (`backward-euler`, `bdf2`) handle.
+    #[error("integrator {integrator} does not handle self-collisions: use backward-euler or bdf2")]
+    SelfCollisionNeedsMatrix {
+        /// The integrator's scene name.
+        integrator: &'static str,
+    },
+    /// A fixed-step explicit integrator was asked for a step its seams'
+    /// stitches make unstable ([`ClothModel::explicit_stitch_step_limit`]).
+    #[error(
+        "integrator {integrator} at h = {h_s} s: the seams' stitches need h < {limit_s:.3e} s with an explicit \
+         integrator (stiff dashpots on light particles); use bdf2 or backward-euler"
+    )]
+    StitchesNeedSmallerStep {
+        /// The integrator's scene name.
+        integrator: &'static str,
+        /// The step asked for, s.
+        h_s: f64,
+        /// The longest stable step, s.
+        limit_s: f64,
+    },
+    /// A state does not fit the model.
+    #[error("state has {got} particles but the model has {expected}")]
+    StateMismatch {
+        /// Particles in the model.
+        expected: usize,
+        /// Particles in the state.
+        got: usize,
+    },
+    /// A state's stitch flags do not fit the model's seams.
+    #[error("state has {got} stitch states but the model has {expected} stitches")]
+    StitchStateMismatch {
+        /// Stitches in the model.
+        expected: usize,
+        /// Flags in the state.
+        got: usize,
+    },
+}
+
+/// Scratch space of the integrators, sized once per model.
+#[derive(Debug, Clone)]
+pub struct Workspace {
+    pub(crate) system: SystemBuffers,
+    pub(crate) pcg: Pcg,
+    pub(crate) filter: ConstraintFilter,
+    pub(crate) unknown: Vec<Vec3>,
+    pub(crate) aux: Vec<Vec3>,
+    pub(crate) aux2: Vec<Vec3>,
+    pub(crate) new_x: Vec<Vec3>,
+    pub(crate) new_v: Vec<Vec3>,
+    /// Newton iterations' buffers (allocated on first use).
+    pub(crate) newton: Option<crate::newton::NewtonBuffers>,
+    /// External (wind) forces at the start of the step, and normals scratch.
+    pub(crate) external: Vec<Vec3>,
+    pub(crate) normals: Vec<Vec3>,
+    /// Stage storage of the explicit integrators (allocated on first use).
+    pub(crate) explicit: Option<ExplicitBuffers>,
+    /// Buffers of the matrix-free solver (allocated on first use).
+    pub(crate) matrix_free: Option<crate::matrix_free::MatrixFreeBuffers>,
+    /// Contacts and collision scratch space.
+    pub(crate) contacts: ContactBuffers,
+    /// Force each pin exerted on its particle in the last step, N.
+    pub(crate) pin_forces: Vec<Vec3>,
+    /// Scratch of the energy monitor.
+    pub(crate) energy: crate::forces::EnergyBuffers,
+}
+
+impl Workspace {
+    /// Buffers for `model`, and the multigrid hierarchy when `solver` asks for it.
+    pub fn new(model: &ClothModel, solver: &SolverParams) -> Self {
+        let n = model.particle_count();
+        let mut pcg = Pcg::new(n);
+        if solver.pcg.preconditioner == PreconditionerKind::Multigrid {
+            pcg.set_multigrid(model.multigrid());
+        }
+        Self {
+            system: SystemBuffers::new(model),
+            pcg,
+            filter: ConstraintFilter::new(n),
+            unknown: vec![Vec3::zeros(); n],
+            aux: vec![Vec3::zeros(); n],
+            aux2: vec![Vec3::zeros(); n],
+            new_x: vec![Vec3::zeros(); n],
+            new_v: vec![Vec3::zeros(); n],
+            newton: None,
+            external: vec![Vec3::zeros(); n],
+            normals: Vec::with_capacity(n),
+            explicit: None,
+            matrix_free: None,
+            contacts: ContactBuffers::default(),
+            pin_forces: vec![Vec3::zeros(); model.pins().len()],
+            energy: crate::forces::EnergyBuffers::new(model),
+        }
+    }
+}

@@ -1,0 +1,244 @@
+//! What a model is built from: [`ModelSpec`] (panels, material, pins,
+//! effects, the discretisation), its parts, and why a build can fail.
+
+use crate::colliders::CollisionSpec;
+use crate::seams::SeamSpec;
+use crate::{GridPanel, Material, PinMotion, Vec3, Wind};
+use serde::{Deserialize, Serialize};
+
+/// Effects computed by a model. An effect that is off costs nothing: no
+/// links are built and no loop runs for it.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Effects {
+    /// Uniform gravitational acceleration, m/s^2 (`None`: no gravity).
+    pub gravity: Option<Vec3>,
+    /// Directional damping along type-1 links (Choi & Ko Eq. 13).
+    pub damping: bool,
+    /// Type-2 interlaced buckling links (bending and compression resistance).
+    pub bending: bool,
+    /// Viscous drag on every particle, `f_i = -c_i v_i` with
+    /// `c_i = material.drag_n_s_m3 x` the particle's area (Provot's
+    /// "viscous damping" `-C_dis v`).
+    pub drag: bool,
+    /// Provot's viscous fluid (wind) force on particles; needs [`ModelSpec::wind`].
+    pub wind: bool,
+    /// Aerodynamic drag and lift on triangles; needs [`ModelSpec::wind`].
+    pub aerodynamics: bool,
+}
+
+/// An edge of a grid panel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Edge {
+    /// Nodes with `i = 0`.
+    IMin,
+    /// Nodes with `i = nx - 1`.
+    IMax,
+    /// Nodes with `j = 0`.
+    JMin,
+    /// Nodes with `j = ny - 1`.
+    JMax,
+}
+
+/// A set of pinned grid nodes and the path they follow.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PinSpec {
+    /// Panel index (default 0).
+    #[serde(default)]
+    pub panel: usize,
+    /// Grid nodes `[i, j]` to pin.
+    #[serde(default)]
+    pub nodes: Vec<[usize; 2]>,
+    /// A whole edge to pin (in addition to `nodes`).
+    #[serde(default)]
+    pub edge: Option<Edge>,
+    /// The path (default: fixed).
+    #[serde(default = "fixed")]
+    pub motion: PinMotion,
+}
+
+fn fixed() -> PinMotion {
+    PinMotion::Fixed
+}
+
+/// Everything needed to build a [`ClothModel`].
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ModelSpec {
+    /// The cloth panels (particles are numbered panel after panel, `j * nx + i` within one).
+    pub panels: Vec<GridPanel>,
+    /// The fabric, shared by all panels.
+    pub material: Material,
+    /// Pinned nodes.
+    pub pins: Vec<PinSpec>,
+    /// Effects to compute.
+    pub effects: Effects,
+    /// The discretisation.
+    pub kind: ModelKind,
+    /// How Choi & Ko's type-2 interactions read bending (`choi-ko` only;
+    /// None: [`BendingLaw::ArcPath`]).
+    pub bending_law: Option<BendingLaw>,
+    /// Deformation constraints, if any.
+    pub strain_limit: Option<StrainLimit>,
+    /// The air's motion and coefficients, for the wind effects.
+    pub wind: Option<Wind>,
+    /// Solids and self-collision (none by default).
+    pub collision: CollisionSpec,
+    /// Seams sewing panels together (none by default).
+    pub seams: Vec<SeamSpec>,
+}
+
+/// Why a model could not be built. Field paths match the scene file's keys.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ModelError {
+    /// The model has no panel.
+    #[error("panels: at least one panel is required")]
+    NoPanels,
+    /// A panel is invalid.
+    #[error("panels[{panel}].{field}: {message}")]
+    Panel {
+        /// Panel index.
+        panel: usize,
+        /// Offending field.
+        field: &'static str,
+        /// What is wrong.
+        message: String,
+    },
+    /// The material is invalid.
+    #[error("material.{field}: {message}")]
+    Material {
+        /// Offending field.
+        field: &'static str,
+        /// What is wrong.
+        message: String,
+    },
+    /// A pin is impossible.
+    #[error("pins[{pin}].{field}: {message}")]
+    Pin {
+        /// Pin index.
+        pin: usize,
+        /// Offending field.
+        field: &'static str,
+        /// What is wrong.
+        message: String,
+    },
+    /// The wind is missing or invalid.
+    #[error("wind.{field}: {message}")]
+    Wind {
+        /// Offending field.
+        field: &'static str,
+        /// What is wrong.
+        message: String,
+    },
+    /// The deformation constraints are invalid.
+    #[error("constraints.{field}: {message}")]
+    StrainLimit {
+        /// Offending field.
+        field: &'static str,
+        /// What is wrong.
+        message: String,
+    },
+    /// Gravity is not finite.
+    #[error("simulation.gravity_m_s2: must be finite, got {0:?}")]
+    Gravity([f64; 3]),
+    /// A bending law was asked of a model that does not have it.
+    #[error("simulation.bending_law: {0} is a law of the choi-ko model, not of {1}")]
+    BendingLaw(&'static str, &'static str),
+    /// A seam is invalid.
+    #[error("seams[{seam}].{field}: {message}")]
+    Seam {
+        /// Seam index.
+        seam: usize,
+        /// Offending field (`a.range`).
+        field: &'static str,
+        /// What is wrong.
+        message: String,
+    },
+    /// A collider or the self-collision set-up is invalid.
+    #[error("{field}: {message}")]
+    Collision {
+        /// Dotted path of the field (`colliders[0].shape.radius_m`).
+        field: String,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+/// Which discretisation of the fabric a model uses. Both take the same
+/// [`Material`]; see [`Material`]'s docs for the constants.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ModelKind {
+    /// Choi & Ko (2002): tension-only type-1 springs, type-2 buckling links
+    /// (circular-arc law with the `c_b` ramp) on `i+2`, `j+2` and both
+    /// skip-one diagonals.
+    #[default]
+    ChoiKo,
+    /// Provot (1995): linear structural and shear springs (tension and
+    /// compression) and linear flexion springs on `i+2`, `j+2`.
+    Provot,
+    /// Volino & Magnenat-Thalmann (2001), "accurate" model: a linear
+    /// orthotropic membrane on the triangles and a bending element per triangle;
+    /// the `damping` effect acts along the type-1 links.
+    Volino,
+}
+
+impl ModelKind {
+    /// Name as written in scene files.
+    pub fn name(self) -> &'static str {
+        match self {
+            ModelKind::ChoiKo => "choi-ko",
+            ModelKind::Provot => "provot",
+            ModelKind::Volino => "volino",
+        }
+    }
+}
+
+/// How the `choi-ko` model's type-2 interactions read bending.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum BendingLaw {
+    /// The paper's pair law: the arc law on the chord against the rest
+    /// length, capped by the ramp `c_b (L - d)` (Eq. 11), tension-only
+    /// type-1 links, every link standing for a full cell. Its flexural
+    /// rigidity depends on the grid (material docs).
+    ArcChord,
+    /// The default: the arc law on the chord against the path through the
+    /// middle particle ([`crate::element_laws::bend_triple_with`]): bending
+    /// only, with `k_b = (8/9) B a / L`, links along a boundary standing
+    /// for the part of a cell they border, and the membrane's compression
+    /// on the type-1 links. Flexural rigidity that holds at every grid
+    /// spacing.
+    #[default]
+    ArcPath,
+}
+
+impl BendingLaw {
+    /// Name as written in scene files.
+    pub fn name(self) -> &'static str {
+        match self {
+            BendingLaw::ArcChord => "arc-chord",
+            BendingLaw::ArcPath => "arc-path",
+        }
+    }
+}
+
+/// Provot's (1995) deformation constraints: after each step, every
+/// structural and shear (type-1) link longer than `(1 + max_strain) L` is
+/// shortened back to that length by moving its free ends (split equally
+/// when both are free, never moving pinned ones), in link order, for up to
+/// `passes` passes or until none is too long.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct StrainLimit {
+    /// Largest allowed strain `tau_c` (dimensionless; Provot: 0.1).
+    pub max_strain: f64,
+    /// Most passes over the links per step.
+    pub passes: usize,
+}
+
+impl Default for StrainLimit {
+    fn default() -> Self {
+        Self { max_strain: 0.1, passes: 10 }
+    }
+}
