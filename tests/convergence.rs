@@ -5,7 +5,7 @@
 //! is smooth and each method shows its textbook order.
 
 use cloth_core::{
-    ClothModel, ClothState, Effects, GridPanel, IntegratorKind, Material, ModelSpec, PcgParams, PinMotion, PinSpec,
+    ClothModel, ClothState, Effects, GridPanel, IntegratorKind, Material, ModelSpec, PinMotion, PinSpec,
     PreconditionerKind, Simulation, SolverParams, Vec3,
 };
 use cloth_tests::least_squares_slope;
@@ -86,7 +86,9 @@ fn initial_state(model: &ClothModel) -> ClothState {
 
 fn solver(tolerance: f64) -> SolverParams {
     SolverParams {
-        pcg: PcgParams { rel_tol: 1e-13, max_iter: 10_000, preconditioner: PreconditionerKind::BlockJacobi },
+        rel_tol: 1e-13,
+        max_iter: 10_000,
+        preconditioner: PreconditionerKind::BlockJacobi,
         accept_unconverged: false,
         error_tolerance: tolerance,
         fixed_cg_iterations: 200,

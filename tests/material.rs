@@ -3,8 +3,8 @@
 //! against the continuum value and across models and resolutions.
 
 use cloth_core::{
-    BendingLaw, ClothModel, Edge, Effects, GridPanel, IntegratorKind, Material, ModelKind, ModelSpec, PcgParams,
-    PinMotion, PinSpec, Simulation, SolverParams, Vec3, forces,
+    BendingLaw, ClothModel, Edge, Effects, GridPanel, IntegratorKind, Material, ModelKind, ModelSpec, PinMotion,
+    PinSpec, PreconditionerKind, Simulation, SolverParams, Vec3, forces,
 };
 use cloth_tests::least_squares_slope;
 
@@ -80,7 +80,8 @@ fn bottom_sag(rest: &[Vec3], x: &[Vec3], [nu, nv]: [usize; 2]) -> f64 {
 /// 1 s with Newton iterations to 1e-10 m converge to statics.
 fn settle(model: ClothModel) -> Vec<Vec3> {
     let solver = SolverParams {
-        pcg: PcgParams { rel_tol: 1e-10, ..PcgParams::default() },
+        rel_tol: 1e-10,
+        preconditioner: PreconditionerKind::BlockJacobi,
         newton_iterations: 50,
         newton_tolerance_m: 1e-10,
         ..SolverParams::default()
@@ -175,7 +176,8 @@ fn longitudinal_oscillation(
     let model = strip(model, particles, [0.1, 1.0], material, effects, true);
     let rest = model.rest_positions().to_vec();
     let q = std::f64::consts::PI / 2.0;
-    let solver = SolverParams { pcg: PcgParams { rel_tol: 1e-10, ..PcgParams::default() }, ..SolverParams::default() };
+    let solver =
+        SolverParams { rel_tol: 1e-10, preconditioner: PreconditionerKind::BlockJacobi, ..SolverParams::default() };
     let mut sim = Simulation::new(model, IntegratorKind::Bdf2, solver);
     let mut start = sim.snapshot();
     for (x, r) in start.x.iter_mut().zip(&rest) {

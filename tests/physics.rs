@@ -7,7 +7,7 @@ use cloth_core::forces::{
 };
 use cloth_core::{
     BendingLaw, ClothModel, Compression, Effects, GridPanel, IntegratorKind, LinkType, Mat3, Material, ModelKind,
-    ModelSpec, PcgParams, Simulation, SolverParams, Vec3,
+    ModelSpec, PreconditionerKind, Simulation, SolverParams, Vec3,
 };
 use cloth_tests::{Rng, same_bits, simulation};
 
@@ -311,7 +311,9 @@ fn internal_forces_conserve_linear_and_angular_momentum() {
 
 fn tight_solver() -> SolverParams {
     SolverParams {
-        pcg: PcgParams { rel_tol: 1e-12, max_iter: 5000, ..PcgParams::default() },
+        rel_tol: 1e-12,
+        max_iter: 5000,
+        preconditioner: PreconditionerKind::BlockJacobi,
         accept_unconverged: false,
         ..SolverParams::default()
     }

@@ -43,11 +43,11 @@ pub use integrator::{
 };
 pub use material::{BendConstants, Compressive, Lattice, Material, Membrane};
 pub use model::{
-    BendLaw, BendLink, BendingLaw, ClothModel, Compression, Edge, Effects, Incidence, ModelError, ModelKind, ModelSpec,
-    PanelRange, PinSpec, StrainLimit, StretchLink,
+    BendLaw, BendLink, BendingLaw, ClothModel, Compression, Edge, Effects, Incidence, ModelBuilder, ModelError,
+    ModelKind, ModelSpec, PanelRange, PinSpec, StrainLimit, StretchLink,
 };
 pub use pins::{Pin, PinMotion};
-pub use sim::Simulation;
+pub use sim::{Simulation, SimulationBuilder};
 pub use state::ClothState;
 pub use topology::{Diagonals, GridPanel, LinkType, PanelError, PanelMesh};
 pub use wind::{Wind, WindProfile};

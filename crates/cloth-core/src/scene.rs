@@ -98,8 +98,7 @@
 
 use crate::{
     BendingLaw, ClothModel, ColliderSpec, CollisionSpec, Effects, GridPanel, IntegratorKind, Material, ModelKind,
-    ModelSpec, PcgParams, PinSpec, PreconditionerKind, SeamSpec, SelfCollisionSpec, SolverParams, StrainLimit, Vec3,
-    Wind,
+    ModelSpec, PinSpec, SeamSpec, SelfCollisionSpec, SolverParams, StrainLimit, Vec3, Wind,
 };
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -110,9 +109,9 @@ use std::path::{Path, PathBuf};
 pub struct Scene {
     /// Time stepping and effects.
     pub simulation: SimulationSection,
-    /// Linear solver.
+    /// Solver settings (`[solver]`; every key optional).
     #[serde(default)]
-    pub solver: SolverSection,
+    pub solver: SolverParams,
     /// The fabric.
     pub material: Material,
     /// Cloth panels.
@@ -207,78 +206,6 @@ fn default_gravity() -> [f64; 3] {
     [0.0, 0.0, -9.81]
 }
 
-/// `[solver]`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct SolverSection {
-    /// PCG relative tolerance (dimensionless, in (0, 1)).
-    pub rel_tol: f64,
-    /// PCG iteration cap.
-    pub max_iter: usize,
-    /// Preconditioner.
-    pub preconditioner: PreconditionerName,
-    /// Accept PCG's last iterate at `max_iter` instead of failing.
-    pub accept_unconverged: bool,
-    /// Local error tolerance of `dopri5` (relative, and absolute in m, m/s).
-    pub error_tolerance: f64,
-    /// Most substeps `dopri5` may take within one step.
-    pub max_substeps: usize,
-    /// CG iterations per step of `backward-euler-fixed-cg`.
-    pub fixed_cg_iterations: usize,
-    /// Most linear solves per step of `backward-euler` and `bdf2` (>= 1;
-    /// more than 1 adds Newton corrections with a line search).
-    pub newton_iterations: usize,
-    /// Newton's stopping rule: the step equation's residual as a distance, m (> 0).
-    pub newton_tolerance_m: f64,
-    /// Newton only on steps whose single linearised step misjudged a
-    /// link's tension by more than this share of `k_s L` (>= 0; 0: every
-    /// step; see [`SolverParams::newton_trigger`]).
-    pub newton_trigger: f64,
-    /// `bdf2` retakes a step flagged by the energy monitor as backward Euler.
-    pub energy_guard: bool,
-    /// Most re-solves of a step's contact active set (see
-    /// [`SolverParams::max_contact_passes`]).
-    pub max_contact_passes: usize,
-    /// CG iterations of the solves while a step's contact set settles (0:
-    /// each to `rel_tol`; see [`SolverParams::settling_iterations`]).
-    pub settling_iterations: usize,
-}
-
-impl Default for SolverSection {
-    fn default() -> Self {
-        let p = SolverParams::default();
-        Self {
-            rel_tol: p.pcg.rel_tol,
-            max_iter: p.pcg.max_iter,
-            preconditioner: PreconditionerName::Multigrid,
-            accept_unconverged: p.accept_unconverged,
-            error_tolerance: p.error_tolerance,
-            max_substeps: p.max_substeps,
-            fixed_cg_iterations: p.fixed_cg_iterations,
-            newton_iterations: p.newton_iterations,
-            newton_tolerance_m: p.newton_tolerance_m,
-            newton_trigger: p.newton_trigger,
-            energy_guard: p.energy_guard,
-            max_contact_passes: p.max_contact_passes,
-            settling_iterations: p.settling_iterations,
-        }
-    }
-}
-
-/// Preconditioner names in scene files.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum PreconditionerName {
-    /// No preconditioner.
-    None,
-    /// Scalar diagonal.
-    Diagonal,
-    /// 3x3 block diagonal (Choi & Ko).
-    BlockJacobi,
-    /// Aggregation multigrid cycle on the panel grids (W below the first coarse level).
-    Multigrid,
-}
-
 /// How to run a scene: everything but the model.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RunConfig {
@@ -297,12 +224,11 @@ pub struct RunConfig {
 impl RunConfig {
     /// The simulation a scene describes, in its initial state.
     pub fn simulation(&self, model: ClothModel) -> crate::Simulation {
-        let mut sim = crate::Simulation::new(model, self.integrator, self.solver);
-        if self.initial_jitter_m > 0.0 {
-            let state = crate::ClothState::jittered(sim.model(), self.initial_jitter_m);
-            sim.restore(&state).expect("a state built for this model");
-        }
-        sim
+        crate::Simulation::builder(model)
+            .integrator(self.integrator)
+            .solver(self.solver)
+            .initial_jitter(self.initial_jitter_m)
+            .build()
     }
 }
 
@@ -548,28 +474,7 @@ impl Scene {
             dt_s: s.dt_s,
             steps: (s.duration_s / s.dt_s).round() as u64,
             initial_jitter_m: s.initial_jitter_m,
-            solver: SolverParams {
-                pcg: PcgParams {
-                    rel_tol: self.solver.rel_tol,
-                    max_iter: self.solver.max_iter,
-                    preconditioner: match self.solver.preconditioner {
-                        PreconditionerName::None => PreconditionerKind::None,
-                        PreconditionerName::Diagonal => PreconditionerKind::Diagonal,
-                        PreconditionerName::BlockJacobi => PreconditionerKind::BlockJacobi,
-                        PreconditionerName::Multigrid => PreconditionerKind::Multigrid,
-                    },
-                },
-                accept_unconverged: self.solver.accept_unconverged,
-                error_tolerance: self.solver.error_tolerance,
-                max_substeps: self.solver.max_substeps,
-                fixed_cg_iterations: self.solver.fixed_cg_iterations,
-                newton_iterations: self.solver.newton_iterations,
-                newton_tolerance_m: self.solver.newton_tolerance_m,
-                newton_trigger: self.solver.newton_trigger,
-                energy_guard: self.solver.energy_guard,
-                max_contact_passes: self.solver.max_contact_passes,
-                settling_iterations: self.solver.settling_iterations,
-            },
+            solver: self.solver,
         };
         Ok((model, config))
     }

@@ -3,18 +3,19 @@
 use crate::{BlockSparseMatrix, Mat3, Multigrid, Vec3, par::ROW_CHUNK};
 use rayon::prelude::*;
 
-/// Which preconditioner PCG uses.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// Which preconditioner PCG uses (scene name in brackets).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
 pub enum PreconditionerKind {
-    /// Plain conjugate gradients.
+    /// Plain conjugate gradients (`none`).
     None,
-    /// Inverse of the scalar diagonal of the matrix (Jacobi).
+    /// Inverse of the scalar diagonal of the matrix, Jacobi (`diagonal`).
     Diagonal,
-    /// Inverse of each 3x3 diagonal block (block-Jacobi). Choi & Ko (2002,
+    /// Inverse of each 3x3 diagonal block, block-Jacobi (`block-jacobi`). Choi & Ko (2002,
     /// §4) report it about 20% faster than the scalar diagonal.
     #[default]
     BlockJacobi,
-    /// One aggregation multigrid cycle ([`Multigrid`]); the hierarchy must
+    /// One aggregation multigrid cycle, [`Multigrid`] (`multigrid`); the hierarchy must
     /// be given with [`crate::Pcg::set_multigrid`].
     Multigrid,
 }

@@ -12,7 +12,7 @@ use crate::{
     ClothModel, ClothState, Mat3, Vec3,
     forces::{SystemTerms, assemble},
 };
-use cloth_linalg::{Constraint, ConstraintFilter, PcgError, PcgParams};
+use cloth_linalg::{Constraint, ConstraintFilter, PcgError};
 use std::time::Instant;
 
 pub use super::step_types::*;
@@ -313,11 +313,8 @@ fn uncommitted_step<S: Linearised>(
     // While the contact set settles, solves are rough (see
     // `SolverParams::settling_iterations`); `exact` says whether the
     // unknown solves the current set to `rel_tol`.
-    let rough = SolverParams {
-        pcg: PcgParams { max_iter: solver.settling_iterations.min(solver.pcg.max_iter), ..solver.pcg },
-        accept_unconverged: true,
-        ..*solver
-    };
+    let rough =
+        SolverParams { max_iter: solver.settling_iterations.min(solver.max_iter), accept_unconverged: true, ..*solver };
     // Not under Newton on every step, which starts from this solve.
     let settling = solver.settling_iterations > 0 && !model.colliders().is_empty() && friction_in_solve;
     let first_rough = settling && !ws.contacts.solid.is_empty();
@@ -659,7 +656,8 @@ pub(crate) fn solve(
     solver: &SolverParams,
 ) -> Result<(StepReport, f64), StepError> {
     let t0 = Instant::now();
-    let result = ws.pcg.solve_in_place(&mut ws.system.matrix, &ws.system.rhs, &ws.filter, &solver.pcg, &mut ws.unknown);
+    let result =
+        ws.pcg.solve_in_place(&mut ws.system.matrix, &ws.system.rhs, &ws.filter, &solver.pcg(), &mut ws.unknown);
     let elapsed = t0.elapsed().as_secs_f64();
     let fail = |source| StepError::Solver { step: state.steps + 1, time_s: state.time_s, source };
     let report = match result {

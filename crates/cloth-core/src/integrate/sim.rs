@@ -18,7 +18,58 @@ pub struct Simulation {
     control: Control,
 }
 
+/// Builds a [`Simulation`]: BDF2 with the default [`SolverParams`] unless
+/// told otherwise, starting at rest (or jittered).
+#[derive(Debug, Clone)]
+pub struct SimulationBuilder {
+    model: Arc<ClothModel>,
+    integrator: IntegratorKind,
+    solver: SolverParams,
+    initial_jitter_m: f64,
+}
+
+impl SimulationBuilder {
+    /// The integrator (default [`IntegratorKind::Bdf2`]).
+    pub fn integrator(mut self, integrator: IntegratorKind) -> Self {
+        self.integrator = integrator;
+        self
+    }
+
+    /// Every solver setting (default [`SolverParams::default`]).
+    pub fn solver(mut self, solver: SolverParams) -> Self {
+        self.solver = solver;
+        self
+    }
+
+    /// Displaces each free particle by up to `jitter_m` (m) per component,
+    /// deterministically: a perfectly symmetric cloth hides instabilities.
+    pub fn initial_jitter(mut self, jitter_m: f64) -> Self {
+        self.initial_jitter_m = jitter_m;
+        self
+    }
+
+    /// The simulation at time 0.
+    pub fn build(self) -> Simulation {
+        let mut sim = Simulation::new(self.model, self.integrator, self.solver);
+        if self.initial_jitter_m > 0.0 {
+            let state = ClothState::jittered(sim.model(), self.initial_jitter_m);
+            sim.restore(&state).expect("a state built for this model");
+        }
+        sim
+    }
+}
+
 impl Simulation {
+    /// A builder for a simulation of `model`.
+    pub fn builder(model: impl Into<Arc<ClothModel>>) -> SimulationBuilder {
+        SimulationBuilder {
+            model: model.into(),
+            integrator: IntegratorKind::Bdf2,
+            solver: SolverParams::default(),
+            initial_jitter_m: 0.0,
+        }
+    }
+
     /// A simulation starting from the model's rest shape at time 0.
     pub fn new(model: impl Into<Arc<ClothModel>>, integrator: IntegratorKind, solver: SolverParams) -> Self {
         let model = model.into();

@@ -90,11 +90,19 @@ impl IntegratorKind {
     }
 }
 
-/// Every solver setting of a simulation, in one place.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Every solver setting of a simulation, in one place: the scene's
+/// `[solver]` table deserialises into it (every key optional, unknown keys
+/// refused).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
 pub struct SolverParams {
-    /// PCG tolerance, iteration cap and preconditioner (implicit integrators).
-    pub pcg: PcgParams,
+    /// PCG relative tolerance (dimensionless, in (0, 1)). Default 1e-4.
+    pub rel_tol: f64,
+    /// PCG iteration cap. Default 1000.
+    pub max_iter: usize,
+    /// PCG preconditioner. Default the multigrid, built from the model's
+    /// grids.
+    pub preconditioner: PreconditionerKind,
     /// Accept the last PCG iterate when `max_iter` is reached (the step is
     /// then reported as unconverged) instead of failing the step.
     pub accept_unconverged: bool,
@@ -122,10 +130,7 @@ pub struct SolverParams {
     /// length: 0.25 is a quarter of the link's length in strain; see
     /// `newton::tension_linearisation_error`); the other steps are the
     /// single linearised step, bit for bit. 0 (default): Newton on every
-    /// step. Measured on the fixtures (h = 1/90 s), the worst step's error:
-    /// 0.04 hang, 0.06 curtain, 0.14 drape-sphere, 0.22 flag, 0.29
-    /// top-walk, 0.72 one-piece-walk; 0.47 when a ball at 3 m/s hits a
-    /// curtain (`cloth study stability`).
+    /// step. The fixtures' worst steps at 1/90 s: `docs/solvers.md`.
     pub newton_trigger: f64,
     /// `bdf2` retakes a step as backward Euler when the energy monitor
     /// flags it ([`EnergyReport::flagged`]). Default true.
@@ -133,23 +138,25 @@ pub struct SolverParams {
     /// Most re-solves of one step's contact active set (contacts released,
     /// added, switched between sticking and sliding). The default, 30, is a
     /// bound, not a budget: the set settles, Coulomb's bound holds. Fewer
-    /// trade friction for time: a stuck contact holds the load off those
-    /// behind it, so where the passes run out contacts stay stuck beyond
-    /// their bound (at 3: 162 against 248 ms a frame for the Table-1
-    /// one-piece, but a cloth pulled off a table at 4 m/s flies off at 4
-    /// times its frictionless kinetic energy, `cloth study stability`).
+    /// trade friction for time: where the passes run out, contacts stay
+    /// stuck beyond their bound (`cloth study stability`, "pulled across a
+    /// table").
     pub max_contact_passes: usize,
     /// CG iterations of each solve while a step's contact set is still
     /// settling: the first solve of a step that starts with solid contacts
     /// and every re-solve after a pass changed the set. The set settles on
     /// these rough solves (they only decide which contacts hold, stick or
     /// slide); then one solve to `rel_tol` and a last check of the set end
-    /// the step, as every pass's solve did before. 0: every solve to
-    /// `rel_tol`. Default 4: CG a step halved on the contact fixtures
-    /// (drape-cube 84.1 -> 39.1, table 70.7 -> 35.3, the Table-1 one-piece
-    /// 61.0 -> 30.8 in its first second), their wall time 13-42% lower;
-    /// 3 and 5 did no better.
+    /// the step. 0: every solve to `rel_tol`. Default 4, which halves the
+    /// CG iterations of the contact fixtures (`docs/contacts.md`).
     pub settling_iterations: usize,
+}
+
+impl SolverParams {
+    /// The settings of one PCG solve.
+    pub fn pcg(&self) -> PcgParams {
+        PcgParams { rel_tol: self.rel_tol, max_iter: self.max_iter, preconditioner: self.preconditioner }
+    }
 }
 
 impl Default for SolverParams {
@@ -158,7 +165,9 @@ impl Default for SolverParams {
     /// accepted and counted; adaptive error tolerance 1e-4.
     fn default() -> Self {
         Self {
-            pcg: PcgParams { preconditioner: PreconditionerKind::Multigrid, ..PcgParams::default() },
+            rel_tol: PcgParams::default().rel_tol,
+            max_iter: PcgParams::default().max_iter,
+            preconditioner: PreconditionerKind::Multigrid,
             accept_unconverged: true,
             error_tolerance: 1e-4,
             max_substeps: 100_000,
@@ -369,7 +378,7 @@ impl Workspace {
     pub fn new(model: &ClothModel, solver: &SolverParams) -> Self {
         let n = model.particle_count();
         let mut pcg = Pcg::new(n);
-        if solver.pcg.preconditioner == PreconditionerKind::Multigrid {
+        if solver.preconditioner == PreconditionerKind::Multigrid {
             pcg.set_multigrid(model.multigrid());
         }
         Self {

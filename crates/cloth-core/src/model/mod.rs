@@ -4,6 +4,7 @@
 //! evaluate them. Nothing here changes during a run.
 
 mod build_parts;
+mod builder;
 mod cloth_model;
 pub(crate) mod constraints;
 pub mod element_laws;
@@ -18,5 +19,6 @@ mod spec;
 pub(crate) mod topology;
 pub mod wind;
 
+pub use builder::ModelBuilder;
 pub use cloth_model::*;
 pub use spec::*;

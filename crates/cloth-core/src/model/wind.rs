@@ -92,6 +92,20 @@ pub struct Wind {
     pub lift_coefficient: f64,
 }
 
+impl Wind {
+    /// Air moving as `profile`, with the default coefficients: Provot's
+    /// fluid coefficient 0.5 N s/m^3, air 1.2 kg/m^3, drag 1.0, lift 0.5.
+    pub fn new(profile: WindProfile) -> Self {
+        Self {
+            profile,
+            fluid_coefficient_n_s_m3: default_fluid(),
+            air_density_kg_m3: default_air(),
+            drag_coefficient: default_drag(),
+            lift_coefficient: default_lift(),
+        }
+    }
+}
+
 fn default_fluid() -> f64 {
     0.5
 }
