@@ -375,8 +375,8 @@ pub(crate) fn adaptive_dopri5(
 pub struct Explicit(pub crate::IntegratorKind);
 
 impl crate::Integrator for Explicit {
-    fn kind(&self) -> crate::IntegratorKind {
-        self.0
+    fn name(&self) -> &'static str {
+        self.0.name()
     }
 
     fn step(
@@ -390,7 +390,7 @@ impl crate::Integrator for Explicit {
     ) -> Result<StepReport, StepError> {
         use crate::IntegratorKind as K;
         crate::integrator::check_step(model, state, h)?;
-        crate::integrator::reject_self_collision(model, self.0)?;
+        crate::integrator::reject_self_collision(model, self.0.name())?;
         let limit_s = model.explicit_stitch_step_limit();
         if self.0 != K::Dopri5 && h >= limit_s {
             return Err(StepError::StitchesNeedSmallerStep { integrator: self.0.name(), h_s: h, limit_s });

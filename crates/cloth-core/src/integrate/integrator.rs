@@ -2,9 +2,9 @@
 //! (single Newton iteration) step solved by the filtered PCG.
 
 use crate::contacts::{
-    ContactBuffers, ContactStats, FrictionMode, add_penetrating, apply_friction, constrain_contacts,
-    detect_self_contacts, detect_solid_contacts, linearise_squeeze_friction, project_out, release_pulling,
-    separate_self_contacts, squeeze_friction_forces, stick_frictional_contacts, stick_or_slide, stop_separation,
+    ContactBuffers, ContactStats, FrictionMode, apply_friction, constrain_contacts, detect_self_contacts,
+    detect_solid_contacts, linearise_squeeze_friction, project_out, separate_self_contacts, squeeze_friction_forces,
+    stick_frictional_contacts, stop_separation,
 };
 use crate::control::{Control, PinPaths};
 use crate::energy::{self};
@@ -15,14 +15,16 @@ use crate::{
 use cloth_linalg::{Constraint, ConstraintFilter, PcgError};
 use std::time::Instant;
 
+use super::settle::{ContactRules, settle_contacts};
 pub use super::step_types::*;
 
 /// A time integrator: advances `state` by `h` seconds. Integrators hold only
 /// parameters; everything that influences the result lives in the state,
 /// so a restored snapshot steps to the same bits.
 pub trait Integrator: Send + Sync + std::fmt::Debug {
-    /// Which integrator this is.
-    fn kind(&self) -> IntegratorKind;
+    /// The integrator's name, as reports and errors show it (a scene's
+    /// `simulation.integrator` for the built-in ones).
+    fn name(&self) -> &'static str;
 
     /// One step of size `h` (s). On error the state is unchanged.
     fn step(
@@ -34,6 +36,13 @@ pub trait Integrator: Send + Sync + std::fmt::Debug {
         ws: &mut Workspace,
         solver: &SolverParams,
     ) -> Result<StepReport, StepError>;
+
+    /// Whether the particles its contacts hold restart the scheme's history
+    /// after the step ([`crate::contacts`]' `restart_history_at_contacts`):
+    /// the linearised implicit steps, whose contacts are constraints.
+    fn restarts_history_at_contacts(&self) -> bool {
+        false
+    }
 }
 
 /// Backward Euler (Baraff & Witkin 1998, Eq. 16):
@@ -50,8 +59,12 @@ pub struct BackwardEuler;
 pub struct Bdf2;
 
 impl Integrator for BackwardEuler {
-    fn kind(&self) -> IntegratorKind {
-        IntegratorKind::BackwardEuler
+    fn name(&self) -> &'static str {
+        IntegratorKind::BackwardEuler.name()
+    }
+
+    fn restarts_history_at_contacts(&self) -> bool {
+        true
     }
 
     fn step(
@@ -69,8 +82,12 @@ impl Integrator for BackwardEuler {
 }
 
 impl Integrator for Bdf2 {
-    fn kind(&self) -> IntegratorKind {
-        IntegratorKind::Bdf2
+    fn name(&self) -> &'static str {
+        IntegratorKind::Bdf2.name()
+    }
+
+    fn restarts_history_at_contacts(&self) -> bool {
+        true
     }
 
     fn step(
@@ -273,9 +290,21 @@ fn linearised_step<S: Linearised>(
     Ok(report)
 }
 
-/// One step of a [`Linearised`] scheme up to its commit: assemble,
-/// constrain pins, solve with filtered PCG, advance into `ws.new_x`/`new_v`,
-/// and the energy balance. The state is not changed.
+/// One step of a [`Linearised`] scheme up to its commit, as named
+/// phases (the state is not changed; the result is in `ws.new_x` and
+/// `ws.new_v`):
+///
+/// 1. **gather loads**: wind and outside forces, self-collision, the solid
+///    contacts of the step's start ([`step_loads`]);
+/// 2. **assemble** `A` and `b` ([`assemble`]);
+/// 3. **constrain** pins and the starting contacts in the filter;
+/// 4. **settle the contact set** over filtered PCG solves
+///    ([`settle::settle_contacts`]);
+/// 5. **Newton** corrections with a line search, when asked;
+/// 6. **respond**: pin reactions, the new positions and velocities,
+///    friction, no bounce off holding solids, self-collision separation,
+///    the last projection out of solids ([`respond`]);
+/// 7. **balance** the step's energy and report its stages.
 fn uncommitted_step<S: Linearised>(
     scheme: &S,
     model: &ClothModel,
@@ -285,101 +314,34 @@ fn uncommitted_step<S: Linearised>(
     ws: &mut Workspace,
     solver: &SolverParams,
 ) -> Result<StepReport, StepError> {
+    // 1. Gather loads.
     scheme.prepare(state, h, &mut ws.aux, &mut ws.aux2);
     let mut loads = step_loads(model, state, control, h, ws)?;
     squeeze_friction_in_solve(state, ws, &mut loads);
+    // 2. Assemble.
     let terms = with_loads(scheme.terms(state, &ws.aux, &ws.aux2, h), &ws.external, &ws.contacts, &loads);
     let force_coefficient = terms.force;
     let timing = assemble(model, &state.x, &terms, &mut ws.system);
     let energy_before = energy::mechanical_with(model, &state.x, &state.v, ws.system.elastic_energy());
+    // 3. Constrain pins and the contacts of the step's start.
     let t_pins = Instant::now();
-    let value = |target, i| scheme.pinned(state, h, target, i);
-    constrain_pins(model, state, control, h, &mut ws.filter, value);
-    // Friction decided in the solve (not with Newton iterations, which
-    // smooth it into their potential): see `contacts::FrictionMode`.
-    let friction_in_solve = solver.newton_iterations <= 1 || solver.newton_trigger > 0.0;
-    let prescribed = |i: usize| model.is_pinned(i) || control.is_held(i);
-    // Guessed motions keep the friction after the solve; prescribed ones
-    // (kinematic bodies, rig links) are exact, as the scene's own solids.
-    let driven = |k: usize| model.colliders()[k].is_external() && !control.is_solid_prescribed(k);
-    if friction_in_solve {
-        stick_frictional_contacts(&mut ws.contacts.solid, h, prescribed, driven);
-    }
-    constrain_contacts(&ws.contacts.solid, &state.x, &mut ws.filter, value);
-    for i in 0..state.len() {
-        ws.unknown[i] = scheme.guess(state, &ws.aux, i);
-    }
+    let rules = ContactRules::new(model, solver);
+    constrain_start(scheme, model, state, control, h, ws, rules);
     let pins_s = t_pins.elapsed().as_secs_f64();
-    // While the contact set settles, solves are rough (see
-    // `SolverParams::settling_iterations`); `exact` says whether the
-    // unknown solves the current set to `rel_tol`.
-    let rough =
-        SolverParams { max_iter: solver.settling_iterations.min(solver.max_iter), accept_unconverged: true, ..*solver };
-    // Not under Newton on every step, which starts from this solve.
-    let settling = solver.settling_iterations > 0 && !model.colliders().is_empty() && friction_in_solve;
-    let first_rough = settling && !ws.contacts.solid.is_empty();
-    let (mut report, mut solve_s) = solve(ws, state, if first_rough { &rough } else { solver })?;
-    let mut exact = !first_rough || report.converged;
-    let mut friction_from_rough = false;
-    report.converged |= first_rough;
-    (report.force_evaluations, report.substeps) = (1, 1);
+    // 4. Settle the contact set.
     let mut stats = loads.stats;
-    // Active set: contacts whose constraint force pulls are released, free
-    // particles that end up inside a solid become contacts, stuck ones
-    // beyond their Coulomb bound slide; then solve again, until it settles.
-    let mut unresolved = false;
-    let last = solver.max_contact_passes;
-    let passes = if model.colliders().is_empty() { 0 } else { last + 1 };
-    for pass in 0..passes {
-        let (matrix, rhs) = (&ws.system.matrix, &ws.system.rhs);
-        let (contacts, unknown) = (&mut ws.contacts.solid, &ws.unknown);
-        let released =
-            release_pulling(contacts, matrix, rhs, unknown, force_coefficient, &state.x, &mut ws.filter, value);
-        for i in 0..state.len() {
-            ws.new_x[i] = scheme.advance(state, &ws.aux, h, i, ws.unknown[i]).0;
-        }
-        let (contacts, rhs, solved) =
-            (&mut ws.contacts.solid, &mut ws.system.rhs, (&ws.unknown[..], force_coefficient));
-        let (matrix, filter) = (&ws.system.matrix, &mut ws.filter);
-        let slid = stick_or_slide(contacts, matrix, rhs, solved, &state.x, &ws.new_x, filter, value);
-        let added =
-            add_penetrating(model, &state.x, &ws.new_x, (state.time_s, h), &mut ws.contacts, &mut ws.filter, value);
-        if friction_in_solve
-            && added > 0
-            && stick_frictional_contacts(&mut ws.contacts.solid, h, prescribed, driven) > 0
-        {
-            constrain_contacts(&ws.contacts.solid, &state.x, &mut ws.filter, value);
-        }
-        (stats.released, stats.added) = (stats.released + released, stats.added + added);
-        unresolved = added > 0 && pass == last;
-        let settled = released + added + slid == 0;
-        if exact && (settled || pass == last) {
-            // Sliding friction `mu N` went into that last solve with `N` read
-            // from a rough one: solve once more with `N` read from it.
-            let sliding = || ws.contacts.solid.iter().any(|c| c.friction_mode == FrictionMode::Slide);
-            if settled && friction_from_rough && sliding() {
-                let (r, s) = solve(ws, state, solver)?;
-                add_solve(&mut report, &mut solve_s, &r, s, true);
-            }
-            break;
-        }
-        friction_from_rough = !exact;
-        // A set that settled on a rough solve (or ran out of passes) gets
-        // its solve to `rel_tol`, and (settled) one more check.
-        let full = settled || pass == last || !settling;
-        let (r, s) = solve(ws, state, if full { solver } else { &rough })?;
-        exact = full || r.converged;
-        add_solve(&mut report, &mut solve_s, &r, s, exact);
-    }
+    let settled = settle_contacts(scheme, model, state, control, h, ws, solver, rules, force_coefficient, &mut stats)?;
+    let (mut report, mut solve_s) = (settled.report, settled.solve_s);
+    (report.force_evaluations, report.substeps) = (1, 1);
     let (mut forces_s, mut assembly_s) = (timing.links_s, timing.gather_s + pins_s);
-    // Newton iterations with a line search on the nonlinear step equation
-    // (see `newton`): solids then act as penalties, self-collision as at the
-    // start of the step.
+    // 5. Newton iterations with a line search on the nonlinear step
+    // equation (see `newton`): solids then act as penalties,
+    // self-collision as at the start of the step.
     let escalate = solver.newton_iterations > 1
         && (solver.newton_trigger <= 0.0
             || crate::newton::worst_tension_error(scheme, model, state, h, ws) > solver.newton_trigger);
-    let newton = if escalate {
-        if friction_in_solve {
+    if escalate {
+        if rules.friction_in_solve {
             // Newton smooths friction into its potential from scratch.
             for c in ws.contacts.solid.iter_mut().filter(|c| !c.pressed) {
                 (c.friction_mode, c.solve_constant_n) = (FrictionMode::AfterSolve, Vec3::zeros());
@@ -399,49 +361,12 @@ fn uncommitted_step<S: Linearised>(
         forces_s += out.forces_s;
         assembly_s += out.assembly_s;
         solve_s += out.solve_s;
-        true
-    } else {
-        false
-    };
+    }
+    // 6. Respond.
     let t_update = Instant::now();
-    // The force each pin (and hold) exerts: its row of the unfiltered
-    // residual (after Newton the system is assembled at the final iterate:
-    // `rhs = -r`).
-    let pins = PinPaths::new(model, control, &state.x, state.time_s, h);
-    ws.pin_forces.resize(pins.count(), Vec3::zeros());
-    for (i, f) in pins.particles().zip(&mut ws.pin_forces) {
-        let residual =
-            if newton { -ws.system.rhs[i] } else { ws.system.matrix.row_times(i, &ws.unknown) - ws.system.rhs[i] };
-        *f = residual / force_coefficient;
-    }
-    for i in 0..state.len() {
-        (ws.new_x[i], ws.new_v[i]) = scheme.advance(state, &ws.aux, h, i, ws.unknown[i]);
-    }
-    let tau = scheme.response_time(h);
-    let solid = &mut ws.contacts.solid;
-    // Friction in the solve: squeezed particles', and the held ones' in Newton iterations.
-    if loads.squeeze_friction || newton {
-        squeeze_friction_forces(solid, &ws.new_v);
-    }
-    stats.sticking = apply_friction(solid, model.masses(), (tau, h), newton, &mut ws.new_x, &mut ws.new_v);
-    if !newton {
-        // Held particles do not bounce off their solid.
-        stop_separation(solid, model.masses(), &mut ws.new_v);
-    }
-    if let Some(sc) = model.self_collision() {
-        let pairs = &ws.contacts.self_pairs;
-        stats.self_separations = separate_self_contacts(model, sc, pairs, tau, &mut ws.new_x, &mut ws.new_v);
-    }
-    if !model.colliders().is_empty() {
-        // After Newton iterations (penalties, not constraints), an active
-        // set that ran out of passes or self-collision separations (which
-        // pushed a skirt's hem 0.65 mm into a swinging shin): check every
-        // particle. Solids go last: cloth never ends a step inside one.
-        let all = unresolved || newton || stats.self_separations > 0;
-        stats.projected =
-            project_out(model, &state.x, (state.time_s, h), &mut ws.contacts, all, &mut ws.new_x, &mut ws.new_v);
-    }
-    stats.contacts = ws.contacts.solid.iter().filter(|c| c.active).count();
+    let response = Response { force_coefficient, newton: escalate, unresolved: settled.unresolved };
+    let pins = respond(scheme, model, state, control, h, ws, &loads, response, &mut stats);
+    // 7. Balance the energy and report.
     let balance = energy::StepEnergy {
         before: energy_before,
         x: &state.x,
@@ -467,10 +392,105 @@ fn uncommitted_step<S: Linearised>(
     Ok(report)
 }
 
+/// Phase 3: the pins' prescribed unknowns and the starting contacts
+/// (stuck when friction is decided in the solve) in the filter, and the
+/// scheme's first guess of the unknown.
+fn constrain_start<S: Linearised>(
+    scheme: &S,
+    model: &ClothModel,
+    state: &ClothState,
+    control: &Control,
+    h: f64,
+    ws: &mut Workspace,
+    rules: ContactRules,
+) {
+    let value = |target, i| scheme.pinned(state, h, target, i);
+    constrain_pins(model, state, control, h, &mut ws.filter, value);
+    if rules.friction_in_solve {
+        let prescribed = |i: usize| model.is_pinned(i) || control.is_held(i);
+        // Guessed motions keep the friction after the solve; prescribed
+        // ones (kinematic bodies, rig links) are exact, as the scene's own
+        // solids.
+        let driven = |k: usize| model.colliders()[k].is_external() && !control.is_solid_prescribed(k);
+        stick_frictional_contacts(&mut ws.contacts.solid, h, prescribed, driven);
+    }
+    constrain_contacts(&ws.contacts.solid, &state.x, &mut ws.filter, value);
+    for i in 0..state.len() {
+        ws.unknown[i] = scheme.guess(state, &ws.aux, i);
+    }
+}
+
+/// What the response needs to know of the solves.
+#[derive(Debug, Clone, Copy)]
+struct Response {
+    /// The right-hand side's force coefficient (pin reactions from the residual).
+    force_coefficient: f64,
+    /// Newton corrections ran: solids were penalties, not constraints.
+    newton: bool,
+    /// The contact passes ran out while still adding contacts.
+    unresolved: bool,
+}
+
+/// Phase 6: the pins' reactions (their rows of the unfiltered residual),
+/// the new positions and velocities, friction, no bounce off holding
+/// solids, self-collision separation and the last projection out of
+/// solids (solids last: cloth never ends a step inside one). Returns the
+/// pin paths for the energy balance.
+#[allow(clippy::too_many_arguments)]
+fn respond<'a, S: Linearised>(
+    scheme: &S,
+    model: &'a ClothModel,
+    state: &'a ClothState,
+    control: &'a Control,
+    h: f64,
+    ws: &mut Workspace,
+    loads: &StepLoads,
+    response: Response,
+    stats: &mut ContactStats,
+) -> PinPaths<'a> {
+    let newton = response.newton;
+    // After Newton the system is assembled at the final iterate: `rhs = -r`.
+    let pins = PinPaths::new(model, control, &state.x, state.time_s, h);
+    ws.pin_forces.resize(pins.count(), Vec3::zeros());
+    for (i, f) in pins.particles().zip(&mut ws.pin_forces) {
+        let residual =
+            if newton { -ws.system.rhs[i] } else { ws.system.matrix.row_times(i, &ws.unknown) - ws.system.rhs[i] };
+        *f = residual / response.force_coefficient;
+    }
+    for i in 0..state.len() {
+        (ws.new_x[i], ws.new_v[i]) = scheme.advance(state, &ws.aux, h, i, ws.unknown[i]);
+    }
+    let tau = scheme.response_time(h);
+    let solid = &mut ws.contacts.solid;
+    // Friction in the solve: squeezed particles', and the held ones' in Newton iterations.
+    if loads.squeeze_friction || newton {
+        squeeze_friction_forces(solid, &ws.new_v);
+    }
+    stats.sticking = apply_friction(solid, model.masses(), (tau, h), newton, &mut ws.new_x, &mut ws.new_v);
+    if !newton {
+        // Held particles do not bounce off their solid.
+        stop_separation(solid, model.masses(), &mut ws.new_v);
+    }
+    if let Some(sc) = model.self_collision() {
+        let pairs = &ws.contacts.self_pairs;
+        stats.self_separations = separate_self_contacts(model, sc, pairs, tau, &mut ws.new_x, &mut ws.new_v);
+    }
+    if !model.colliders().is_empty() {
+        // After Newton iterations (penalties, not constraints), an active
+        // set that ran out of passes or self-collision separations (which
+        // can push a hem into a swinging shin): check every particle.
+        let all = response.unresolved || newton || stats.self_separations > 0;
+        stats.projected =
+            project_out(model, &state.x, (state.time_s, h), &mut ws.contacts, all, &mut ws.new_x, &mut ws.new_v);
+    }
+    stats.contacts = ws.contacts.solid.iter().filter(|c| c.active).count();
+    pins
+}
+
 /// Adds a contact pass's solve `r` (taking `s` seconds) to the step's
 /// report; its residual and convergence count only when it solved the
 /// set to `rel_tol` (`exact`), not for a rough settling solve.
-fn add_solve(report: &mut StepReport, solve_s: &mut f64, r: &StepReport, s: f64, exact: bool) {
+pub(crate) fn add_solve(report: &mut StepReport, solve_s: &mut f64, r: &StepReport, s: f64, exact: bool) {
     report.cg_iterations += r.cg_iterations;
     *solve_s += s;
     if exact {
@@ -592,9 +612,9 @@ pub(crate) fn collide_after_step(
 /// Fails when the model asks for self-collision, which only the assembled
 /// implicit integrators handle (solids are handled after the step by the
 /// others, see [`crate::contacts::collide_after_step`]).
-pub(crate) fn reject_self_collision(model: &ClothModel, integrator: IntegratorKind) -> Result<(), StepError> {
+pub(crate) fn reject_self_collision(model: &ClothModel, integrator: &'static str) -> Result<(), StepError> {
     if model.self_collision().is_some() {
-        return Err(StepError::SelfCollisionNeedsMatrix { integrator: integrator.name() });
+        return Err(StepError::SelfCollisionNeedsMatrix { integrator });
     }
     Ok(())
 }

@@ -42,8 +42,8 @@ impl MatrixFreeBuffers {
 pub struct BackwardEulerFixedCg;
 
 impl crate::Integrator for BackwardEulerFixedCg {
-    fn kind(&self) -> crate::IntegratorKind {
-        crate::IntegratorKind::BackwardEulerFixedCg
+    fn name(&self) -> &'static str {
+        crate::IntegratorKind::BackwardEulerFixedCg.name()
     }
 
     fn step(
@@ -56,7 +56,7 @@ impl crate::Integrator for BackwardEulerFixedCg {
         solver: &SolverParams,
     ) -> Result<StepReport, StepError> {
         check_step(model, state, h)?;
-        reject_self_collision(model, self.kind())?;
+        reject_self_collision(model, self.name())?;
         let scheme = BackwardEuler;
         let has_wind = external_forces(model, state, control, ws);
         let mut terms = scheme.terms(state, &ws.aux, &ws.aux2, h);

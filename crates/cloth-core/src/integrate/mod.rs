@@ -7,9 +7,11 @@
 pub mod control;
 pub(crate) mod energy;
 pub(crate) mod explicit;
+pub(crate) mod finish;
 pub(crate) mod integrator;
 pub(crate) mod matrix_free;
 pub(crate) mod newton;
+pub(crate) mod settle;
 pub(crate) mod sim;
 pub(crate) mod state;
 pub(crate) mod step_types;

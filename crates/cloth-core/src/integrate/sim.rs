@@ -1,8 +1,7 @@
 //! A simulation: an immutable model, the explicit state, an integrator and
 //! its scratch space.
 
-use crate::apply_strain_limit;
-use crate::contacts::{max_penetration, project_out, restart_history_at_contacts};
+use crate::contacts::max_penetration;
 use crate::control::{Control, ControlError, SolidImpulse, SolidMotion};
 use crate::{ClothModel, ClothState, Integrator, IntegratorKind, SolverParams, StepError, StepReport, Vec3, Workspace};
 use std::sync::Arc;
@@ -20,10 +19,10 @@ pub struct Simulation {
 
 /// Builds a [`Simulation`]: BDF2 with the default [`SolverParams`] unless
 /// told otherwise, starting at rest (or jittered).
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct SimulationBuilder {
     model: Arc<ClothModel>,
-    integrator: IntegratorKind,
+    integrator: Box<dyn Integrator>,
     solver: SolverParams,
     initial_jitter_m: f64,
 }
@@ -31,6 +30,13 @@ pub struct SimulationBuilder {
 impl SimulationBuilder {
     /// The integrator (default [`IntegratorKind::Bdf2`]).
     pub fn integrator(mut self, integrator: IntegratorKind) -> Self {
+        self.integrator = integrator.build();
+        self
+    }
+
+    /// An integrator of the caller's own, from outside this crate: anything
+    /// that implements [`Integrator`].
+    pub fn custom_integrator(mut self, integrator: Box<dyn Integrator>) -> Self {
         self.integrator = integrator;
         self
     }
@@ -50,7 +56,7 @@ impl SimulationBuilder {
 
     /// The simulation at time 0.
     pub fn build(self) -> Simulation {
-        let mut sim = Simulation::new(self.model, self.integrator, self.solver);
+        let mut sim = Simulation::with_integrator(self.model, self.integrator, self.solver);
         if self.initial_jitter_m > 0.0 {
             let state = ClothState::jittered(sim.model(), self.initial_jitter_m);
             sim.restore(&state).expect("a state built for this model");
@@ -64,7 +70,7 @@ impl Simulation {
     pub fn builder(model: impl Into<Arc<ClothModel>>) -> SimulationBuilder {
         SimulationBuilder {
             model: model.into(),
-            integrator: IntegratorKind::Bdf2,
+            integrator: IntegratorKind::Bdf2.build(),
             solver: SolverParams::default(),
             initial_jitter_m: 0.0,
         }
@@ -72,12 +78,22 @@ impl Simulation {
 
     /// A simulation starting from the model's rest shape at time 0.
     pub fn new(model: impl Into<Arc<ClothModel>>, integrator: IntegratorKind, solver: SolverParams) -> Self {
+        Self::with_integrator(model, integrator.build(), solver)
+    }
+
+    /// A simulation with any [`Integrator`], starting from the model's rest
+    /// shape at time 0.
+    pub fn with_integrator(
+        model: impl Into<Arc<ClothModel>>,
+        integrator: Box<dyn Integrator>,
+        solver: SolverParams,
+    ) -> Self {
         let model = model.into();
         Self {
             state: ClothState::at_rest(&model),
             workspace: Workspace::new(&model, &solver),
             control: Control::for_model(&model),
-            integrator: integrator.build(),
+            integrator,
             solver,
             model,
         }
@@ -89,27 +105,8 @@ impl Simulation {
     pub fn step(&mut self, h: f64) -> Result<StepReport, StepError> {
         let (model, control) = (&self.model, &self.control);
         let mut report = self.integrator.step(model, &mut self.state, control, h, &mut self.workspace, &self.solver)?;
-        if let Some(limit) = self.model.strain_limit() {
-            let t = std::time::Instant::now();
-            let ClothState { x, v, x_prev, time_s, .. } = &mut self.state;
-            let held = |i| self.control.is_held(i);
-            report.strain_corrections = apply_strain_limit(&self.model, &limit, held, x, v, h).corrections;
-            // The corrections may move particles into solids: move them out.
-            if !self.model.colliders().is_empty() {
-                let contacts = &mut self.workspace.contacts;
-                report.contacts.projected += project_out(&self.model, x_prev, (*time_s - h, h), contacts, true, x, v);
-            }
-            report.stages.update_s += t.elapsed().as_secs_f64();
-        }
-        // After every correction of the step (the projection above sweeps
-        // from `x_prev`, the start of the step); not after Newton
-        // iterations, whose solids are penalties.
-        let linearised = matches!(self.integrator.kind(), IntegratorKind::Bdf2 | IntegratorKind::BackwardEuler);
-        if linearised && report.newton.is_none() {
-            let ClothState { x, v, x_prev, v_prev, .. } = &mut self.state;
-            restart_history_at_contacts(&self.workspace.contacts.solid, h, (x, v), (x_prev, v_prev));
-        }
-        self.model.close_stitches(&self.state.x, &mut self.state.stitches_closed);
+        let integrator = self.integrator.as_ref();
+        super::finish::finish_step(model, control, integrator, &mut self.state, &mut self.workspace, &mut report, h);
         Ok(report)
     }
 
@@ -128,9 +125,10 @@ impl Simulation {
         &self.state
     }
 
-    /// Which integrator is used.
-    pub fn integrator(&self) -> IntegratorKind {
-        self.integrator.kind()
+    /// The integrator's name (a scene's `simulation.integrator` for the
+    /// built-in ones).
+    pub fn integrator_name(&self) -> &'static str {
+        self.integrator.name()
     }
 
     /// The cloth-solid contacts of the last step (point, normal, solid

@@ -1,0 +1,266 @@
+//! Settling a step's solid-contact set over repeated solves (Baraff &
+//! Witkin's active set, with Coulomb friction decided in the solve).
+//!
+//! Each pass reads the constraint forces off the last solve and changes
+//! the set: contacts that pull are released, free particles that ended
+//! inside a solid are added, stuck contacts beyond their Coulomb bound
+//! slide. Then the system is solved again, until a pass changes nothing.
+//!
+//! Solves are *rough* (capped at `settling_iterations` CG iterations)
+//! while the set changes: they only decide which contacts hold, stick or
+//! slide. The [`Settling`] state machine says which solve comes next.
+
+use super::integrator::{Linearised, add_solve, solve};
+use crate::contacts::{
+    FrictionMode, add_penetrating, constrain_contacts, release_pulling, stick_frictional_contacts, stick_or_slide,
+};
+use crate::control::Control;
+use crate::{ClothModel, ClothState, ContactStats, SolverParams, StepError, StepReport, Workspace};
+
+/// How a step treats its solid contacts, from the solver settings and the
+/// model.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct ContactRules {
+    /// Coulomb friction decided in the solve (stick or slide), not smoothed
+    /// into Newton's potential (which happens when Newton runs on every
+    /// step): see `contacts::FrictionMode`.
+    pub(crate) friction_in_solve: bool,
+    /// Rough solves while the set settles (`settling_iterations > 0`, the
+    /// model has solids, friction in the solve).
+    pub(crate) rough_solves: bool,
+}
+
+impl ContactRules {
+    pub(crate) fn new(model: &ClothModel, solver: &SolverParams) -> Self {
+        let friction_in_solve = solver.newton_iterations <= 1 || solver.newton_trigger > 0.0;
+        let rough_solves = solver.settling_iterations > 0 && !model.colliders().is_empty() && friction_in_solve;
+        Self { friction_in_solve, rough_solves }
+    }
+}
+
+/// Which solve comes next while the contact set settles.
+///
+/// The unknown is *exact* when it solves the current set to `rel_tol`,
+/// else *rough*. After a pass:
+/// - exact, and the set settled (or the passes ran out): done; but when
+///   a sliding contact's friction `mu N` came from a rough solve's `N`,
+///   one more exact solve takes `N` from an exact one;
+/// - rough, and the set settled (or the passes ran out): an exact solve,
+///   then one more pass to check the set;
+/// - the set changed: a rough solve (exact without rough solves).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Settling {
+    rough: SolverParams,
+    full: SolverParams,
+    rough_solves: bool,
+    exact: bool,
+    friction_from_rough: bool,
+}
+
+/// What [`Settling::after_pass`] decides.
+pub(crate) enum NextSolve {
+    /// The set is settled and solved.
+    Done,
+    /// One more exact solve (sliding friction read from an exact solve),
+    /// then done.
+    Last(SolverParams),
+    /// Solve with these settings (`exact`: to `rel_tol`), then another pass.
+    Solve { params: SolverParams, exact: bool },
+}
+
+impl Settling {
+    pub(crate) fn new(solver: &SolverParams, rules: ContactRules) -> Self {
+        let rough = SolverParams {
+            max_iter: solver.settling_iterations.min(solver.max_iter),
+            accept_unconverged: true,
+            ..*solver
+        };
+        Self { rough, full: *solver, rough_solves: rules.rough_solves, exact: true, friction_from_rough: false }
+    }
+
+    /// Settings of the step's first solve: rough when it starts with
+    /// contacts to settle.
+    pub(crate) fn first(&self, contacts_at_start: bool) -> (SolverParams, bool) {
+        let rough = self.rough_solves && contacts_at_start;
+        (if rough { self.rough } else { self.full }, !rough)
+    }
+
+    /// Records a solve: it is exact when asked to be, or when a rough one
+    /// converged anyway.
+    pub(crate) fn solved(&mut self, asked_exact: bool, converged: bool) {
+        self.exact = asked_exact || converged;
+    }
+
+    /// Whether the last solve was exact.
+    pub(crate) fn exact(&self) -> bool {
+        self.exact
+    }
+
+    /// After a pass that `settled` (changed nothing) or was the `last`:
+    /// the next solve, or done. `sliding` says whether any contact slides.
+    pub(crate) fn after_pass(&mut self, settled: bool, last: bool, sliding: impl FnOnce() -> bool) -> NextSolve {
+        if self.exact && (settled || last) {
+            return if settled && self.friction_from_rough && sliding() {
+                NextSolve::Last(self.full)
+            } else {
+                NextSolve::Done
+            };
+        }
+        self.friction_from_rough = !self.exact;
+        let full = settled || last || !self.rough_solves;
+        NextSolve::Solve { params: if full { self.full } else { self.rough }, exact: full }
+    }
+}
+
+/// What the contact passes leave for the rest of the step.
+pub(crate) struct Settled {
+    /// Solves, CG iterations and whether the set's final solve converged.
+    pub(crate) report: StepReport,
+    /// Time in the solves, s.
+    pub(crate) solve_s: f64,
+    /// Contacts were still being added when the passes ran out.
+    pub(crate) unresolved: bool,
+}
+
+/// Solves the step with the contacts of its start, then settles the set
+/// pass by pass (at most `solver.max_contact_passes` re-solves).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn settle_contacts<S: Linearised>(
+    scheme: &S,
+    model: &ClothModel,
+    state: &ClothState,
+    control: &Control,
+    h: f64,
+    ws: &mut Workspace,
+    solver: &SolverParams,
+    rules: ContactRules,
+    force_coefficient: f64,
+    stats: &mut ContactStats,
+) -> Result<Settled, StepError> {
+    let value = |target, i| scheme.pinned(state, h, target, i);
+    let prescribed = |i: usize| model.is_pinned(i) || control.is_held(i);
+    let driven = |k: usize| model.colliders()[k].is_external() && !control.is_solid_prescribed(k);
+    let mut settling = Settling::new(solver, rules);
+    let (first, exact) = settling.first(!ws.contacts.solid.is_empty());
+    let (mut report, mut solve_s) = solve(ws, state, &first)?;
+    settling.solved(exact, report.converged);
+    // A rough first solve does not count as unconverged.
+    report.converged |= !exact;
+    let mut unresolved = false;
+    let last = solver.max_contact_passes;
+    let passes = if model.colliders().is_empty() { 0 } else { last + 1 };
+    for pass in 0..passes {
+        let (matrix, rhs) = (&ws.system.matrix, &ws.system.rhs);
+        let (contacts, unknown) = (&mut ws.contacts.solid, &ws.unknown);
+        let released =
+            release_pulling(contacts, matrix, rhs, unknown, force_coefficient, &state.x, &mut ws.filter, value);
+        for i in 0..state.len() {
+            ws.new_x[i] = scheme.advance(state, &ws.aux, h, i, ws.unknown[i]).0;
+        }
+        let (contacts, rhs, solved) =
+            (&mut ws.contacts.solid, &mut ws.system.rhs, (&ws.unknown[..], force_coefficient));
+        let (matrix, filter) = (&ws.system.matrix, &mut ws.filter);
+        let slid = stick_or_slide(contacts, matrix, rhs, solved, &state.x, &ws.new_x, filter, value);
+        let added =
+            add_penetrating(model, &state.x, &ws.new_x, (state.time_s, h), &mut ws.contacts, &mut ws.filter, value);
+        if rules.friction_in_solve
+            && added > 0
+            && stick_frictional_contacts(&mut ws.contacts.solid, h, prescribed, driven) > 0
+        {
+            constrain_contacts(&ws.contacts.solid, &state.x, &mut ws.filter, value);
+        }
+        (stats.released, stats.added) = (stats.released + released, stats.added + added);
+        unresolved = added > 0 && pass == last;
+        let settled = released + added + slid == 0;
+        let sliding = || ws.contacts.solid.iter().any(|c| c.friction_mode == FrictionMode::Slide);
+        match settling.after_pass(settled, pass == last, sliding) {
+            NextSolve::Done => break,
+            NextSolve::Last(params) => {
+                let (r, s) = solve(ws, state, &params)?;
+                add_solve(&mut report, &mut solve_s, &r, s, true);
+                break;
+            }
+            NextSolve::Solve { params, exact } => {
+                let (r, s) = solve(ws, state, &params)?;
+                settling.solved(exact, r.converged);
+                add_solve(&mut report, &mut solve_s, &r, s, settling.exact());
+            }
+        }
+    }
+    Ok(Settled { report, solve_s, unresolved })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn settling(rough_solves: bool) -> Settling {
+        let solver = SolverParams { settling_iterations: 4, max_iter: 100, ..SolverParams::default() };
+        Settling::new(&solver, ContactRules { friction_in_solve: true, rough_solves })
+    }
+
+    /// The next solve's iteration cap and whether it is exact (`Last`
+    /// shows its cap plus 1000), or None when done.
+    fn solve_of(next: NextSolve) -> Option<(usize, bool)> {
+        match next {
+            NextSolve::Done => None,
+            NextSolve::Last(params) => Some((params.max_iter + 1000, true)),
+            NextSolve::Solve { params, exact } => Some((params.max_iter, exact)),
+        }
+    }
+
+    #[test]
+    fn a_changing_set_is_solved_roughly_then_exactly_then_checked() {
+        let mut s = settling(true);
+        let (first, exact) = s.first(true);
+        assert_eq!((first.max_iter, exact), (4, false));
+        s.solved(exact, false);
+        // The set changed: another rough solve.
+        assert_eq!(solve_of(s.after_pass(false, false, || false)), Some((4, false)));
+        s.solved(false, false);
+        // It settled on a rough solve: an exact one, then a check.
+        assert_eq!(solve_of(s.after_pass(true, false, || false)), Some((100, true)));
+        s.solved(true, true);
+        // Settled and exact: done (nothing slides).
+        assert_eq!(solve_of(s.after_pass(true, false, || false)), None);
+    }
+
+    #[test]
+    fn sliding_friction_read_from_a_rough_solve_gets_one_exact_solve() {
+        let mut s = settling(true);
+        let (_, exact) = s.first(true);
+        s.solved(exact, false);
+        assert_eq!(solve_of(s.after_pass(true, false, || true)), Some((100, true)));
+        s.solved(true, true);
+        // Exact and settled, but the sliding contacts' N came from the
+        // rough solve: one last exact solve.
+        assert_eq!(solve_of(s.after_pass(true, false, || true)), Some((1100, true)));
+        // Without sliding contacts, done.
+        let mut s = settling(true);
+        let (_, exact) = s.first(true);
+        s.solved(exact, false);
+        assert_eq!(solve_of(s.after_pass(true, false, || false)), Some((100, true)));
+        s.solved(true, true);
+        assert_eq!(solve_of(s.after_pass(true, false, || false)), None);
+    }
+
+    #[test]
+    fn without_rough_solves_every_solve_is_exact_and_the_last_pass_ends_it() {
+        let mut s = settling(false);
+        let (first, exact) = s.first(true);
+        assert_eq!((first.max_iter, exact), (100, true));
+        s.solved(exact, true);
+        assert_eq!(solve_of(s.after_pass(false, false, || false)), Some((100, true)));
+        s.solved(true, true);
+        assert_eq!(solve_of(s.after_pass(false, true, || false)), None);
+    }
+
+    #[test]
+    fn a_rough_solve_that_converges_counts_as_exact() {
+        let mut s = settling(true);
+        let (_, exact) = s.first(true);
+        s.solved(exact, true);
+        assert!(s.exact());
+        assert_eq!(solve_of(s.after_pass(true, false, || false)), None);
+    }
+}
