@@ -1,7 +1,7 @@
 //! Peirce's cantilever (ASTM D1388) against the heavy elastica: does
-//! `flexural_rigidity_n_m` mean flexural rigidity? Issue 10 asks for 2
+//! `flexural_rigidity_n_m` mean flexural rigidity? The target is 2
 //! degrees at 1, 0.5 and 0.25 cm for `choi-ko` and `volino`; these tests
-//! hold what is reached so far (`cloth study bending` prints the table).
+//! hold what is reached (`cloth study bending` prints the table).
 
 use cloth_core::reference::CantileverStrip;
 use cloth_tests::simulation;
@@ -72,7 +72,7 @@ fn arc_path_cantilever_holds_the_elastica_at_1_and_0_5_cm() {
 /// within 0.6% of each other (measured 0.56%). The grid's diagonals all
 /// run one way (the bending triangles need it), so the strip is chiral:
 /// its tip twists by 1.6e-8 m across its 2 cm at 1 cm and 1.5e-8 m at 0.5 cm.
-/// With a hinge per edge instead (the model before issue 10: 0.8 of the
+/// With a hinge per edge instead (0.8 of the
 /// rigidity against a twist) it sagged to 43.1 and 45.2 degrees.
 #[test]
 fn volino_cantilever_holds_the_elastica_at_1_and_0_5_cm() {

@@ -220,7 +220,7 @@ impl Worn {
 /// (in the torso's frame, whose origin is the waist joint: measured
 /// nothing inside a link, stretch 1.273 (the straps' inner edges where
 /// they cross the ridge of the shoulder line, under the single linearised
-/// step: issue 10), typically 1.109, 1.150 while sewn, closest
+/// step), typically 1.109, 1.150 while sewn, closest
 /// particle-triangle 7.3 mm, 0.283 m from the torso's axis, 0.003 m below
 /// the waist joint to 0.504 m above it, seams within 0.1 mm). The limits
 /// cover what the walk does within the solve's tolerance, not one

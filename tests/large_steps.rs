@@ -57,8 +57,7 @@ fn newton_keeps_a_large_step_as_stretched_as_small_steps() {
     // in the linearised step; the paper's pair law, none: 18.7).
     assert!(single_peak > 2.0, "the single step no longer overstretches ({single_peak}): update this test");
     assert!(newton_peak <= small_peak * 1.001, "Newton peak stretch {newton_peak} vs {small_peak} at h = 1/90 s");
-    // Measured 1.03 cm at one particle of the bottom rows (1.11 cm, 1.8 mm
-    // RMS before issue 15's material mapping): the
+    // Measured 1.03 cm at one particle of the bottom rows: the
     // buckled type-1 links' post-buckling plateau lets the wrinkles near
     // the bottom corners settle in a different pattern (20 s and 40 s at
     // h = 1/90 s agree to 2e-8 m; the pair law's gap: 0.01 cm).
@@ -118,8 +117,7 @@ fn newton_drapes_a_sphere_at_large_steps() {
          {final_stretch:.4}, closest to the ball {clearance:.2e} m, top at {top:.5} m"
     );
     assert!(single_peak > 2.0, "the single step no longer overstretches ({single_peak}): update this test");
-    // Measured 1.083 (the cloth wrapping the ball), 1.029 at rest (1.126 and
-    // 1.026 before issue 15's material mapping).
+    // Measured 1.083 (the cloth wrapping the ball), 1.029 at rest.
     assert!(peak < 1.09 && final_stretch < 1.03, "stretch {peak} (peak), {final_stretch} (final)");
     // Measured 2.50 mm: nothing nearer than half the 5 mm thickness.
     assert!(clearance > 2.4e-3, "a particle {clearance} m from the ball");
@@ -127,7 +125,7 @@ fn newton_drapes_a_sphere_at_large_steps() {
     assert!((top - 0.305).abs() < 5e-4, "the centre rests at {top} m");
 }
 
-/// Issue 10's violent event: the 21 x 21 hanging cloth's two pins jump 5 m
+/// A violent event: the 21 x 21 hanging cloth's two pins jump 5 m
 /// sideways in 0.1 s and stop; 6 s of BDF2 at h = 1/90 s.
 struct PinJump {
     /// The fastest particle at the end, m/s.

@@ -1,4 +1,4 @@
-//! One material, the same cloth in every model (issue 15): a uniaxial
+//! One material, the same cloth in every model: a uniaxial
 //! strip, a sheared square and a strip's longitudinal oscillation, each
 //! against the continuum value and across models and resolutions.
 

@@ -662,7 +662,8 @@ fn volino_forces_and_jacobians_match_finite_differences() {
 /// One scene runs with any model: the hanging cloth stays finite, hangs,
 /// and the three models agree on where it is after 1 s of its swing (one
 /// material, the same cloth: centres of mass within 1.19 cm, the bending
-/// models differing in B; before the mapping of issue 15, 5.8 cm).
+/// models differing in B; with each link's constant `(2/3) E a / L^2`
+/// instead of each model's own mapping, 5.8 cm).
 #[test]
 fn every_model_runs_the_hanging_cloth() {
     let centre = |sim: &Simulation| {
@@ -696,7 +697,7 @@ fn every_model_runs_the_hanging_cloth() {
 /// (bend about either axis, twist, saddle, a mix) on every triangle with
 /// three neighbours, to the small-deflection expansion's order (measured
 /// worst relative error 4.9e-9 at curvatures of 1e-3 /m). A hinge per edge
-/// (the diagonal of `M` alone, the model before issue 10) fails it: it
+/// (the diagonal of `M` alone) fails it: it
 /// stores 3.0x the twist energy. The whole sheet, whose free edges carry
 /// no moment, stores less.
 #[test]

@@ -1,4 +1,4 @@
-//! The hard-case suite (issue 10) in CI: every case's requirement holds,
+//! The hard-case suite in CI: every case's requirement holds,
 //! and every known defect still fails as described (when one is fixed,
 //! this test says so, and its note must go).
 
@@ -20,7 +20,7 @@ fn every_hard_case_meets_its_requirement() {
         })
         .collect();
     assert!(unexpected.is_empty(), "{} rows not as expected:\n{}", unexpected.len(), unexpected.join("\n"));
-    // The suite covers what issue 10 lists.
+    // The suite covers every kind of hard case.
     for case in [
         "step size",
         "stiffness ratio",

@@ -276,8 +276,8 @@ body = "pole"
 /// body that does not move during the step has an exact motion, so its
 /// friction is decided in the solve as a scene solid's (a dynamic body's
 /// velocity is the master's guess, and its friction stays after the
-/// solve). With the friction after the solve, as before session 22, it
-/// ended 8.3e-14 m elsewhere, solved to 1e-12: on an incline every
+/// solve). With the friction after the solve instead, it ended 8.3e-14 m
+/// elsewhere, solved to 1e-12: on an incline every
 /// particle slides alike, so the two responses nearly agree; where the
 /// cloth's tension presses it onto the solid they do not
 /// (`tests/contacts.rs`, the curtain), nor on the tablecloth's table.

@@ -93,8 +93,8 @@ fn a_yank_leaves_the_box_slipping_at_coulomb_s_rate() {
     // 0.094 s). With every contact pass solved to rel_tol
     // (`solver.settling_iterations = 0`, or 8 and more) the active set
     // takes another path and the cloth leaves one step earlier: 0.0156
-    // against 0.0151 (2.8%). Before session 22 the table's friction on the
-    // cloth was decided after the solve: 0.0196 against 0.0193.
+    // against 0.0151 (2.8%). With the table's friction on the cloth
+    // decided after the solve instead: 0.0196 against 0.0193.
     assert!((x_l - coulomb).abs() < 0.04 * coulomb, "moved {x_l} m on the sliding cloth, Coulomb {coulomb}");
     assert!((decel - mu_table * g).abs() < 0.01 * mu_table * g, "table deceleration {decel}");
     assert!(cloth_left > 0.04 + end.x, "the cloth left the box");

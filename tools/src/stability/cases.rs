@@ -187,7 +187,7 @@ pub(super) fn gravitational(sim: &Simulation, x: &[Vec3]) -> f64 {
     sim.model().masses().iter().zip(x).map(|(m, x)| m * G * x.z).sum()
 }
 
-/// Issue 10's violent event: both pins jump 5 m sideways in 0.1 s (50 m/s,
+/// A violent event: both pins jump 5 m sideways in 0.1 s (50 m/s,
 /// faster than the cloth's longitudinal wave speed `sqrt(E / rho)` = 45
 /// m/s, so the links at the pins overstretch whatever the integrator) and
 /// stop; 6 s. Once they stop nothing does work on the cloth. Newton's
@@ -434,7 +434,7 @@ pub(super) fn ball_through_curtain(quick: bool) -> Vec<Row> {
 /// the pull, added to the frictionless peak, and 10% for the different
 /// path). Measured: 1.76 J against 1.78 J frictionless (BDF2), 1.24 J
 /// against 1.27 J (backward Euler). With the contact passes capped at 3,
-/// as before session 22, 7.3 J and 5.0 J: the rows of the cloth still
+/// 7.3 J and 5.0 J: the rows of the cloth still
 /// stuck when the passes ran out held up to 20 times their Coulomb bound,
 /// and the pins pumped that into the links (stretch 3.6); 10 passes, 2.6
 /// J (`solver.max_contact_passes`; the 3-pass rows stay as known
@@ -632,18 +632,11 @@ master = "iterated"
     // linearised links; the links then hold more than that (a 10x ball
     // pressing in: up to 4e-2 J a step beyond the work, 3% of the energy
     // in play, under the monitor's 5%, 0.3 J over 20 steps). Solved as
-    // the nonlinear step (Newton), every ratio holds; two defects had to
-    // go first (session 23):
-    // - Newton's line search saw only the contacts of its iterate: from
-    //   an iterate just off the ball, a full correction put particles deep
-    //   inside it, the next pushed them out past the thickness, and Newton
-    //   alternated for all 30 corrections; the coupling got a 70 N penalty
-    //   and threw a 10x ball at 7 m/s (rise 88%). Now the line search also
-    //   watches the solids a correction reaches (`penalty_watch`).
-    // - an unconverged coupled step leaves a body lighter than the cloth
-    //   at the guess's pose, and its end velocity was set to the guess,
-    //   a mean velocity: a 1x ball rising off the cloth kept the `g h / 2`
-    //   it should have lost (rise 0.46%).
+    // the nonlinear step (Newton), every ratio holds: Newton's line search
+    // also watches the solids a correction reaches (`penalty_watch`), and
+    // an unconverged coupled step leaves a body lighter than the cloth at
+    // the guess's pose without taking the guess's mean velocity as its
+    // end velocity.
     const COUPLING_GAIN: &str = "the single linearised step: the ball gets the impulses of linearised links, \
                                  which then hold more than that work";
     let cloth_mass = 0.1 * 0.36;

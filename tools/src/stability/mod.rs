@@ -1,4 +1,4 @@
-//! The hard-case suite (issue 10): scenes built to break a cloth
+//! The hard-case suite: scenes built to break a cloth
 //! simulator (extreme steps, stiffness ratios and scales, violent pins,
 //! crumpling, a fast solid, coincident particles, light and heavy coupled
 //! bodies). Each case states what must hold and what it measured;

@@ -12,7 +12,7 @@ use std::path::PathBuf;
 /// Cost and CG iterations per step of the implicit step (BDF2, the
 /// multigrid PCG) against the particle count, on the hanging cloth and the
 /// drape on a sphere from `n = 33` to `513` (1,089 to 263,169 particles),
-/// with the log-log slope of the cost: issue 14's growth plot.
+/// with the log-log slope of the cost.
 pub fn scaling(args: &StudyArgs) -> Result<()> {
     let pool = setup(args)?;
     let sizes: &[usize] = if args.quick { &[11, 21] } else { &[33, 65, 129, 257, 513] };
@@ -251,7 +251,7 @@ pub fn bending(args: &StudyArgs) -> Result<()> {
         md,
         "`fixtures/scenes/cantilever.toml`: a 2 cm strip, 0.1 kg/m^2, B = 1.226e-4 N m (bending length \
          c = {:.2} cm), E = 1e4 N/m, clamped by two pinned columns, BDF2 h = 5 ms for 3 s with link \
-         damping and drag. Exact values: the heavy elastica by shooting. Issue 10's target: chord \
+         damping and drag. Exact values: the heavy elastica by shooting. Target: chord \
          within 2 degrees, drop within 5% of the overhang.\n",
         bending_length * 100.0
     );

@@ -107,7 +107,7 @@ impl Integrator for Bdf2 {
         }
         // A BDF2 step that creates energy (its linearisation across the
         // kink of tension-only links pumps energy into a violently moved
-        // cloth, issue 10) is retaken as backward Euler.
+        // cloth) is retaken as backward Euler.
         let report = uncommitted_step(self, model, state, control, h, ws, solver)?;
         if solver.energy_guard && report.energy.is_some_and(|e| e.flagged) {
             let mut report = linearised_step(&BackwardEuler, model, state, control, h, ws, solver)?;

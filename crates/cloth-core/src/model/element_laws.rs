@@ -220,7 +220,7 @@ pub enum EdgeSupport {
 /// checkerboard grid a twist stores twice its energy.
 ///
 /// Why not one hinge per edge (`k = b l^2 / (A_1 + A_2)`, the diagonal of
-/// `M` summed over the edge's two triangles, the model before issue 10):
+/// `M` summed over the edge's two triangles):
 /// without the coupling between the edges of a triangle, bending and twist
 /// couple through the diagonals. A quadratic deflection
 /// `(a x^2 + 2 t x y + c y^2) / 2` on the uniform grid stores

@@ -7,8 +7,8 @@
 //! stiffness to mass, `h^2 k / m`, which quadruples from one grid to the
 //! next finer one. On the hanging cloth the K-cycle's iterations doubled
 //! from 257 x 257 to 513 x 513 particles, and a 257 x 257 cloth made 4
-//! times lighter took as many as the finer one (docs/results/
-//! solver-before-after.md, session 30). Smoothing the prolongator with one
+//! times lighter took as many as the finer one
+//! (`docs/results/solver-before-after.md`). Smoothing the prolongator with one
 //! damped Jacobi step of the operator,
 //!
 //! ```text
