@@ -375,7 +375,7 @@ fn a_drape_at_large_steps_stays_out_of_the_solid() {
 /// at least 3.99 mm above the top). Mutant: the normal from the
 /// prediction's closest point sends them through. (Dropped from 10 cm,
 /// 1.55 cm per step, the predictions pass the whole slab and the cloth
-/// tunnels: no continuous collision detection; README.)
+/// tunnels: no continuous collision detection; `docs/contacts.md`.)
 #[test]
 fn a_cloth_falling_onto_a_thin_slab_stays_above_it() {
     let (height, half) = (0.06, 0.005);

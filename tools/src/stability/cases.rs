@@ -7,8 +7,8 @@ use super::*;
 /// cancellation at tiny steps (PCG to 1e-12, so the solve's tolerance does
 /// not hide it). Steps of 1/90 s, and large ones solved with Newton, must
 /// keep the stretch small steps give; the single linearised large step
-/// must stay finite (its overstretch is the documented price, README
-/// "Large steps").
+/// must stay finite (its overstretch is the documented price,
+/// `docs/solvers.md`, "Large steps").
 pub(super) fn step_sizes(quick: bool) -> Vec<Row> {
     let mut rows = Vec::new();
     let steps: &[f64] = if quick { &[1e-9, 1.0] } else { &[1e-9, 1e-6, 1e-3, 1.0 / 90.0, 0.1, 1.0] };

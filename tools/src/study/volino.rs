@@ -489,7 +489,7 @@ mod tests {
     use super::*;
     use std::path::Path;
 
-    /// The README's fixed-iteration limits (Volino & Magnenat-Thalmann's
+    /// The fixed-iteration limits of `docs/studies.md` (Volino & Magnenat-Thalmann's
     /// free fall, `choi-ko`): backward Euler with n = 1, 2, 4, 8 CG
     /// iterations falls within 2% of the exact time up to K = 1, 4, 8, 32,
     /// and not at twice that (measured by `cloth study freefall`). Volino

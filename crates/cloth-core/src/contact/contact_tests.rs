@@ -103,7 +103,7 @@ fn self_repulsion_is_conservative_and_momentum_free() {
 /// The push-apart after a step conserves linear momentum and the centre
 /// of mass (inverse-mass weights, barycentric weights summing to one)
 /// and leaves every pair it corrected at least `MIN_SELF_GAP` of the
-/// thickness apart along its direction (README: "momentum-conserving").
+/// thickness apart along its direction (`docs/contacts.md`: "momentum-conserving").
 /// Measured: the centre moves 3.7e-18 m and its velocity changes by
 /// 4.7e-17 m/s over 25 corrections, every pair exactly at the target.
 /// A push that moves only the particle and not the other side fails

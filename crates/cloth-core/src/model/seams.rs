@@ -26,7 +26,7 @@
 //! to a shorter edge gathers the cloth, as a gathered skirt is.
 //!
 //! A seam carries no bending: the cloth hinges freely along it (a real
-//! seam's allowance stiffens it instead; documented in the README).
+//! seam's allowance stiffens it instead; documented in `docs/garments.md`).
 
 use crate::Edge;
 use crate::GridPanel;
