@@ -29,7 +29,7 @@ pub use integrate::explicit::ENERGY_WINDOW;
 use integrate::{energy, explicit, integrator, matrix_free, newton, sim, state};
 pub use model::seams::{self, SeamSide, SeamSpec, Stitch};
 use model::{constraints, keyframes, material, pins, topology};
-pub use model::{element_laws, elements, forces, laws, wind};
+pub use model::{element_laws, elements, forces, laws, terms, wind};
 
 pub use cloth_collide::{BodyPose, ShapeSpec, VoxelHash};
 pub use cloth_linalg::{PcgParams, PreconditionerKind};

@@ -19,11 +19,13 @@
 //! ```
 
 use crate::colliders::{ColliderSpec, SelfCollisionSpec};
+use crate::terms::ForceTerm;
 use crate::{
     BendingLaw, ClothModel, Edge, GridPanel, Material, ModelError, ModelKind, ModelSpec, PinMotion, PinSpec, SeamSpec,
     StrainLimit, Vec3, Wind,
 };
 use std::path::PathBuf;
+use std::sync::Arc;
 
 impl ClothModel {
     /// A builder with no panels, the default [`Material`], Choi & Ko's
@@ -68,6 +70,7 @@ impl GridPanel {
 #[derive(Debug, Clone, Default)]
 pub struct ModelBuilder {
     spec: ModelSpec,
+    terms: Vec<Arc<dyn ForceTerm>>,
 }
 
 impl ModelBuilder {
@@ -199,6 +202,12 @@ impl ModelBuilder {
         self
     }
 
+    /// Adds a force of the caller's own: see [`ClothModel::with_force_term`].
+    pub fn force_term(mut self, term: Arc<dyn ForceTerm>) -> Self {
+        self.terms.push(term);
+        self
+    }
+
     /// The description built so far.
     pub fn spec(&self) -> &ModelSpec {
         &self.spec
@@ -207,7 +216,8 @@ impl ModelBuilder {
     /// Checks the description and builds the model; errors name the field
     /// as a scene file would (`panels[0].particles`).
     pub fn build(&self) -> Result<ClothModel, ModelError> {
-        ClothModel::build(&self.spec)
+        let model = ClothModel::build(&self.spec)?;
+        Ok(self.terms.iter().cloned().fold(model, ClothModel::with_force_term))
     }
 }
 

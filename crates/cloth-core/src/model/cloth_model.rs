@@ -7,11 +7,13 @@ use crate::colliders::{Collider, SelfCollision};
 use crate::elements::{BendTriple, ElementSet};
 use crate::material::{Lattice, Membrane, PATH_CURVATURE_FACTOR};
 use crate::seams::{self, Stitch};
+use crate::terms::ForceTerm;
 use crate::{
     LinkType, Material, Pin, Vec3, Wind,
     laws::{BucklingLaw, BucklingLaws, ScalarLaw, bilinear_spring, linear_spring},
 };
 use cloth_linalg::{Aggregation, BlockPattern, Multigrid, SMOOTHED_MIN_NODES};
+use std::sync::Arc;
 
 /// How a type-1 link resists compression.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -154,6 +156,8 @@ pub struct ClothModel {
     inc: Vec<Incidence>,
     pattern: BlockPattern,
     diag_local: Vec<u32>,
+    /// Force terms added from outside ([`ClothModel::with_force_term`]).
+    extra_terms: Vec<Arc<dyn ForceTerm>>,
 }
 
 impl ClothModel {
@@ -414,6 +418,7 @@ impl ClothModel {
             inc,
             pattern,
             diag_local,
+            extra_terms: Vec::new(),
         })
     }
 
@@ -439,6 +444,24 @@ impl ClothModel {
             self.colliders.push(c);
         }
         Ok(self)
+    }
+
+    /// Adds a force of the caller's own ([`ForceTerm`]): every integrator
+    /// then applies it. The explicit ones and vertex solvers take its
+    /// forces and blocks as they take the built-in terms'; the implicit
+    /// steps linearise it on the diagonal: `-df_i/dx_i` and `-df_i/dv_i`
+    /// from [`ForceTerm::vertex`], its force at the step's start without
+    /// velocity, the damping through the step's velocity term (exact for a
+    /// force on each particle alone). Its energy joins the elastic energy
+    /// that the energy monitor and Newton's line search see.
+    pub fn with_force_term(mut self, term: Arc<dyn ForceTerm>) -> Self {
+        self.extra_terms.push(term);
+        self
+    }
+
+    /// The force terms added from outside.
+    pub fn extra_terms(&self) -> &[Arc<dyn ForceTerm>] {
+        &self.extra_terms
     }
 
     /// Number of particles.

@@ -360,6 +360,43 @@ pub fn apply_at(set: &ElementSet, bufs: &ElementBuffers, i: usize, w: &[Vec3], s
     acc
 }
 
+/// The force on particle `i` from its elements at `x`, N, and the sum of
+/// their diagonal blocks `H_ii` (N/m): a vertex solver's local system.
+/// Each element is evaluated whole for each corner asked.
+pub fn vertex_at(set: &ElementSet, x: &[Vec3], i: usize) -> (Vec3, Mat3) {
+    fn corner<const K: usize>(
+        nodes: &[u32; K],
+        a: usize,
+        x: &[Vec3],
+        law: impl Fn([Vec3; K], &mut [[Mat3; K]; K]) -> ElementForces<K>,
+    ) -> (Vec3, Mat3) {
+        let mut hessian = [[Mat3::zeros(); K]; K];
+        let r = law(nodes.map(|p| x[p as usize]), &mut hessian);
+        (r.forces[a], hessian[a][a])
+    }
+    let (mut force, mut stiffness) = (Vec3::zeros(), Mat3::zeros());
+    for c in set.corners(i) {
+        let (e, a) = (c.elem as usize, c.corner as usize);
+        let (f, h) = match c.kind {
+            Kind::Membrane => {
+                let m = &set.membranes[e];
+                corner(&m.nodes, a, x, |p, h| membrane_triangle_into(p, &m.rest, Some(h)))
+            }
+            Kind::Curvature => {
+                let b = &set.curvatures[e];
+                corner(&b.nodes, a, x, |p, h| curvature_bending_into(p, b.rest_angles, &b.stiffness, Some(h)))
+            }
+            Kind::Triple => {
+                let t = &set.triples[e];
+                corner(&t.nodes, a, x, |p, h| bend_triple_into(p, t.rest, t.k_b, Some(h)))
+            }
+        };
+        force += f;
+        stiffness += h;
+    }
+    (force, stiffness)
+}
+
 /// Total element energy of the last [`evaluate`], J.
 pub fn energy(bufs: &ElementBuffers) -> f64 {
     bufs.membranes.energy() + bufs.curvatures.energy() + bufs.triples.energy()

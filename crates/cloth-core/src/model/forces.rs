@@ -107,7 +107,7 @@ pub fn eval_link(model: &ClothModel, k: usize, x: &[Vec3], stitches_closed: &[bo
 /// Elastic energy of link `k` at positions `x`, J (the law only, no
 /// Jacobian).
 #[inline]
-fn link_energy(model: &ClothModel, k: usize, x: &[Vec3], stitches_closed: &[bool]) -> f64 {
+pub(crate) fn link_energy(model: &ClothModel, k: usize, x: &[Vec3], stitches_closed: &[bool]) -> f64 {
     let chord = |i: u32, j: u32| (x[j as usize] - x[i as usize]).norm();
     match link_ref(model, k, stitches_closed) {
         LinkRef::Stretch(l) => l.eval(chord(l.i, l.j)).energy,
@@ -141,11 +141,20 @@ pub fn elastic_energy(model: &ClothModel, x: &[Vec3], stitches_closed: &[bool], 
     });
     let links: f64 = bufs.link.iter().sum();
     let set = model.elements();
-    if set.is_empty() {
-        return links;
-    }
-    elements::evaluate(set, x, 0.0, 1.0, None, &mut bufs.elements);
-    links + elements::energy(&bufs.elements)
+    let internal = if set.is_empty() {
+        links
+    } else {
+        elements::evaluate(set, x, 0.0, 1.0, None, &mut bufs.elements);
+        links + elements::energy(&bufs.elements)
+    };
+    internal + extra_energy(model, x, stitches_closed)
+}
+
+/// Potential energy of the force terms added from outside at `x`, J.
+fn extra_energy(model: &ClothModel, x: &[Vec3], stitches_closed: &[bool]) -> f64 {
+    // Energies read positions only.
+    let at = crate::terms::At { model, x, v: &[], stitches_closed };
+    model.extra_terms().iter().filter(|t| t.acts_on(model)).map(|t| t.energy(&at)).sum()
 }
 
 /// Total potential energy at `x`: link energies plus gravity `-sum m g.x`,
@@ -187,7 +196,7 @@ pub fn link_force(model: &ClothModel, k: usize, x: &[Vec3], v: &[Vec3], stitches
 /// the link's first particle), added in link order: `+v` where `i` is
 /// first, `-v` where it is second.
 #[inline]
-fn gather_links(model: &ClothModel, i: usize, per_link: &[Vec3], start: Vec3) -> Vec3 {
+pub(crate) fn gather_links(model: &ClothModel, i: usize, per_link: &[Vec3], start: Vec3) -> Vec3 {
     let mut acc = start;
     for inc in model.incidence(i) {
         let v = &per_link[inc.link as usize];
@@ -203,8 +212,8 @@ fn gather_links(model: &ClothModel, i: usize, per_link: &[Vec3], start: Vec3) ->
 /// Scratch for [`forces_into`], sized once per model.
 #[derive(Debug, Clone)]
 pub struct ForceBuffers {
-    link: Vec<Vec3>,
-    elements: ElementBuffers,
+    pub(crate) link: Vec<Vec3>,
+    pub(crate) elements: ElementBuffers,
 }
 
 impl ForceBuffers {
@@ -215,8 +224,10 @@ impl ForceBuffers {
 }
 
 /// Total force on every particle at `(x, v)` (elastic, damping, gravity,
-/// N) into `out`, without allocating: links in parallel, then a fixed-order
-/// gather per particle. `stitches_closed` as for [`eval_link`].
+/// drag, N) into `out`, without allocating: each acting term of
+/// [`crate::terms::INTERNAL_TERMS`] in turn (links in parallel, then a
+/// fixed-order gather per particle). `stitches_closed` as for
+/// [`eval_link`].
 pub fn forces_into(
     model: &ClothModel,
     x: &[Vec3],
@@ -225,25 +236,11 @@ pub fn forces_into(
     bufs: &mut ForceBuffers,
     out: &mut [Vec3],
 ) {
-    bufs.link.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(chunk, fs)| {
-        for (k, f) in fs.iter_mut().enumerate() {
-            *f = link_force(model, chunk * ROW_CHUNK + k, x, v, stitches_closed);
-        }
-    });
-    let set = model.elements();
-    if !set.is_empty() {
-        elements::evaluate(set, x, 0.0, 1.0, None, &mut bufs.elements);
+    out.par_chunks_mut(ROW_CHUNK).for_each(|fs| fs.iter_mut().for_each(|f| *f = Vec3::zeros()));
+    let at = crate::terms::At { model, x, v, stitches_closed };
+    for term in crate::terms::acting(model) {
+        term.add_forces(&at, bufs, out);
     }
-    let (link, element_bufs) = (&bufs.link, &bufs.elements);
-    let gravity = model.effects().gravity;
-    out.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(chunk, fs)| {
-        for (k, f) in fs.iter_mut().enumerate() {
-            let i = chunk * ROW_CHUNK + k;
-            let start = gravity.map_or(Vec3::zeros(), |g| g * model.masses()[i]) - v[i] * model.drag(i);
-            let start = if set.is_empty() { start } else { start + elements::rhs_at(set, element_bufs, i) };
-            *f = gather_links(model, i, link, start);
-        }
-    });
 }
 
 /// Total force on every particle at `(x, v)`: elastic, damping and
@@ -319,6 +316,14 @@ pub struct SystemBuffers {
     link_block: Vec<Mat3>,
     link_energy: Vec<f64>,
     elements: ElementBuffers,
+    /// The force terms added from outside, linearised on the diagonal:
+    /// `c_x S_i + c_v C_i` per particle (empty without such terms).
+    extra_diag: Vec<Mat3>,
+    /// Their energy at the last assembly, J.
+    extra_energy: f64,
+    /// Zero velocities: the added terms' forces at the step's start are
+    /// taken without their damping, which the step's velocity term carries.
+    still: Vec<Vec3>,
     /// The assembled matrix `A`.
     pub matrix: BlockSparseMatrix,
     /// The assembled right-hand side `b`.
@@ -329,17 +334,21 @@ impl SystemBuffers {
     /// Elastic energy of links and elements at the positions of the last
     /// assembly, J (summed in link and element order).
     pub fn elastic_energy(&self) -> f64 {
-        self.link_energy.iter().sum::<f64>() + elements::energy(&self.elements)
+        self.link_energy.iter().sum::<f64>() + elements::energy(&self.elements) + self.extra_energy
     }
 
     /// Buffers for `model`.
     pub fn new(model: &ClothModel) -> Self {
+        let n = model.particle_count();
         Self {
             c_v: 0.0,
             link_rhs: vec![Vec3::zeros(); model.link_count()],
             link_block: vec![Mat3::zeros(); model.link_count()],
             link_energy: vec![0.0; model.link_count()],
             elements: ElementBuffers::new(model.elements()),
+            extra_diag: if model.extra_terms().is_empty() { Vec::new() } else { vec![Mat3::zeros(); n] },
+            extra_energy: 0.0,
+            still: if model.extra_terms().is_empty() { Vec::new() } else { vec![Vec3::zeros(); n] },
             matrix: BlockSparseMatrix::new(model.pattern().clone()),
             rhs: vec![Vec3::zeros(); model.particle_count()],
         }
@@ -361,6 +370,7 @@ pub fn assemble(model: &ClothModel, x: &[Vec3], terms: &SystemTerms<'_>, bufs: &
     let mut timing = assemble_matrix_free(model, x, terms, bufs);
     let t0 = std::time::Instant::now();
     let (link_block, element_bufs, set, c_v) = (&bufs.link_block, &bufs.elements, model.elements(), terms.c_v);
+    let extra_diag = &bufs.extra_diag;
     bufs.matrix.fill_rows(|i, row| {
         row.iter_mut().for_each(|b| *b = Mat3::zeros());
         let mut diag = Mat3::identity() * (model.masses()[i] + c_v * model.drag(i));
@@ -378,6 +388,9 @@ pub fn assemble(model: &ClothModel, x: &[Vec3], terms: &SystemTerms<'_>, bufs: &
         row[model.diag_local(i)] = diag;
         if !set.is_empty() {
             elements::add_row(set, element_bufs, i, row);
+        }
+        if let Some(extra) = extra_diag.get(i) {
+            row[model.diag_local(i)] += extra;
         }
     });
     timing.gather_s += t0.elapsed().as_secs_f64();
@@ -447,7 +460,37 @@ pub fn assemble_matrix_free(
             *bi = gather_links(model, i, link_rhs, acc);
         }
     });
+    if !model.extra_terms().is_empty() {
+        add_extra_terms(model, x, terms, bufs);
+    }
     AssemblyTiming { links_s: (t1 - t0).as_secs_f64(), gather_s: t1.elapsed().as_secs_f64() }
+}
+
+/// The force terms added from outside, linearised on the diagonal: adds
+/// `force f_i - a_k S_i w_k - a_d C_i w_d` to the right-hand side (`f_i`
+/// at `x` without velocity) and keeps `c_x S_i + c_v C_i` for the matrix,
+/// with `S_i`, `C_i` the terms' [`crate::terms::VertexBlock`]s.
+fn add_extra_terms(model: &ClothModel, x: &[Vec3], terms: &SystemTerms<'_>, bufs: &mut SystemBuffers) {
+    let at = crate::terms::At { model, x, v: &bufs.still, stitches_closed: terms.stitches_closed };
+    let rows = bufs.rhs.par_chunks_mut(ROW_CHUNK).zip(bufs.extra_diag.par_chunks_mut(ROW_CHUNK));
+    rows.enumerate().for_each(|(chunk, (rhs, diag))| {
+        for (k, (bi, di)) in rhs.iter_mut().zip(diag.iter_mut()).enumerate() {
+            let i = chunk * ROW_CHUNK + k;
+            let mut block = crate::terms::VertexBlock::zero();
+            for term in model.extra_terms().iter().filter(|t| t.acts_on(model)) {
+                block += term.vertex(&at, i);
+            }
+            *bi += block.force * terms.force;
+            if let Some((a, w)) = terms.k_times {
+                *bi -= block.stiffness * w[i] * a;
+            }
+            if let Some((a, w)) = terms.d_times {
+                *bi -= block.damping * w[i] * a;
+            }
+            *di = block.stiffness * terms.c_x + block.damping * terms.c_v;
+        }
+    });
+    bufs.extra_energy = extra_energy(model, x, terms.stitches_closed);
 }
 
 /// The mass-scaled system operator applied on the fly, without an
@@ -477,6 +520,9 @@ pub fn apply_scaled_operator(
             // Drag adds c_v c_i / m_i on the scaled diagonal.
             let drag = bufs.c_v * model.drag(i) * inv_sqrt_mass[i] * inv_sqrt_mass[i];
             *yi = w[i] * (1.0 + drag) + acc * inv_sqrt_mass[i];
+            if let Some(extra) = bufs.extra_diag.get(i) {
+                *yi += extra * wi * inv_sqrt_mass[i];
+            }
         }
     });
 }

@@ -16,6 +16,7 @@ pub(crate) mod material;
 pub(crate) mod pins;
 pub mod seams;
 mod spec;
+pub mod terms;
 pub(crate) mod topology;
 pub mod wind;
 

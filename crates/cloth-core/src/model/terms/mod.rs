@@ -1,0 +1,123 @@
+//! Force terms: one effect each (gravity, drag, the links, the elements),
+//! behind one trait that every solver reads the same physics through.
+//!
+//! A term gives its potential energy, adds its forces to every particle
+//! (the explicit integrators' force evaluation, [`crate::forces::forces_into`],
+//! is the registry's terms in order), dissipates power, and gives the
+//! per-particle block a vertex solver needs: the force on one particle
+//! and `-df_i/dx_i`, `-df_i/dv_i` (Vertex Block Descent's local Newton
+//! step). Sign convention as in [`crate::laws`]: forces, not gradients;
+//! the stiffness block is the Hessian's diagonal block, positive
+//! semidefinite where the laws make it so.
+//!
+//! Adding an effect is one file implementing [`ForceTerm`] and one line:
+//! in [`INTERNAL_TERMS`] for a built-in effect, or
+//! [`ClothModel::with_force_term`] (or the builder's `force_term`) from
+//! outside the crate. The implicit steps assemble the built-in terms' laws
+//! in one fused pass ([`crate::forces::assemble`]) and linearise the
+//! added ones on the diagonal.
+
+mod drag;
+mod element_terms;
+mod gravity;
+mod links;
+
+pub use drag::Drag;
+pub use element_terms::Elements;
+pub use gravity::Gravity;
+pub use links::Links;
+
+use crate::forces::ForceBuffers;
+use crate::{ClothModel, Mat3, Vec3};
+
+/// Where the terms are evaluated: a model at positions `x` (m) and
+/// velocities `v` (m/s), with its stitches' states.
+#[derive(Debug, Clone, Copy)]
+pub struct At<'a> {
+    /// The model.
+    pub model: &'a ClothModel,
+    /// Positions, m.
+    pub x: &'a [Vec3],
+    /// Velocities, m/s.
+    pub v: &'a [Vec3],
+    /// Of each stitch, whether it has closed ([`crate::ClothState::stitches_closed`]).
+    pub stitches_closed: &'a [bool],
+}
+
+/// One particle's share of a term: what a vertex solver needs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VertexBlock {
+    /// Force on the particle, N.
+    pub force: Vec3,
+    /// `-df_i/dx_i`, N/m (the energy's Hessian block where the term has an
+    /// energy; its positive semidefinite part where the law's is not).
+    pub stiffness: Mat3,
+    /// `-df_i/dv_i`, N s/m.
+    pub damping: Mat3,
+}
+
+impl VertexBlock {
+    /// No force, no blocks.
+    pub fn zero() -> Self {
+        Self { force: Vec3::zeros(), stiffness: Mat3::zeros(), damping: Mat3::zeros() }
+    }
+}
+
+impl std::ops::AddAssign for VertexBlock {
+    fn add_assign(&mut self, o: Self) {
+        self.force += o.force;
+        self.stiffness += o.stiffness;
+        self.damping += o.damping;
+    }
+}
+
+/// One effect's forces on the cloth.
+pub trait ForceTerm: Send + Sync + std::fmt::Debug {
+    /// The effect's name.
+    fn name(&self) -> &'static str;
+
+    /// Whether `model` has this effect: an effect the model was not built
+    /// with costs nothing.
+    fn acts_on(&self, model: &ClothModel) -> bool;
+
+    /// Potential energy at `at.x`, J (0 for a force without one). Reads
+    /// positions only: `at.v` may be empty.
+    fn energy(&self, at: &At<'_>) -> f64;
+
+    /// Power the term dissipates at `at.v`, W (>= 0; 0 for a conservative
+    /// term).
+    fn dissipation(&self, _at: &At<'_>) -> f64 {
+        0.0
+    }
+
+    /// Adds the force on every particle to `out`, N, in a fixed order per
+    /// particle (the same bits for any thread count), with `scratch` sized
+    /// for the model.
+    fn add_forces(&self, at: &At<'_>, scratch: &mut ForceBuffers, out: &mut [Vec3]);
+
+    /// Particle `i`'s force and blocks.
+    fn vertex(&self, at: &At<'_>, i: usize) -> VertexBlock;
+}
+
+/// The forces the cloth exerts on itself and gravity, in the order every
+/// particle adds them. One line an effect.
+pub const INTERNAL_TERMS: &[&dyn ForceTerm] = &[&Gravity, &Drag, &Elements, &Links];
+
+/// The terms that act on `model`: those of [`INTERNAL_TERMS`] it has, then
+/// those added from outside ([`ClothModel::with_force_term`]).
+pub fn acting(model: &ClothModel) -> impl Iterator<Item = &dyn ForceTerm> + '_ {
+    let extra = model.extra_terms().iter().map(|t| t.as_ref() as &dyn ForceTerm);
+    INTERNAL_TERMS.iter().copied().filter(move |t| t.acts_on(model)).chain(extra.filter(move |t| t.acts_on(model)))
+}
+
+/// The sum of every acting term's block at particle `i`.
+pub fn vertex_block(at: &At<'_>, i: usize) -> VertexBlock {
+    let mut total = VertexBlock::zero();
+    for term in acting(at.model) {
+        total += term.vertex(at, i);
+    }
+    total
+}
+
+#[cfg(test)]
+mod tests;
