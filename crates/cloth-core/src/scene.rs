@@ -462,8 +462,7 @@ impl Scene {
             SceneErrorKind::Invalid { field: field.to_string(), message: message.to_string() }
         })?;
         let s = &self.simulation;
-        let assembled = matches!(s.integrator, IntegratorKind::BackwardEuler | IntegratorKind::Bdf2);
-        if model.self_collision().is_some() && !assembled {
+        if model.self_collision().is_some() && !s.integrator.handles_self_collision() {
             return Err(SceneErrorKind::Invalid {
                 field: "simulation.integrator".into(),
                 message: format!("{} does not handle self-collision: use backward-euler or bdf2", s.integrator.name()),

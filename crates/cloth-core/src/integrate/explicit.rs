@@ -420,9 +420,7 @@ impl crate::Integrator for Explicit {
                 report.force_evaluations = evals;
             }
             K::Dopri5 => (report, next_dt) = adaptive_dopri5(model, state, control, h, solver, ws)?,
-            K::BackwardEuler | K::BackwardEulerFixedCg | K::Bdf2 => {
-                unreachable!("implicit kinds are built as their own integrators")
-            }
+            _ => unreachable!("only the explicit kinds are built as `Explicit`"),
         }
         let bufs = ws.explicit.as_mut().expect("allocated above");
         if self.0 != K::Dopri5 {

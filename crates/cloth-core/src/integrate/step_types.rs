@@ -88,6 +88,12 @@ impl IntegratorKind {
     pub fn is_implicit(self) -> bool {
         matches!(self, IntegratorKind::BackwardEuler | IntegratorKind::BackwardEulerFixedCg | IntegratorKind::Bdf2)
     }
+
+    /// Whether the integrator handles self-collision (its repulsion needs
+    /// an assembled matrix).
+    pub fn handles_self_collision(self) -> bool {
+        matches!(self, IntegratorKind::BackwardEuler | IntegratorKind::Bdf2)
+    }
 }
 
 /// Every solver setting of a simulation, in one place: the scene's

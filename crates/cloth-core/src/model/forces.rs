@@ -150,11 +150,11 @@ pub fn elastic_energy(model: &ClothModel, x: &[Vec3], stitches_closed: &[bool], 
     internal + extra_energy(model, x, stitches_closed)
 }
 
-/// Potential energy of the force terms added from outside at `x`, J.
+/// Potential energy of the terms outside the fused assembly at `x`, J.
 fn extra_energy(model: &ClothModel, x: &[Vec3], stitches_closed: &[bool]) -> f64 {
     // Energies read positions only.
     let at = crate::terms::At { model, x, v: &[], stitches_closed };
-    model.extra_terms().iter().filter(|t| t.acts_on(model)).map(|t| t.energy(&at)).sum()
+    crate::terms::unfused(model).map(|t| t.energy(&at)).sum()
 }
 
 /// Total potential energy at `x`: link energies plus gravity `-sum m g.x`,
@@ -316,7 +316,7 @@ pub struct SystemBuffers {
     link_block: Vec<Mat3>,
     link_energy: Vec<f64>,
     elements: ElementBuffers,
-    /// The force terms added from outside, linearised on the diagonal:
+    /// The terms outside the fused assembly, linearised on the diagonal:
     /// `c_x S_i + c_v C_i` per particle (empty without such terms).
     extra_diag: Vec<Mat3>,
     /// Their energy at the last assembly, J.
@@ -339,16 +339,16 @@ impl SystemBuffers {
 
     /// Buffers for `model`.
     pub fn new(model: &ClothModel) -> Self {
-        let n = model.particle_count();
+        let (n, unfused) = (model.particle_count(), crate::terms::unfused(model).next().is_some());
         Self {
             c_v: 0.0,
             link_rhs: vec![Vec3::zeros(); model.link_count()],
             link_block: vec![Mat3::zeros(); model.link_count()],
             link_energy: vec![0.0; model.link_count()],
             elements: ElementBuffers::new(model.elements()),
-            extra_diag: if model.extra_terms().is_empty() { Vec::new() } else { vec![Mat3::zeros(); n] },
+            extra_diag: if unfused { vec![Mat3::zeros(); n] } else { Vec::new() },
             extra_energy: 0.0,
-            still: if model.extra_terms().is_empty() { Vec::new() } else { vec![Vec3::zeros(); n] },
+            still: if unfused { vec![Vec3::zeros(); n] } else { Vec::new() },
             matrix: BlockSparseMatrix::new(model.pattern().clone()),
             rhs: vec![Vec3::zeros(); model.particle_count()],
         }
@@ -460,13 +460,13 @@ pub fn assemble_matrix_free(
             *bi = gather_links(model, i, link_rhs, acc);
         }
     });
-    if !model.extra_terms().is_empty() {
+    if !bufs.extra_diag.is_empty() {
         add_extra_terms(model, x, terms, bufs);
     }
     AssemblyTiming { links_s: (t1 - t0).as_secs_f64(), gather_s: t1.elapsed().as_secs_f64() }
 }
 
-/// The force terms added from outside, linearised on the diagonal: adds
+/// The terms outside the fused assembly, linearised on the diagonal: adds
 /// `force f_i - a_k S_i w_k - a_d C_i w_d` to the right-hand side (`f_i`
 /// at `x` without velocity) and keeps `c_x S_i + c_v C_i` for the matrix,
 /// with `S_i`, `C_i` the terms' [`crate::terms::VertexBlock`]s.
@@ -477,7 +477,7 @@ fn add_extra_terms(model: &ClothModel, x: &[Vec3], terms: &SystemTerms<'_>, bufs
         for (k, (bi, di)) in rhs.iter_mut().zip(diag.iter_mut()).enumerate() {
             let i = chunk * ROW_CHUNK + k;
             let mut block = crate::terms::VertexBlock::zero();
-            for term in model.extra_terms().iter().filter(|t| t.acts_on(model)) {
+            for term in crate::terms::unfused(model) {
                 block += term.vertex(&at, i);
             }
             *bi += block.force * terms.force;

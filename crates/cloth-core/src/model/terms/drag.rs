@@ -37,6 +37,10 @@ impl ForceTerm for Drag {
         });
     }
 
+    fn fused(&self) -> bool {
+        true
+    }
+
     fn vertex(&self, at: &At<'_>, i: usize) -> VertexBlock {
         let c = at.model.drag(i);
         VertexBlock { force: -at.v[i] * c, stiffness: Mat3::zeros(), damping: Mat3::identity() * c }

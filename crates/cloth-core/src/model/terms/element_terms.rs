@@ -41,6 +41,10 @@ impl ForceTerm for Elements {
         });
     }
 
+    fn fused(&self) -> bool {
+        true
+    }
+
     fn vertex(&self, at: &At<'_>, i: usize) -> VertexBlock {
         let (force, stiffness) = elements::vertex_at(at.model.elements(), at.x, i);
         VertexBlock { force, stiffness, ..VertexBlock::zero() }

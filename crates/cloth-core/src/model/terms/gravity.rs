@@ -34,6 +34,10 @@ impl ForceTerm for Gravity {
         });
     }
 
+    fn fused(&self) -> bool {
+        true
+    }
+
     fn vertex(&self, at: &At<'_>, i: usize) -> VertexBlock {
         let g = at.model.effects().gravity.unwrap_or_else(Vec3::zeros);
         VertexBlock { force: g * at.model.masses()[i], ..VertexBlock::zero() }

@@ -51,6 +51,10 @@ impl ForceTerm for Links {
         });
     }
 
+    fn fused(&self) -> bool {
+        true
+    }
+
     fn vertex(&self, at: &At<'_>, i: usize) -> VertexBlock {
         let mut block = VertexBlock::zero();
         for inc in at.model.incidence(i) {

@@ -14,8 +14,8 @@
 //! in [`INTERNAL_TERMS`] for a built-in effect, or
 //! [`ClothModel::with_force_term`] (or the builder's `force_term`) from
 //! outside the crate. The implicit steps assemble the built-in terms' laws
-//! in one fused pass ([`crate::forces::assemble`]) and linearise the
-//! added ones on the diagonal.
+//! in one fused pass ([`crate::forces::assemble`]) and linearise any
+//! other term on the diagonal ([`ForceTerm::fused`]).
 
 mod drag;
 mod element_terms;
@@ -97,6 +97,14 @@ pub trait ForceTerm: Send + Sync + std::fmt::Debug {
 
     /// Particle `i`'s force and blocks.
     fn vertex(&self, at: &At<'_>, i: usize) -> VertexBlock;
+
+    /// Whether the implicit steps assemble this term's laws in their fused
+    /// pass ([`crate::forces::assemble`]: the built-in terms). The others
+    /// are linearised on the diagonal from [`ForceTerm::vertex`]: exact for
+    /// a force on each particle alone.
+    fn fused(&self) -> bool {
+        false
+    }
 }
 
 /// The forces the cloth exerts on itself and gravity, in the order every
@@ -108,6 +116,12 @@ pub const INTERNAL_TERMS: &[&dyn ForceTerm] = &[&Gravity, &Drag, &Elements, &Lin
 pub fn acting(model: &ClothModel) -> impl Iterator<Item = &dyn ForceTerm> + '_ {
     let extra = model.extra_terms().iter().map(|t| t.as_ref() as &dyn ForceTerm);
     INTERNAL_TERMS.iter().copied().filter(move |t| t.acts_on(model)).chain(extra.filter(move |t| t.acts_on(model)))
+}
+
+/// The acting terms the implicit steps linearise on the diagonal (not
+/// [`ForceTerm::fused`]).
+pub fn unfused(model: &ClothModel) -> impl Iterator<Item = &dyn ForceTerm> + '_ {
+    acting(model).filter(|t| !t.fused())
 }
 
 /// The sum of every acting term's block at particle `i`.
