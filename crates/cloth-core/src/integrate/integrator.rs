@@ -326,11 +326,12 @@ fn uncommitted_step<S: Linearised>(
     // 3. Constrain pins and the contacts of the step's start.
     let t_pins = Instant::now();
     let rules = ContactRules::new(model, solver);
-    constrain_start(scheme, model, state, control, h, ws, rules);
+    let step = StepInputs { scheme, model, state, control, h, solver };
+    constrain_start(step, ws, rules);
     let pins_s = t_pins.elapsed().as_secs_f64();
     // 4. Settle the contact set.
     let mut stats = loads.stats;
-    let settled = settle_contacts(scheme, model, state, control, h, ws, solver, rules, force_coefficient, &mut stats)?;
+    let settled = settle_contacts(step, ws, rules, force_coefficient, &mut stats)?;
     let (mut report, mut solve_s) = (settled.report, settled.solve_s);
     (report.force_evaluations, report.substeps) = (1, 1);
     let (mut forces_s, mut assembly_s) = (timing.links_s, timing.gather_s + pins_s);
@@ -347,7 +348,7 @@ fn uncommitted_step<S: Linearised>(
                 (c.friction_mode, c.solve_constant_n) = (FrictionMode::AfterSolve, Vec3::zeros());
             }
         }
-        let out = crate::newton::iterate(scheme, model, state, control, h, ws, solver, &loads)?;
+        let out = crate::newton::iterate(step, ws, &loads)?;
         report.force_evaluations += out.evaluations;
         report.cg_iterations += out.cg_iterations;
         report.converged &= out.cg_converged;
@@ -365,7 +366,7 @@ fn uncommitted_step<S: Linearised>(
     // 6. Respond.
     let t_update = Instant::now();
     let response = Response { force_coefficient, newton: escalate, unresolved: settled.unresolved };
-    let pins = respond(scheme, model, state, control, h, ws, &loads, response, &mut stats);
+    let pins = respond(step, ws, &loads, response, &mut stats);
     // 7. Balance the energy and report.
     let balance = energy::StepEnergy {
         before: energy_before,
@@ -392,18 +393,31 @@ fn uncommitted_step<S: Linearised>(
     Ok(report)
 }
 
+/// What one step of a [`Linearised`] scheme reads and never changes: the
+/// scheme, the model, the state at the step's start, the control inputs,
+/// the step size (s) and the solver settings.
+pub(crate) struct StepInputs<'a, S> {
+    pub(crate) scheme: &'a S,
+    pub(crate) model: &'a ClothModel,
+    pub(crate) state: &'a ClothState,
+    pub(crate) control: &'a Control,
+    pub(crate) h: f64,
+    pub(crate) solver: &'a SolverParams,
+}
+
+impl<S> Clone for StepInputs<'_, S> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+
+impl<S> Copy for StepInputs<'_, S> {}
+
 /// Phase 3: the pins' prescribed unknowns and the starting contacts
 /// (stuck when friction is decided in the solve) in the filter, and the
 /// scheme's first guess of the unknown.
-fn constrain_start<S: Linearised>(
-    scheme: &S,
-    model: &ClothModel,
-    state: &ClothState,
-    control: &Control,
-    h: f64,
-    ws: &mut Workspace,
-    rules: ContactRules,
-) {
+fn constrain_start<S: Linearised>(step: StepInputs<'_, S>, ws: &mut Workspace, rules: ContactRules) {
+    let StepInputs { scheme, model, state, control, h, .. } = step;
     let value = |target, i| scheme.pinned(state, h, target, i);
     constrain_pins(model, state, control, h, &mut ws.filter, value);
     if rules.friction_in_solve {
@@ -436,18 +450,14 @@ struct Response {
 /// solids, self-collision separation and the last projection out of
 /// solids (solids last: cloth never ends a step inside one). Returns the
 /// pin paths for the energy balance.
-#[allow(clippy::too_many_arguments)]
 fn respond<'a, S: Linearised>(
-    scheme: &S,
-    model: &'a ClothModel,
-    state: &'a ClothState,
-    control: &'a Control,
-    h: f64,
+    step: StepInputs<'a, S>,
     ws: &mut Workspace,
     loads: &StepLoads,
     response: Response,
     stats: &mut ContactStats,
 ) -> PinPaths<'a> {
+    let StepInputs { scheme, model, state, control, h, .. } = step;
     let newton = response.newton;
     // After Newton the system is assembled at the final iterate: `rhs = -r`.
     let pins = PinPaths::new(model, control, &state.x, state.time_s, h);

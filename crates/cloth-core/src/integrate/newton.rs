@@ -59,10 +59,9 @@ use crate::contacts::{
     SolidContact, contact_friction_potential, contact_penalty_energy, contact_penalty_stiffness,
     linearise_contact_friction, penalty_contacts, penalty_watch,
 };
-use crate::control::Control;
 use crate::forces::{EnergyBuffers, SystemBuffers, SystemTerms, assemble, elastic_energy};
-use crate::integrator::{Linearised, StepLoads, Workspace, constrain_pins, solve};
-use crate::{ClothModel, ClothState, Mat3, SolverParams, StepError, Vec3};
+use crate::integrator::{Linearised, StepInputs, StepLoads, Workspace, constrain_pins, solve};
+use crate::{ClothModel, ClothState, Mat3, StepError, Vec3};
 
 /// Armijo's sufficient-decrease constant.
 const ARMIJO: f64 = 1e-4;
@@ -144,35 +143,24 @@ pub(crate) struct NewtonOutcome {
 /// iterate and `ws.system` the assembly there (its right-hand side is `-r`).
 /// Pins keep the values of the first solve; solids act through
 /// penalties (the filter's contact constraints are removed).
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn iterate<S: Linearised>(
-    scheme: &S,
-    model: &ClothModel,
-    state: &ClothState,
-    control: &Control,
-    h: f64,
+    step: StepInputs<'_, S>,
     ws: &mut Workspace,
-    solver: &SolverParams,
     loads: &StepLoads,
 ) -> Result<NewtonOutcome, StepError> {
-    let mut nb = ws.newton.take().unwrap_or_else(|| NewtonBuffers::new(model));
-    let result = iterate_with(scheme, model, state, control, h, ws, solver, loads, &mut nb);
+    let mut nb = ws.newton.take().unwrap_or_else(|| NewtonBuffers::new(step.model));
+    let result = iterate_with(step, ws, loads, &mut nb);
     ws.newton = Some(nb);
     result
 }
 
-#[allow(clippy::too_many_arguments)]
 fn iterate_with<S: Linearised>(
-    scheme: &S,
-    model: &ClothModel,
-    state: &ClothState,
-    control: &Control,
-    h: f64,
+    step: StepInputs<'_, S>,
     ws: &mut Workspace,
-    solver: &SolverParams,
     loads: &StepLoads,
     nb: &mut NewtonBuffers,
 ) -> Result<NewtonOutcome, StepError> {
+    let StepInputs { scheme, model, state, control, h, solver } = step;
     let (c_f, a, b) = (scheme.force_coefficient(h), scheme.position_per_unknown(h), scheme.velocity_per_unknown(h));
     let mut out = NewtonOutcome { cg_converged: true, ..Default::default() };
     let colliders = !model.colliders().is_empty();

@@ -10,12 +10,11 @@
 //! while the set changes: they only decide which contacts hold, stick or
 //! slide. The [`Settling`] state machine says which solve comes next.
 
-use super::integrator::{Linearised, add_solve, solve};
+use super::integrator::{Linearised, StepInputs, add_solve, solve};
 use crate::contacts::{
     FrictionMode, add_penetrating, constrain_contacts, release_pulling, stick_frictional_contacts, stick_or_slide,
 };
-use crate::control::Control;
-use crate::{ClothModel, ClothState, ContactStats, SolverParams, StepError, StepReport, Workspace};
+use crate::{ClothModel, ContactStats, SolverParams, StepError, StepReport, Workspace};
 
 /// How a step treats its solid contacts, from the solver settings and the
 /// model.
@@ -124,19 +123,14 @@ pub(crate) struct Settled {
 
 /// Solves the step with the contacts of its start, then settles the set
 /// pass by pass (at most `solver.max_contact_passes` re-solves).
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn settle_contacts<S: Linearised>(
-    scheme: &S,
-    model: &ClothModel,
-    state: &ClothState,
-    control: &Control,
-    h: f64,
+    step: StepInputs<'_, S>,
     ws: &mut Workspace,
-    solver: &SolverParams,
     rules: ContactRules,
     force_coefficient: f64,
     stats: &mut ContactStats,
 ) -> Result<Settled, StepError> {
+    let StepInputs { scheme, model, state, control, h, solver } = step;
     let value = |target, i| scheme.pinned(state, h, target, i);
     let prescribed = |i: usize| model.is_pinned(i) || control.is_held(i);
     let driven = |k: usize| model.colliders()[k].is_external() && !control.is_solid_prescribed(k);
