@@ -184,9 +184,9 @@ pub(crate) fn constrain_contacts(
 /// stuck ([`FrictionMode::Stick`]), moving with the surface over the step
 /// `h` (s); a landing one (moving more than `LANDING_TRAVEL_M`, 1 mm, towards
 /// the surface this step) starts sliding with no friction, which
-/// [`stick_or_slide`] sets against its slip after the first solve (or
+/// `stick_or_slide` sets against its slip after the first solve (or
 /// sticks it when it barely slips). Returns how many (constrain them
-/// again, [`constrain_contacts`]).
+/// again, `constrain_contacts`).
 /// Contacts found during the step's passes join too.
 ///
 /// Solids whose motion from outside is a guess (`driven(collider)`:
@@ -237,7 +237,7 @@ pub(crate) const LANDING_TRAVEL_M: f64 = 1e-3;
 pub(crate) const REVERSAL_SLIP_M: f64 = 1e-6;
 
 /// Settles the friction in the solve after a solve (and after
-/// [`release_pulling`] read the normal forces), from the solved new
+/// `release_pulling` read the normal forces), from the solved new
 /// positions `new_x`: a stuck contact whose tangential constraint force
 /// `f_t` (the unfiltered residual) exceeds `mu N` slides from now on,
 /// with the friction `mu N f_t / |f_t|` added to `rhs` (times
@@ -327,7 +327,7 @@ pub(crate) fn stick_or_slide(
 /// `f_c = (A u - b)_i / force_coefficient` (split along both normals for
 /// a two-solid contact), and releases those that pull; the particle is
 /// then re-constrained with what remains, through `value` as in
-/// [`constrain_contacts`]. Returns how many were released.
+/// `constrain_contacts`. Returns how many were released.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn release_pulling(
     contacts: &mut [SolidContact],

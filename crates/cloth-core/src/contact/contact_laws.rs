@@ -34,7 +34,7 @@ pub(crate) fn squeeze_overlap(force_n: f64, mass_kg: f64, h: f64) -> f64 {
 }
 
 /// Slip speed above which a squeezed particle's friction goes into the
-/// solve (m/s); slower ones stick or slip under [`apply_friction`] alone.
+/// solve (m/s); slower ones stick or slip under `apply_friction` alone.
 /// Sliding friction linearised near the point of sticking overshoots and
 /// reverses: on the tablecloth fixture pulled slowly (0.1 m/s), a
 /// threshold of 1 cm/s let the box alternate between slipping forwards
@@ -84,7 +84,7 @@ pub fn contact_penalty(gap_m: f64, thickness_m: f64, stiffness_n_m: f64) -> (f64
 
 /// Slip speed below which [`smoothed_friction`] turns viscous, m/s. A
 /// particle held by static friction creeps at most half of it while the
-/// Newton iterations run; [`apply_friction`] then stops it exactly.
+/// Newton iterations run; `apply_friction` then stops it exactly.
 pub const FRICTION_SMOOTHING_M_S: f64 = 1e-3;
 
 /// `F0(s)` of the smoothed Coulomb dissipation potential (Li et al. 2020,

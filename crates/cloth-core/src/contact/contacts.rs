@@ -8,22 +8,22 @@
 //!   the solid. After a solve, the constraint force is read from the
 //!   unfiltered residual: contacts that pull are released, free particles
 //!   that ended inside are added, and the system is solved again
-//!   ([`release_pulling`], [`add_penetrating`]); [`project_out`] is the
+//!   (`release_pulling`, `add_penetrating`); `project_out` is the
 //!   last safety net. Friction then removes tangential velocity relative
 //!   to the solid, at most `mu |f_n| tau / m` (Coulomb), all of it when
-//!   that suffices (the static regime) ([`apply_friction`]).
+//!   that suffices (the static regime) (`apply_friction`).
 //! - Cloth-solid in Newton iterations (`solver.newton_iterations > 1`):
 //!   after the first solve the solids act as a stiff penalty energy
-//!   ([`contact_penalty`], [`penalty_contacts`]) and their friction as a
+//!   ([`contact_penalty`], `penalty_contacts`) and their friction as a
 //!   smoothed Coulomb dissipation potential ([`smoothed_friction`]), both
-//!   inside the minimisation (see the `newton` module); [`apply_friction`]
+//!   inside the minimisation (see the `newton` module); `apply_friction`
 //!   then only stops the smoothing's creep.
 //! - Cloth-solid without an assembled matrix (explicit, fixed-CG):
-//!   [`collide_after_step`].
+//!   `collide_after_step`.
 //! - Self-collision: particle-particle and particle-triangle repulsion
-//!   ([`laws::repulsion`]) found through the voxel hash at the start of the
+//!   ([`crate::laws::repulsion`]) found through the voxel hash at the start of the
 //!   step, applied with its Jacobian along the repelling direction only,
-//!   and [`separate_self_contacts`] after the step.
+//!   and `separate_self_contacts` after the step.
 //!
 //! Everything is evaluated in a fixed particle order (or reduced exactly),
 //! so results do not depend on the number of threads.

@@ -54,7 +54,7 @@ pub(crate) fn penalty_contacts(
 
 /// The solids a Newton correction `p` (unknown; positions move by `a p`)
 /// would carry particles into, from the iterate `x_iter` whose contacts
-/// [`penalty_contacts`] found: into `bufs.watch`, one entry per particle
+/// `penalty_contacts` found: into `bufs.watch`, one entry per particle
 /// whose full-step position `x_iter + a p` is closer than the thickness to
 /// a solid it has no contact with, on the solid's tangent plane at the
 /// point nearest the iterate (where the particle comes from, so its
@@ -95,7 +95,7 @@ pub(crate) fn penalty_watch(
     }
 }
 
-/// The penalty energy of `contacts` ([`penalty_contacts`]) with particle
+/// The penalty energy of `contacts` (`penalty_contacts`) with particle
 /// `i` at `x_i + beta p_i`, each on its frozen tangent plane, J.
 pub(crate) fn contact_penalty_energy(
     contacts: &[SolidContact],
@@ -118,7 +118,7 @@ pub(crate) fn contact_penalty_energy(
 
 /// Whether a contact's friction is a Newton iterate's smoothed friction:
 /// active, holding (a pressed contact's friction is
-/// [`linearise_squeeze_friction`]'s), with a coefficient.
+/// `linearise_squeeze_friction`'s), with a coefficient.
 pub(crate) fn holds_with_friction(c: &SolidContact) -> bool {
     c.active && !c.pressed && c.friction > 0.0
 }
@@ -129,7 +129,7 @@ pub(crate) fn holds_with_friction(c: &SolidContact) -> bool {
 /// `f(v) ~ f(v_k) - C (v - v_k)`, `C` added to `damping` (N s/m) and
 /// `f(v_k) + C v_k` to `external` (N), and kept on the contact
 /// (`solve_damping`, `solve_constant_n`, `solve_limit_n`) so
-/// [`contact_friction_potential`] and [`apply_friction`] know what the
+/// `contact_friction_potential` and `apply_friction` know what the
 /// solve applied.
 pub(crate) fn linearise_contact_friction(
     contacts: &mut [SolidContact],
@@ -154,7 +154,7 @@ pub(crate) fn linearise_contact_friction(
 
 /// The holding contacts' friction dissipation
 /// `sum mu N F0(|P (v + beta p - v_s)|)`, W ([`smoothed_friction_potential`]),
-/// with the bounds `mu N` of the last [`linearise_contact_friction`].
+/// with the bounds `mu N` of the last `linearise_contact_friction`.
 pub(crate) fn contact_friction_potential(contacts: &[SolidContact], v: &[Vec3], p: &[Vec3], beta: f64) -> f64 {
     contacts
         .iter()

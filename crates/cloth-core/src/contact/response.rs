@@ -16,7 +16,7 @@ use crate::{Mat3, Vec3};
 /// friction applied after the solve cannot exceed what stops that
 /// particle alone (`m |w| / h`); in the solve its neighbours' links take
 /// up the load and the full `mu N` reaches the cloth. A particle that
-/// would stop within the step overshoots; [`apply_friction`] stops it. Returns whether any was added.
+/// would stop within the step overshoots; `apply_friction` stops it. Returns whether any was added.
 pub(crate) fn linearise_squeeze_friction(
     contacts: &mut [SolidContact],
     v: &[Vec3],
@@ -46,7 +46,7 @@ pub(crate) fn linearise_squeeze_friction(
     added
 }
 
-/// The force each of [`linearise_squeeze_friction`]'s contacts exerted at
+/// The force each of `linearise_squeeze_friction`'s contacts exerted at
 /// the solved velocities `v`, `e - C v`, N, into `solve_friction_n`.
 pub(crate) fn squeeze_friction_forces(contacts: &mut [SolidContact], v: &[Vec3]) {
     for c in contacts.iter_mut() {
@@ -93,7 +93,7 @@ pub(crate) fn along_normals(na: Vec3, nb: Option<Vec3>, p: f64, q: f64) -> (Vec3
 /// stopped as well, a landing particle stopped dead while the cloth
 /// behind it fell on, and the V-groove's landing stretched links to 1.28
 /// (1.14 with the inward velocity left, 1.13 before).
-/// See [`restart_history_at_contacts`].
+/// See `restart_history_at_contacts`.
 pub(crate) fn stop_separation(contacts: &mut [SolidContact], masses: &[f64], new_v: &mut [Vec3]) {
     for group in contacts.chunk_by_mut(same_particle) {
         let Some((a, b)) = held_by(group) else { continue };
@@ -113,7 +113,7 @@ pub(crate) fn stop_separation(contacts: &mut [SolidContact], masses: &[f64], new
 }
 
 /// Restarts BDF2's history along the normal(s) of each particle a solid
-/// held over the step just committed (see [`stop_separation`]): its
+/// held over the step just committed (see `stop_separation`): its
 /// previous position becomes `x - h v` and its previous velocity `v`
 /// along them, as if it had moved at `v` all along. The two-step formula
 /// otherwise carries the impact into the next step: the displacement
@@ -156,7 +156,7 @@ pub(crate) fn restart_history_at_contacts(
 /// a force changes the new velocity in the integrator (`h` for backward
 /// Euler, `2h/3` for BDF2), so each friction force is exactly `mu_k f_k`
 /// while sliding. Friction already applied in the solve
-/// (`solve_friction_n`, see [`linearise_squeeze_friction`]) stays; its
+/// (`solve_friction_n`, see `linearise_squeeze_friction`) stays; its
 /// contact may only stop a particle it pushed past the solid's velocity
 /// (an overshoot). Each contact's `impulse_n_s` becomes its normal
 /// force plus its own friction force, times the step `h`. Returns how
@@ -279,7 +279,7 @@ pub(crate) fn apply_friction(
     sticking
 }
 
-/// Sweeps of [`apply_friction`]'s projected Gauss-Seidel for a particle
+/// Sweeps of `apply_friction`'s projected Gauss-Seidel for a particle
 /// against two solids: two suffice when both slide or one sticks; the rest
 /// settle the case where the particle's velocity lies between the two
 /// solids'. Fixed, so results do not depend on a tolerance.

@@ -22,7 +22,7 @@ pub(crate) fn linked(model: &ClothModel, a: usize, b: usize) -> bool {
 /// Pairs are gathered within 1.5 thicknesses plus the distance the two
 /// particles cover towards each other at their speeds in the step `h`
 /// (up to the voxel size), so
-/// [`separate_self_contacts`] can still tell which side each particle
+/// `separate_self_contacts` can still tell which side each particle
 /// was on after the step. Particle pairs closer than the thickness repel
 /// unless linked. With
 /// `point_triangle`, each particle also finds its nearest triangle (not
@@ -123,7 +123,7 @@ pub(crate) fn detect_self_contacts(
 pub(crate) const SELF_SLACK: f64 = 1.5;
 
 /// Fraction of the self-collision thickness below which
-/// [`separate_self_contacts`] pushes pairs apart after a step.
+/// `separate_self_contacts` pushes pairs apart after a step.
 pub const MIN_SELF_GAP: f64 = 0.75;
 
 /// After a step: every self-collision pair found at the start whose gap,
@@ -191,7 +191,7 @@ pub(crate) fn separate_self_contacts(
     corrections
 }
 
-/// Particle-triangle pairs within `radius` (see [`detect_self_contacts`])
+/// Particle-triangle pairs within `radius` (see `detect_self_contacts`)
 /// kept when `keep(particle, triangle, distance)`; each particle's nearest
 /// triangle repels it (one force per particle: a particle over an edge
 /// would otherwise be pushed by both triangles), all are kept apart after

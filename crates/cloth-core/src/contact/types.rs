@@ -40,17 +40,17 @@ pub struct SolidContact {
     /// `normal_force_n` is that force.
     pub pressed: bool,
     /// Friction inside the implicit solve, of a squeezed particle
-    /// ([`linearise_squeeze_friction`]) or of a held one in Newton
-    /// iterations ([`linearise_contact_friction`]), linearised as
+    /// (`linearise_squeeze_friction`) or of a held one in Newton
+    /// iterations (`linearise_contact_friction`), linearised as
     /// `f = e - C v`: `C`, N s/m, ...
     pub solve_damping: Mat3,
     /// ... `e`, N, ...
     pub solve_constant_n: Vec3,
     /// The force it exerted at the solved velocity, N
-    /// ([`squeeze_friction_forces`]); [`apply_friction`] settles the rest
+    /// (`squeeze_friction_forces`); `apply_friction` settles the rest
     /// within the Coulomb bound.
     pub solve_friction_n: Vec3,
-    /// The bound `mu N` of the last [`linearise_contact_friction`], N (the
+    /// The bound `mu N` of the last `linearise_contact_friction`, N (the
     /// line search's dissipation uses the same one).
     pub solve_limit_n: f64,
     /// Where this contact's friction is decided (see [`FrictionMode`]).
@@ -59,13 +59,13 @@ pub struct SolidContact {
     /// surface over the step, `h (I - n n^T) v_solid`, m.
     pub tangent_travel_m: Vec3,
     /// Whether this step's passes already turned it back from sliding to
-    /// sticking once ([`stick_or_slide`]).
+    /// sticking once (`stick_or_slide`).
     pub turned_back: bool,
 }
 
 /// Where a contact's Coulomb friction is decided in an implicit step.
 ///
-/// After the solve ([`apply_friction`]) the particle alone meets the
+/// After the solve (`apply_friction`) the particle alone meets the
 /// friction: its slip is stopped when `mu N tau / m` suffices. That is
 /// right for a particle on its own, but a particle linked to the rest of
 /// the cloth slips under the force of a whole stiff cluster, so its slip
@@ -82,9 +82,9 @@ pub struct SolidContact {
 /// contacts the same way, with constraints in the filtered solve.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum FrictionMode {
-    /// [`apply_friction`] after the solve: particles squeezed between two
+    /// `apply_friction` after the solve: particles squeezed between two
     /// solids or held by two, solids whose motion from outside is a guess
-    /// (see [`stick_frictional_contacts`]), integrators without a matrix,
+    /// (see `stick_frictional_contacts`), integrators without a matrix,
     /// Newton iterations (which smooth friction into their potential).
     #[default]
     AfterSolve,
@@ -160,7 +160,7 @@ pub struct ContactStats {
     pub released: usize,
     /// Contacts added after a solve left a free particle inside a solid.
     pub added: usize,
-    /// Particles moved out of a solid after the step (see [`project_out`]).
+    /// Particles moved out of a solid after the step (see `project_out`).
     pub projected: usize,
     /// Contacts held by static friction (no tangential slip).
     pub sticking: usize,
@@ -169,7 +169,7 @@ pub struct ContactStats {
     /// Self-collision pairs closer than the thickness (particle-particle
     /// plus particle-triangle).
     pub self_contacts: usize,
-    /// Pairs pushed apart after the step by [`separate_self_contacts`].
+    /// Pairs pushed apart after the step by `separate_self_contacts`.
     pub self_separations: usize,
     /// Narrow-phase point queries against solids.
     pub narrow_phase_queries: usize,
@@ -201,7 +201,7 @@ pub(crate) struct ContactBuffers {
     /// consecutive entries.
     pub solid: Vec<SolidContact>,
     /// Solids a Newton correction would carry a particle into (see
-    /// [`penalty_watch`]): the line search's penalty sees them too.
+    /// `penalty_watch`): the line search's penalty sees them too.
     pub watch: Vec<SolidContact>,
     /// Self-collision pairs of the current step.
     pub self_pairs: Vec<SelfContact>,
@@ -213,11 +213,11 @@ pub(crate) struct ContactBuffers {
     pub(crate) first_entry: Vec<u32>,
     /// Per particle, what was last learnt of its distance to the solids at
     /// the end of the current step: set from its predicted position by
-    /// [`detect_solid_contacts`], then by each [`add_penetrating`] that
+    /// `detect_solid_contacts`, then by each `add_penetrating` that
     /// measures it again.
     pub(crate) clearance: Vec<Clearance>,
     /// Per particle, whether `candidate` holds what the last
-    /// [`detect_solid_contacts`] or [`add_penetrating`] found for it: they
+    /// `detect_solid_contacts` or `add_penetrating` found for it: they
     /// write (and read back) only the candidates of particles that have
     /// one, a contact being a few hundred bytes.
     pub(crate) has_candidate: Vec<bool>,
@@ -243,7 +243,7 @@ pub(crate) struct ContactBuffers {
     /// Self-collision stiffness on the diagonal, `-df_i/dx_i`, N/m.
     pub self_stiffness: Vec<Mat3>,
     /// Friction of squeezed particles as damping on the diagonal,
-    /// `-df_i/dv_i`, N s/m ([`linearise_squeeze_friction`]).
+    /// `-df_i/dv_i`, N s/m (`linearise_squeeze_friction`).
     pub friction_damping: Vec<Mat3>,
     /// Per particle, its nearest triangle's entry in `self_pairs` (or `u32::MAX`).
     pub(crate) nearest: Vec<u32>,

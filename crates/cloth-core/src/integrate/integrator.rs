@@ -523,7 +523,7 @@ pub(crate) fn with_loads<'a>(
 }
 
 /// Puts the friction of squeezed particles that slide into the solve (see
-/// [`linearise_squeeze_friction`]): damping blocks into
+/// `linearise_squeeze_friction`): damping blocks into
 /// `ws.contacts.friction_damping`, their constant part into `ws.external`.
 fn squeeze_friction_in_solve(state: &ClothState, ws: &mut Workspace, loads: &mut StepLoads) {
     if !ws.contacts.solid.iter().any(|c| c.pressed && c.friction > 0.0) {

@@ -380,7 +380,7 @@ struct Line<'a> {
     a: f64,
     b: f64,
     /// Contacts with solids and the solids a correction would reach (see
-    /// [`penalty_watch`]), with the friction dissipation (W) and penalty
+    /// `penalty_watch`), with the friction dissipation (W) and penalty
     /// energy (J) at the iterate.
     contacts: Option<(&'a [SolidContact], &'a [SolidContact], f64, f64)>,
     /// The step, s.
@@ -397,7 +397,7 @@ struct Line<'a> {
 struct Extra<'a> {
     external: Option<&'a [Vec3]>,
     friction: Option<&'a [Mat3]>,
-    /// The iterate's contacts and the watched solids ([`penalty_watch`]).
+    /// The iterate's contacts and the watched solids (`penalty_watch`).
     contacts: Option<(&'a [SolidContact], &'a [SolidContact])>,
     h: f64,
     stitches_closed: &'a [bool],

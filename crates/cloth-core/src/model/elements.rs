@@ -23,7 +23,7 @@ pub struct MembraneElement {
     pub rest: TriangleRest,
 }
 
-/// A bending triangle ([`curvature_bending_with`]): corners 0, 1, 2, then
+/// A bending triangle ([`crate::element_laws::curvature_bending_with`]): corners 0, 1, 2, then
 /// the corners across edges 0, 1, 2 (a free edge repeats the opposite
 /// corner of the triangle; its row of `stiffness` is zero).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -37,7 +37,7 @@ pub struct CurvatureElement {
 }
 
 /// A type-2 interaction of Choi & Ko's model read against the path through
-/// its middle particle ([`bend_triple_with`]): corners `(i, m, j)`.
+/// its middle particle ([`crate::element_laws::bend_triple_with`]): corners `(i, m, j)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BendTriple {
     /// End, middle, end.

@@ -62,7 +62,7 @@ fn fixed() -> PinMotion {
     PinMotion::Fixed
 }
 
-/// Everything needed to build a [`ClothModel`].
+/// Everything needed to build a [`crate::ClothModel`].
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ModelSpec {
     /// The cloth panels (particles are numbered panel after panel, `j * nx + i` within one).
