@@ -6,6 +6,7 @@
 mod build_parts;
 mod builder;
 mod cloth_model;
+pub mod colouring;
 pub(crate) mod constraints;
 pub mod element_laws;
 pub mod elements;
