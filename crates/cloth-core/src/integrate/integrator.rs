@@ -4,10 +4,10 @@
 use crate::contacts::{
     ContactBuffers, ContactStats, FrictionMode, apply_friction, constrain_contacts, detect_self_contacts,
     detect_solid_contacts, linearise_squeeze_friction, project_out, separate_self_contacts, squeeze_friction_forces,
-    stick_frictional_contacts, stop_separation,
+    stop_separation,
 };
 use crate::control::{Control, PinPaths};
-use crate::energy::{self};
+use crate::energy;
 use crate::{
     ClothModel, ClothState, Mat3, Vec3,
     forces::{SystemTerms, assemble},
@@ -15,7 +15,7 @@ use crate::{
 use cloth_linalg::{Constraint, ConstraintFilter, PcgError};
 use std::time::Instant;
 
-use super::settle::{ContactRules, settle_contacts};
+use super::settle::{ContactRules, settle_contacts, stick_frictional};
 pub use super::step_types::*;
 
 /// A time integrator: advances `state` by `h` seconds. Integrators hold only
@@ -421,12 +421,7 @@ fn constrain_start<S: Linearised>(step: StepInputs<'_, S>, ws: &mut Workspace, r
     let value = |target, i| scheme.pinned(state, h, target, i);
     constrain_pins(model, state, control, h, &mut ws.filter, value);
     if rules.friction_in_solve {
-        let prescribed = |i: usize| model.is_pinned(i) || control.is_held(i);
-        // Guessed motions keep the friction after the solve; prescribed
-        // ones (kinematic bodies, rig links) are exact, as the scene's own
-        // solids.
-        let driven = |k: usize| model.colliders()[k].is_external() && !control.is_solid_prescribed(k);
-        stick_frictional_contacts(&mut ws.contacts.solid, h, prescribed, driven);
+        stick_frictional(step, &mut ws.contacts.solid);
     }
     constrain_contacts(&ws.contacts.solid, &state.x, &mut ws.filter, value);
     for i in 0..state.len() {

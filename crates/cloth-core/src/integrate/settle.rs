@@ -12,7 +12,8 @@
 
 use super::integrator::{Linearised, StepInputs, add_solve, solve};
 use crate::contacts::{
-    FrictionMode, add_penetrating, constrain_contacts, release_pulling, stick_frictional_contacts, stick_or_slide,
+    FrictionMode, SolidContact, add_penetrating, constrain_contacts, release_pulling, stick_frictional_contacts,
+    stick_or_slide,
 };
 use crate::{ClothModel, ContactStats, SolverParams, StepError, StepReport, Workspace};
 
@@ -121,6 +122,18 @@ pub(crate) struct Settled {
     pub(crate) unresolved: bool,
 }
 
+/// Sticks the frictional contacts that have none yet
+/// ([`crate::contacts`]' `stick_frictional_contacts`) and returns how many.
+/// Contacts with solids whose motion is a guess (a co-simulation master's)
+/// keep their friction after the solve; prescribed motions (kinematic
+/// bodies, rig links) are exact, as the scene's own solids.
+pub(crate) fn stick_frictional<S>(step: StepInputs<'_, S>, contacts: &mut [SolidContact]) -> usize {
+    let StepInputs { model, control, h, .. } = step;
+    let prescribed = |i: usize| model.is_pinned(i) || control.is_held(i);
+    let driven = |k: usize| model.colliders()[k].is_external() && !control.is_solid_prescribed(k);
+    stick_frictional_contacts(contacts, h, prescribed, driven)
+}
+
 /// Solves the step with the contacts of its start, then settles the set
 /// pass by pass (at most `solver.max_contact_passes` re-solves).
 pub(crate) fn settle_contacts<S: Linearised>(
@@ -130,10 +143,8 @@ pub(crate) fn settle_contacts<S: Linearised>(
     force_coefficient: f64,
     stats: &mut ContactStats,
 ) -> Result<Settled, StepError> {
-    let StepInputs { scheme, model, state, control, h, solver } = step;
+    let StepInputs { scheme, model, state, control: _, h, solver } = step;
     let value = |target, i| scheme.pinned(state, h, target, i);
-    let prescribed = |i: usize| model.is_pinned(i) || control.is_held(i);
-    let driven = |k: usize| model.colliders()[k].is_external() && !control.is_solid_prescribed(k);
     let mut settling = Settling::new(solver, rules);
     let (first, exact) = settling.first(!ws.contacts.solid.is_empty());
     let (mut report, mut solve_s) = solve(ws, state, &first)?;
@@ -157,10 +168,7 @@ pub(crate) fn settle_contacts<S: Linearised>(
         let slid = stick_or_slide(contacts, matrix, rhs, solved, &state.x, &ws.new_x, filter, value);
         let added =
             add_penetrating(model, &state.x, &ws.new_x, (state.time_s, h), &mut ws.contacts, &mut ws.filter, value);
-        if rules.friction_in_solve
-            && added > 0
-            && stick_frictional_contacts(&mut ws.contacts.solid, h, prescribed, driven) > 0
-        {
+        if rules.friction_in_solve && added > 0 && stick_frictional(step, &mut ws.contacts.solid) > 0 {
             constrain_contacts(&ws.contacts.solid, &state.x, &mut ws.filter, value);
         }
         (stats.released, stats.added) = (stats.released + released, stats.added + added);

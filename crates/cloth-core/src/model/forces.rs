@@ -476,10 +476,7 @@ fn add_extra_terms(model: &ClothModel, x: &[Vec3], terms: &SystemTerms<'_>, bufs
     rows.enumerate().for_each(|(chunk, (rhs, diag))| {
         for (k, (bi, di)) in rhs.iter_mut().zip(diag.iter_mut()).enumerate() {
             let i = chunk * ROW_CHUNK + k;
-            let mut block = crate::terms::VertexBlock::zero();
-            for term in crate::terms::unfused(model) {
-                block += term.vertex(&at, i);
-            }
+            let block = crate::terms::sum_of_blocks(crate::terms::unfused(model), &at, i);
             *bi += block.force * terms.force;
             if let Some((a, w)) = terms.k_times {
                 *bi -= block.stiffness * w[i] * a;

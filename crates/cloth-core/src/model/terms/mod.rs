@@ -115,7 +115,7 @@ pub const INTERNAL_TERMS: &[&dyn ForceTerm] = &[&Gravity, &Drag, &Elements, &Lin
 /// those added from outside ([`ClothModel::with_force_term`]).
 pub fn acting(model: &ClothModel) -> impl Iterator<Item = &dyn ForceTerm> + '_ {
     let extra = model.extra_terms().iter().map(|t| t.as_ref() as &dyn ForceTerm);
-    INTERNAL_TERMS.iter().copied().filter(move |t| t.acts_on(model)).chain(extra.filter(move |t| t.acts_on(model)))
+    INTERNAL_TERMS.iter().map(|t| *t as &dyn ForceTerm).chain(extra).filter(move |t| t.acts_on(model))
 }
 
 /// The acting terms the implicit steps linearise on the diagonal (not
@@ -126,8 +126,13 @@ pub fn unfused(model: &ClothModel) -> impl Iterator<Item = &dyn ForceTerm> + '_ 
 
 /// The sum of every acting term's block at particle `i`.
 pub fn vertex_block(at: &At<'_>, i: usize) -> VertexBlock {
+    sum_of_blocks(acting(at.model), at, i)
+}
+
+/// The sum of `terms`' blocks at particle `i`, in their order.
+pub fn sum_of_blocks<'t>(terms: impl Iterator<Item = &'t dyn ForceTerm>, at: &At<'_>, i: usize) -> VertexBlock {
     let mut total = VertexBlock::zero();
-    for term in acting(at.model) {
+    for term in terms {
         total += term.vertex(at, i);
     }
     total
