@@ -26,10 +26,11 @@ pub use contact::{colliders, contacts};
 pub use integrate::control;
 pub use integrate::energy::{EnergyReport, GAIN_TOLERANCE};
 pub use integrate::explicit::ENERGY_WINDOW;
+pub use integrate::vbd::{self, Vbd, VbdParams};
 use integrate::{energy, explicit, integrator, matrix_free, newton, sim, state};
 pub use model::seams::{self, SeamSide, SeamSpec, Stitch};
+pub use model::{colouring, element_laws, elements, forces, laws, terms, wind};
 use model::{constraints, keyframes, material, pins, topology};
-pub use model::{element_laws, elements, forces, laws, terms, wind};
 
 pub use cloth_collide::{BodyPose, ShapeSpec, VoxelHash};
 pub use cloth_linalg::{PcgParams, PreconditionerKind};

@@ -12,7 +12,7 @@
 //! bending_law = "arc-path"     # choi-ko only (default): flexural rigidity that holds
 //!                              # at every spacing; "arc-chord": the paper's pair law
 //! integrator = "bdf2"          # backward-euler, backward-euler-fixed-cg, forward-euler,
-//!                              # symplectic-euler, midpoint, rk4, dopri5
+//!                              # symplectic-euler, midpoint, rk4, dopri5, vbd
 //! dt_s = 0.011111111111111112  # s
 //! duration_s = 2.0             # s
 //! effects = ["gravity", "bending", "damping"]   # also "strain-limit", "drag", "wind", "aerodynamics"
@@ -32,6 +32,12 @@
 //! energy_guard = true          # bdf2 retakes a step that creates energy as backward Euler
 //! max_contact_passes = 30      # most re-solves of a step's contact set (fewer: faster, friction beyond Coulomb)
 //! settling_iterations = 4      # CG cap of the solves while the contact set settles (0: each to rel_tol)
+//!
+//! [solver.vbd]                 # vbd only: Vertex Block Descent's sweeps
+//! iterations = 10              # sweeps over every colour per step
+//! tolerance_m = 0.0            # stop earlier once no particle moves farther in a sweep (0: always all)
+//! chebyshev_rho = 0.0          # Chebyshev acceleration's spectral radius estimate (0: off)
+//! line_search = false          # halve a local step until the particle's potential falls
 //!
 //! [material]
 //! areal_density_kg_m2 = 0.1
@@ -407,6 +413,18 @@ impl Scene {
         if !(v.newton_trigger.is_finite() && v.newton_trigger >= 0.0) {
             return Err(invalid("solver.newton_trigger", format!("must be finite and >= 0, got {}", v.newton_trigger)));
         }
+        if v.vbd.iterations == 0 {
+            return Err(invalid("solver.vbd.iterations", "must be >= 1".into()));
+        }
+        if !(v.vbd.tolerance_m.is_finite() && v.vbd.tolerance_m >= 0.0) {
+            return Err(invalid(
+                "solver.vbd.tolerance_m",
+                format!("must be finite and >= 0, got {}", v.vbd.tolerance_m),
+            ));
+        }
+        if !(0.0..1.0).contains(&v.vbd.chebyshev_rho) {
+            return Err(invalid("solver.vbd.chebyshev_rho", format!("must be in [0, 1), got {}", v.vbd.chebyshev_rho)));
+        }
         // Checked even when the effect is not listed: a bad value is never silently kept.
         let c = &self.constraints;
         if !(c.max_strain.is_finite() && c.max_strain >= 0.0) {
@@ -465,7 +483,10 @@ impl Scene {
         if model.self_collision().is_some() && !s.integrator.handles_self_collision() {
             return Err(SceneErrorKind::Invalid {
                 field: "simulation.integrator".into(),
-                message: format!("{} does not handle self-collision: use backward-euler or bdf2", s.integrator.name()),
+                message: format!(
+                    "{} does not handle self-collision: use backward-euler, bdf2 or vbd",
+                    s.integrator.name()
+                ),
             });
         }
         let config = RunConfig {
@@ -601,6 +622,9 @@ nodes = [[0, 3]]
             ("solver.newton_iterations=0", "solver.newton_iterations"),
             ("solver.newton_tolerance_m=-1e-6", "solver.newton_tolerance_m"),
             ("solver.newton_trigger=-0.25", "solver.newton_trigger"),
+            ("solver.vbd.iterations=0", "solver.vbd.iterations"),
+            ("solver.vbd.tolerance_m=-1.0", "solver.vbd.tolerance_m"),
+            ("solver.vbd.chebyshev_rho=1.0", "solver.vbd.chebyshev_rho"),
             ("constraints.max_strain=-0.1", "constraints.max_strain"),
             ("panels.0.particles=[1, 4]", "panels[0].particles"),
             ("panels.0.size_m=[1.0, inf]", "panels[0].size_m"),

@@ -1,7 +1,8 @@
 //! How the cloth moves: the explicit [`crate::ClothState`], the per-step
 //! [`control`] inputs from outside (where a co-simulation unit or a rigid
 //! body engine plugs in), the integrators behind the [`crate::Integrator`]
-//! trait (implicit with filtered PCG, explicit, matrix-free), and
+//! trait (implicit with filtered PCG, explicit, matrix-free, the vertex
+//! solver [`vbd`]), and
 //! [`crate::Simulation`], which owns model, state, control and workspace.
 
 pub mod control;
@@ -15,3 +16,4 @@ pub(crate) mod settle;
 pub(crate) mod sim;
 pub(crate) mod state;
 pub(crate) mod step_types;
+pub mod vbd;

@@ -45,11 +45,16 @@ pub enum IntegratorKind {
     /// Bdf2 (`bdf2`): second-order BDF, Choi & Ko (2002) Eq. 20; starts with
     /// one backward-Euler step.
     Bdf2,
+    /// Vertex Block Descent (`vbd`), Chen, Macklin et al. (2024): backward
+    /// Euler's incremental potential minimised by coloured Gauss-Seidel
+    /// sweeps of per-particle Newton steps ([`crate::vbd`]); the sweeps
+    /// are [`SolverParams::vbd`]'s.
+    Vbd,
 }
 
 impl IntegratorKind {
     /// Every kind, in the order above.
-    pub const ALL: [IntegratorKind; 8] = [
+    pub const ALL: [IntegratorKind; 9] = [
         IntegratorKind::ForwardEuler,
         IntegratorKind::SymplecticEuler,
         IntegratorKind::Midpoint,
@@ -58,6 +63,7 @@ impl IntegratorKind {
         IntegratorKind::BackwardEuler,
         IntegratorKind::BackwardEulerFixedCg,
         IntegratorKind::Bdf2,
+        IntegratorKind::Vbd,
     ];
 
     /// The integrator.
@@ -66,6 +72,7 @@ impl IntegratorKind {
             IntegratorKind::BackwardEuler => Box::new(BackwardEuler),
             IntegratorKind::Bdf2 => Box::new(Bdf2),
             IntegratorKind::BackwardEulerFixedCg => Box::new(crate::matrix_free::BackwardEulerFixedCg),
+            IntegratorKind::Vbd => Box::new(crate::vbd::Vbd),
             explicit => Box::new(crate::explicit::Explicit(explicit)),
         }
     }
@@ -81,6 +88,7 @@ impl IntegratorKind {
             IntegratorKind::BackwardEuler => "backward-euler",
             IntegratorKind::BackwardEulerFixedCg => "backward-euler-fixed-cg",
             IntegratorKind::Bdf2 => "bdf2",
+            IntegratorKind::Vbd => "vbd",
         }
     }
 
@@ -89,10 +97,10 @@ impl IntegratorKind {
         matches!(self, IntegratorKind::BackwardEuler | IntegratorKind::BackwardEulerFixedCg | IntegratorKind::Bdf2)
     }
 
-    /// Whether the integrator handles self-collision (its repulsion needs
-    /// an assembled matrix).
+    /// Whether the integrator handles self-collision (inside its solve:
+    /// the assembled implicit steps and the vertex solver).
     pub fn handles_self_collision(self) -> bool {
-        matches!(self, IntegratorKind::BackwardEuler | IntegratorKind::Bdf2)
+        matches!(self, IntegratorKind::BackwardEuler | IntegratorKind::Bdf2 | IntegratorKind::Vbd)
     }
 }
 
@@ -156,6 +164,8 @@ pub struct SolverParams {
     /// the step. 0: every solve to `rel_tol`. Default 4, which halves the
     /// CG iterations of the contact fixtures (`docs/contacts.md`).
     pub settling_iterations: usize,
+    /// The vertex solver's settings (`[solver.vbd]`; `vbd` only).
+    pub vbd: crate::VbdParams,
 }
 
 impl SolverParams {
@@ -184,6 +194,7 @@ impl Default for SolverParams {
             energy_guard: true,
             max_contact_passes: MAX_CONTACT_PASSES,
             settling_iterations: SETTLING_ITERATIONS,
+            vbd: crate::VbdParams::default(),
         }
     }
 }
@@ -249,6 +260,8 @@ pub struct StepReport {
     /// ([`EnergyReport::flagged`]) and was retaken as a backward-Euler
     /// step, which also restarts BDF2's history.
     pub retaken_as_backward_euler: bool,
+    /// Sweeps of the vertex solver (`vbd`; 0 for the others).
+    pub descent_iterations: usize,
 }
 
 /// What the Newton iterations of an implicit step did (see
@@ -314,7 +327,7 @@ pub enum StepError {
     },
     /// The model asks for self-collision, which only the assembled implicit
     /// integrators (`backward-euler`, `bdf2`) handle.
-    #[error("integrator {integrator} does not handle self-collisions: use backward-euler or bdf2")]
+    #[error("integrator {integrator} does not handle self-collisions: use backward-euler, bdf2 or vbd")]
     SelfCollisionNeedsMatrix {
         /// The integrator's scene name.
         integrator: &'static str,
@@ -369,6 +382,8 @@ pub struct Workspace {
     pub(crate) normals: Vec<Vec3>,
     /// Stage storage of the explicit integrators (allocated on first use).
     pub(crate) explicit: Option<ExplicitBuffers>,
+    /// Buffers of the vertex solver (allocated on first use).
+    pub(crate) vbd: Option<crate::vbd::VbdBuffers>,
     /// Buffers of the matrix-free solver (allocated on first use).
     pub(crate) matrix_free: Option<crate::matrix_free::MatrixFreeBuffers>,
     /// Contacts and collision scratch space.
@@ -401,6 +416,7 @@ impl Workspace {
             normals: Vec::with_capacity(n),
             explicit: None,
             matrix_free: None,
+            vbd: None,
             contacts: ContactBuffers::default(),
             pin_forces: vec![Vec3::zeros(); model.pins().len()],
             energy: crate::forces::EnergyBuffers::new(model),

@@ -376,47 +376,88 @@ pub fn bend_triple_forces(x: [Vec3; 3], rest: f64, k_b: f64) -> ElementForces<3>
 /// `hessian` when given (every block; zero when the rest length is not a
 /// positive length).
 pub fn bend_triple_into(x: [Vec3; 3], rest: f64, k_b: f64, hessian: Option<&mut [[Mat3; 3]; 3]>) -> ElementForces<3> {
-    let zero = ElementForces { energy: 0.0, forces: [Vec3::zeros(); 3] };
-    let (c, a, b) = (x[2] - x[0], x[1] - x[0], x[2] - x[1]);
-    let (d, l1, l2) = (c.norm(), a.norm(), b.norm());
-    let shortest = SHORTEST_HALF * rest;
-    if !shortest.is_finite() || shortest <= 0.0 {
+    let Some(t) = TripleParts::at(x, rest, k_b) else {
         if let Some(hessian) = hessian {
             *hessian = [[Mat3::zeros(); 3]; 3];
         }
-        return zero;
-    }
-    // Each half's length and its gradient (zero once held at `shortest`).
-    let half = |v: Vec3, len: f64| if len >= shortest { (len, v / len) } else { (shortest, Vec3::zeros()) };
-    let ((l1, e1), (l2, e2)) = (half(a, l1), half(b, l2));
-    let l = l1 + l2;
-    let r = (d / l).min(1.0);
-    // The arc law at chord r L; on a straight path its limits at d -> L.
-    let law = if r < 1.0 {
-        crate::laws::buckling_arc(r * rest, rest, k_b)
-    } else {
-        crate::laws::buckling_arc_onset(rest, k_b)
+        return ElementForces { energy: 0.0, forces: [Vec3::zeros(); 3] };
     };
-    let (de, dde) = (rest * law.phi, rest * rest * law.dphi);
-    let u = if d > 0.0 { c / d } else { Vec3::zeros() };
-    let q = d / (l * l);
-    let grad = [-u / l + e1 * q, -(e1 - e2) * q, u / l - e2 * q];
-    let forces = grad.map(|g| -g * de);
     if let Some(hessian) = hessian {
+        for (s, row) in hessian.iter_mut().enumerate() {
+            for (u, block) in row.iter_mut().enumerate() {
+                *block = t.block(s, u);
+            }
+        }
+    }
+    ElementForces { energy: t.energy, forces: t.grad.map(|g| -g * t.de) }
+}
+
+/// [`bend_triple_with`]'s force on corner `a` (N) and its diagonal block
+/// `H_aa` (N/m) alone: what a vertex solver's local step needs, without
+/// the other eight blocks.
+pub fn bend_triple_corner(x: [Vec3; 3], rest: f64, k_b: f64, a: usize) -> (Vec3, Mat3) {
+    match TripleParts::at(x, rest, k_b) {
+        Some(t) => (-t.grad[a] * t.de, t.block(a, a)),
+        None => (Vec3::zeros(), Mat3::zeros()),
+    }
+}
+
+/// The pieces of a bending triple's energy, forces and matrix at one
+/// configuration (see [`bend_triple_with`]).
+struct TripleParts {
+    energy: f64,
+    /// `dE/dl` and `d^2E/dl^2` of the arc law through the chord, J/m and J/m^2.
+    de: f64,
+    dde: f64,
+    /// The chord ratio's gradient per corner, 1/m.
+    grad: [Vec3; 3],
+    /// `J = d (t_2 - t_1) / dx` per corner, 1/m.
+    jac: [Mat3; 3],
+    /// The Gauss-Newton factor of the tangents' change, J.
+    c_geo: f64,
+}
+
+impl TripleParts {
+    /// `None` when the rest length is not a positive length.
+    fn at(x: [Vec3; 3], rest: f64, k_b: f64) -> Option<Self> {
+        let (c, a, b) = (x[2] - x[0], x[1] - x[0], x[2] - x[1]);
+        let (d, l1, l2) = (c.norm(), a.norm(), b.norm());
+        let shortest = SHORTEST_HALF * rest;
+        if !shortest.is_finite() || shortest <= 0.0 {
+            return None;
+        }
+        // Each half's length and its gradient (zero once held at `shortest`).
+        let half = |v: Vec3, len: f64| if len >= shortest { (len, v / len) } else { (shortest, Vec3::zeros()) };
+        let ((l1, e1), (l2, e2)) = (half(a, l1), half(b, l2));
+        let l = l1 + l2;
+        let r = (d / l).min(1.0);
+        // The arc law at chord r L; on a straight path its limits at d -> L.
+        let law = if r < 1.0 {
+            crate::laws::buckling_arc(r * rest, rest, k_b)
+        } else {
+            crate::laws::buckling_arc_onset(rest, k_b)
+        };
+        let u = if d > 0.0 { c / d } else { Vec3::zeros() };
+        let q = d / (l * l);
         // J = d (t_2 - t_1) / dx, blockwise; the projections are symmetric.
         let tangent_change = |e: Vec3, len: f64| {
             if e == Vec3::zeros() { Mat3::zeros() } else { (Mat3::identity() - e * e.transpose()) / len }
         };
         let (p1, p2) = (tangent_change(e1, l1), tangent_change(e2, l2));
-        let jac = [p1, -p1 - p2, p2];
-        let c_geo = -de * l1 * l2 / (l * l);
-        for (s, row) in hessian.iter_mut().enumerate() {
-            for (t, block) in row.iter_mut().enumerate() {
-                *block = grad[s] * grad[t].transpose() * dde + jac[s] * jac[t] * c_geo;
-            }
-        }
+        Some(Self {
+            energy: law.energy,
+            de: rest * law.phi,
+            dde: rest * rest * law.dphi,
+            grad: [-u / l + e1 * q, -(e1 - e2) * q, u / l - e2 * q],
+            jac: [p1, -p1 - p2, p2],
+            c_geo: -rest * law.phi * l1 * l2 / (l * l),
+        })
     }
-    ElementForces { energy: law.energy, forces }
+
+    /// The matrix's block `(s, t)`, N/m.
+    fn block(&self, s: usize, t: usize) -> Mat3 {
+        self.grad[s] * self.grad[t].transpose() * self.dde + self.jac[s] * self.jac[t] * self.c_geo
+    }
 }
 
 #[cfg(test)]

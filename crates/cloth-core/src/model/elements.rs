@@ -388,13 +388,51 @@ pub fn vertex_at(set: &ElementSet, x: &[Vec3], i: usize) -> (Vec3, Mat3) {
             }
             Kind::Triple => {
                 let t = &set.triples[e];
-                corner(&t.nodes, a, x, |p, h| bend_triple_into(p, t.rest, t.k_b, Some(h)))
+                crate::element_laws::bend_triple_corner(t.nodes.map(|p| x[p as usize]), t.rest, t.k_b, a)
             }
         };
         force += f;
         stiffness += h;
     }
     (force, stiffness)
+}
+
+/// The energy of particle `i`'s elements with `i` at `xi` and the others
+/// at `x`, J: what changes when `i` alone moves.
+pub fn vertex_energy(set: &ElementSet, x: &[Vec3], i: usize, xi: Vec3) -> f64 {
+    // A bending element may hold a particle in two slots (a free edge's
+    // neighbour slot repeats a corner): its energy counts once, at the first.
+    let first = |nodes: &[u32], a: usize| nodes.iter().position(|&p| p as usize == i) == Some(a);
+    let mut energy = 0.0;
+    for c in set.corners(i) {
+        let (e, a) = (c.elem as usize, c.corner as usize);
+        let counted = match c.kind {
+            Kind::Membrane => first(&set.membranes[e].nodes, a),
+            Kind::Curvature => first(&set.curvatures[e].nodes, a),
+            Kind::Triple => first(&set.triples[e].nodes, a),
+        };
+        if !counted {
+            continue;
+        }
+        energy += match c.kind {
+            Kind::Membrane => {
+                let m = &set.membranes[e];
+                let p = m.nodes.map(|p| if p as usize == i { xi } else { x[p as usize] });
+                membrane_triangle_into(p, &m.rest, None).energy
+            }
+            Kind::Curvature => {
+                let b = &set.curvatures[e];
+                let p = b.nodes.map(|p| if p as usize == i { xi } else { x[p as usize] });
+                curvature_bending_into(p, b.rest_angles, &b.stiffness, None).energy
+            }
+            Kind::Triple => {
+                let t = &set.triples[e];
+                let p = t.nodes.map(|p| if p as usize == i { xi } else { x[p as usize] });
+                bend_triple_into(p, t.rest, t.k_b, None).energy
+            }
+        };
+    }
+    energy
 }
 
 /// Total element energy of the last [`evaluate`], J.

@@ -108,11 +108,17 @@ pub fn eval_link(model: &ClothModel, k: usize, x: &[Vec3], stitches_closed: &[bo
 /// Jacobian).
 #[inline]
 pub(crate) fn link_energy(model: &ClothModel, k: usize, x: &[Vec3], stitches_closed: &[bool]) -> f64 {
-    let chord = |i: u32, j: u32| (x[j as usize] - x[i as usize]).norm();
+    let (i, j, _) = model.link_ends(k);
+    link_energy_at_chord(model, k, (x[j] - x[i]).norm(), stitches_closed)
+}
+
+/// Elastic energy of link `k` at chord length `chord` (m), J.
+#[inline]
+pub(crate) fn link_energy_at_chord(model: &ClothModel, k: usize, chord: f64, stitches_closed: &[bool]) -> f64 {
     match link_ref(model, k, stitches_closed) {
-        LinkRef::Stretch(l) => l.eval(chord(l.i, l.j)).energy,
-        LinkRef::Bend(l) => l.eval(chord(l.i, l.j)).energy,
-        LinkRef::Stitch(s, closed) => stitch_law(s, closed, chord(s.i, s.j)).energy,
+        LinkRef::Stretch(l) => l.eval(chord).energy,
+        LinkRef::Bend(l) => l.eval(chord).energy,
+        LinkRef::Stitch(s, closed) => stitch_law(s, closed, chord).energy,
     }
 }
 

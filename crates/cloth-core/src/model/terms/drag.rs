@@ -43,6 +43,7 @@ impl ForceTerm for Drag {
 
     fn vertex(&self, at: &At<'_>, i: usize) -> VertexBlock {
         let c = at.model.drag(i);
-        VertexBlock { force: -at.v[i] * c, stiffness: Mat3::zeros(), damping: Mat3::identity() * c }
+        let force = -at.v[i] * c;
+        VertexBlock { force, stiffness: Mat3::zeros(), damping: Mat3::identity() * c, dissipative: force }
     }
 }

@@ -49,4 +49,8 @@ impl ForceTerm for Elements {
         let (force, stiffness) = elements::vertex_at(at.model.elements(), at.x, i);
         VertexBlock { force, stiffness, ..VertexBlock::zero() }
     }
+
+    fn vertex_energy(&self, at: &At<'_>, i: usize, xi: Vec3) -> Option<f64> {
+        Some(elements::vertex_energy(at.model.elements(), at.x, i, xi))
+    }
 }

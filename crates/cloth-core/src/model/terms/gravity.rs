@@ -42,4 +42,9 @@ impl ForceTerm for Gravity {
         let g = at.model.effects().gravity.unwrap_or_else(Vec3::zeros);
         VertexBlock { force: g * at.model.masses()[i], ..VertexBlock::zero() }
     }
+
+    fn vertex_energy(&self, at: &At<'_>, i: usize, xi: Vec3) -> Option<f64> {
+        let g = at.model.effects().gravity.unwrap_or_else(Vec3::zeros);
+        Some(-at.model.masses()[i] * g.dot(&xi))
+    }
 }

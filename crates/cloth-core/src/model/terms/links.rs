@@ -4,7 +4,7 @@
 //! law's force `phi(d)`, and its damper acts on their relative velocity.
 
 use super::{At, ForceTerm, VertexBlock};
-use crate::forces::{ForceBuffers, eval_link, gather_links, link_energy, link_force};
+use crate::forces::{ForceBuffers, eval_link, gather_links, link_energy, link_energy_at_chord, link_force};
 use crate::{ClothModel, Vec3};
 use cloth_linalg::ROW_CHUNK;
 use rayon::prelude::*;
@@ -61,10 +61,20 @@ impl ForceTerm for Links {
             let e = eval_link(at.model, inc.link as usize, at.x, at.stitches_closed);
             let elastic = if inc.first { e.force } else { -e.force };
             let relative = at.v[inc.other as usize] - at.v[i];
-            block.force += elastic + e.damping * relative;
+            let damper = e.damping * relative;
+            block.force += elastic + damper;
+            block.dissipative += damper;
             block.stiffness += e.stiffness;
             block.damping += e.damping;
         }
         block
+    }
+
+    fn vertex_energy(&self, at: &At<'_>, i: usize, xi: Vec3) -> Option<f64> {
+        let energy = at.model.incidence(i).iter().map(|inc| {
+            let chord = (at.x[inc.other as usize] - xi).norm();
+            link_energy_at_chord(at.model, inc.link as usize, chord, at.stitches_closed)
+        });
+        Some(energy.sum())
     }
 }

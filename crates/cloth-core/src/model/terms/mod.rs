@@ -54,12 +54,16 @@ pub struct VertexBlock {
     pub stiffness: Mat3,
     /// `-df_i/dv_i`, N s/m.
     pub damping: Mat3,
+    /// The part of `force` that dissipates (dampers, drag), N: the rest
+    /// of a term with [`ForceTerm::vertex_energy`] is minus that energy's
+    /// gradient.
+    pub dissipative: Vec3,
 }
 
 impl VertexBlock {
     /// No force, no blocks.
     pub fn zero() -> Self {
-        Self { force: Vec3::zeros(), stiffness: Mat3::zeros(), damping: Mat3::zeros() }
+        Self { force: Vec3::zeros(), stiffness: Mat3::zeros(), damping: Mat3::zeros(), dissipative: Vec3::zeros() }
     }
 }
 
@@ -68,6 +72,7 @@ impl std::ops::AddAssign for VertexBlock {
         self.force += o.force;
         self.stiffness += o.stiffness;
         self.damping += o.damping;
+        self.dissipative += o.dissipative;
     }
 }
 
@@ -97,6 +102,15 @@ pub trait ForceTerm: Send + Sync + std::fmt::Debug {
 
     /// Particle `i`'s force and blocks.
     fn vertex(&self, at: &At<'_>, i: usize) -> VertexBlock;
+
+    /// The energy of the term's parts that involve particle `i`, with `i`
+    /// at `xi` and the others at `at.x`, J: what changes when `i` alone
+    /// moves (a vertex solver's line search). `None` (the default) for a
+    /// term without a potential: its force then counts as constant over
+    /// a local step.
+    fn vertex_energy(&self, _at: &At<'_>, _i: usize, _xi: Vec3) -> Option<f64> {
+        None
+    }
 
     /// Whether the implicit steps assemble this term's laws in their fused
     /// pass ([`crate::forces::assemble`]: the built-in terms). The others

@@ -88,6 +88,52 @@ fn forces_are_minus_the_energy_gradient() {
     }
 }
 
+/// A particle's vertex energy changes as the term's whole energy does
+/// when that particle alone moves, and its force less the dissipative part
+/// is minus the vertex energy's gradient (moving damped particles).
+#[test]
+fn vertex_energies_are_the_particles_share_of_the_energy() {
+    for kind in MODELS {
+        let (model, x, v) = stretched(kind);
+        for term in acting(&model) {
+            let a = at(&model, &x, &v);
+            if term.vertex_energy(&a, 0, x[0]).is_none() {
+                assert_eq!(term.name(), "drag", "only drag has no potential");
+                let b = term.vertex(&a, 3);
+                assert_eq!(b.force, b.dissipative, "a term without a potential dissipates");
+                continue;
+            }
+            let (mut worst, mut largest, mut gradient_off, mut force) = (0.0_f64, 0.0_f64, 0.0_f64, 0.0_f64);
+            for i in 0..x.len() {
+                let moved = x[i] + Vec3::new(1e-3, -2e-3, 1.5e-3);
+                let mut y = x.clone();
+                y[i] = moved;
+                let whole = term.energy(&at(&model, &y, &v)) - term.energy(&a);
+                let share = term.vertex_energy(&a, i, moved).unwrap() - term.vertex_energy(&a, i, x[i]).unwrap();
+                worst = worst.max((whole - share).abs());
+                largest = largest.max(whole.abs());
+                let b = term.vertex(&a, i);
+                let elastic = b.force - b.dissipative;
+                for c in 0..3 {
+                    let e = |d: f64| term.vertex_energy(&a, i, x[i] + Vec3::ith(c, d)).unwrap();
+                    let gradient = (e(STEP) - e(-STEP)) / (2.0 * STEP);
+                    gradient_off = gradient_off.max((elastic[c] + gradient).abs());
+                    force = force.max(elastic[c].abs());
+                }
+            }
+            println!(
+                "{kind:?} {}: share off by {worst:.2e} J of changes up to {largest:.2e} J; \
+                 |f + dE_i/dx_i| <= {gradient_off:.2e} of forces up to {force:.2e} N",
+                term.name()
+            );
+            assert!(worst <= 1e-12 * largest.max(1e-9), "{kind:?} {}: {worst:e} of {largest:e}", term.name());
+            // As the whole energy's gradient: measured at most 1e-8 of the
+            // largest force (Volino's triangles).
+            assert!(gradient_off <= 2e-8 * force.max(1e-3), "{kind:?} {}: {gradient_off:e} of {force:e}", term.name());
+        }
+    }
+}
+
 /// The stiffness block is `-df_i/dx_i` where the law's Jacobian is the
 /// matrix's (links in tension, elements: exact or their PSD part), and the
 /// damping block is `-df_i/dv_i`.

@@ -1,0 +1,551 @@
+//! Vertex Block Descent (Chen, Macklin et al., SIGGRAPH 2024): backward
+//! Euler's incremental potential
+//! `G(x) = sum_i m_i / (2 h^2) |x_i - y_i|^2 + E(x) + contacts`,
+//! `y = x_n + h v_n`, minimised by Gauss-Seidel sweeps of per-particle
+//! 3x3 Newton steps `dx_i = H_i^-1 f_i`, colour by colour
+//! ([`crate::colouring::Colouring`]: the particles of one colour share no
+//! link or element, so their steps run in parallel and give the same bits
+//! with any number of threads), with Chebyshev's semi-iterative
+//! acceleration over the sweeps.
+//!
+//! The forces and blocks are the [`crate::terms`]' (the same laws as the
+//! implicit steps, so a material means the same cloth); damping enters
+//! through the velocity `v = (x - x_n) / h` the iterate implies (its
+//! block over `h` in `H_i`). Wind and the control's forces are taken at the
+//! step's start, as the implicit steps take them. Solids and
+//! self-collision pairs are energies of the particles they touch, with
+//! lagged, smoothed Coulomb friction (IPC), and per-particle bounds on each
+//! local step keep particles out of solids ([`contact`]).
+
+mod contact;
+#[cfg(test)]
+mod tests;
+
+use crate::colouring::Colouring;
+use crate::contacts::{FRICTION_SMOOTHING_M_S, SolidContact, contact_penalty, contact_penalty_stiffness};
+use crate::control::{Control, PinPaths};
+use crate::integrator::{StageTimes, StepError, StepReport, check_step, commit, external_forces};
+use crate::terms::{At, acting};
+use crate::{ClothModel, ClothState, ContactStats, Mat3, SolverParams, Vec3, Workspace};
+use contact::{PairIndex, Plane, SelfPair, Surroundings, plane_force, surroundings};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::time::Instant;
+
+/// Settings of the vertex solver (`[solver.vbd]` in a scene).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct VbdParams {
+    /// Sweeps over every colour per step. Default 10.
+    pub iterations: usize,
+    /// Stop before `iterations` once a sweep moves no particle farther
+    /// than this, m. 0 (default): always `iterations` sweeps.
+    pub tolerance_m: f64,
+    /// Chebyshev acceleration's estimate of the sweeps' spectral radius,
+    /// in `[0, 1)`; 0 (default) turns it off. Off by default: with solid
+    /// contacts it fed energy into the incline's cloth (0.9 drove it
+    /// uphill; `docs/results/vbd.md`).
+    pub chebyshev_rho: f64,
+    /// Halve a local step until the particle's local potential falls, so
+    /// that every sweep lowers the step's potential. Off by default: it
+    /// evaluates the energies twice more per local step (2.7 times the
+    /// hanging cloth's step, `docs/results/vbd.md`); without it a sweep
+    /// over Choi & Ko's compressed links (concave in compression) can
+    /// raise the potential, and the next ones lower it again.
+    pub line_search: bool,
+}
+
+impl Default for VbdParams {
+    fn default() -> Self {
+        Self { iterations: 10, tolerance_m: 0.0, chebyshev_rho: 0.0, line_search: false }
+    }
+}
+
+/// Chebyshev's weight `omega_k` of sweep `k` (1-based) from the previous
+/// one (Wang 2015, as VBD uses it): 1, then `2 / (2 - rho^2)`, then
+/// `4 / (4 - rho^2 omega_{k-1})`.
+pub fn chebyshev_omega(k: usize, rho: f64, previous: f64) -> f64 {
+    match k {
+        0 | 1 => 1.0,
+        2 => 2.0 / (2.0 - rho * rho),
+        _ => 4.0 / (4.0 - rho * rho * previous),
+    }
+}
+
+/// Vertex Block Descent (`vbd`).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Vbd;
+
+/// Buffers of the vertex solver, allocated on first use.
+#[derive(Debug, Clone)]
+pub(crate) struct VbdBuffers {
+    colouring: Colouring,
+    /// Inertial target `x_n + h v_n`, m.
+    y: Vec<Vec3>,
+    /// The iterate, m, and the velocity it implies, m/s.
+    x: Vec<Vec3>,
+    v: Vec<Vec3>,
+    /// The iterates one and two sweeps back (Chebyshev).
+    previous: Vec<Vec3>,
+    before_previous: Vec<Vec3>,
+    /// Prescribed this step (pins, held particles).
+    fixed: Vec<bool>,
+    /// One colour's local steps: displacement, and whether its bound cut it.
+    moves: Vec<(Vec3, bool)>,
+    /// Particles whose bound cut their step in this sweep.
+    cut: Vec<bool>,
+    around: Vec<Surroundings>,
+    queries: Vec<u32>,
+    pairs: Vec<SelfPair>,
+    index: PairIndex,
+}
+
+impl VbdBuffers {
+    fn new(model: &ClothModel) -> Self {
+        let n = model.particle_count();
+        let zeros = vec![Vec3::zeros(); n];
+        Self {
+            colouring: Colouring::of(model),
+            y: zeros.clone(),
+            x: zeros.clone(),
+            v: zeros.clone(),
+            previous: zeros.clone(),
+            before_previous: zeros,
+            fixed: vec![false; n],
+            moves: Vec::with_capacity(n),
+            cut: vec![false; n],
+            around: vec![Surroundings::free(Vec3::zeros()); n],
+            queries: vec![0; n],
+            pairs: Vec::new(),
+            index: PairIndex::default(),
+        }
+    }
+}
+
+/// What every local step of one step reads besides the iterate.
+#[derive(Clone, Copy)]
+struct Common<'a> {
+    model: &'a ClothModel,
+    stitches_closed: &'a [bool],
+    external: Option<&'a [Vec3]>,
+    h: f64,
+    thickness: f64,
+    self_thickness: f64,
+}
+
+/// Particle `i`'s loads at the iterate, besides inertia.
+struct Loads {
+    /// Force, N.
+    force: Vec3,
+    /// `-df/dx` with the dampers' `-df/dv / h`, N/m.
+    stiffness: Mat3,
+    /// The part of `force` a local step counts constant: dissipative
+    /// forces, loads without a potential, friction (lagged), N.
+    constant: Vec3,
+    /// The energy of the terms and contacts with a potential, J.
+    energy: f64,
+}
+
+/// Halvings of a local step before it is dropped for the sweep.
+const MAX_HALVINGS: usize = 8;
+
+/// Everything a local step reads: the iterate and the step's fixed data.
+struct Local<'a> {
+    common: Common<'a>,
+    x: &'a [Vec3],
+    v: &'a [Vec3],
+    y: &'a [Vec3],
+    around: &'a [Surroundings],
+    pairs: &'a [SelfPair],
+    index: &'a PairIndex,
+}
+
+impl<'a> Local<'a> {
+    /// The local steps at the buffers' iterate.
+    fn at(common: Common<'a>, b: &'a VbdBuffers) -> Self {
+        Self { common, x: &b.x, v: &b.v, y: &b.y, around: &b.around, pairs: &b.pairs, index: &b.index }
+    }
+
+    /// Particle `i`'s loads from everything but inertia at the iterate
+    /// (the energies only `with_energy`).
+    fn loads(&self, i: usize, with_energy: bool) -> Loads {
+        let Common { model, stitches_closed, external, h, thickness, self_thickness } = self.common;
+        let at = At { model, x: self.x, v: self.v, stitches_closed };
+        let mut l = Loads { force: Vec3::zeros(), stiffness: Mat3::zeros(), constant: Vec3::zeros(), energy: 0.0 };
+        for term in acting(model) {
+            let b = term.vertex(&at, i);
+            l.force += b.force;
+            l.stiffness += b.stiffness + b.damping / h;
+            if with_energy {
+                match term.vertex_energy(&at, i, self.x[i]) {
+                    Some(e) => l.energy += e,
+                    None => l.constant += b.force - b.dissipative,
+                }
+            }
+            l.constant += b.dissipative;
+        }
+        if let Some(e) = external {
+            l.force += e[i];
+            l.constant += e[i];
+        }
+        let penalty = contact_penalty_stiffness(model.masses()[i], h);
+        for plane in self.around[i].planes.iter().flatten() {
+            let (pf, pk) = plane_force(plane, &self.x[i], &self.v[i], penalty, thickness, h, FRICTION_SMOOTHING_M_S);
+            let (energy, push) = contact_penalty(plane.gap(&self.x[i]), thickness, penalty);
+            l.force += pf;
+            l.stiffness += pk;
+            l.energy += energy;
+            // Friction counts as constant over a local step (lagged).
+            l.constant += pf - plane.normal * push;
+        }
+        for &(pair, slot) in self.index.of(i) {
+            let p = &self.pairs[pair as usize];
+            let (pf, pk) = p.force_on(slot as usize, self.x, self_thickness);
+            l.force += pf;
+            l.stiffness += pk;
+            l.energy += contact_penalty(p.gap(self.x), self_thickness, p.stiffness_n_m).0;
+        }
+        l
+    }
+
+    /// The local potential of particle `i` at `xi` (J, up to a constant):
+    /// inertia, the energies of the terms with one and of the contacts, and
+    /// the work of the loads counted constant (`constant`, N).
+    fn merit(&self, i: usize, xi: Vec3, constant: &Vec3) -> f64 {
+        let Common { model, stitches_closed, h, thickness, self_thickness, .. } = self.common;
+        let at = At { model, x: self.x, v: self.v, stitches_closed };
+        let inertia = model.masses()[i] / (2.0 * h * h) * (xi - self.y[i]).norm_squared();
+        let terms: f64 = acting(model).filter_map(|t| t.vertex_energy(&at, i, xi)).sum();
+        let penalty = contact_penalty_stiffness(model.masses()[i], h);
+        let planes: f64 =
+            self.around[i].planes.iter().flatten().map(|p| contact_penalty(p.gap(&xi), thickness, penalty).0).sum();
+        let pairs: f64 = self
+            .index
+            .of(i)
+            .iter()
+            .map(|&(pair, slot)| {
+                let p = &self.pairs[pair as usize];
+                let gap = p.gap(self.x) + p.coefficients[slot as usize] * p.direction.dot(&(xi - self.x[i]));
+                contact_penalty(gap, self_thickness, p.stiffness_n_m).0
+            })
+            .sum();
+        inertia + terms + planes + pairs - constant.dot(&xi)
+    }
+
+    /// The local Newton step of particle `i` (m), cut to its bounds and,
+    /// with `line_search`, halved until the local potential falls (a
+    /// Hessian made positive semidefinite, or a law concave in
+    /// compression, can overshoot); whether the ball cut it.
+    fn step(&self, i: usize, line_search: bool) -> (Vec3, bool) {
+        let h = self.common.h;
+        let inertia = self.common.model.masses()[i] / (h * h);
+        let l = self.loads(i, line_search);
+        let force = l.force - (self.x[i] - self.y[i]) * inertia;
+        let hessian = l.stiffness + Mat3::identity() * inertia;
+        let dx = match hessian.cholesky() {
+            Some(c) => c.solve(&force),
+            // Indefinite: a gradient step, short enough for the stiffest axis.
+            None => force / (inertia + l.stiffness.diagonal().abs().max()),
+        };
+        let (mut dx, cut) = self.bounded(i, dx);
+        if line_search {
+            let work = l.constant.dot(&self.x[i]);
+            let start = inertia / 2.0 * (self.x[i] - self.y[i]).norm_squared() + l.energy - work;
+            // Changes below the rounding of the potential's parts count as none.
+            let rounding = 1e-13 * (start.abs() + l.energy.abs() + work.abs());
+            let mut halvings = 0;
+            while self.merit(i, self.x[i] + dx, &l.constant) > start + rounding {
+                if halvings == MAX_HALVINGS {
+                    return (Vec3::zeros(), false);
+                }
+                dx *= 0.5;
+                halvings += 1;
+            }
+        }
+        (dx, cut)
+    }
+
+    /// `dx` from particle `i`'s iterate, shortened so that it comes no
+    /// closer to a solid's plane than [`SOLID_FLOOR`] of the thickness (nor
+    /// deeper, if it is already closer) and no self pair closes more than
+    /// half its gap,
+    /// then cut to the particle's ball; whether the ball cut it.
+    fn bounded(&self, i: usize, mut dx: Vec3) -> (Vec3, bool) {
+        let from = self.x[i];
+        let mut share = 1.0_f64;
+        let mut keep = |gap: f64, change: f64, floor: f64| {
+            if change < 0.0 && gap + change < floor {
+                share = share.min(((floor - gap) / change).max(0.0));
+            }
+        };
+        let floor = SOLID_FLOOR * self.common.thickness;
+        for plane in self.around[i].planes.iter().flatten() {
+            let gap = plane.gap(&from);
+            keep(gap, plane.normal.dot(&dx), gap.min(floor));
+        }
+        for &(pair, slot) in self.index.of(i) {
+            let p = &self.pairs[pair as usize];
+            let gap = p.gap(self.x);
+            keep(gap, p.coefficients[slot as usize] * p.direction.dot(&dx), (0.5 * gap).min(gap));
+        }
+        dx *= share;
+        let ball = &self.around[i];
+        let to = from + dx - ball.centre;
+        if to.norm() > ball.radius_m {
+            return (ball.centre + to * (ball.radius_m / to.norm()) - from, true);
+        }
+        (dx, false)
+    }
+}
+
+impl crate::Integrator for Vbd {
+    fn name(&self) -> &'static str {
+        crate::IntegratorKind::Vbd.name()
+    }
+
+    fn step(
+        &self,
+        model: &ClothModel,
+        state: &mut ClothState,
+        control: &Control,
+        h: f64,
+        ws: &mut Workspace,
+        solver: &SolverParams,
+    ) -> Result<StepReport, StepError> {
+        check_step(model, state, h)?;
+        let params = solver.vbd;
+        let t_start = Instant::now();
+        let has_external = external_forces(model, state, control, ws);
+        let Workspace { vbd, contacts, external, pin_forces, new_x, new_v, .. } = ws;
+        let b = vbd.get_or_insert_with(|| VbdBuffers::new(model));
+        let n = state.len();
+        let (xn, vn) = (&state.x[..], &state.v[..]);
+        let gravity = model.effects().gravity.unwrap_or_else(Vec3::zeros);
+        for i in 0..n {
+            b.y[i] = xn[i] + vn[i] * h;
+            b.fixed[i] = false;
+        }
+        let paths = PinPaths::new(model, control, xn, state.time_s, h);
+        for k in 0..paths.count() {
+            b.fixed[paths.particle(k)] = true;
+        }
+
+        // Solids and self pairs around each particle, from the step's start.
+        let mut stats = ContactStats::default();
+        let t_self = Instant::now();
+        b.pairs.clear();
+        let self_thickness = model.self_collision().map_or(0.0, |sc| sc.thickness_m);
+        if let Some(sc) = model.self_collision() {
+            let found = crate::contacts::detect_self_contacts(model, sc, xn, vn, h, contacts).map_err(|particle| {
+                StepError::NonFinite { step: state.steps + 1, time_s: state.time_s, particle, quantity: "position" }
+            })?;
+            stats.hash_builds += found.hash_builds;
+            b.pairs.extend(contacts.self_pairs.iter().filter(|c| c.repels).map(|c| SelfPair::of(c, sc.stiffness_n_m)));
+            stats.self_contacts = b.pairs.len();
+        }
+        b.index.rebuild(n, &b.pairs);
+        let self_collision_s = t_self.elapsed().as_secs_f64();
+        let thickness = model.contact_thickness();
+        let reach = |i: usize| 2.0 * thickness + 2.0 * h * vn[i].norm();
+        let t_collide = Instant::now();
+        let solids = if model.colliders().is_empty() {
+            &[][..]
+        } else {
+            contacts.set_external(control);
+            contacts.next.at(model, &contacts.external, state.time_s + h)
+        };
+        let fixed = &b.fixed;
+        b.around.par_iter_mut().zip(b.queries.par_iter_mut()).enumerate().for_each(|(i, (a, q))| {
+            (*a, *q) = if fixed[i] || solids.is_empty() {
+                (Surroundings::free(xn[i]), 0)
+            } else {
+                surroundings(model, solids, xn[i], reach(i), thickness)
+            };
+        });
+        for (a, q) in b.around.iter().zip(&b.queries) {
+            stats.narrow_phase_queries += *q as usize;
+            for p in a.planes.iter().flatten() {
+                stats.max_penetration_m = stats.max_penetration_m.max(-p.gap(&a.centre));
+            }
+        }
+        let collision_s = t_collide.elapsed().as_secs_f64();
+        let common = Common {
+            model,
+            stitches_closed: &state.stitches_closed,
+            external: has_external.then_some(&external[..]),
+            h,
+            thickness,
+            self_thickness,
+        };
+
+        // The first guess, within the bounds from the step's start: the
+        // paper's adaptive one, gravity as far as each particle's last
+        // acceleration followed it.
+        let t_solve = Instant::now();
+        let mut moves = std::mem::take(&mut b.moves);
+        moves.clear();
+        moves.resize(n, (Vec3::zeros(), false));
+        {
+            let start = Local { x: xn, v: vn, ..Local::at(common, b) };
+            let history = state.has_history && state.last_dt_s > 0.0;
+            moves.par_chunks_mut(MOVE_CHUNK).enumerate().for_each(|(chunk, ms)| {
+                for (k, m) in ms.iter_mut().enumerate() {
+                    let i = chunk * MOVE_CHUNK + k;
+                    let last = history.then(|| (state.v[i] - state.v_prev[i]) / state.last_dt_s);
+                    let accel = adaptive_acceleration(gravity, last);
+                    *m = start.bounded(i, vn[i] * h + accel * (h * h));
+                }
+            });
+        }
+        for i in 0..n {
+            b.x[i] = if b.fixed[i] { Vec3::zeros() } else { xn[i] + moves[i].0 };
+        }
+        for k in 0..paths.count() {
+            b.x[paths.particle(k)] = paths.position(k, state.time_s + h);
+        }
+        for ((v, x), x0) in b.v.iter_mut().zip(&b.x).zip(xn) {
+            *v = (x - x0) / h;
+        }
+        b.previous.copy_from_slice(&b.x);
+        b.before_previous.copy_from_slice(&b.x);
+
+        let mut omega = 1.0;
+        let mut sweeps = 0;
+        let mut converged = params.tolerance_m <= 0.0;
+        for sweep in 1..=params.iterations {
+            sweeps = sweep;
+            // The friction's normal forces, lagged from the sweep's start.
+            for (i, a) in b.around.iter_mut().enumerate() {
+                let k = contact_penalty_stiffness(model.masses()[i], h);
+                for p in a.planes.iter_mut().flatten() {
+                    p.lagged_normal_n = contact_penalty(p.gap(&b.x[i]), thickness, k).1;
+                }
+            }
+            let mut largest = 0.0_f64;
+            for c in 0..b.colouring.len() {
+                let group = &b.colouring.groups()[c];
+                moves.clear();
+                moves.resize(group.len(), (Vec3::zeros(), false));
+                let local = Local::at(common, b);
+                let fixed = &b.fixed;
+                moves.par_chunks_mut(MOVE_CHUNK).zip(group.par_chunks(MOVE_CHUNK)).for_each(|(ms, ids)| {
+                    for (m, &i) in ms.iter_mut().zip(ids) {
+                        let i = i as usize;
+                        *m = if fixed[i] { (Vec3::zeros(), false) } else { local.step(i, params.line_search) };
+                    }
+                });
+                let group = &b.colouring.groups()[c];
+                for (&(dx, cut), &i) in moves.iter().zip(group) {
+                    let i = i as usize;
+                    b.x[i] += dx;
+                    b.v[i] = (b.x[i] - xn[i]) / h;
+                    b.cut[i] |= cut;
+                    largest = largest.max(dx.norm());
+                }
+            }
+            // Chebyshev over the sweeps, kept where it stays in bounds.
+            omega = chebyshev_omega(sweep, params.chebyshev_rho, omega);
+            if params.chebyshev_rho > 0.0 && sweep > 1 {
+                let floor = SOLID_FLOOR * thickness;
+                let particles = b.x.iter_mut().zip(b.v.iter_mut()).zip(&b.before_previous).zip(&b.around);
+                for (i, (((x, v), older), a)) in particles.enumerate() {
+                    if b.fixed[i] {
+                        continue;
+                    }
+                    let accelerated = older + (*x - older) * omega;
+                    let in_planes = a.planes.iter().flatten().all(|p| p.gap(&accelerated) >= p.gap(x).min(floor));
+                    if in_planes && (accelerated - a.centre).norm() <= a.radius_m {
+                        *x = accelerated;
+                        *v = (accelerated - xn[i]) / h;
+                    }
+                }
+            }
+            std::mem::swap(&mut b.before_previous, &mut b.previous);
+            b.previous.copy_from_slice(&b.x);
+            // Particles their ball stopped look around again from where they are.
+            if !solids.is_empty() {
+                let (around, cut, x) = (&mut b.around, &mut b.cut, &b.x);
+                around.par_iter_mut().zip(cut.par_iter_mut()).enumerate().for_each(|(i, (a, c))| {
+                    if *c {
+                        *a = surroundings(model, solids, x[i], reach(i), thickness).0;
+                        *c = false;
+                    }
+                });
+            }
+            if params.tolerance_m > 0.0 && largest < params.tolerance_m {
+                converged = true;
+                break;
+            }
+        }
+        b.moves = moves;
+        let solve_s = t_solve.elapsed().as_secs_f64();
+
+        // Outputs: pin reactions, contact impulses, the new state.
+        let local = Local::at(common, b);
+        pin_forces.resize(paths.count(), Vec3::zeros());
+        for (k, f) in pin_forces.iter_mut().enumerate() {
+            let i = paths.particle(k);
+            let inertia = model.masses()[i] / (h * h);
+            *f = (b.x[i] - b.y[i]) * inertia - local.loads(i, false).force;
+        }
+        contacts.solid.clear();
+        for (i, a) in b.around.iter().enumerate() {
+            let k = contact_penalty_stiffness(model.masses()[i], h);
+            for p in a.planes.iter().flatten() {
+                let gap = p.gap(&b.x[i]);
+                let push = contact_penalty(gap, thickness, k).1;
+                if push > 0.0 {
+                    let (force, _) = plane_force(p, &b.x[i], &b.v[i], k, thickness, h, FRICTION_SMOOTHING_M_S);
+                    contacts.solid.push(solid_contact(i, p, push, force * h, gap));
+                }
+            }
+        }
+        stats.contacts = contacts.solid.len();
+        new_x.copy_from_slice(&b.x);
+        new_v.copy_from_slice(&b.v);
+        let stages = StageTimes {
+            solve_s,
+            collision_s,
+            self_collision_s,
+            update_s: (t_start.elapsed().as_secs_f64() - solve_s - collision_s - self_collision_s).max(0.0),
+            ..StageTimes::default()
+        };
+        commit(state, ws, h)?;
+        Ok(StepReport {
+            force_evaluations: sweeps,
+            substeps: 1,
+            converged,
+            stages,
+            contacts: stats,
+            descent_iterations: sweeps,
+            ..StepReport::default()
+        })
+    }
+}
+
+/// The share of the contact thickness no local step may carry a particle
+/// below. Not 0: a particle left exactly on a surface has no direction to
+/// it, and the next step's closest point then gave a wrong normal (the
+/// table fixture's rim let particles 2 cm into the top).
+const SOLID_FLOOR: f64 = 0.5;
+
+/// Particles a task of one colour's sweep takes at a time.
+const MOVE_CHUNK: usize = 32;
+
+/// The paper's adaptive first guess's acceleration, m/s^2: gravity `g`
+/// scaled by how much of it the particle's last acceleration `last`
+/// followed, clamped to `[0, 1]` (a particle at rest on a solid starts
+/// where it was); all of `g` without a last step.
+fn adaptive_acceleration(g: Vec3, last: Option<Vec3>) -> Vec3 {
+    let g2 = g.norm_squared();
+    match last {
+        Some(a) if g2 > 0.0 => g * (a.dot(&g) / g2).clamp(0.0, 1.0),
+        _ => g,
+    }
+}
+
+/// What the step reports of a solid's contact with particle `i`.
+fn solid_contact(i: usize, p: &Plane, push: f64, impulse: Vec3, gap: f64) -> SolidContact {
+    let held = SolidContact::new(i, p.collider as usize, p.point, p.normal, p.solid_velocity, p.friction);
+    SolidContact { distance_m: gap, normal_force_n: push, impulse_n_s: impulse, ..held }
+}
