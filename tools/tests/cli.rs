@@ -199,8 +199,8 @@ fn study_freefall_writes_csv_markdown_and_svg() {
 fn study_cost_reports_every_method_and_model() {
     let out = quick_study("cost");
     let csv = std::fs::read_to_string(out.join("cost.csv")).unwrap();
-    // 3 models x 11 methods (10 + BE 0 CG) x 2 sizes.
-    assert_eq!(csv.lines().count(), 1 + 3 * 11 * 2);
+    // 3 models x 14 methods (13 + BE 0 CG) x 2 sizes.
+    assert_eq!(csv.lines().count(), 1 + 3 * 14 * 2);
     for row in csv.lines().skip(1) {
         let us: f64 = row.split(',').nth(6).unwrap().parse().unwrap();
         assert!(us > 0.0 && us.is_finite(), "{row}");

@@ -37,7 +37,7 @@
 //! iterations = 10              # sweeps over every colour per step
 //! tolerance_m = 0.0            # stop earlier once no particle moves farther in a sweep (0: always all)
 //! chebyshev_rho = 0.0          # Chebyshev acceleration's spectral radius estimate (0: off)
-//! line_search = false          # halve a local step until the particle's potential falls
+//! line_search = true           # halve a local step until the particle's potential falls
 //!
 //! [material]
 //! areal_density_kg_m2 = 0.1

@@ -35,6 +35,13 @@ struct Method {
     overrides: &'static [&'static str],
 }
 
+/// Whether the method whose first override is `integrator` (`simulation.
+/// integrator=...`) takes large steps (the implicit solvers and the vertex
+/// solver) rather than the explicit ones' small stable steps.
+fn takes_large_steps(integrator: &str) -> bool {
+    ["backward", "bdf2", "vbd"].iter().any(|name| integrator.contains(name))
+}
+
 const METHODS: &[Method] = &[
     Method { label: "symplectic Euler", overrides: &["simulation.integrator=symplectic-euler"] },
     Method { label: "midpoint", overrides: &["simulation.integrator=midpoint"] },
@@ -58,6 +65,9 @@ const METHODS: &[Method] = &[
     },
     Method { label: "BE PCG", overrides: &["simulation.integrator=backward-euler", "solver.rel_tol=1e-6"] },
     Method { label: "BDF2 PCG", overrides: &["simulation.integrator=bdf2", "solver.rel_tol=1e-6"] },
+    Method { label: "VBD 5 sweeps", overrides: &["simulation.integrator=vbd", "solver.vbd.iterations=5"] },
+    Method { label: "VBD 20 sweeps", overrides: &["simulation.integrator=vbd", "solver.vbd.iterations=20"] },
+    Method { label: "VBD 100 sweeps", overrides: &["simulation.integrator=vbd", "solver.vbd.iterations=100"] },
 ];
 
 /// What a monitored run measured.

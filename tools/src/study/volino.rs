@@ -3,7 +3,8 @@
 //! work-precision on the hanging cloth.
 
 use super::{
-    BLOWN_UP_STRETCH, METHODS, Method, RunStats, StudyArgs, grid, header, monitored_run, setup, with, write_outputs,
+    BLOWN_UP_STRETCH, METHODS, Method, RunStats, StudyArgs, grid, header, monitored_run, setup, takes_large_steps,
+    with, write_outputs,
 };
 use crate::svg::{Axes, Series, line_plot};
 use anyhow::Result;
@@ -220,7 +221,7 @@ pub fn drape(args: &StudyArgs) -> Result<()> {
     let _ = writeln!(md, "{header_row}\n|---|{}", "---|".repeat(all_h.len()));
     let mut series = Vec::new();
     for method in METHODS.iter().filter(|m| !args.quick || !m.label.contains("Euler")) {
-        let explicit = !method.overrides[0].contains("backward") && !method.overrides[0].contains("bdf2");
+        let explicit = !takes_large_steps(method.overrides[0]);
         let hs: &[f64] = if explicit { &explicit_h } else { &implicit_h };
         let _ = write!(md, "| {} |", method.label);
         let mut points = Vec::new();
@@ -317,7 +318,7 @@ pub fn cost(args: &StudyArgs) -> Result<()> {
         let mut be0 = vec![f64::NAN; sizes.len()];
         let mut be8 = vec![f64::NAN; sizes.len()];
         for (label, overrides) in &cost_methods {
-            let implicit = overrides[0].contains("backward") || overrides[0].contains("bdf2");
+            let implicit = takes_large_steps(overrides[0]);
             let h = if implicit { 1.0 / 90.0 } else { 1e-5 };
             let _ = write!(md, "| {label} |");
             let mut points = Vec::new();
@@ -419,7 +420,7 @@ pub fn precision(args: &StudyArgs) -> Result<()> {
     let mut series = Vec::new();
     for method in METHODS {
         let is_dopri = method.label.starts_with("DOPRI5");
-        let explicit = !method.overrides[0].contains("backward") && !method.overrides[0].contains("bdf2");
+        let explicit = !takes_large_steps(method.overrides[0]);
         let params: Vec<f64> = if is_dopri {
             dopri_tol.to_vec()
         } else if explicit {
