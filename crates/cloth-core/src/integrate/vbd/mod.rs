@@ -22,7 +22,9 @@ mod contact;
 mod tests;
 
 use crate::colouring::Colouring;
-use crate::contacts::{FRICTION_SMOOTHING_M_S, SolidContact, contact_penalty, contact_penalty_stiffness};
+use crate::contacts::{
+    ContactBuffers, FRICTION_SMOOTHING_M_S, SolidContact, contact_penalty, contact_penalty_stiffness,
+};
 use crate::control::{Control, PinPaths};
 use crate::integrator::{StageTimes, StepError, StepReport, check_step, commit, external_forces};
 use crate::terms::{At, acting};
@@ -349,11 +351,12 @@ impl crate::Integrator for Vbd {
         let thickness = model.contact_thickness();
         let reach = |i: usize| 2.0 * thickness + 2.0 * h * vn[i].norm();
         let t_collide = Instant::now();
-        let solids = if model.colliders().is_empty() {
-            &[][..]
+        let (solids, solids_now) = if model.colliders().is_empty() {
+            (&[][..], &[][..])
         } else {
             contacts.set_external(control);
-            contacts.next.at(model, &contacts.external, state.time_s + h)
+            let ContactBuffers { now, next, external: motions, .. } = contacts;
+            (next.at(model, motions, state.time_s + h), now.at(model, motions, state.time_s))
         };
         let fixed = &b.fixed;
         b.around.par_iter_mut().zip(b.queries.par_iter_mut()).enumerate().for_each(|(i, (a, q))| {
@@ -363,10 +366,15 @@ impl crate::Integrator for Vbd {
                 surroundings(model, solids, xn[i], reach(i), thickness)
             };
         });
-        for (a, q) in b.around.iter().zip(&b.queries) {
+        for (i, (a, q)) in b.around.iter().zip(&b.queries).enumerate() {
             stats.narrow_phase_queries += *q as usize;
+            // How deep the step starts inside a solid where the solid is
+            // now (as the other integrators report it), for the particles
+            // near one.
             for p in a.planes.iter().flatten() {
-                stats.max_penetration_m = stats.max_penetration_m.max(-p.gap(&a.centre));
+                let k = p.collider as usize;
+                let now = model.colliders()[k].shape.closest(solids_now[k].pose(), xn[i]);
+                stats.max_penetration_m = stats.max_penetration_m.max(-now.distance_m);
             }
         }
         let collision_s = t_collide.elapsed().as_secs_f64();
