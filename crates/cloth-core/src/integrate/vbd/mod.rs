@@ -83,12 +83,17 @@ pub struct Vbd;
 #[derive(Debug, Clone)]
 pub(crate) struct VbdBuffers {
     colouring: Colouring,
-    /// Inertial target `x_n + h v_n`, m.
-    y: Vec<Vec3>,
-    /// The iterate, m, and the velocity it implies, m/s.
+    /// The displacement inertia alone would make, `h v_n`, m.
+    inertial: Vec<Vec3>,
+    /// The iterate's displacement over the step, m: the unknown. Kept
+    /// apart from the positions so that the velocity `d / h` keeps its
+    /// digits when the step is far below a position's rounding (h = 1e-9
+    /// s moves a particle 1e-17 m, below the last bit of a position of 1 m).
+    d: Vec<Vec3>,
+    /// The iterate's positions `x_n + d`, m, and velocities `d / h`, m/s.
     x: Vec<Vec3>,
     v: Vec<Vec3>,
-    /// The iterates one and two sweeps back (Chebyshev).
+    /// The displacements one and two sweeps back (Chebyshev).
     previous: Vec<Vec3>,
     before_previous: Vec<Vec3>,
     /// Prescribed this step (pins, held particles).
@@ -109,7 +114,8 @@ impl VbdBuffers {
         let zeros = vec![Vec3::zeros(); n];
         Self {
             colouring: Colouring::of(model),
-            y: zeros.clone(),
+            inertial: zeros.clone(),
+            d: zeros.clone(),
             x: zeros.clone(),
             v: zeros.clone(),
             previous: zeros.clone(),
@@ -157,7 +163,8 @@ struct Local<'a> {
     common: Common<'a>,
     x: &'a [Vec3],
     v: &'a [Vec3],
-    y: &'a [Vec3],
+    d: &'a [Vec3],
+    inertial: &'a [Vec3],
     around: &'a [Surroundings],
     pairs: &'a [SelfPair],
     index: &'a PairIndex,
@@ -166,7 +173,8 @@ struct Local<'a> {
 impl<'a> Local<'a> {
     /// The local steps at the buffers' iterate.
     fn at(common: Common<'a>, b: &'a VbdBuffers) -> Self {
-        Self { common, x: &b.x, v: &b.v, y: &b.y, around: &b.around, pairs: &b.pairs, index: &b.index }
+        let (x, v, d, inertial) = (&b.x[..], &b.v[..], &b.d[..], &b.inertial[..]);
+        Self { common, x, v, d, inertial, around: &b.around, pairs: &b.pairs, index: &b.index }
     }
 
     /// Particle `i`'s loads from everything but inertia at the iterate
@@ -211,13 +219,15 @@ impl<'a> Local<'a> {
         l
     }
 
-    /// The local potential of particle `i` at `xi` (J, up to a constant):
-    /// inertia, the energies of the terms with one and of the contacts, and
-    /// the work of the loads counted constant (`constant`, N).
-    fn merit(&self, i: usize, xi: Vec3, constant: &Vec3) -> f64 {
+    /// The local potential of particle `i` moved by `dx` from the iterate
+    /// (J, up to a constant): inertia, the energies of the terms with one
+    /// and of the contacts, and the work of the loads counted constant
+    /// (`constant`, N).
+    fn merit(&self, i: usize, dx: Vec3, constant: &Vec3) -> f64 {
         let Common { model, stitches_closed, h, thickness, self_thickness, .. } = self.common;
         let at = At { model, x: self.x, v: self.v, stitches_closed };
-        let inertia = model.masses()[i] / (2.0 * h * h) * (xi - self.y[i]).norm_squared();
+        let xi = self.x[i] + dx;
+        let inertia = model.masses()[i] / (2.0 * h * h) * (self.d[i] + dx - self.inertial[i]).norm_squared();
         let terms: f64 = acting(model).filter_map(|t| t.vertex_energy(&at, i, xi)).sum();
         let penalty = contact_penalty_stiffness(model.masses()[i], h);
         let planes: f64 =
@@ -243,7 +253,7 @@ impl<'a> Local<'a> {
         let h = self.common.h;
         let inertia = self.common.model.masses()[i] / (h * h);
         let l = self.loads(i, line_search);
-        let force = l.force - (self.x[i] - self.y[i]) * inertia;
+        let force = l.force - (self.d[i] - self.inertial[i]) * inertia;
         let hessian = l.stiffness + Mat3::identity() * inertia;
         let dx = match hessian.cholesky() {
             Some(c) => c.solve(&force),
@@ -253,11 +263,17 @@ impl<'a> Local<'a> {
         let (mut dx, cut) = self.bounded(i, dx);
         if line_search {
             let work = l.constant.dot(&self.x[i]);
-            let start = inertia / 2.0 * (self.x[i] - self.y[i]).norm_squared() + l.energy - work;
-            // Changes below the rounding of the potential's parts count as none.
+            let start = inertia / 2.0 * (self.d[i] - self.inertial[i]).norm_squared() + l.energy - work;
+            // Changes below the rounding of the potential's parts count as
+            // none, and a step whose predicted decrease (`f . dx / 2`) is
+            // below it is taken unchecked: the check would compare noise
+            // (at h = 1e-9 s it stopped a falling particle).
             let rounding = 1e-13 * (start.abs() + l.energy.abs() + work.abs());
+            if 0.5 * force.dot(&dx) <= rounding {
+                return (dx, cut);
+            }
             let mut halvings = 0;
-            while self.merit(i, self.x[i] + dx, &l.constant) > start + rounding {
+            while self.merit(i, dx, &l.constant) > start + rounding {
                 if halvings == MAX_HALVINGS {
                     return (Vec3::zeros(), false);
                 }
@@ -324,10 +340,10 @@ impl crate::Integrator for Vbd {
         let n = state.len();
         let (xn, vn) = (&state.x[..], &state.v[..]);
         let gravity = model.effects().gravity.unwrap_or_else(Vec3::zeros);
-        for i in 0..n {
-            b.y[i] = xn[i] + vn[i] * h;
-            b.fixed[i] = false;
+        for (inertial, v) in b.inertial.iter_mut().zip(vn) {
+            *inertial = v * h;
         }
+        b.fixed.iter_mut().for_each(|f| *f = false);
         let paths = PinPaths::new(model, control, xn, state.time_s, h);
         for k in 0..paths.count() {
             b.fixed[paths.particle(k)] = true;
@@ -406,17 +422,18 @@ impl crate::Integrator for Vbd {
                 }
             });
         }
-        for i in 0..n {
-            b.x[i] = if b.fixed[i] { Vec3::zeros() } else { xn[i] + moves[i].0 };
+        for (d, m) in b.d.iter_mut().zip(&moves) {
+            *d = m.0;
         }
         for k in 0..paths.count() {
-            b.x[paths.particle(k)] = paths.position(k, state.time_s + h);
+            let i = paths.particle(k);
+            b.d[i] = paths.position(k, state.time_s + h) - xn[i];
         }
-        for ((v, x), x0) in b.v.iter_mut().zip(&b.x).zip(xn) {
-            *v = (x - x0) / h;
+        for (((x, v), d), x0) in b.x.iter_mut().zip(b.v.iter_mut()).zip(&b.d).zip(xn) {
+            (*x, *v) = (x0 + d, d / h);
         }
-        b.previous.copy_from_slice(&b.x);
-        b.before_previous.copy_from_slice(&b.x);
+        b.previous.copy_from_slice(&b.d);
+        b.before_previous.copy_from_slice(&b.d);
 
         let mut omega = 1.0;
         let mut sweeps = 0;
@@ -446,8 +463,8 @@ impl crate::Integrator for Vbd {
                 let group = &b.colouring.groups()[c];
                 for (&(dx, cut), &i) in moves.iter().zip(group) {
                     let i = i as usize;
-                    b.x[i] += dx;
-                    b.v[i] = (b.x[i] - xn[i]) / h;
+                    b.d[i] += dx;
+                    (b.x[i], b.v[i]) = (xn[i] + b.d[i], b.d[i] / h);
                     b.cut[i] |= cut;
                     largest = largest.max(dx.norm());
                 }
@@ -456,21 +473,21 @@ impl crate::Integrator for Vbd {
             omega = chebyshev_omega(sweep, params.chebyshev_rho, omega);
             if params.chebyshev_rho > 0.0 && sweep > 1 {
                 let floor = SOLID_FLOOR * thickness;
-                let particles = b.x.iter_mut().zip(b.v.iter_mut()).zip(&b.before_previous).zip(&b.around);
-                for (i, (((x, v), older), a)) in particles.enumerate() {
+                let particles = b.d.iter_mut().zip(b.x.iter_mut().zip(b.v.iter_mut())).zip(&b.before_previous);
+                for (i, ((d, (x, v)), older)) in particles.enumerate() {
                     if b.fixed[i] {
                         continue;
                     }
-                    let accelerated = older + (*x - older) * omega;
-                    let in_planes = a.planes.iter().flatten().all(|p| p.gap(&accelerated) >= p.gap(x).min(floor));
-                    if in_planes && (accelerated - a.centre).norm() <= a.radius_m {
-                        *x = accelerated;
-                        *v = (accelerated - xn[i]) / h;
+                    let accelerated = older + (*d - older) * omega;
+                    let (to, a) = (xn[i] + accelerated, &b.around[i]);
+                    let in_planes = a.planes.iter().flatten().all(|p| p.gap(&to) >= p.gap(x).min(floor));
+                    if in_planes && (to - a.centre).norm() <= a.radius_m {
+                        (*d, *x, *v) = (accelerated, to, accelerated / h);
                     }
                 }
             }
             std::mem::swap(&mut b.before_previous, &mut b.previous);
-            b.previous.copy_from_slice(&b.x);
+            b.previous.copy_from_slice(&b.d);
             // Particles their ball stopped look around again from where they are.
             if !solids.is_empty() {
                 let (around, cut, x) = (&mut b.around, &mut b.cut, &b.x);
@@ -495,7 +512,7 @@ impl crate::Integrator for Vbd {
         for (k, f) in pin_forces.iter_mut().enumerate() {
             let i = paths.particle(k);
             let inertia = model.masses()[i] / (h * h);
-            *f = (b.x[i] - b.y[i]) * inertia - local.loads(i, false).force;
+            *f = (b.d[i] - b.inertial[i]) * inertia - local.loads(i, false).force;
         }
         contacts.solid.clear();
         for (i, a) in b.around.iter().enumerate() {

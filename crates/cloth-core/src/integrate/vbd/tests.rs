@@ -138,3 +138,54 @@ fn chebyshev_weights_follow_the_recurrence() {
     let limit = 2.0 * (1.0 - (1.0 - rho * rho).sqrt()) / (rho * rho);
     assert!((all[59] - limit).abs() < 1e-12, "{} against {limit}", all[59]);
 }
+
+/// The middle of a sheet pinned along one edge falls at g over its first
+/// 40 steps of 1e-9 and 1e-6 s (the pins' pull has not reached it): its
+/// velocity is `-g t` to 1e-13 (measured 6.9e-16; at 1e-3 s the implicit
+/// step lets the pins reach it, 1e-9). The unknown is the displacement over the step, not
+/// the position: at h = 1e-9 s a particle moves 1e-17 m a step, below a
+/// position's last bit, and a velocity read from positions was 0 (off g
+/// by 1, `cloth study stability` with `vbd`).
+#[test]
+fn the_middle_of_a_pinned_sheet_falls_at_g_at_any_step() {
+    // A metre up, as a scene's cloth is: positions of order 1 m.
+    let model = ClothModel::builder()
+        .panel(crate::GridPanel::flat([21, 21], [0.5, 0.5]).origin([-0.25, -0.25, 1.0]))
+        .bending()
+        .damping()
+        .gravity([0.0, 0.0, -9.81])
+        .pin_edge(0, Edge::JMax)
+        .build()
+        .unwrap();
+    let middle = 10 * 21 + 10;
+    for h in [1e-9, 1e-6] {
+        let mut sim = Simulation::new(model.clone(), IntegratorKind::Vbd, SolverParams::default());
+        let mut worst = 0.0_f64;
+        for _ in 0..40 {
+            sim.step(h).unwrap();
+            let t = sim.time();
+            worst = worst.max((sim.state().v[middle].z + 9.81 * t).abs() / (9.81 * t));
+        }
+        println!("h = {h:e}: off g by {worst:.1e}");
+        assert!(worst < 1e-13, "h = {h}: the middle is off g by {worst}");
+    }
+}
+
+/// A free sheet under gravity falls as backward Euler's discrete free fall,
+/// `-g h^2 N (N + 1) / 2` after N steps, at any step size.
+#[test]
+fn a_free_sheet_falls_at_g_at_any_step() {
+    let model = ClothModel::builder().grid([6, 6], [0.5, 0.5]).bending().gravity([0.0, 0.0, -9.81]).build().unwrap();
+    for h in [1e-9, 1e-6, 1e-3, 1.0 / 90.0] {
+        let mut sim = Simulation::new(model.clone(), IntegratorKind::Vbd, SolverParams::default());
+        let n = 40;
+        for _ in 0..n {
+            sim.step(h).unwrap();
+        }
+        let mean_z = sim.state().x.iter().map(|p| p.z).sum::<f64>() / 36.0;
+        let exact = -9.81 * h * h * (n * (n + 1)) as f64 / 2.0;
+        let error = (mean_z / exact - 1.0).abs();
+        println!("h = {h:e}: fell {mean_z:e} m, backward Euler {exact:e} m ({error:.1e})");
+        assert!(error < 1e-9, "h = {h}: fell {mean_z} m against {exact} m");
+    }
+}
