@@ -392,13 +392,13 @@ pub fn bend_triple_into(x: [Vec3; 3], rest: f64, k_b: f64, hessian: Option<&mut 
     ElementForces { energy: t.energy, forces: t.grad.map(|g| -g * t.de) }
 }
 
-/// [`bend_triple_with`]'s force on corner `a` (N) and its diagonal block
-/// `H_aa` (N/m) alone: what a vertex solver's local step needs, without
-/// the other eight blocks.
-pub fn bend_triple_corner(x: [Vec3; 3], rest: f64, k_b: f64, a: usize) -> (Vec3, Mat3) {
+/// [`bend_triple_with`]'s force on corner `a` (N), its diagonal block
+/// `H_aa` (N/m) and the triple's energy (J) alone: what a vertex solver's
+/// local step needs, without the other eight blocks.
+pub fn bend_triple_corner(x: [Vec3; 3], rest: f64, k_b: f64, a: usize) -> (Vec3, Mat3, f64) {
     match TripleParts::at(x, rest, k_b) {
-        Some(t) => (-t.grad[a] * t.de, t.block(a, a)),
-        None => (Vec3::zeros(), Mat3::zeros()),
+        Some(t) => (-t.grad[a] * t.de, t.block(a, a), t.energy),
+        None => (Vec3::zeros(), Mat3::zeros(), 0.0),
     }
 }
 

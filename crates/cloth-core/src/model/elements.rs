@@ -364,52 +364,67 @@ pub fn apply_at(set: &ElementSet, bufs: &ElementBuffers, i: usize, w: &[Vec3], s
 /// their diagonal blocks `H_ii` (N/m): a vertex solver's local system.
 /// Each element is evaluated whole for each corner asked.
 pub fn vertex_at(set: &ElementSet, x: &[Vec3], i: usize) -> (Vec3, Mat3) {
+    let (force, stiffness, _) = vertex_with_energy(set, x, i);
+    (force, stiffness)
+}
+
+/// [`vertex_at`] and [`vertex_energy`] at `x` from one evaluation of each
+/// element: force (N), `H_ii` (N/m) and energy (J).
+pub fn vertex_with_energy(set: &ElementSet, x: &[Vec3], i: usize) -> (Vec3, Mat3, f64) {
     fn corner<const K: usize>(
         nodes: &[u32; K],
         a: usize,
         x: &[Vec3],
         law: impl Fn([Vec3; K], &mut [[Mat3; K]; K]) -> ElementForces<K>,
-    ) -> (Vec3, Mat3) {
+    ) -> (Vec3, Mat3, f64) {
         let mut hessian = [[Mat3::zeros(); K]; K];
         let r = law(nodes.map(|p| x[p as usize]), &mut hessian);
-        (r.forces[a], hessian[a][a])
+        (r.forces[a], hessian[a][a], r.energy)
     }
-    let (mut force, mut stiffness) = (Vec3::zeros(), Mat3::zeros());
+    let (mut force, mut stiffness, mut energy) = (Vec3::zeros(), Mat3::zeros(), 0.0);
     for c in set.corners(i) {
         let (e, a) = (c.elem as usize, c.corner as usize);
-        let (f, h) = match c.kind {
+        let (nodes, (f, h, u)): (&[u32], _) = match c.kind {
             Kind::Membrane => {
                 let m = &set.membranes[e];
-                corner(&m.nodes, a, x, |p, h| membrane_triangle_into(p, &m.rest, Some(h)))
+                (&m.nodes, corner(&m.nodes, a, x, |p, h| membrane_triangle_into(p, &m.rest, Some(h))))
             }
             Kind::Curvature => {
                 let b = &set.curvatures[e];
-                corner(&b.nodes, a, x, |p, h| curvature_bending_into(p, b.rest_angles, &b.stiffness, Some(h)))
+                let law = |p, h: &mut _| curvature_bending_into(p, b.rest_angles, &b.stiffness, Some(h));
+                (&b.nodes, corner(&b.nodes, a, x, law))
             }
             Kind::Triple => {
                 let t = &set.triples[e];
-                crate::element_laws::bend_triple_corner(t.nodes.map(|p| x[p as usize]), t.rest, t.k_b, a)
+                (&t.nodes, crate::element_laws::bend_triple_corner(t.nodes.map(|p| x[p as usize]), t.rest, t.k_b, a))
             }
         };
         force += f;
         stiffness += h;
+        if first_slot(nodes, i, a) {
+            energy += u;
+        }
     }
-    (force, stiffness)
+    (force, stiffness, energy)
+}
+
+/// Whether slot `a` is particle `i`'s first in an element's `nodes`: a
+/// bending element may hold a particle in two slots (a free edge's
+/// neighbour slot repeats a corner), and its energy counts once.
+fn first_slot(nodes: &[u32], i: usize, a: usize) -> bool {
+    nodes.iter().position(|&p| p as usize == i) == Some(a)
 }
 
 /// The energy of particle `i`'s elements with `i` at `xi` and the others
 /// at `x`, J: what changes when `i` alone moves.
 pub fn vertex_energy(set: &ElementSet, x: &[Vec3], i: usize, xi: Vec3) -> f64 {
-    // A bending element may hold a particle in two slots (a free edge's
-    // neighbour slot repeats a corner): its energy counts once, at the first.
-    let first = |nodes: &[u32], a: usize| nodes.iter().position(|&p| p as usize == i) == Some(a);
     let mut energy = 0.0;
     for c in set.corners(i) {
         let (e, a) = (c.elem as usize, c.corner as usize);
         let counted = match c.kind {
-            Kind::Membrane => first(&set.membranes[e].nodes, a),
-            Kind::Curvature => first(&set.curvatures[e].nodes, a),
-            Kind::Triple => first(&set.triples[e].nodes, a),
+            Kind::Membrane => first_slot(&set.membranes[e].nodes, i, a),
+            Kind::Curvature => first_slot(&set.curvatures[e].nodes, i, a),
+            Kind::Triple => first_slot(&set.triples[e].nodes, i, a),
         };
         if !counted {
             continue;

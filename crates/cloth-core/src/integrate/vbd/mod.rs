@@ -53,7 +53,7 @@ pub struct VbdParams {
     /// Without it a sweep over Choi & Ko's links (concave in compression)
     /// can raise the potential, and the sweeps can cycle short of the
     /// solution: a hanging strip stalled at 20 times its static sag. It
-    /// costs two more energy evaluations per local step (2.7 times the
+    /// costs an energy evaluation at each trial position (2.0 times the
     /// hanging cloth's step; `docs/results/vbd.md`).
     pub line_search: bool,
 }
@@ -184,11 +184,11 @@ impl<'a> Local<'a> {
         let at = At { model, x: self.x, v: self.v, stitches_closed };
         let mut l = Loads { force: Vec3::zeros(), stiffness: Mat3::zeros(), constant: Vec3::zeros(), energy: 0.0 };
         for term in acting(model) {
-            let b = term.vertex(&at, i);
+            let (b, energy) = if with_energy { term.vertex_with_energy(&at, i) } else { (term.vertex(&at, i), None) };
             l.force += b.force;
             l.stiffness += b.stiffness + b.damping / h;
             if with_energy {
-                match term.vertex_energy(&at, i, self.x[i]) {
+                match energy {
                     Some(e) => l.energy += e,
                     None => l.constant += b.force - b.dissipative,
                 }

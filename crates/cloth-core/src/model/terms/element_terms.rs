@@ -53,4 +53,9 @@ impl ForceTerm for Elements {
     fn vertex_energy(&self, at: &At<'_>, i: usize, xi: Vec3) -> Option<f64> {
         Some(elements::vertex_energy(at.model.elements(), at.x, i, xi))
     }
+
+    fn vertex_with_energy(&self, at: &At<'_>, i: usize) -> (VertexBlock, Option<f64>) {
+        let (force, stiffness, energy) = elements::vertex_with_energy(at.model.elements(), at.x, i);
+        (VertexBlock { force, stiffness, ..VertexBlock::zero() }, Some(energy))
+    }
 }

@@ -56,7 +56,11 @@ impl ForceTerm for Links {
     }
 
     fn vertex(&self, at: &At<'_>, i: usize) -> VertexBlock {
-        let mut block = VertexBlock::zero();
+        self.vertex_with_energy(at, i).0
+    }
+
+    fn vertex_with_energy(&self, at: &At<'_>, i: usize) -> (VertexBlock, Option<f64>) {
+        let (mut block, mut energy) = (VertexBlock::zero(), 0.0);
         for inc in at.model.incidence(i) {
             let e = eval_link(at.model, inc.link as usize, at.x, at.stitches_closed);
             let elastic = if inc.first { e.force } else { -e.force };
@@ -66,8 +70,9 @@ impl ForceTerm for Links {
             block.dissipative += damper;
             block.stiffness += e.stiffness;
             block.damping += e.damping;
+            energy += e.energy;
         }
-        block
+        (block, Some(energy))
     }
 
     fn vertex_energy(&self, at: &At<'_>, i: usize, xi: Vec3) -> Option<f64> {

@@ -112,6 +112,14 @@ pub trait ForceTerm: Send + Sync + std::fmt::Debug {
         None
     }
 
+    /// [`ForceTerm::vertex`] and [`ForceTerm::vertex_energy`] at `at.x`
+    /// together: a term that evaluates both from one law evaluation
+    /// overrides it (a vertex solver's line search needs both every local
+    /// step).
+    fn vertex_with_energy(&self, at: &At<'_>, i: usize) -> (VertexBlock, Option<f64>) {
+        (self.vertex(at, i), self.vertex_energy(at, i, at.x[i]))
+    }
+
     /// Whether the implicit steps assemble this term's laws in their fused
     /// pass ([`crate::forces::assemble`]: the built-in terms). The others
     /// are linearised on the diagonal from [`ForceTerm::vertex`]: exact for

@@ -113,6 +113,11 @@ fn vertex_energies_are_the_particles_share_of_the_energy() {
                 worst = worst.max((whole - share).abs());
                 largest = largest.max(whole.abs());
                 let b = term.vertex(&a, i);
+                // One evaluation for both: the same block, the same energy.
+                let (together, energy) = term.vertex_with_energy(&a, i);
+                let alone = term.vertex_energy(&a, i, x[i]).unwrap();
+                assert_eq!(together, b, "{kind:?} {}", term.name());
+                assert!((energy.unwrap() - alone).abs() <= 1e-15 * alone.abs().max(1e-12), "{kind:?} {}", term.name());
                 let elastic = b.force - b.dissipative;
                 for c in 0..3 {
                     let e = |d: f64| term.vertex_energy(&a, i, x[i] + Vec3::ith(c, d)).unwrap();
