@@ -615,8 +615,9 @@ pub(crate) fn collide_after_step(
 }
 
 /// Fails when the model asks for self-collision, which only the assembled
-/// implicit integrators handle (solids are handled after the step by the
-/// others, see [`crate::contacts::collide_after_step`]).
+/// implicit integrators and the vertex solver handle (the explicit and
+/// fixed-CG steps handle solids after the step, see
+/// [`crate::contacts::collide_after_step`]).
 pub(crate) fn reject_self_collision(model: &ClothModel, integrator: &'static str) -> Result<(), StepError> {
     if model.self_collision().is_some() {
         return Err(StepError::SelfCollisionNeedsMatrix { integrator });

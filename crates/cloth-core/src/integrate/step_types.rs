@@ -325,8 +325,8 @@ pub enum StepError {
         /// Substeps attempted (accepted and rejected).
         attempts: usize,
     },
-    /// The model asks for self-collision, which only the assembled implicit
-    /// integrators (`backward-euler`, `bdf2`) handle.
+    /// The model asks for self-collision, which only `backward-euler`,
+    /// `bdf2` (assembled) and `vbd` (in its sweeps) handle.
     #[error("integrator {integrator} does not handle self-collisions: use backward-euler, bdf2 or vbd")]
     SelfCollisionNeedsMatrix {
         /// The integrator's scene name.

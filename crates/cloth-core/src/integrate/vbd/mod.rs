@@ -432,8 +432,11 @@ impl crate::Integrator for Vbd {
         for (((x, v), d), x0) in b.x.iter_mut().zip(b.v.iter_mut()).zip(&b.d).zip(xn) {
             (*x, *v) = (x0 + d, d / h);
         }
-        b.previous.copy_from_slice(&b.d);
-        b.before_previous.copy_from_slice(&b.d);
+        let accelerate = params.chebyshev_rho > 0.0;
+        if accelerate {
+            b.previous.copy_from_slice(&b.d);
+            b.before_previous.copy_from_slice(&b.d);
+        }
 
         let mut omega = 1.0;
         let mut sweeps = 0;
@@ -471,7 +474,7 @@ impl crate::Integrator for Vbd {
             }
             // Chebyshev over the sweeps, kept where it stays in bounds.
             omega = chebyshev_omega(sweep, params.chebyshev_rho, omega);
-            if params.chebyshev_rho > 0.0 && sweep > 1 {
+            if accelerate && sweep > 1 {
                 let floor = SOLID_FLOOR * thickness;
                 let particles = b.d.iter_mut().zip(b.x.iter_mut().zip(b.v.iter_mut())).zip(&b.before_previous);
                 for (i, ((d, (x, v)), older)) in particles.enumerate() {
@@ -486,8 +489,10 @@ impl crate::Integrator for Vbd {
                     }
                 }
             }
-            std::mem::swap(&mut b.before_previous, &mut b.previous);
-            b.previous.copy_from_slice(&b.d);
+            if accelerate {
+                std::mem::swap(&mut b.before_previous, &mut b.previous);
+                b.previous.copy_from_slice(&b.d);
+            }
             // Particles their ball stopped look around again from where they are.
             if !solids.is_empty() {
                 let (around, cut, x) = (&mut b.around, &mut b.cut, &b.x);
@@ -527,8 +532,10 @@ impl crate::Integrator for Vbd {
             }
         }
         stats.contacts = contacts.solid.len();
-        new_x.copy_from_slice(&b.x);
-        new_v.copy_from_slice(&b.v);
+        // The iterate becomes the new state; the next step sets every
+        // entry of `b.x` and `b.v` before it reads them.
+        std::mem::swap(new_x, &mut b.x);
+        std::mem::swap(new_v, &mut b.v);
         let stages = StageTimes {
             solve_s,
             collision_s,
