@@ -2,6 +2,7 @@
 
 use cloth_core::Vec3;
 use cloth_core::scene::Scene;
+use cloth_core::terms::At;
 use cloth_rapier::CoupledScene;
 use cloth_rapier::scene::has_bodies;
 use cloth_tests::{fixture, simulation};
@@ -100,14 +101,15 @@ fn flag_wind_force_grows_with_wind_speed() {
         let profile = format!("wind.profile={{ kind = \"constant\", velocity_m_s = [{speed}, 0.3, 0.0] }}");
         let (mut sim, cfg) = simulation("flag.toml", &["panels.0.particles=[16, 11]", &profile]);
         let model = sim.model().clone();
-        let mut normals = Vec::new();
+        let mut scratch = cloth_core::forces::ForceBuffers::new(&model);
         let mut total = 0.0;
         let steps = 45;
         for _ in 0..steps {
             sim.step(cfg.dt_s).unwrap();
             let s = sim.state();
             let mut f = vec![cloth_core::Vec3::zeros(); s.len()];
-            cloth_core::wind::add_wind_forces(&model, sim.control(), (&s.x, &s.v), s.time_s, &mut normals, &mut f);
+            let at = At::new(&model, &s.x, &s.v, &s.stitches_closed).with_wind_at(s.time_s, sim.control().wind());
+            cloth_core::terms::add_external_forces(&at, &mut scratch, &mut f);
             total += f.iter().sum::<cloth_core::Vec3>().norm();
         }
         let mean = total / steps as f64;
@@ -133,7 +135,9 @@ fn flat_flag_feels_plate_drag_and_lift() {
         let (sim, _) = simulation("flag.toml", &o);
         let s = sim.state();
         let mut f = vec![cloth_core::Vec3::zeros(); s.len()];
-        cloth_core::wind::add_wind_forces(sim.model(), sim.control(), (&s.x, &s.v), 0.0, &mut Vec::new(), &mut f);
+        let at = At::new(sim.model(), &s.x, &s.v, &s.stitches_closed).with_wind_at(0.0, None);
+        let mut scratch = cloth_core::forces::ForceBuffers::new(sim.model());
+        cloth_core::terms::add_external_forces(&at, &mut scratch, &mut f);
         let total: cloth_core::Vec3 = f.iter().sum();
         // The panel: 0.9 x 0.6 m in the x-z plane (normal y); air 1.2 kg/m^3, C_d 1, C_l 0.5.
         let (rho, c_d, c_l, area) = (1.2, 1.0, 0.5, 0.9 * 0.6);

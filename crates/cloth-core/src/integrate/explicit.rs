@@ -12,7 +12,7 @@ use crate::{
     ClothModel, ClothState, SolverParams, Vec3, Workspace,
     forces::{ForceBuffers, forces_into},
     integrator::{StageTimes, StepError, StepReport},
-    wind::add_wind_forces,
+    terms::At,
 };
 use cloth_linalg::ROW_CHUNK;
 use rayon::prelude::*;
@@ -76,7 +76,6 @@ pub struct ExplicitBuffers {
     vs: Vec<Vec3>,
     force: Vec<Vec3>,
     forces: ForceBuffers,
-    normals: Vec<Vec3>,
     /// Result of the last attempted step.
     pub(crate) x_new: Vec<Vec3>,
     pub(crate) v_new: Vec<Vec3>,
@@ -103,7 +102,6 @@ impl ExplicitBuffers {
             vs: zeros(),
             force: zeros(),
             forces: ForceBuffers::new(model),
-            normals: Vec::with_capacity(n),
             x_new: zeros(),
             v_new: zeros(),
             pin_impulse: vec![Vec3::zeros(); model.pins().len()],
@@ -153,12 +151,12 @@ struct EnergyWindow {
 fn add_external_forces(
     model: &ClothModel,
     control: &Control,
-    (x, v): (&[Vec3], &[Vec3]),
+    (x, v, stitches_closed): (&[Vec3], &[Vec3], &[bool]),
     t: f64,
-    (normals, force): (&mut Vec<Vec3>, &mut [Vec3]),
+    (scratch, force): (&mut ForceBuffers, &mut [Vec3]),
     mut external: Option<&mut Vec<Vec3>>,
 ) {
-    let present = model.wind().is_some() || control.forces().is_some();
+    let present = crate::terms::external(model).next().is_some() || control.forces().is_some();
     if let Some(e) = external.as_deref_mut() {
         // Without any, an empty list (not last step's forces).
         e.clear();
@@ -167,7 +165,8 @@ fn add_external_forces(
         }
     }
     let external = external.filter(|_| present);
-    add_wind_forces(model, control, (x, v), t, normals, force);
+    let at = At::new(model, x, v, stitches_closed).with_wind_at(t, control.wind());
+    crate::terms::add_external_forces(&at, scratch, force);
     control.add_forces_to(force);
     if let Some(e) = external {
         e.iter_mut().zip(force.iter()).for_each(|(e, f)| *e = f - *e);
@@ -236,8 +235,8 @@ pub(crate) fn rk_step(
         let t_force = Instant::now();
         forces_into(model, &bufs.xs, &bufs.vs, stitches_closed, &mut bufs.forces, &mut bufs.force);
         let external = (s == 0).then_some(&mut bufs.external);
-        let state = (&bufs.xs[..], &bufs.vs[..]);
-        add_external_forces(model, control, state, ts, (&mut bufs.normals, &mut bufs.force), external);
+        let state = (&bufs.xs[..], &bufs.vs[..], stitches_closed);
+        add_external_forces(model, control, state, ts, (&mut bufs.forces, &mut bufs.force), external);
         stages_time.forces_s += t_force.elapsed().as_secs_f64();
         let (kx, kv) = (&mut bufs.kx[s], &mut bufs.kv[s]);
         kx.copy_from_slice(&bufs.vs);
@@ -288,7 +287,7 @@ pub(crate) fn symplectic_euler_step(
     let t_force = Instant::now();
     forces_into(model, x, v, stitches_closed, &mut bufs.forces, &mut bufs.force);
     let external = Some(&mut bufs.external);
-    add_external_forces(model, control, (x, v), t, (&mut bufs.normals, &mut bufs.force), external);
+    add_external_forces(model, control, (x, v, stitches_closed), t, (&mut bufs.forces, &mut bufs.force), external);
     stages_time.forces_s += t_force.elapsed().as_secs_f64();
     let t_update = Instant::now();
     let masses = model.masses();

@@ -629,14 +629,13 @@ pub(crate) fn reject_self_collision(model: &ClothModel, integrator: &'static str
 /// forces into `ws.external`; false (and nothing computed) when there are
 /// neither.
 pub(crate) fn external_forces(model: &ClothModel, state: &ClothState, control: &Control, ws: &mut Workspace) -> bool {
-    if model.wind().is_none() && control.forces().is_none() {
+    if crate::terms::external(model).next().is_none() && control.forces().is_none() {
         return false;
     }
     ws.external.iter_mut().for_each(|f| *f = Vec3::zeros());
-    if model.wind().is_some() {
-        let (x, v) = (&state.x[..], &state.v[..]);
-        crate::wind::add_wind_forces(model, control, (x, v), state.time_s, &mut ws.normals, &mut ws.external);
-    }
+    let at = crate::terms::At::new(model, &state.x, &state.v, &state.stitches_closed)
+        .with_wind_at(state.time_s, control.wind());
+    crate::terms::add_external_forces(&at, &mut ws.external_scratch, &mut ws.external);
     control.add_forces_to(&mut ws.external);
     true
 }

@@ -377,9 +377,9 @@ pub struct Workspace {
     pub(crate) new_v: Vec<Vec3>,
     /// Newton iterations' buffers (allocated on first use).
     pub(crate) newton: Option<crate::newton::NewtonBuffers>,
-    /// External (wind) forces at the start of the step, and normals scratch.
+    /// External (wind) forces at the start of the step, and their scratch.
     pub(crate) external: Vec<Vec3>,
-    pub(crate) normals: Vec<Vec3>,
+    pub(crate) external_scratch: crate::forces::ForceBuffers,
     /// Stage storage of the explicit integrators (allocated on first use).
     pub(crate) explicit: Option<ExplicitBuffers>,
     /// Buffers of the vertex solver (allocated on first use).
@@ -413,7 +413,7 @@ impl Workspace {
             new_v: vec![Vec3::zeros(); n],
             newton: None,
             external: vec![Vec3::zeros(); n],
-            normals: Vec::with_capacity(n),
+            external_scratch: crate::forces::ForceBuffers::external(model),
             explicit: None,
             matrix_free: None,
             vbd: None,

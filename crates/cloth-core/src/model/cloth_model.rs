@@ -150,6 +150,9 @@ pub struct ClothModel {
     wind: Option<Wind>,
     panels: Vec<PanelRange>,
     triangles: Vec<[u32; 3]>,
+    /// The triangles of each particle, in triangle order: `tri_of[tri_ptr[i]..tri_ptr[i + 1]]`.
+    tri_ptr: Vec<usize>,
+    tri_of: Vec<u32>,
     elements: ElementSet,
     drag: Vec<f64>,
     inc_ptr: Vec<usize>,
@@ -387,6 +390,7 @@ impl ClothModel {
             }
         }
         let diag_local = (0..n).map(|i| (pattern.diag_slot(i) - pattern.row_range(i).start) as u32).collect();
+        let (tri_ptr, tri_of) = triangles_of_particles(n, &triangles);
         let collision_error = |(field, message)| ModelError::Collision { field, message };
         let colliders = spec.collision.build_colliders().map_err(collision_error)?;
         let mean_link = stretch.iter().map(|l| l.rest).sum::<f64>() / stretch.len().max(1) as f64;
@@ -412,6 +416,8 @@ impl ClothModel {
             wind: spec.wind.clone(),
             panels,
             triangles,
+            tri_ptr,
+            tri_of,
             elements,
             drag,
             inc_ptr,
@@ -608,6 +614,11 @@ impl ClothModel {
     pub fn triangles(&self) -> &[[u32; 3]] {
         &self.triangles
     }
+    /// The surface triangles (indices into [`ClothModel::triangles`]) that
+    /// have particle `i` as a corner, in increasing order.
+    pub fn particle_triangles(&self, i: usize) -> &[u32] {
+        &self.tri_of[self.tri_ptr[i]..self.tri_ptr[i + 1]]
+    }
     /// Links incident to particle `i`, in link order.
     pub fn incidence(&self, i: usize) -> &[Incidence] {
         &self.inc[self.inc_ptr[i]..self.inc_ptr[i + 1]]
@@ -708,4 +719,25 @@ impl ClothModel {
     pub fn diag_local(&self, i: usize) -> usize {
         self.diag_local[i] as usize
     }
+}
+
+/// Of `n` particles, the triangles each is a corner of, as a compressed
+/// row list `(ptr, list)`: particle `i`'s are `list[ptr[i]..ptr[i + 1]]`.
+fn triangles_of_particles(n: usize, triangles: &[[u32; 3]]) -> (Vec<usize>, Vec<u32>) {
+    let mut ptr = vec![0usize; n + 1];
+    for &k in triangles.iter().flatten() {
+        ptr[k as usize + 1] += 1;
+    }
+    for i in 0..n {
+        ptr[i + 1] += ptr[i];
+    }
+    let mut fill = ptr.clone();
+    let mut list = vec![0u32; ptr[n]];
+    for (t, tri) in triangles.iter().enumerate() {
+        for &k in tri {
+            list[fill[k as usize]] = t as u32;
+            fill[k as usize] += 1;
+        }
+    }
+    (ptr, list)
 }

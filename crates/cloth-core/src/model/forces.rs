@@ -159,7 +159,7 @@ pub fn elastic_energy(model: &ClothModel, x: &[Vec3], stitches_closed: &[bool], 
 /// Potential energy of the terms outside the fused assembly at `x`, J.
 fn extra_energy(model: &ClothModel, x: &[Vec3], stitches_closed: &[bool]) -> f64 {
     // Energies read positions only.
-    let at = crate::terms::At { model, x, v: &[], stitches_closed };
+    let at = crate::terms::At::new(model, x, &[], stitches_closed);
     crate::terms::unfused(model).map(|t| t.energy(&at)).sum()
 }
 
@@ -220,12 +220,31 @@ pub(crate) fn gather_links(model: &ClothModel, i: usize, per_link: &[Vec3], star
 pub struct ForceBuffers {
     pub(crate) link: Vec<Vec3>,
     pub(crate) elements: ElementBuffers,
+    /// The particles' area-weighted normals (the wind's fluid force).
+    pub(crate) normals: Vec<Vec3>,
 }
 
 impl ForceBuffers {
     /// Buffers for `model`.
     pub fn new(model: &ClothModel) -> Self {
-        Self { link: vec![Vec3::zeros(); model.link_count()], elements: ElementBuffers::forces_only(model.elements()) }
+        Self {
+            link: vec![Vec3::zeros(); model.link_count()],
+            elements: ElementBuffers::forces_only(model.elements()),
+            normals: Self::normals_for(model),
+        }
+    }
+
+    /// Buffers for `model`'s external terms only ([`crate::terms::external`]).
+    pub fn external(model: &ClothModel) -> Self {
+        Self {
+            link: Vec::new(),
+            elements: ElementBuffers::forces_only(&Default::default()),
+            normals: Self::normals_for(model),
+        }
+    }
+
+    fn normals_for(model: &ClothModel) -> Vec<Vec3> {
+        Vec::with_capacity(if model.wind().is_some() { model.particle_count() } else { 0 })
     }
 }
 
@@ -243,7 +262,7 @@ pub fn forces_into(
     out: &mut [Vec3],
 ) {
     out.par_chunks_mut(ROW_CHUNK).for_each(|fs| fs.iter_mut().for_each(|f| *f = Vec3::zeros()));
-    let at = crate::terms::At { model, x, v, stitches_closed };
+    let at = crate::terms::At::new(model, x, v, stitches_closed);
     for term in crate::terms::acting(model) {
         term.add_forces(&at, bufs, out);
     }
@@ -477,7 +496,7 @@ pub fn assemble_matrix_free(
 /// at `x` without velocity) and keeps `c_x S_i + c_v C_i` for the matrix,
 /// with `S_i`, `C_i` the terms' [`crate::terms::VertexBlock`]s.
 fn add_extra_terms(model: &ClothModel, x: &[Vec3], terms: &SystemTerms<'_>, bufs: &mut SystemBuffers) {
-    let at = crate::terms::At { model, x, v: &bufs.still, stitches_closed: terms.stitches_closed };
+    let at = crate::terms::At::new(model, x, &bufs.still, terms.stitches_closed);
     let rows = bufs.rhs.par_chunks_mut(ROW_CHUNK).zip(bufs.extra_diag.par_chunks_mut(ROW_CHUNK));
     rows.enumerate().for_each(|(chunk, (rhs, diag))| {
         for (k, (bi, di)) in rhs.iter_mut().zip(diag.iter_mut()).enumerate() {

@@ -2,12 +2,13 @@
 //! effect of its own: Provot's (1995) viscous fluid force on particles
 //! (`wind`) and aerodynamic drag and lift on triangles (`aerodynamics`).
 //!
-//! In implicit steps the wind force is taken at the start of the step
-//! (explicitly); its velocity dependence is mild next to the cloth's
-//! stiffness.
+//! The laws are here; the force terms that apply them are
+//! [`crate::terms::Fluid`] and [`crate::terms::Aerodynamics`]. In implicit
+//! steps the wind force is taken at the start of the step (explicitly);
+//! its velocity dependence is mild next to the cloth's stiffness.
 
 use crate::keyframes::{self, finite3};
-use crate::{ClothModel, Control, Vec3};
+use crate::{Mat3, Vec3};
 use serde::{Deserialize, Serialize};
 
 /// How the wind velocity varies in time.
@@ -161,65 +162,25 @@ pub fn triangle_aero_force(n: &Vec3, area: f64, wind: &Vec3, v: &Vec3, rho: f64,
     drag + lift
 }
 
-/// Adds the wind forces of `model` at `(x, v)` and time `t` to `out`
-/// (an external wind's velocity from `control`), using `normals` (one per
-/// particle) as scratch. Deterministic: triangles are visited in order.
-pub fn add_wind_forces(
-    model: &ClothModel,
-    control: &Control,
-    (x, v): (&[Vec3], &[Vec3]),
-    t: f64,
-    normals: &mut Vec<Vec3>,
-    out: &mut [Vec3],
-) {
-    let Some(wind) = model.wind() else { return };
-    let (fluid, aero) = (model.effects().wind, model.effects().aerodynamics);
-    if !fluid && !aero {
-        return;
+/// `d F / d w` of [`triangle_aero_force`] with respect to the relative
+/// air velocity `w = wind - v`, N s/m. With `k_d = rho C_d area / 2`,
+/// `k_l = rho C_l area / 2`, `s = |w|`, `c = w.n`: the drag `k_d |c| w`
+/// gives `k_d (|c| I + sign(c) w n^T)`; the lift `k_l (c s n - c^2 w / s)`
+/// gives `k_l (n (s n + c w / s)^T - 2 c w n^T / s - c^2 (I - w w^T / s^2) / s)`.
+/// Zero in still air.
+pub fn triangle_aero_derivative(n: &Vec3, area: f64, w: &Vec3, rho: f64, c_d: f64, c_l: f64) -> Mat3 {
+    let s = w.norm();
+    if s == 0.0 {
+        return Mat3::zeros();
     }
-    let air = wind.profile.velocity(t, control.wind());
-    normals.clear();
-    normals.resize(x.len(), Vec3::zeros());
-    for tri in model.triangles() {
-        let [a, b, c] = tri.map(|k| k as usize);
-        let cross = (x[b] - x[a]).cross(&(x[c] - x[a]));
-        let area = 0.5 * cross.norm();
-        if area == 0.0 {
-            continue;
-        }
-        if fluid {
-            // Area-weighted vertex normals (|cross| = 2 area).
-            for k in [a, b, c] {
-                normals[k] += cross;
-            }
-        }
-        if aero {
-            let n = cross / (2.0 * area);
-            let vel = (v[a] + v[b] + v[c]) / 3.0;
-            let f = triangle_aero_force(
-                &n,
-                area,
-                &air,
-                &vel,
-                wind.air_density_kg_m3,
-                wind.drag_coefficient,
-                wind.lift_coefficient,
-            ) / 3.0;
-            for k in [a, b, c] {
-                out[k] += f;
-            }
-        }
-    }
-    if fluid {
-        for (i, n) in normals.iter().enumerate() {
-            let len = n.norm();
-            if len > 0.0 {
-                // A particle's area: a third of its triangles' areas.
-                let area = len / 6.0;
-                out[i] += provot_fluid_force(&(n / len), area, wind.fluid_coefficient_n_s_m3, &air, &v[i]);
-            }
-        }
-    }
+    let c = w.dot(n);
+    let (k_d, k_l) = (0.5 * rho * c_d * area, 0.5 * rho * c_l * area);
+    let drag = (Mat3::identity() * c.abs() + w * n.transpose() * c.signum()) * k_d;
+    let ww = w * w.transpose() / (s * s);
+    let lift = n * (n * s + w * (c / s)).transpose()
+        - w * n.transpose() * (2.0 * c / s)
+        - (Mat3::identity() - ww) * (c * c / s);
+    drag + lift * k_l
 }
 
 #[cfg(test)]

@@ -181,7 +181,7 @@ impl<'a> Local<'a> {
     /// (the energies only `with_energy`).
     fn loads(&self, i: usize, with_energy: bool) -> Loads {
         let Common { model, stitches_closed, external, h, thickness, self_thickness } = self.common;
-        let at = At { model, x: self.x, v: self.v, stitches_closed };
+        let at = At::new(model, self.x, self.v, stitches_closed);
         let mut l = Loads { force: Vec3::zeros(), stiffness: Mat3::zeros(), constant: Vec3::zeros(), energy: 0.0 };
         for term in acting(model) {
             let (b, energy) = if with_energy { term.vertex_with_energy(&at, i) } else { (term.vertex(&at, i), None) };
@@ -225,7 +225,7 @@ impl<'a> Local<'a> {
     /// (`constant`, N).
     fn merit(&self, i: usize, dx: Vec3, constant: &Vec3) -> f64 {
         let Common { model, stitches_closed, h, thickness, self_thickness, .. } = self.common;
-        let at = At { model, x: self.x, v: self.v, stitches_closed };
+        let at = At::new(model, self.x, self.v, stitches_closed);
         let xi = self.x[i] + dx;
         let inertia = model.masses()[i] / (2.0 * h * h) * (self.d[i] + dx - self.inertial[i]).norm_squared();
         let terms: f64 = acting(model).filter_map(|t| t.vertex_energy(&at, i, xi)).sum();

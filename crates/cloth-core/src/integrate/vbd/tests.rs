@@ -69,7 +69,7 @@ fn many_sweeps_reach_the_backward_euler_step() {
 /// Backward Euler's incremental potential of a step from `x0`, `v0` at
 /// `x`, J: inertia plus every term's energy (no damping, no contacts).
 fn incremental_potential(model: &ClothModel, x0: &[Vec3], v0: &[Vec3], h: f64, x: &[Vec3]) -> f64 {
-    let at = At { model, x, v: &[], stitches_closed: &[] };
+    let at = At::new(model, x, &[], &[]);
     let elastic: f64 = crate::terms::acting(model).map(|t| t.energy(&at)).sum();
     let inertia: f64 =
         (0..x.len()).map(|i| model.masses()[i] / (2.0 * h * h) * (x[i] - x0[i] - v0[i] * h).norm_squared()).sum();

@@ -1,5 +1,6 @@
-//! Force terms: one effect each (gravity, drag, the links, the elements),
-//! behind one trait that every solver reads the same physics through.
+//! Force terms: one effect each (gravity, drag, the links, the elements,
+//! the wind's two force models), behind one trait that every solver reads
+//! the same physics through.
 //!
 //! A term gives its potential energy, adds its forces to every particle
 //! (the explicit integrators' force evaluation, [`crate::forces::forces_into`],
@@ -16,14 +17,25 @@
 //! outside the crate. The implicit steps assemble the built-in terms' laws
 //! in one fused pass ([`crate::forces::assemble`]) and linearise any
 //! other term on the diagonal ([`ForceTerm::fused`]).
+//!
+//! External terms ([`ForceTerm::external`]: the wind's) are forces from
+//! outside the cloth: every step takes them at its start, as given over the
+//! step, and the energy monitor counts their work as external work.
+//! Self-collision repulsion is not a term: it acts on the pairs the
+//! contact stage detects each step ([`crate::contacts`]), not on `(x, v)`
+//! alone.
 
+mod aerodynamics;
 mod drag;
 mod element_terms;
+mod fluid;
 mod gravity;
 mod links;
 
+pub use aerodynamics::Aerodynamics;
 pub use drag::Drag;
 pub use element_terms::Elements;
+pub use fluid::Fluid;
 pub use gravity::Gravity;
 pub use links::Links;
 
@@ -31,7 +43,7 @@ use crate::forces::ForceBuffers;
 use crate::{ClothModel, Mat3, Vec3};
 
 /// Where the terms are evaluated: a model at positions `x` (m) and
-/// velocities `v` (m/s), with its stitches' states.
+/// velocities `v` (m/s), with its stitches' states and the air's velocity.
 #[derive(Debug, Clone, Copy)]
 pub struct At<'a> {
     /// The model.
@@ -42,6 +54,23 @@ pub struct At<'a> {
     pub v: &'a [Vec3],
     /// Of each stitch, whether it has closed ([`crate::ClothState::stitches_closed`]).
     pub stitches_closed: &'a [bool],
+    /// The air's velocity, m/s: the wind's at this time
+    /// ([`crate::WindProfile::velocity`]); `None` where no external term is
+    /// evaluated.
+    pub air_m_s: Option<Vec3>,
+}
+
+impl<'a> At<'a> {
+    /// `model` at `(x, v)` with `stitches_closed`, in still air.
+    pub fn new(model: &'a ClothModel, x: &'a [Vec3], v: &'a [Vec3], stitches_closed: &'a [bool]) -> Self {
+        Self { model, x, v, stitches_closed, air_m_s: None }
+    }
+
+    /// The same point with the air at the model's wind velocity at time
+    /// `t` (s), an external wind's from `set` (m/s).
+    pub fn with_wind_at(self, t: f64, set: Option<Vec3>) -> Self {
+        Self { air_m_s: self.model.wind().map(|w| w.profile.velocity(t, set)), ..self }
+    }
 }
 
 /// One particle's share of a term: what a vertex solver needs.
@@ -127,17 +156,47 @@ pub trait ForceTerm: Send + Sync + std::fmt::Debug {
     fn fused(&self) -> bool {
         false
     }
+
+    /// Whether this is a force from outside the cloth (the wind's): every
+    /// step takes it at the step's start, as given over the step, and
+    /// the energy monitor counts its work as external work, not as
+    /// potential or dissipation.
+    fn external(&self) -> bool {
+        false
+    }
 }
 
 /// The forces the cloth exerts on itself and gravity, in the order every
 /// particle adds them. One line an effect.
 pub const INTERNAL_TERMS: &[&dyn ForceTerm] = &[&Gravity, &Drag, &Elements, &Links];
 
-/// The terms that act on `model`: those of [`INTERNAL_TERMS`] it has, then
-/// those added from outside ([`ClothModel::with_force_term`]).
+/// The forces from outside the cloth, in the order every particle adds
+/// them. One line an effect.
+pub const EXTERNAL_TERMS: &[&dyn ForceTerm] = &[&Aerodynamics, &Fluid];
+
+/// The internal terms that act on `model`: those of [`INTERNAL_TERMS`] it
+/// has, then those added from outside ([`ClothModel::with_force_term`]).
 pub fn acting(model: &ClothModel) -> impl Iterator<Item = &dyn ForceTerm> + '_ {
     let extra = model.extra_terms().iter().map(|t| t.as_ref() as &dyn ForceTerm);
-    INTERNAL_TERMS.iter().map(|t| *t as &dyn ForceTerm).chain(extra).filter(move |t| t.acts_on(model))
+    INTERNAL_TERMS.iter().map(|t| *t as &dyn ForceTerm).chain(extra).filter(move |t| t.acts_on(model) && !t.external())
+}
+
+/// The external terms that act on `model`: those of [`EXTERNAL_TERMS`] it
+/// has, then those added from outside.
+pub fn external(model: &ClothModel) -> impl Iterator<Item = &dyn ForceTerm> + '_ {
+    let extra = model.extra_terms().iter().map(|t| t.as_ref() as &dyn ForceTerm);
+    EXTERNAL_TERMS.iter().map(|t| *t as &dyn ForceTerm).chain(extra).filter(move |t| t.acts_on(model) && t.external())
+}
+
+/// Adds every external term's forces at `at` to `out`, N; false (nothing
+/// added) when no external term acts.
+pub fn add_external_forces(at: &At<'_>, scratch: &mut ForceBuffers, out: &mut [Vec3]) -> bool {
+    let mut any = false;
+    for term in external(at.model) {
+        term.add_forces(at, scratch, out);
+        any = true;
+    }
+    any
 }
 
 /// The acting terms the implicit steps linearise on the diagonal (not

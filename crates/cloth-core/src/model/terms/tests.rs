@@ -43,7 +43,7 @@ const MODELS: [ModelKind; 3] = [ModelKind::ChoiKo, ModelKind::Provot, ModelKind:
 const STEP: f64 = 1e-6;
 
 fn at<'a>(model: &'a ClothModel, x: &'a [Vec3], v: &'a [Vec3]) -> At<'a> {
-    At { model, x, v, stitches_closed: &[] }
+    At::new(model, x, v, &[])
 }
 
 #[test]
@@ -220,5 +220,66 @@ fn dissipation_is_the_power_of_the_dampers() {
         println!("{}: dissipation {p:.6e} W, damping forces' power {damping_power:.6e} W", term.name());
         assert!(p >= 0.0);
         assert!((p - damping_power).abs() <= 1e-12 * p.abs().max(1e-9), "{}: {p} against {damping_power}", term.name());
+    }
+}
+
+/// The test sheet with both wind effects in a gust, the air at 4 m/s
+/// across the sheet at about 40 degrees.
+fn windy() -> (ClothModel, Vec<Vec3>, Vec<Vec3>) {
+    let (model, x, v) = stretched(ModelKind::ChoiKo);
+    let mut spec = ModelSpec {
+        panels: vec![GridPanel::flat([5, 4], [0.2, 0.15])],
+        effects: crate::Effects { wind: true, aerodynamics: true, ..Default::default() },
+        ..Default::default()
+    };
+    spec.wind = Some(crate::Wind::new(crate::WindProfile::Gust {
+        mean_m_s: [3.0, 0.0, 2.5],
+        amplitude_m_s: [1.0, 0.5, 0.0],
+        frequency_hz: 2.0,
+    }));
+    let windy = ClothModel::build(&spec).unwrap();
+    assert_eq!(windy.particle_count(), model.particle_count());
+    (windy, x, v)
+}
+
+#[test]
+fn the_winds_terms_are_external_and_apart_from_the_internal_ones() {
+    let (model, _, _) = windy();
+    let external: Vec<&str> = external(&model).map(|t| t.name()).collect();
+    assert_eq!(external, ["aerodynamics", "wind"]);
+    assert!(acting(&model).all(|t| !t.external()));
+}
+
+/// Each particle's block gives it the very force the terms' loop adds, and
+/// the velocity blocks match finite differences (the position blocks are
+/// zero by design: the wind is taken as given over a step).
+#[test]
+fn wind_blocks_match_the_force_loop_and_finite_differences_in_velocity() {
+    let (model, x, v) = windy();
+    fn at<'a>(model: &'a ClothModel, x: &'a [Vec3], v: &'a [Vec3]) -> At<'a> {
+        At::new(model, x, v, &[]).with_wind_at(0.1, None)
+    }
+    for term in external(&model) {
+        let mut out = vec![Vec3::zeros(); x.len()];
+        term.add_forces(&at(&model, &x, &v), &mut crate::forces::ForceBuffers::new(&model), &mut out);
+        let (mut worst_d, mut scale) = (0.0_f64, 0.0_f64);
+        for i in 0..x.len() {
+            let block = term.vertex(&at(&model, &x, &v), i);
+            assert_eq!(block.force, out[i], "{} particle {i}", term.name());
+            assert!(block.force.norm() > 0.0, "{} particle {i}", term.name());
+            for c in 0..3 {
+                let moved = |dv: f64| {
+                    let mut w = v.clone();
+                    w[i][c] += dv;
+                    term.vertex(&at(&model, &x, &w), i).force
+                };
+                let dfdv = (moved(STEP) - moved(-STEP)) / (2.0 * STEP);
+                worst_d = worst_d.max((block.damping.column(c) + dfdv).abs().max());
+            }
+            scale = scale.max(block.damping.abs().max());
+        }
+        println!("{}: damping off by {worst_d:.2e} of blocks up to {scale:.2e} N s/m", term.name());
+        assert!(scale > 0.0);
+        assert!(worst_d <= 2e-9 * scale, "{}: damping {worst_d:e}", term.name());
     }
 }
