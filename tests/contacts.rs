@@ -44,8 +44,8 @@ fn mean(x: &[Vec3]) -> Vec3 {
 /// against the integrator's own discrete trajectory under a constant
 /// acceleration: `a t^2 / 2` for BDF2, `a h^2 N (N + 1) / 2` for backward
 /// Euler's N steps (1.1% more at 90 steps). Measured: backward Euler to
-/// 1.4e-9 (3.4e-10 with every solve to `rel_tol`, `solver.
-/// settling_iterations = 0`: `mu N` is read from another solve, each to
+/// 1.4e-9 (3.4e-10 with every solve to `rel_tol`,
+/// `solver.contacts.settling_iterations = 0`: `mu N` is read from another solve, each to
 /// `rel_tol = 1e-4`), BDF2 1.9e-4 above (its first step, a backward Euler
 /// one, leaves an offset of order `h^2 / t^2`); a friction 1% too strong
 /// is off by 2.5e-2 at 35 degrees.
@@ -186,7 +186,7 @@ fn a_moving_floor_carries_the_cloth_along() {
 /// step is exactly the momentum it gives (BDF2's stick is a multistep
 /// impulse: it overshoots the belt by 4% for a step, and its impulses sum
 /// to 5.5% less than the momentum in these 60 steps). Measured with every
-/// solve to `rel_tol` (`solver.settling_iterations = 0`): the work to
+/// solve to `rel_tol` (`solver.contacts.settling_iterations = 0`): the work to
 /// 6.6e-13 of `m v^2`, the kinetic energy to 1.8e-15 of `m v^2 / 2`, the
 /// steps' summed gain (the friction's loss) to 8.2e-13 of `-m v^2 / 2`;
 /// with the default rough solves while the contact set settles, the work
@@ -198,7 +198,7 @@ fn a_floor_that_carries_cloth_off_does_twice_the_work_the_cloth_gains() {
         let mut o = incline(0.0, 0.5);
         o.push("colliders.0.motion={ kind = \"linear\", velocity_m_s = [0.5, 0.0, 0.0] }".into());
         o.push("simulation.integrator=\"backward-euler\"".into());
-        o.push(format!("solver.settling_iterations={settling}"));
+        o.push(format!("solver.contacts.settling_iterations={settling}"));
         let o: Vec<&str> = o.iter().map(String::as_str).collect();
         let (mut sim, cfg) = simulation("incline.toml", &o);
         let start = sim.model().masses().iter().zip(&sim.state().x).map(|(m, x)| m * 9.81 * x.z).sum::<f64>();

@@ -90,7 +90,7 @@ fn solver(tolerance: f64) -> SolverParams {
         max_iter: 10_000,
         preconditioner: PreconditionerKind::BlockJacobi,
         accept_unconverged: false,
-        error_tolerance: tolerance,
+        adaptive: cloth_core::AdaptiveParams { error_tolerance: tolerance, ..Default::default() },
         fixed_cg_iterations: 200,
         ..SolverParams::default()
     }

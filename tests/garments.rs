@@ -249,7 +249,7 @@ fn the_sewn_top_stays_on_the_walking_mannequin() {
 /// 1.25 for the whole walk, and the skirt catches on the swinging thighs
 /// now and then; whether and how long it is caught is chaotic in the
 /// solve's error. At `rel_tol` 2e-3, 1e-3, 7e-4, 5e-4, 3e-4, 2e-4, 1e-4
-/// and 1e-5, and at 1e-3 with `solver.settling_iterations` 0 and 6 (the
+/// and 1e-5, and at 1e-3 with `solver.contacts.settling_iterations` 0 and 6 (the
 /// scene's 4), the worn one-piece reached 1.259-1.464, typically
 /// 1.132-1.262 (the scene's own run is the one caught all walk: 216 of
 /// 216 steps beyond 1.2, against 5-155 in the others), 1.356-1.414 while

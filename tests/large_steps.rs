@@ -1,6 +1,6 @@
 //! Large steps solved as what they are: the nonlinear implicit equation,
 //! by Newton's method with a line search on the incremental potential
-//! (`solver.newton_iterations > 1`), against the single linearised step.
+//! (`solver.newton.iterations > 1`), against the single linearised step.
 
 use cloth_tests::simulation;
 
@@ -14,8 +14,8 @@ fn hang(h: f64, newton: usize) -> (f64, Vec<cloth_core::Vec3>, usize, usize) {
         "simulation.effects=[\"gravity\", \"bending\", \"damping\", \"drag\"]".into(),
         "material.drag_n_s_m3=0.5".into(),
         "solver.rel_tol=1e-6".into(),
-        format!("solver.newton_iterations={newton}"),
-        "solver.newton_tolerance_m=1e-5".into(),
+        format!("solver.newton.iterations={newton}"),
+        "solver.newton.tolerance_m=1e-5".into(),
     ];
     let o: Vec<&str> = overrides.iter().map(String::as_str).collect();
     let (mut sim, _) = simulation("hang.toml", &o);
@@ -81,8 +81,8 @@ fn newton_keeps_a_large_step_as_stretched_as_small_steps() {
 fn drape(h: f64, newton: usize) -> (f64, f64, f64, f64) {
     let overrides = [
         format!("simulation.dt_s={h}"),
-        format!("solver.newton_iterations={newton}"),
-        "solver.newton_tolerance_m=1e-5".into(),
+        format!("solver.newton.iterations={newton}"),
+        "solver.newton.tolerance_m=1e-5".into(),
         "solver.rel_tol=1e-6".into(),
     ];
     let o: Vec<&str> = overrides.iter().map(String::as_str).collect();
@@ -226,7 +226,9 @@ effects = ["gravity", "bending", "damping"]
 [solver]
 rel_tol = 1e-8
 max_iter = 2000
-newton_iterations = 30
+
+[solver.newton]
+iterations = 30
 
 [material]
 areal_density_kg_m2 = 0.1
@@ -264,7 +266,7 @@ motion = { kind = "keyframes", times_s = [0.0, 0.1, 0.3], offsets_m = [[0.0, 0.0
     assert!(sim.max_penetration() < 1e-4, "a particle {} m inside the ball", sim.max_penetration());
 }
 
-/// `solver.newton_trigger`: Newton only on steps whose linearised tension
+/// `solver.newton.trigger`: Newton only on steps whose linearised tension
 /// is off by more than the trigger. Where no step is, the run is the
 /// single linearised step's to the bit (the sphere drape, contacts and
 /// friction in the solve included); a ball hitting a curtain at 3 m/s
@@ -282,7 +284,7 @@ fn newton_trigger_leaves_steps_it_does_not_trigger_alone() {
             sim.state().x.clone()
         };
         let single = run(&[]);
-        let untriggered = run(&["solver.newton_iterations=10", "solver.newton_trigger=0.5"]);
+        let untriggered = run(&["solver.newton.iterations=10", "solver.newton.trigger=0.5"]);
         assert!(cloth_tests::same_bits(&single, &untriggered), "{scene}: not the single step's bits");
     }
 }

@@ -3,8 +3,8 @@
 //! against the continuum value and across models and resolutions.
 
 use cloth_core::{
-    BendingLaw, ClothModel, Edge, Effects, GridPanel, IntegratorKind, Material, ModelKind, ModelSpec, PinMotion,
-    PinSpec, PreconditionerKind, Simulation, SolverParams, Vec3, forces,
+    BendingLaw, ClothModel, Edge, Effects, GridPanel, IntegratorKind, Material, ModelKind, ModelSpec, NewtonParams,
+    PinMotion, PinSpec, PreconditionerKind, Simulation, SolverParams, Vec3, forces,
 };
 use cloth_tests::least_squares_slope;
 
@@ -82,8 +82,7 @@ fn settle(model: ClothModel) -> Vec<Vec3> {
     let solver = SolverParams {
         rel_tol: 1e-10,
         preconditioner: PreconditionerKind::BlockJacobi,
-        newton_iterations: 50,
-        newton_tolerance_m: 1e-10,
+        newton: NewtonParams { iterations: 50, tolerance_m: 1e-10, ..Default::default() },
         ..SolverParams::default()
     };
     let mut sim = Simulation::new(model, IntegratorKind::BackwardEuler, solver);

@@ -596,7 +596,7 @@ fn deformation_constraints_bound_the_stretch() {
 #[test]
 fn newton_iterations_converge_the_nonlinear_step() {
     let residual = |newton: usize| {
-        let count = format!("solver.newton_iterations={newton}");
+        let count = format!("solver.newton.iterations={newton}");
         let (mut sim, _) = simulation(
             "hang.toml",
             &[
@@ -605,7 +605,7 @@ fn newton_iterations_converge_the_nonlinear_step() {
                 "simulation.integrator=backward-euler",
                 "solver.rel_tol=1e-12",
                 "solver.preconditioner=block-jacobi",
-                "solver.newton_tolerance_m=1e-15",
+                "solver.newton.tolerance_m=1e-15",
                 &count,
             ],
         );

@@ -194,13 +194,12 @@ fn strip_sag(
 #[test]
 #[ignore = "slow tier: cargo test --release -- --ignored"]
 fn a_hanging_strip_sags_as_the_continuum() {
-    use cloth_core::{IntegratorKind, ModelKind, PreconditionerKind, SolverParams, VbdParams};
+    use cloth_core::{IntegratorKind, ModelKind, NewtonParams, PreconditionerKind, SolverParams, VbdParams};
     let exact = 0.1 * 9.81 / (2.0 * 200.0);
     let newton = SolverParams {
         rel_tol: 1e-10,
         preconditioner: PreconditionerKind::BlockJacobi,
-        newton_iterations: 50,
-        newton_tolerance_m: 1e-10,
+        newton: NewtonParams { iterations: 50, tolerance_m: 1e-10, ..Default::default() },
         ..SolverParams::default()
     };
     for (kind, particles, rho, steps, h) in

@@ -112,7 +112,7 @@ pub struct Summary {
     /// end. Absent without seams.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub seams: Option<SeamSummary>,
-    /// Newton iterations (`solver.newton_iterations > 1`).
+    /// Newton iterations (`solver.newton.iterations > 1`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub newton: Option<NewtonSummary>,
     /// The energy monitor (implicit integrators with an assembled matrix).
@@ -169,7 +169,7 @@ pub struct NewtonSummary {
     pub corrections_mean: f64,
     /// Halvings of a correction by the line search.
     pub backtracks_total: u64,
-    /// Steps that ended with the residual above `solver.newton_tolerance_m`.
+    /// Steps that ended with the residual above `solver.newton.tolerance_m`.
     pub unconverged_steps: u64,
     /// Largest final residual of a step, as a distance, m.
     pub residual_max_m: f64,

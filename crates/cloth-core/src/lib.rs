@@ -39,8 +39,8 @@ pub use constraints::{StrainLimitReport, apply_strain_limit};
 pub use contacts::ContactStats;
 pub use control::{Control, ControlError, SolidImpulse, SolidMotion};
 pub use integrator::{
-    BackwardEuler, Bdf2, Integrator, IntegratorKind, NewtonReport, SolverParams, StageTimes, StepError, StepReport,
-    Workspace,
+    AdaptiveParams, BackwardEuler, Bdf2, ContactSetParams, Integrator, IntegratorKind, NewtonParams, NewtonReport,
+    SolverParams, StageTimes, StepError, StepReport, Workspace,
 };
 pub use material::{BendConstants, Compressive, Lattice, Material, Membrane};
 pub use model::{

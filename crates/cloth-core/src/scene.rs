@@ -23,15 +23,21 @@
 //! max_iter = 1000
 //! preconditioner = "multigrid"   # or "block-jacobi" (Choi & Ko), "diagonal", "none"
 //! accept_unconverged = true
-//! error_tolerance = 1e-4       # dopri5 only
-//! max_substeps = 100000        # dopri5 only
 //! fixed_cg_iterations = 4      # backward-euler-fixed-cg only
-//! newton_iterations = 1        # backward-euler and bdf2: most linear solves per step
-//! newton_tolerance_m = 1e-6    # Newton stops at this residual (as a distance, m)
-//! newton_trigger = 0.0         # Newton only on steps whose linearised tension is off by more (share of k_s L; 0: always)
 //! energy_guard = true          # bdf2 retakes a step that creates energy as backward Euler
-//! max_contact_passes = 30      # most re-solves of a step's contact set (fewer: faster, friction beyond Coulomb)
+//!
+//! [solver.newton]              # backward-euler and bdf2
+//! iterations = 1               # most linear solves per step (1: the single linearised step)
+//! tolerance_m = 1e-6           # Newton stops at this residual (as a distance, m)
+//! trigger = 0.0                # Newton only on steps whose linearised tension is off by more (share of k_s L; 0: always)
+//!
+//! [solver.contacts]            # backward-euler and bdf2 with solids
+//! max_passes = 30              # most re-solves of a step's contact set (fewer: faster, friction beyond Coulomb)
 //! settling_iterations = 4      # CG cap of the solves while the contact set settles (0: each to rel_tol)
+//!
+//! [solver.adaptive]            # dopri5 only
+//! error_tolerance = 1e-4
+//! max_substeps = 100000
 //!
 //! [solver.vbd]                 # vbd only: Vertex Block Descent's sweeps
 //! iterations = 10              # sweeps over every colour per step
@@ -385,46 +391,9 @@ impl Scene {
                 return Err(invalid("simulation.effects", format!("{e:?} is listed twice")));
             }
         }
-        let v = &self.solver;
-        if !(v.rel_tol.is_finite() && v.rel_tol > 0.0 && v.rel_tol < 1.0) {
-            return Err(invalid("solver.rel_tol", format!("must be in (0, 1), got {}", v.rel_tol)));
-        }
-        if v.max_iter == 0 {
-            return Err(invalid("solver.max_iter", "must be >= 1".into()));
-        }
-        if !(v.error_tolerance.is_finite() && v.error_tolerance > 0.0) {
-            return Err(invalid(
-                "solver.error_tolerance",
-                format!("must be finite and > 0, got {}", v.error_tolerance),
-            ));
-        }
-        if v.max_substeps == 0 {
-            return Err(invalid("solver.max_substeps", "must be >= 1".into()));
-        }
-        if v.newton_iterations == 0 {
-            return Err(invalid("solver.newton_iterations", "must be >= 1".into()));
-        }
-        if !(v.newton_tolerance_m.is_finite() && v.newton_tolerance_m > 0.0) {
-            return Err(invalid(
-                "solver.newton_tolerance_m",
-                format!("must be finite and > 0, got {}", v.newton_tolerance_m),
-            ));
-        }
-        if !(v.newton_trigger.is_finite() && v.newton_trigger >= 0.0) {
-            return Err(invalid("solver.newton_trigger", format!("must be finite and >= 0, got {}", v.newton_trigger)));
-        }
-        if v.vbd.iterations == 0 {
-            return Err(invalid("solver.vbd.iterations", "must be >= 1".into()));
-        }
-        if !(v.vbd.tolerance_m.is_finite() && v.vbd.tolerance_m >= 0.0) {
-            return Err(invalid(
-                "solver.vbd.tolerance_m",
-                format!("must be finite and >= 0, got {}", v.vbd.tolerance_m),
-            ));
-        }
-        if !(0.0..1.0).contains(&v.vbd.chebyshev_rho) {
-            return Err(invalid("solver.vbd.chebyshev_rho", format!("must be in [0, 1), got {}", v.vbd.chebyshev_rho)));
-        }
+        self.solver
+            .validate()
+            .map_err(|(key, message)| SceneErrorKind::Invalid { field: format!("solver.{key}"), message })?;
         // Checked even when the effect is not listed: a bad value is never silently kept.
         let c = &self.constraints;
         if !(c.max_strain.is_finite() && c.max_strain >= 0.0) {
@@ -617,11 +586,11 @@ nodes = [[0, 3]]
             ("material.areal_density_kg_m2=-1.0", "material.areal_density_kg_m2"),
             ("material.tensile_stiffness_n_m=nan", "material.tensile_stiffness_n_m"),
             ("solver.rel_tol=2.0", "solver.rel_tol"),
-            ("solver.error_tolerance=0.0", "solver.error_tolerance"),
-            ("solver.max_substeps=0", "solver.max_substeps"),
-            ("solver.newton_iterations=0", "solver.newton_iterations"),
-            ("solver.newton_tolerance_m=-1e-6", "solver.newton_tolerance_m"),
-            ("solver.newton_trigger=-0.25", "solver.newton_trigger"),
+            ("solver.adaptive.error_tolerance=0.0", "solver.adaptive.error_tolerance"),
+            ("solver.adaptive.max_substeps=0", "solver.adaptive.max_substeps"),
+            ("solver.newton.iterations=0", "solver.newton.iterations"),
+            ("solver.newton.tolerance_m=-1e-6", "solver.newton.tolerance_m"),
+            ("solver.newton.trigger=-0.25", "solver.newton.trigger"),
             ("solver.vbd.iterations=0", "solver.vbd.iterations"),
             ("solver.vbd.tolerance_m=-1.0", "solver.vbd.tolerance_m"),
             ("solver.vbd.chebyshev_rho=1.0", "solver.vbd.chebyshev_rho"),

@@ -91,7 +91,7 @@ fn a_yank_leaves_the_box_slipping_at_coulomb_s_rate() {
     );
     // Measured: 0.0169 m against 0.0163 (3.6%; the cloth leaves the box at
     // 0.094 s). With every contact pass solved to rel_tol
-    // (`solver.settling_iterations = 0`, or 8 and more) the active set
+    // (`solver.contacts.settling_iterations = 0`, or 8 and more) the active set
     // takes another path and the cloth leaves one step earlier: 0.0156
     // against 0.0151 (2.8%). With the table's friction on the cloth
     // decided after the solve instead: 0.0196 against 0.0193.

@@ -35,7 +35,7 @@ pub(super) fn step_sizes(quick: bool) -> Vec<Row> {
                 .integrator(integrator)
                 .set("simulation.dt_s", format!("{h:e}"))
                 .set("simulation.duration_s", format!("{:e}", h * count as f64))
-                .set("solver.newton_iterations", newton)
+                .set("solver.newton.iterations", newton)
                 // The middle particle's velocity is as exact as the solve
                 // (its relative error is the residual's share of the
                 // reference): 1e-12 left 3.6e-12 under the W-cycle.
@@ -232,7 +232,7 @@ pub(super) fn yanked(quick: bool) -> Vec<Row> {
         let case = Case::new("pins yanked at 50 m/s", "5 m in 0.1 s, then held; 6 s", requirement)
             .integrator(integrator)
             .model(model)
-            .set("solver.newton_iterations", newton)
+            .set("solver.newton.iterations", newton)
             .set("simulation.duration_s", 6)
             .set("pins.0.motion", jump);
         let (mut at_jump, mut lowest, mut rise, mut unflagged) = (f64::NAN, f64::INFINITY, 0.0f64, 0);
@@ -386,7 +386,7 @@ pub(super) fn ball_through_curtain(quick: bool) -> Vec<Row> {
     // Newton steps (friction inside the minimisation) hold: 1.08 (BDF2),
     // 1.06 (backward Euler). At 1 ms the single step holds too. Newton
     // only on the steps whose linearised tension is off by more than a
-    // quarter of `k_s L` (`solver.newton_trigger = 0.25`) holds at the
+    // quarter of `k_s L` (`solver.newton.trigger = 0.25`) holds at the
     // single step's cost: the ball's first hit is one step.
     const HELD: &str = "single linearised step: a straight link has no transverse stiffness";
     let steps: &[f64] = if quick { &[1e-3] } else { &[1.0 / 90.0, 1e-3] };
@@ -409,8 +409,8 @@ pub(super) fn ball_through_curtain(quick: bool) -> Vec<Row> {
                 .known_defect((h > 1e-3 && newton == 1).then_some(HELD))
                 .set("simulation.dt_s", format!("{h:e}"))
                 .set("simulation.duration_s", 0.8)
-                .set("solver.newton_iterations", newton)
-                .set("solver.newton_trigger", trigger)
+                .set("solver.newton.iterations", newton)
+                .set("solver.newton.trigger", trigger)
                 .set("panels.0.origin_m", "[-0.5, 0.0, 0.0]")
                 .set("panels.0.u_axis", "[1.0, 0.0, 0.0]")
                 .set("panels.0.v_axis", "[0.0, 0.0, 1.0]")
@@ -437,12 +437,12 @@ pub(super) fn ball_through_curtain(quick: bool) -> Vec<Row> {
 /// 7.3 J and 5.0 J: the rows of the cloth still
 /// stuck when the passes ran out held up to 20 times their Coulomb bound,
 /// and the pins pumped that into the links (stretch 3.6); 10 passes, 2.6
-/// J (`solver.max_contact_passes`; the 3-pass rows stay as known
+/// J (`solver.contacts.max_passes`; the 3-pass rows stay as known
 /// defects: the price of that setting).
 pub(super) fn pulled_across_a_table(quick: bool) -> Vec<Row> {
     const OUT_OF_PASSES: &str = "contact passes capped at 3: rows still stuck beyond their Coulomb bound";
     let (mu, speed, duration) = (0.3, 4.0, 0.35);
-    let settled = cloth_core::SolverParams::default().max_contact_passes;
+    let settled = cloth_core::SolverParams::default().contacts.max_passes;
     let extra = format!(
         "[[pins]]\nedge = \"i_max\"\nmotion = {{ kind = \"linear\", velocity_m_s = [{speed}, 0.0, 0.0] }}\n\n\
          [collision]\nthickness_m = 0.005\n\n[[colliders]]\n\
@@ -459,7 +459,7 @@ pub(super) fn pulled_across_a_table(quick: bool) -> Vec<Row> {
         .set("simulation.duration_s", duration)
         .set("panels.0.origin_m", "[-0.5, -0.5, 1.005]")
         .set("colliders.0.friction", friction)
-        .set("solver.max_contact_passes", passes)
+        .set("solver.contacts.max_passes", passes)
         .known_defect((passes < settled).then_some(OUT_OF_PASSES))
     };
     let peak = |case: &Case| {
@@ -651,7 +651,7 @@ master = "iterated"
             )
             .set("bodies.0.mass_kg", format!("{:e}", ratio * cloth_mass))
             .integrator("backward-euler")
-            .set("solver.newton_iterations", newton)
+            .set("solver.newton.iterations", newton)
             .known_defect((ratio >= 1.0 && newton == 1).then_some(COUPLING_GAIN));
             rows.push(coupled_ball(SCENE, case));
         }

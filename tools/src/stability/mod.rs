@@ -223,10 +223,10 @@ impl Case {
 
     fn row(&self, p: Option<&Probe>, verdict: Verdict) -> Row {
         let mut integrator = self.value("simulation.integrator", "bdf2");
-        let newton = self.value("solver.newton_iterations", "1");
+        let newton = self.value("solver.newton.iterations", "1");
         if newton != "1" {
             integrator = format!("{integrator} + Newton {newton}");
-            let trigger = self.value("solver.newton_trigger", "0");
+            let trigger = self.value("solver.newton.trigger", "0");
             if trigger != "0" {
                 integrator = format!("{integrator} where off by {trigger}");
             }

@@ -46,7 +46,10 @@ const METHODS: &[Method] = &[
     Method { label: "symplectic Euler", overrides: &["simulation.integrator=symplectic-euler"] },
     Method { label: "midpoint", overrides: &["simulation.integrator=midpoint"] },
     Method { label: "RK4", overrides: &["simulation.integrator=rk4"] },
-    Method { label: "DOPRI5 tol 1e-4", overrides: &["simulation.integrator=dopri5", "solver.error_tolerance=1e-4"] },
+    Method {
+        label: "DOPRI5 tol 1e-4",
+        overrides: &["simulation.integrator=dopri5", "solver.adaptive.error_tolerance=1e-4"],
+    },
     Method {
         label: "BE 1 CG",
         overrides: &["simulation.integrator=backward-euler-fixed-cg", "solver.fixed_cg_iterations=1"],
@@ -81,7 +84,7 @@ struct RunStats {
     /// Wall time inside `step` only (monitoring excluded), s.
     step_wall_s: f64,
     /// Newton corrections, line-search halvings and steps left above the
-    /// Newton tolerance (`solver.newton_iterations > 1`).
+    /// Newton tolerance (`solver.newton.iterations > 1`).
     newton_corrections: u64,
     newton_backtracks: u64,
     newton_unconverged: u64,

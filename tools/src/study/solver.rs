@@ -315,8 +315,8 @@ pub fn large_steps(args: &StudyArgs) -> Result<()> {
                 let mut o = overrides.clone();
                 o.extend([
                     format!("simulation.dt_s={h}"),
-                    format!("solver.newton_iterations={newton}"),
-                    "solver.newton_tolerance_m=1e-5".into(),
+                    format!("solver.newton.iterations={newton}"),
+                    "solver.newton.tolerance_m=1e-5".into(),
                     "solver.rel_tol=1e-6".into(),
                 ]);
                 let (run, sim) = run_until(&scene, &o, &pool, f64::INFINITY, |_, _| false)?;

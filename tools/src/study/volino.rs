@@ -391,7 +391,7 @@ pub fn precision(args: &StudyArgs) -> Result<()> {
     };
     let reference_overrides = base(&[
         "simulation.integrator=dopri5".into(),
-        "solver.error_tolerance=1e-10".into(),
+        "solver.adaptive.error_tolerance=1e-10".into(),
         "simulation.dt_s=0.01".into(),
     ]);
     let (_, reference) = monitored_run(&scene, &reference_overrides, &pool, |_, _| false)?;
@@ -431,7 +431,7 @@ pub fn precision(args: &StudyArgs) -> Result<()> {
         let mut points = Vec::new();
         for p in params {
             let extra = if is_dopri {
-                vec!["simulation.dt_s=0.01".into(), format!("solver.error_tolerance={p}")]
+                vec!["simulation.dt_s=0.01".into(), format!("solver.adaptive.error_tolerance={p}")]
             } else {
                 vec![format!("simulation.dt_s={p}")]
             };
@@ -439,7 +439,7 @@ pub fn precision(args: &StudyArgs) -> Result<()> {
             let mut o: Vec<String> = method
                 .overrides
                 .iter()
-                .filter(|s| !s.starts_with("solver.error_tolerance"))
+                .filter(|s| !s.starts_with("solver.adaptive.error_tolerance"))
                 .map(|s| s.to_string())
                 .collect();
             o.extend(base(&extra));

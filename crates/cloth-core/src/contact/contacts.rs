@@ -12,7 +12,7 @@
 //!   last safety net. Friction then removes tangential velocity relative
 //!   to the solid, at most `mu |f_n| tau / m` (Coulomb), all of it when
 //!   that suffices (the static regime) (`apply_friction`).
-//! - Cloth-solid in Newton iterations (`solver.newton_iterations > 1`):
+//! - Cloth-solid in Newton iterations (`solver.newton.iterations > 1`):
 //!   after the first solve the solids act as a stiff penalty energy
 //!   ([`contact_penalty`], `penalty_contacts`) and their friction as a
 //!   smoothed Coulomb dissipation potential ([`smoothed_friction`]), both

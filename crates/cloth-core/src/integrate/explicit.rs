@@ -314,7 +314,7 @@ pub(crate) fn adaptive_dopri5(
     solver: &SolverParams,
     ws: &mut Workspace,
 ) -> Result<(StepReport, f64), StepError> {
-    let (tolerance, max_substeps) = (solver.error_tolerance, solver.max_substeps);
+    let (tolerance, max_substeps) = (solver.adaptive.error_tolerance, solver.adaptive.max_substeps);
     let bufs = ws.explicit.get_or_insert_with(|| ExplicitBuffers::new(model, DOPRI5.c.len()));
     let (x_work, v_work) = (&mut ws.new_x, &mut ws.new_v);
     let mut report = StepReport { converged: true, ..Default::default() };

@@ -338,9 +338,9 @@ fn uncommitted_step<S: Linearised>(
     // 5. Newton iterations with a line search on the nonlinear step
     // equation (see `newton`): solids then act as penalties,
     // self-collision as at the start of the step.
-    let escalate = solver.newton_iterations > 1
-        && (solver.newton_trigger <= 0.0
-            || crate::newton::worst_tension_error(scheme, model, state, h, ws) > solver.newton_trigger);
+    let escalate = solver.newton.iterations > 1
+        && (solver.newton.trigger <= 0.0
+            || crate::newton::worst_tension_error(scheme, model, state, h, ws) > solver.newton.trigger);
     if escalate {
         if rules.friction_in_solve {
             // Newton smooths friction into its potential from scratch.

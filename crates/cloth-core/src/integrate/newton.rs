@@ -52,8 +52,8 @@
 //! still move if its unbalanced force acted on it alone over the step.
 //! Since the matrix is at least `M`, it bounds the remaining Newton
 //! correction in the mass norm. The iterations stop when it falls below
-//! [`crate::SolverParams::newton_tolerance_m`] or after
-//! [`crate::SolverParams::newton_iterations`] linear solves.
+//! [`crate::NewtonParams::tolerance_m`] or after
+//! [`crate::NewtonParams::iterations`] linear solves.
 
 use crate::contacts::{
     SolidContact, contact_friction_potential, contact_penalty_energy, contact_penalty_stiffness,
@@ -208,7 +208,7 @@ fn iterate_with<S: Linearised>(
             (out.forces_s + t.links_s, out.assembly_s + t.gather_s, out.evaluations + 1);
         constrain_pins(model, state, control, h, &mut ws.filter, |_, _| Vec3::zeros());
         out.residual_m = residual_distance(ws, a);
-        out.converged = out.residual_m <= solver.newton_tolerance_m;
+        out.converged = out.residual_m <= solver.newton.tolerance_m;
         if out.converged && colliders && !fresh {
             // Converged with friction bounded by older normal forces: take
             // this iterate's and check again. Updating them at every
@@ -217,7 +217,7 @@ fn iterate_with<S: Linearised>(
             refresh = true;
             continue;
         }
-        if out.converged || solves >= solver.newton_iterations {
+        if out.converged || solves >= solver.newton.iterations {
             break;
         }
         ws.unknown.iter_mut().for_each(|p| *p = Vec3::zeros());
@@ -254,7 +254,7 @@ fn iterate_with<S: Linearised>(
 /// The worst error of the single linearised step's tension over its
 /// result `ws.unknown`, as a share of `k_s L`
 /// ([`tension_linearisation_error`] of every stretch link). Used by
-/// [`crate::SolverParams::newton_trigger`].
+/// [`crate::NewtonParams::trigger`].
 pub(crate) fn worst_tension_error<S: Linearised>(
     scheme: &S,
     model: &ClothModel,

@@ -6,7 +6,7 @@
 //! inside a solid are added, stuck contacts beyond their Coulomb bound
 //! slide. Then the system is solved again, until a pass changes nothing.
 //!
-//! Solves are *rough* (capped at `settling_iterations` CG iterations)
+//! Solves are *rough* (capped at `solver.contacts.settling_iterations` CG iterations)
 //! while the set changes: they only decide which contacts hold, stick or
 //! slide. The [`Settling`] state machine says which solve comes next.
 
@@ -32,8 +32,9 @@ pub(crate) struct ContactRules {
 
 impl ContactRules {
     pub(crate) fn new(model: &ClothModel, solver: &SolverParams) -> Self {
-        let friction_in_solve = solver.newton_iterations <= 1 || solver.newton_trigger > 0.0;
-        let rough_solves = solver.settling_iterations > 0 && !model.colliders().is_empty() && friction_in_solve;
+        let friction_in_solve = solver.newton.iterations <= 1 || solver.newton.trigger > 0.0;
+        let rough_solves =
+            solver.contacts.settling_iterations > 0 && !model.colliders().is_empty() && friction_in_solve;
         Self { friction_in_solve, rough_solves }
     }
 }
@@ -71,7 +72,7 @@ pub(crate) enum NextSolve {
 impl Settling {
     pub(crate) fn new(solver: &SolverParams, rules: ContactRules) -> Self {
         let rough = SolverParams {
-            max_iter: solver.settling_iterations.min(solver.max_iter),
+            max_iter: solver.contacts.settling_iterations.min(solver.max_iter),
             accept_unconverged: true,
             ..*solver
         };
@@ -135,7 +136,7 @@ pub(crate) fn stick_frictional<S>(step: StepInputs<'_, S>, contacts: &mut [Solid
 }
 
 /// Solves the step with the contacts of its start, then settles the set
-/// pass by pass (at most `solver.max_contact_passes` re-solves).
+/// pass by pass (at most `solver.contacts.max_passes` re-solves).
 pub(crate) fn settle_contacts<S: Linearised>(
     step: StepInputs<'_, S>,
     ws: &mut Workspace,
@@ -152,7 +153,7 @@ pub(crate) fn settle_contacts<S: Linearised>(
     // A rough first solve does not count as unconverged.
     report.converged |= !exact;
     let mut unresolved = false;
-    let last = solver.max_contact_passes;
+    let last = solver.contacts.max_passes;
     let passes = if model.colliders().is_empty() { 0 } else { last + 1 };
     for pass in 0..passes {
         let (matrix, rhs) = (&ws.system.matrix, &ws.system.rhs);
@@ -197,7 +198,8 @@ mod tests {
     use super::*;
 
     fn settling(rough_solves: bool) -> Settling {
-        let solver = SolverParams { settling_iterations: 4, max_iter: 100, ..SolverParams::default() };
+        let contacts = crate::ContactSetParams { settling_iterations: 4, ..Default::default() };
+        let solver = SolverParams { contacts, max_iter: 100, ..SolverParams::default() };
         Settling::new(&solver, ContactRules { friction_in_solve: true, rough_solves })
     }
 

@@ -106,7 +106,10 @@ impl IntegratorKind {
 
 /// Every solver setting of a simulation, in one place: the scene's
 /// `[solver]` table deserialises into it (every key optional, unknown keys
-/// refused).
+/// refused). The PCG settings are shared by every assembled implicit step;
+/// each algorithm's own settings are a table of their own
+/// (`[solver.newton]`, `[solver.contacts]`, `[solver.adaptive]`,
+/// `[solver.vbd]`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SolverParams {
@@ -120,50 +123,17 @@ pub struct SolverParams {
     /// Accept the last PCG iterate when `max_iter` is reached (the step is
     /// then reported as unconverged) instead of failing the step.
     pub accept_unconverged: bool,
-    /// Local error tolerance of the adaptive integrator (relative, and
-    /// absolute in m and m/s). Default 1e-4.
-    pub error_tolerance: f64,
-    /// Most substeps (accepted plus rejected) the adaptive integrator may
-    /// take within one step before giving up. Default 100000.
-    pub max_substeps: usize,
     /// CG iterations per step of `backward-euler-fixed-cg`. Default 4.
     pub fixed_cg_iterations: usize,
-    /// Most linear solves per step of `backward-euler` and `bdf2`: 1 is
-    /// Choi & Ko's and Baraff & Witkin's single linearised step; more
-    /// adds Newton corrections with a line search on the incremental
-    /// potential, solids then acting as penalties and their friction as a
-    /// dissipation potential (see [`NewtonReport`]). Default 1.
-    pub newton_iterations: usize,
-    /// Newton stops once the step equation's residual, as a distance
-    /// (`|r_i| dx/du / m_i`, the distance a particle would still move under
-    /// its unbalanced force alone), is below this everywhere, m. Default 1e-6.
-    pub newton_tolerance_m: f64,
-    /// With `newton_iterations > 1`, the Newton iterations run only on
-    /// steps whose single linearised step misjudged some link's tension
-    /// by more than this share of `k_s L` (its stiffness times its rest
-    /// length: 0.25 is a quarter of the link's length in strain; see
-    /// `newton::tension_linearisation_error`); the other steps are the
-    /// single linearised step, bit for bit. 0 (default): Newton on every
-    /// step. The fixtures' worst steps at 1/90 s: `docs/solvers.md`.
-    pub newton_trigger: f64,
     /// `bdf2` retakes a step as backward Euler when the energy monitor
     /// flags it ([`EnergyReport::flagged`]). Default true.
     pub energy_guard: bool,
-    /// Most re-solves of one step's contact active set (contacts released,
-    /// added, switched between sticking and sliding). The default, 30, is a
-    /// bound, not a budget: the set settles, Coulomb's bound holds. Fewer
-    /// trade friction for time: where the passes run out, contacts stay
-    /// stuck beyond their bound (`cloth study stability`, "pulled across a
-    /// table").
-    pub max_contact_passes: usize,
-    /// CG iterations of each solve while a step's contact set is still
-    /// settling: the first solve of a step that starts with solid contacts
-    /// and every re-solve after a pass changed the set. The set settles on
-    /// these rough solves (they only decide which contacts hold, stick or
-    /// slide); then one solve to `rel_tol` and a last check of the set end
-    /// the step. 0: every solve to `rel_tol`. Default 4, which halves the
-    /// CG iterations of the contact fixtures (`docs/contacts.md`).
-    pub settling_iterations: usize,
+    /// Newton iterations of `backward-euler` and `bdf2` (`[solver.newton]`).
+    pub newton: NewtonParams,
+    /// How the implicit steps settle their solid contacts (`[solver.contacts]`).
+    pub contacts: ContactSetParams,
+    /// The adaptive explicit integrator's error control (`[solver.adaptive]`).
+    pub adaptive: AdaptiveParams,
     /// The vertex solver's settings (`[solver.vbd]`; `vbd` only).
     pub vbd: crate::VbdParams,
 }
@@ -173,29 +143,151 @@ impl SolverParams {
     pub fn pcg(&self) -> PcgParams {
         PcgParams { rel_tol: self.rel_tol, max_iter: self.max_iter, preconditioner: self.preconditioner }
     }
+
+    /// Checks every setting; the error names the first bad key under
+    /// `[solver]` (such as `newton.iterations`) and what is wrong.
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        if !(self.rel_tol.is_finite() && self.rel_tol > 0.0 && self.rel_tol < 1.0) {
+            return Err(("rel_tol".into(), format!("must be in (0, 1), got {}", self.rel_tol)));
+        }
+        if self.max_iter == 0 {
+            return Err(("max_iter".into(), "must be >= 1".into()));
+        }
+        let within =
+            |table: &str, r: Result<(), (&'static str, String)>| r.map_err(|(k, m)| (format!("{table}.{k}"), m));
+        within("newton", self.newton.validate())?;
+        within("adaptive", self.adaptive.validate())?;
+        within("vbd", self.vbd.validate())
+    }
 }
 
 impl Default for SolverParams {
     /// Relative tolerance 1e-4, at most 1000 iterations, the multigrid
     /// preconditioner (built from the model's grids), unconverged solves
-    /// accepted and counted; adaptive error tolerance 1e-4.
+    /// accepted and counted; each algorithm's table at its defaults.
     fn default() -> Self {
         Self {
             rel_tol: PcgParams::default().rel_tol,
             max_iter: PcgParams::default().max_iter,
             preconditioner: PreconditionerKind::Multigrid,
             accept_unconverged: true,
-            error_tolerance: 1e-4,
-            max_substeps: 100_000,
             fixed_cg_iterations: 4,
-            newton_iterations: 1,
-            newton_tolerance_m: 1e-6,
-            newton_trigger: 0.0,
             energy_guard: true,
-            max_contact_passes: MAX_CONTACT_PASSES,
-            settling_iterations: SETTLING_ITERATIONS,
+            newton: NewtonParams::default(),
+            contacts: ContactSetParams::default(),
+            adaptive: AdaptiveParams::default(),
             vbd: crate::VbdParams::default(),
         }
+    }
+}
+
+/// Newton iterations of `backward-euler` and `bdf2` (`[solver.newton]`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct NewtonParams {
+    /// Most linear solves per step: 1 (default) is Choi & Ko's and Baraff
+    /// & Witkin's single linearised step; more adds Newton corrections
+    /// with a line search on the incremental potential, solids then acting
+    /// as penalties and their friction as a dissipation potential (see
+    /// [`NewtonReport`]).
+    pub iterations: usize,
+    /// Newton stops once the step equation's residual, as a distance
+    /// (`|r_i| dx/du / m_i`, the distance a particle would still move under
+    /// its unbalanced force alone), is below this everywhere, m. Default 1e-6.
+    pub tolerance_m: f64,
+    /// With `iterations > 1`, the Newton iterations run only on steps whose
+    /// single linearised step misjudged some link's tension by more than
+    /// this share of `k_s L` (its stiffness times its rest length: 0.25 is
+    /// a quarter of the link's length in strain; see
+    /// `newton::tension_linearisation_error`); the other steps are the
+    /// single linearised step, bit for bit. 0 (default): Newton on every
+    /// step. The fixtures' worst steps at 1/90 s: `docs/solvers.md`.
+    pub trigger: f64,
+}
+
+impl Default for NewtonParams {
+    fn default() -> Self {
+        Self { iterations: 1, tolerance_m: 1e-6, trigger: 0.0 }
+    }
+}
+
+impl NewtonParams {
+    /// Checks the settings; names the first bad field.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        if self.iterations == 0 {
+            return Err(("iterations", "must be >= 1".into()));
+        }
+        if !(self.tolerance_m.is_finite() && self.tolerance_m > 0.0) {
+            return Err(("tolerance_m", format!("must be finite and > 0, got {}", self.tolerance_m)));
+        }
+        if !(self.trigger.is_finite() && self.trigger >= 0.0) {
+            return Err(("trigger", format!("must be finite and >= 0, got {}", self.trigger)));
+        }
+        Ok(())
+    }
+
+    /// Whether Newton iterations may run at all (`iterations > 1`).
+    pub fn enabled(&self) -> bool {
+        self.iterations > 1
+    }
+}
+
+/// How the implicit steps settle their solid contacts' active set
+/// (`[solver.contacts]`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ContactSetParams {
+    /// Most re-solves of one step's contact active set (contacts released,
+    /// added, switched between sticking and sliding). The default, 30, is a
+    /// bound, not a budget: the set settles, Coulomb's bound holds. Fewer
+    /// trade friction for time: where the passes run out, contacts stay
+    /// stuck beyond their bound (`cloth study stability`, "pulled across a
+    /// table").
+    pub max_passes: usize,
+    /// CG iterations of each solve while a step's contact set is still
+    /// settling: the first solve of a step that starts with solid contacts
+    /// and every re-solve after a pass changed the set. The set settles on
+    /// these rough solves (they only decide which contacts hold, stick or
+    /// slide); then one solve to `rel_tol` and a last check of the set end
+    /// the step. 0: every solve to `rel_tol`. Default 4, which halves the
+    /// CG iterations of the contact fixtures (`docs/contacts.md`).
+    pub settling_iterations: usize,
+}
+
+impl Default for ContactSetParams {
+    fn default() -> Self {
+        Self { max_passes: MAX_CONTACT_PASSES, settling_iterations: SETTLING_ITERATIONS }
+    }
+}
+
+/// The adaptive explicit integrator's error control (`[solver.adaptive]`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct AdaptiveParams {
+    /// Local error tolerance (relative, and absolute in m and m/s).
+    /// Default 1e-4.
+    pub error_tolerance: f64,
+    /// Most substeps (accepted plus rejected) within one step before
+    /// giving up. Default 100000.
+    pub max_substeps: usize,
+}
+
+impl Default for AdaptiveParams {
+    fn default() -> Self {
+        Self { error_tolerance: 1e-4, max_substeps: 100_000 }
+    }
+}
+
+impl AdaptiveParams {
+    /// Checks the settings; names the first bad field.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        if !(self.error_tolerance.is_finite() && self.error_tolerance > 0.0) {
+            return Err(("error_tolerance", format!("must be finite and > 0, got {}", self.error_tolerance)));
+        }
+        if self.max_substeps == 0 {
+            return Err(("max_substeps", "must be >= 1".into()));
+        }
+        Ok(())
     }
 }
 
@@ -265,7 +357,7 @@ pub struct StepReport {
 }
 
 /// What the Newton iterations of an implicit step did (see
-/// [`SolverParams::newton_iterations`]).
+/// [`NewtonParams::iterations`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct NewtonReport {
     /// Newton corrections after the first linearised solve.
@@ -277,7 +369,7 @@ pub struct NewtonReport {
     /// Residual of the step equation at the final iterate as a distance,
     /// `max_i |r_i| a / m_i` (m; `a = dx/du`).
     pub residual_m: f64,
-    /// Whether the residual met [`SolverParams::newton_tolerance_m`].
+    /// Whether the residual met [`NewtonParams::tolerance_m`].
     pub converged: bool,
 }
 

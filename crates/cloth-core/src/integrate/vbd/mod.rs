@@ -64,6 +64,22 @@ impl Default for VbdParams {
     }
 }
 
+impl VbdParams {
+    /// Checks the settings; names the first bad field.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        if self.iterations == 0 {
+            return Err(("iterations", "must be >= 1".into()));
+        }
+        if !(self.tolerance_m.is_finite() && self.tolerance_m >= 0.0) {
+            return Err(("tolerance_m", format!("must be finite and >= 0, got {}", self.tolerance_m)));
+        }
+        if !(0.0..1.0).contains(&self.chebyshev_rho) {
+            return Err(("chebyshev_rho", format!("must be in [0, 1), got {}", self.chebyshev_rho)));
+        }
+        Ok(())
+    }
+}
+
 /// Chebyshev's weight `omega_k` of sweep `k` (1-based) from the previous
 /// one (Wang 2015, as VBD uses it): 1, then `2 / (2 - rho^2)`, then
 /// `4 / (4 - rho^2 omega_{k-1})`.

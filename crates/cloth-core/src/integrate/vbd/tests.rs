@@ -3,7 +3,7 @@
 //! and its contacts.
 
 use super::*;
-use crate::{Edge, IntegratorKind, ModelKind, Simulation};
+use crate::{Edge, IntegratorKind, ModelKind, NewtonParams, Simulation};
 
 /// A hanging `n x n` sheet, 0.5 m square, pinned along one edge, with
 /// bending and damping.
@@ -31,8 +31,7 @@ fn converged_backward_euler(model: &ClothModel, h: f64, steps: usize) -> Vec<Vec
     let tight = SolverParams {
         rel_tol: 1e-12,
         max_iter: 10_000,
-        newton_iterations: 50,
-        newton_tolerance_m: 1e-13,
+        newton: NewtonParams { iterations: 50, tolerance_m: 1e-13, ..Default::default() },
         ..SolverParams::default()
     };
     let mut sim = Simulation::new(model.clone(), IntegratorKind::BackwardEuler, tight);
