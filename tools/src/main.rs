@@ -209,8 +209,11 @@ enum StudyKind {
     Drape,
     /// Time per polygon per step, per method and model, across grid sizes.
     Cost,
-    /// Error against a converged reference versus wall time (work-precision).
+    /// Error against a converged reference versus CPU time (work-precision).
     Precision,
+    /// The vertex solver's work-precision on four scenes, and where its
+    /// sweeps leave stiff stretch unconverged.
+    Vbd,
     /// Co-simulation masters on the two-mass oscillator: order and energy drift.
     Cosim,
     /// Peirce's cantilever against the heavy elastica, per model and resolution.
@@ -254,6 +257,7 @@ fn main() -> ExitCode {
                 StudyKind::Drape => study::drape(&args),
                 StudyKind::Cost => study::cost(&args),
                 StudyKind::Precision => study::precision(&args),
+                StudyKind::Vbd => study::vbd(&args),
                 StudyKind::Cosim => study::cosim(&args),
                 StudyKind::Bending => study::bending(&args),
                 StudyKind::LargeSteps => study::large_steps(&args),

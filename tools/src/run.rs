@@ -539,7 +539,7 @@ pub fn time(scene: &Path, overrides: &[String], threads: usize, repeat: usize) -
 /// Processor time this process has used, all threads, s: user plus system
 /// time from `/proc/self/stat` (fields 14 and 15, in Linux's fixed 100
 /// ticks per second). `None` where that file is not there.
-fn process_cpu_s() -> Option<f64> {
+pub(crate) fn process_cpu_s() -> Option<f64> {
     let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
     // The command name (field 2) is in parentheses and may hold spaces.
     let after_name = &stat[stat.rfind(')')? + 1..];

@@ -8,9 +8,11 @@
 //! holds what they share: the methods, a monitored run, the output files.
 
 mod solver;
+mod vbd;
 mod volino;
 
 pub use solver::{bending, cosim, large_steps, scaling, stability};
+pub use vbd::vbd;
 pub use volino::{cost, drape, freefall, precision};
 
 use anyhow::{Context, Result};
@@ -74,7 +76,7 @@ const METHODS: &[Method] = &[
 ];
 
 /// What a monitored run measured.
-struct RunStats {
+pub(super) struct RunStats {
     /// False when a step failed or a link blew up.
     stable: bool,
     max_stretch: f64,
@@ -83,6 +85,9 @@ struct RunStats {
     cg_iterations: u64,
     /// Wall time inside `step` only (monitoring excluded), s.
     step_wall_s: f64,
+    /// Process CPU time over the run (all threads, monitoring included;
+    /// 10 ms ticks), s.
+    cpu_s: f64,
     /// Newton corrections, line-search halvings and steps left above the
     /// Newton tolerance (`solver.newton.iterations > 1`).
     newton_corrections: u64,
@@ -127,12 +132,14 @@ fn run_until(
         force_evaluations: 0,
         cg_iterations: 0,
         step_wall_s: 0.0,
+        cpu_s: 0.0,
         newton_corrections: 0,
         newton_backtracks: 0,
         newton_unconverged: 0,
         error: None,
     };
     let bar = run_progress(scene, cfg.steps);
+    let cpu_start = crate::run::process_cpu_s();
     for _ in 0..cfg.steps {
         bar.inc(1);
         let t_prev = sim.time();
@@ -166,6 +173,7 @@ fn run_until(
         }
     }
     bar.finish_and_clear();
+    run.cpu_s = cpu_start.zip(crate::run::process_cpu_s()).map_or(f64::NAN, |(a, b)| b - a);
     Ok((run, sim))
 }
 
