@@ -110,6 +110,8 @@ pub struct Measured {
     pub peak_stretch: f64,
     /// Deepest a particle was inside a solid, m.
     pub max_penetration_m: f64,
+    /// The lowest particle's height at the end, m (a garment's hem).
+    pub hem_z_m: f64,
 }
 
 /// A garment's row: measured, or why not, beside the paper's rows.
@@ -136,6 +138,27 @@ pub struct BenchArgs {
     pub repeat: usize,
     /// Simulated time per run, s (the scene's own when absent).
     pub duration_s: Option<f64>,
+    /// Overrides of every garment's scene, after the garment's own.
+    pub overrides: Vec<String>,
+    /// Stem of the written files.
+    pub name: String,
+}
+
+impl BenchArgs {
+    /// The command line that reproduces this run.
+    fn command(&self) -> String {
+        let mut c = String::from("cargo run --release -p cloth-tools -- bench table1");
+        if self.name != "table1" {
+            c += &format!(" --name {}", self.name);
+        }
+        if let Some(d) = self.duration_s {
+            c += &format!(" --duration {d}");
+        }
+        for o in &self.overrides {
+            c += &format!(" --set '{o}'");
+        }
+        c
+    }
 }
 
 /// Runs the Table-1 garments and writes table1.md and table1.json.
@@ -158,17 +181,17 @@ pub fn table1(args: &BenchArgs) -> Result<()> {
         };
         rows.push(Table1Row { garment: garment.name, measured, paper, speedup });
     }
-    let md = markdown(&rows, args.threads);
+    let md = markdown(&rows, args);
     print!("{md}");
     std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
-    std::fs::write(args.out.join("table1.md"), &md)?;
-    std::fs::write(args.out.join("table1.json"), serde_json::to_string_pretty(&rows)?)?;
+    std::fs::write(args.out.join(format!("{}.md", args.name)), &md)?;
+    std::fs::write(args.out.join(format!("{}.json", args.name)), serde_json::to_string_pretty(&rows)?)?;
     Ok(())
 }
 
 /// Runs one garment `repeat` times and keeps the median run by wall time.
 fn measure(scene: &Path, overrides: &[&str], args: &BenchArgs) -> Result<Measured> {
-    let mut set: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+    let mut set: Vec<String> = overrides.iter().map(|s| s.to_string()).chain(args.overrides.iter().cloned()).collect();
     if let Some(d) = args.duration_s {
         set.push(format!("simulation.duration_s={d}"));
     }
@@ -204,19 +227,22 @@ fn measure(scene: &Path, overrides: &[&str], args: &BenchArgs) -> Result<Measure
         cg_per_step: s.cg_iterations_mean,
         peak_stretch: s.peak_stretch_ratio,
         max_penetration_m: s.max_penetration_m,
+        hem_z_m: s.min_z_m,
     })
 }
 
 /// The table as the paper prints it, ours beside the paper's rows.
-fn markdown(rows: &[Table1Row], threads: usize) -> String {
+fn markdown(rows: &[Table1Row], args: &BenchArgs) -> String {
+    let threads = args.threads;
     let mut md = format!(
         "# Choi & Ko 2002, Table 1, on this machine\n\n\
          Garments on the walking mannequin, h = 1/90 s, three steps per frame of 30 Hz animation, \
          {threads} threads. CPU s/frame is processor time of all threads (the paper's: one Pentium III \
          550 MHz); real time is 33.3 ms of wall time per frame. Produced by \
-         `cargo run --release -p cloth-tools -- bench table1`.\n\n\
-         | garment | particles | solids (triangles) | wall ms/frame | CPU s/frame | collision share | CG/step | peak stretch | paper: animation, particles, solid triangles, CPU s/frame | paper / ours (CPU) |\n\
-         |---|---|---|---|---|---|---|---|---|---|\n"
+         `{}`.\n\n\
+         | garment | particles | solids (triangles) | wall ms/frame | CPU s/frame | collision share | CG/step | peak stretch | max penetration (mm) | hem z (m) | paper: animation, particles, solid triangles, CPU s/frame | paper / ours (CPU) |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        args.command()
     );
     for r in rows {
         let paper: Vec<String> = r
@@ -227,7 +253,7 @@ fn markdown(rows: &[Table1Row], threads: usize) -> String {
         let speedup: Vec<String> = r.speedup.iter().map(|x| format!("{x:.0}x")).collect();
         let m = &r.measured;
         md.push_str(&format!(
-            "| {} | {} | {} ({}) | {:.1} | {} | {:.0}% | {:.1} | {:.3} | {} | {} |\n",
+            "| {} | {} | {} ({}) | {:.1} | {} | {:.0}% | {:.1} | {:.3} | {:.1} | {:.3} | {} | {} |\n",
             r.garment,
             m.particles,
             m.solids,
@@ -237,6 +263,8 @@ fn markdown(rows: &[Table1Row], threads: usize) -> String {
             m.collision_share * 100.0,
             m.cg_per_step,
             m.peak_stretch,
+            m.max_penetration_m * 1e3,
+            m.hem_z_m,
             paper.join("; "),
             if speedup.is_empty() { "n/a".into() } else { speedup.join(", ") },
         ));

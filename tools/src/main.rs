@@ -90,6 +90,13 @@ enum Command {
         /// Simulated time per run, s (default: each scene's own).
         #[arg(long, global = true, value_name = "S")]
         duration: Option<f64>,
+        /// Override a key of every garment's scene (repeatable), e.g.
+        /// `--set simulation.integrator=vbd`.
+        #[arg(long = "set", global = true, value_name = "KEY=VALUE")]
+        overrides: Vec<String>,
+        /// Name of the written files, `NAME.md` and `NAME.json`.
+        #[arg(long, global = true, default_value = "table1")]
+        name: String,
     },
     /// The cloth as an FMI 3.0 co-simulation FMU.
     Fmu {
@@ -232,8 +239,8 @@ fn main() -> ExitCode {
         Command::Run { scene, out, overrides, frames, threads, quiet } => {
             run::run(&run::RunArgs { scene, out, overrides, frames, threads, quiet })
         }
-        Command::Bench { bench: BenchKind::Table1, out, threads, repeat, duration } => {
-            bench::table1(&bench::BenchArgs { out, threads, repeat, duration_s: duration })
+        Command::Bench { bench: BenchKind::Table1, out, threads, repeat, duration, overrides, name } => {
+            bench::table1(&bench::BenchArgs { out, threads, repeat, duration_s: duration, overrides, name })
         }
         Command::Fmu { fmu: FmuKind::Build { scene, out, overrides, library } } => {
             fmu::build(&scene, &overrides, library.as_deref(), &out)

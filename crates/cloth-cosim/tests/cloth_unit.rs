@@ -6,12 +6,19 @@ use cloth_cosim::{ClothUnit, StepOutcome, Unit, UnitError};
 use std::path::PathBuf;
 
 fn sweep_unit() -> ClothUnit {
+    sweep_unit_with(None)
+}
+
+/// The sweep with its ball and pins driven from outside, with `integrator`
+/// in place of the scene's (BDF2).
+fn sweep_unit_with(integrator: Option<&str>) -> ClothUnit {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/scenes/sweep.toml");
-    let overrides = vec![
+    let mut overrides = vec![
         r#"colliders.0.motion={ kind = "external" }"#.to_string(),
         r#"pins.0.motion={ kind = "external" }"#.to_string(),
         "panels.0.particles=[11,11]".to_string(),
     ];
+    overrides.extend(integrator.map(|i| format!("simulation.integrator={i}")));
     let scene = Scene::parse_file(&path, &overrides).unwrap();
     let (model, cfg) = scene.build().unwrap();
     ClothUnit::new("cloth", cfg.simulation(model))
@@ -49,19 +56,28 @@ fn the_cloth_unit_names_its_inputs_and_outputs() {
     assert!(matches!(unit.set(target, f64::NAN), Err(UnitError::InvalidValue { .. })));
 }
 
+/// With either solver (the vertex solver's contact impulses are the
+/// unit's outputs too).
 #[test]
 fn the_ball_pushes_the_curtain_and_feels_it() {
-    let mut unit = sweep_unit();
-    run(&mut unit, 0, 80);
-    let fy = unit.get(unit.find("solid0.force.y").unwrap()).unwrap();
-    println!("force of the curtain on the ball after 80 steps: {fy} N");
-    // The ball moves in +y into the curtain: the cloth pushes it back.
-    assert!(fy < -1e-3, "{fy}");
+    for integrator in [None, Some("vbd")] {
+        let mut unit = sweep_unit_with(integrator);
+        run(&mut unit, 0, 80);
+        let fy = unit.get(unit.find("solid0.force.y").unwrap()).unwrap();
+        println!("{integrator:?}: force of the curtain on the ball after 80 steps: {fy} N");
+        // The ball moves in +y into the curtain: the cloth pushes it back.
+        assert!(fy < -1e-3, "{integrator:?}: {fy}");
+    }
 }
 
 #[test]
 fn rollback_and_serialised_state_replay_bit_for_bit() {
-    let mut unit = sweep_unit();
+    for integrator in [None, Some("vbd")] {
+        rollback_replays(sweep_unit_with(integrator));
+    }
+}
+
+fn rollback_replays(mut unit: ClothUnit) {
     run(&mut unit, 0, 40);
     let saved = unit.get_state();
     let bytes = unit.serialize_state(&saved).unwrap();
