@@ -361,10 +361,14 @@ impl Unit for ClothUnit {
         let m = self.values.len();
         let stitches = self.sim.model().stitches().len();
         let expected = 5 + 12 * n + stitches + 2 * m;
-        let values = bytes::unpack(TAG, data).filter(|v| v.len() == expected).ok_or_else(|| UnitError::BadState {
-            unit: self.name.clone(),
-            message: format!("{} bytes are not a serialised state of this cloth unit ({expected} values)", data.len()),
-        })?;
+        let values = bytes::unpack(TAG, data)
+            .and_then(|v| {
+                if v.len() == expected { Ok(v) } else { Err(format!("{} values where it holds {expected}", v.len())) }
+            })
+            .map_err(|why| UnitError::BadState {
+                unit: self.name.clone(),
+                message: format!("{} bytes are not a serialised state of this cloth unit: {why}", data.len()),
+            })?;
         let vec3s = |k: usize| -> Vec<Vec3> {
             (0..n)
                 .map(|i| {

@@ -188,10 +188,12 @@ impl Unit for MassUnit {
     }
 
     fn deserialize_state(&self, data: &[u8]) -> Result<UnitState, UnitError> {
-        let values = bytes::unpack(TAG, data).filter(|v| v.len() == 4).ok_or_else(|| UnitError::BadState {
-            unit: self.name.clone(),
-            message: format!("{} bytes are not a serialised mass unit state", data.len()),
-        })?;
+        let values = bytes::unpack(TAG, data)
+            .and_then(|v| if v.len() == 4 { Ok(v) } else { Err(format!("{} values where it holds 4", v.len())) })
+            .map_err(|why| UnitError::BadState {
+                unit: self.name.clone(),
+                message: format!("{} bytes are not a serialised mass unit state: {why}", data.len()),
+            })?;
         Ok(UnitState(Box::new([values[0], values[1], values[2], values[3]])))
     }
 }

@@ -217,36 +217,98 @@ pub fn settable<'a>(unit: &str, vars: &'a [Variable], vr: ValueRef, value: f64) 
             message: "outputs cannot be set",
         });
     }
-    if !value.is_finite() {
+    if !(value.is_finite() && value.abs() <= MAX_INPUT) {
         return Err(UnitError::InvalidValue {
             unit: unit.into(),
             name: var.name.clone(),
             value,
-            message: "must be finite".into(),
+            message: format!("must be finite and within +-{MAX_INPUT:e} (its square must not overflow)"),
         });
     }
     Ok(var)
 }
 
-/// Little-endian `f64` packing for state serialisation, with a tag so that
-/// a state of another kind of unit is recognised.
+/// The largest magnitude an input may have: squares and products of two
+/// inputs (distances, energies) stay finite below it.
+pub const MAX_INPUT: f64 = 1e150;
+
+/// Little-endian `f64` packing for state serialisation: a tag naming the
+/// kind of unit, the format's version, the values, and a CRC-32 of all
+/// that, so that a state of another kind of unit, of another version, cut
+/// short or changed in any byte is refused, never read.
 pub mod bytes {
-    /// Writes `tag` and the values.
+    /// The layout this build writes and reads.
+    pub const FORMAT_VERSION: u32 = 1;
+
+    /// Writes `tag`, [`FORMAT_VERSION`], the values and the checksum.
     pub fn pack(tag: &[u8; 8], values: impl IntoIterator<Item = f64>) -> Vec<u8> {
         let mut out = tag.to_vec();
+        out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
         for v in values {
             out.extend_from_slice(&v.to_le_bytes());
         }
+        let crc = crc32fast::hash(&out);
+        out.extend_from_slice(&crc.to_le_bytes());
         out
     }
 
-    /// Reads the values after `tag`; `None` if the tag differs or the
-    /// length is not a whole number of values.
-    pub fn unpack(tag: &[u8; 8], bytes: &[u8]) -> Option<Vec<f64>> {
-        let rest = bytes.strip_prefix(&tag[..])?;
-        if rest.len() % 8 != 0 {
-            return None;
+    /// Reads the values of bytes [`pack`] wrote with `tag`; why not when
+    /// the tag, the version, the length or the checksum is wrong.
+    pub fn unpack(tag: &[u8; 8], bytes: &[u8]) -> Result<Vec<f64>, String> {
+        let Some(rest) = bytes.strip_prefix(&tag[..]) else {
+            return Err("its tag is not this kind of unit's".into());
+        };
+        if rest.len() < 8 {
+            return Err("cut short".into());
         }
-        Some(rest.chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().expect("chunks of 8"))).collect())
+        let (body, crc) = bytes.split_at(bytes.len() - 4);
+        let version = u32::from_le_bytes(rest[..4].try_into().expect("4 bytes"));
+        if version != FORMAT_VERSION {
+            return Err(format!("format version {version}; this build reads version {FORMAT_VERSION}"));
+        }
+        if crc32fast::hash(body).to_le_bytes() != crc {
+            return Err("its checksum does not match: changed or cut short".into());
+        }
+        let values = &body[tag.len() + 4..];
+        if values.len() % 8 != 0 {
+            return Err("not a whole number of values".into());
+        }
+        Ok(values.chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().expect("chunks of 8"))).collect())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::bytes::{FORMAT_VERSION, pack, unpack};
+
+    const TAG: &[u8; 8] = b"testunit";
+
+    #[test]
+    fn packed_values_come_back_and_any_changed_byte_is_refused() {
+        let values = [1.5, -2.0e-300, f64::MAX, 0.0];
+        let bytes = pack(TAG, values);
+        assert_eq!(unpack(TAG, &bytes).unwrap(), values);
+        for k in 0..bytes.len() {
+            for bit in 0..8 {
+                let mut flipped = bytes.clone();
+                flipped[k] ^= 1 << bit;
+                assert!(unpack(TAG, &flipped).is_err(), "byte {k} bit {bit} flipped was read");
+            }
+        }
+        for cut in 0..bytes.len() {
+            assert!(unpack(TAG, &bytes[..cut]).is_err(), "cut to {cut} bytes was read");
+        }
+        assert!(unpack(b"otherone", &bytes).unwrap_err().contains("tag"));
+    }
+
+    #[test]
+    fn another_format_version_is_refused_by_name() {
+        let mut bytes = TAG.to_vec();
+        bytes.extend_from_slice(&(FORMAT_VERSION + 1).to_le_bytes());
+        bytes.extend_from_slice(&1.0f64.to_le_bytes());
+        let crc = crc32fast::hash(&bytes);
+        bytes.extend_from_slice(&crc.to_le_bytes());
+        let why = unpack(TAG, &bytes).unwrap_err();
+        assert!(why.contains(&format!("format version {}", FORMAT_VERSION + 1)), "{why}");
     }
 }

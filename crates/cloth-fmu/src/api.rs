@@ -36,9 +36,11 @@ fn call(
         // No instance, no logger to say it with.
         return Status::Error;
     }
-    // SAFETY: a non-null instance is one `fmi3InstantiateCoSimulation`
-    // returned (`Box::into_raw`) and `fmi3FreeInstance` has not freed.
-    let inst = unsafe { &mut *(instance as *mut Instance) };
+    let Some(inst) = crate::handles::lookup(instance, function) else { return Status::Error };
+    // SAFETY: a live handle's instance, made by `Box::into_raw` and not
+    // freed (`handles::release` takes it out of the registry first); FMI
+    // makes no two calls on one instance at once.
+    let inst = unsafe { &mut *inst };
     if !allowed.contains(&inst.phase) {
         let message = format!("{function} is not allowed in {:?} mode (allowed in {allowed:?})", inst.phase);
         inst.log(Status::Error, "logStatusError", &message);
@@ -216,7 +218,7 @@ pub unsafe extern "C" fn fmi3InstantiateCoSimulation(
     match built {
         Ok(Ok(inst)) => {
             inst.log(Status::Ok, "logEvents", &format!("instantiated from {}", resources.display()));
-            Box::into_raw(Box::new(inst)) as *mut c_void
+            crate::handles::register(inst)
         }
         Ok(Err((log, environment, message))) => {
             log_to(
@@ -232,15 +234,17 @@ pub unsafe extern "C" fn fmi3InstantiateCoSimulation(
     }
 }
 
-/// `fmi3FreeInstance`.
+/// `fmi3FreeInstance`. Freeing a handle twice, or one this FMU never
+/// gave, is refused and logged.
 ///
 /// # Safety
-/// `instance` is null or from `fmi3InstantiateCoSimulation`, not freed yet.
+/// None beyond the C API's: the handle is looked up, never dereferenced
+/// unchecked.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi3FreeInstance(instance: *mut c_void) {
-    if !instance.is_null() {
-        // SAFETY: made by `Box::into_raw` in `fmi3InstantiateCoSimulation`.
-        let inst = unsafe { Box::from_raw(instance as *mut Instance) };
+    if !instance.is_null()
+        && let Some(inst) = crate::handles::release(instance, "fmi3FreeInstance")
+    {
         let _ = catch_unwind(AssertUnwindSafe(move || drop(inst)));
     }
 }
@@ -290,13 +294,14 @@ pub unsafe extern "C" fn fmi3EnterEventMode(instance: *mut c_void) -> Status {
     unsupported(instance, "fmi3EnterEventMode", "this FMU has no event mode")
 }
 
-/// `fmi3Terminate`.
+/// `fmi3Terminate`: from step mode only, as FMI 3.0's co-simulation
+/// state machine has it (not from initialization mode).
 ///
 /// # Safety
 /// `instance` is null or from `fmi3InstantiateCoSimulation`.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi3Terminate(instance: *mut c_void) -> Status {
-    call(instance, "fmi3Terminate", &[Phase::Initialization, Phase::Step], |inst| {
+    call(instance, "fmi3Terminate", &[Phase::Step], |inst| {
         inst.phase = Phase::Terminated;
         Ok(Status::Ok)
     })

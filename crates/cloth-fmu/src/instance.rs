@@ -86,6 +86,11 @@ impl Instance {
         Ok(())
     }
 
+    /// The host's logger and its environment.
+    pub(crate) fn logger(&self) -> (Option<LogMessage>, *mut c_void) {
+        (self.log, self.environment)
+    }
+
     /// Logs `message` through the host's callback: always for errors and
     /// discards, for the rest only with debug logging on.
     pub(crate) fn log(&self, status: Status, category: &str, message: &str) {

@@ -16,12 +16,13 @@
 //! variable `k` is `k + 1`.
 
 // The C API takes raw pointers from the host: each is checked (null,
-// lengths) in `api` before it is read or written, and nothing else here
-// is unsafe.
+// lengths) in `api` before it is read or written, instance handles are
+// looked up in `handles`, and nothing else here is unsafe.
 #![allow(unsafe_code)]
 
 pub mod api;
 pub mod description;
+mod handles;
 pub mod import;
 mod instance;
 pub mod package;

@@ -262,3 +262,68 @@ fn calls_out_of_sequence_and_bad_arguments_are_errors_that_say_why() {
     }
     assert_eq!(unsafe { CStr::from_ptr(fmi3GetVersion()) }.to_str(), Ok("3.0"));
 }
+
+/// What an independent FMI check found: a double free, a call after
+/// free, a pin target of 1e308 (its square overflows), `fmi3Terminate` in
+/// Initialization Mode and a serialised state with one byte changed. Each
+/// is refused with `fmi3Error` and said why; none is undefined behaviour.
+#[test]
+fn unsafe_calls_and_inputs_are_refused_and_said_why() {
+    let env = 5;
+    let fmu = instantiate(&resources("safety"), &token(), env);
+    assert!(!fmu.is_null());
+    let pin_x = 1u32; // pin0.target.x
+    unsafe {
+        // Terminate is for step mode, not initialization mode.
+        assert_eq!(fmi3EnterInitializationMode(fmu, false, 0.0, 0.0, false, 0.0), Status::Ok);
+        assert_eq!(fmi3Terminate(fmu), Status::Error);
+        for huge in [1e308, -1e300, f64::INFINITY] {
+            assert_eq!(fmi3SetFloat64(fmu, &pin_x, 1, &huge, 1), Status::Error, "{huge}");
+        }
+        assert_eq!(fmi3SetFloat64(fmu, &pin_x, 1, &0.25, 1), Status::Ok);
+        assert_eq!(fmi3ExitInitializationMode(fmu), Status::Ok);
+    }
+    assert_eq!(step(fmu, 0.0, 0.01), Status::Ok);
+    // A serialised state with any one byte changed is refused.
+    let mut state: *mut c_void = std::ptr::null_mut();
+    let mut size = 0usize;
+    unsafe {
+        assert_eq!(fmi3GetFMUState(fmu, &mut state), Status::Ok);
+        assert_eq!(fmi3SerializedFMUStateSize(fmu, state, &mut size), Status::Ok);
+    }
+    let mut bytes = vec![0u8; size];
+    unsafe { assert_eq!(fmi3SerializeFMUState(fmu, state, bytes.as_mut_ptr(), size), Status::Ok) };
+    for k in [0, 9, size / 2, size - 1] {
+        let mut corrupted = bytes.clone();
+        corrupted[k] ^= 0x10;
+        let mut restored: *mut c_void = std::ptr::null_mut();
+        let status = unsafe { fmi3DeserializeFMUState(fmu, corrupted.as_ptr(), size, &mut restored) };
+        assert_eq!(status, Status::Error, "byte {k} changed");
+        assert!(restored.is_null());
+    }
+    unsafe {
+        assert_eq!(fmi3FreeFMUState(fmu, &mut state), Status::Ok);
+        assert_eq!(fmi3Terminate(fmu), Status::Ok);
+        fmi3FreeInstance(fmu);
+        // Freed twice, then called: refused through the instance's logger.
+        fmi3FreeInstance(fmu);
+        let mut value = 0.0;
+        assert_eq!(fmi3GetFloat64(fmu, &pin_x, 1, &mut value, 1), Status::Error);
+        assert_eq!(step(fmu, 0.01, 0.01), Status::Error);
+        // A handle this FMU never gave.
+        assert_eq!(fmi3Reset(0xdead_bee0 as *mut c_void), Status::Error);
+    }
+    let said = logged(env);
+    for expected in [
+        "fmi3Terminate is not allowed in Initialization mode",
+        "pin0.target.x",
+        "within +-1e150",
+        "checksum does not match",
+        "fmi3FreeInstance: instance",
+        "was freed already",
+        "fmi3GetFloat64: instance",
+        "fmi3DoStep: instance",
+    ] {
+        assert!(said.iter().any(|m| m.contains(expected)), "nothing logged with {expected:?}: {said:#?}");
+    }
+}
