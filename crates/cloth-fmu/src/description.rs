@@ -49,7 +49,11 @@ fn number(x: f64) -> String {
 
 /// The model description of an FMU whose unit has `variables` (value
 /// reference `k + 1` for variable `k`; 0 is `time`). Every output is an
-/// `InitialUnknown` (computed from the initial state). Dimensionless
+/// `InitialUnknown` (computed from the initial state), and depends on no
+/// input at its communication point (`dependencies=""`): outputs change
+/// only in `fmi3DoStep`, from the step's result, so an input set at a
+/// communication point reaches them through the next step's state, never
+/// directly, and a master sees no algebraic loop through the cloth. Dimensionless
 /// variables (unit `"1"` or `""`) carry no unit.
 pub fn model_description(variables: &[Variable], info: &FmuInfo) -> String {
     // `s` first (time's unit), then the variables' in order of appearance.
@@ -127,10 +131,10 @@ pub fn model_description(variables: &[Variable], info: &FmuInfo) -> String {
     let outputs: Vec<usize> =
         variables.iter().enumerate().filter(|(_, v)| v.causality == Causality::Output).map(|(k, _)| k + 1).collect();
     for vr in &outputs {
-        let _ = writeln!(x, r#"    <Output valueReference="{vr}"/>"#);
+        let _ = writeln!(x, r#"    <Output valueReference="{vr}" dependencies=""/>"#);
     }
     for vr in &outputs {
-        let _ = writeln!(x, r#"    <InitialUnknown valueReference="{vr}"/>"#);
+        let _ = writeln!(x, r#"    <InitialUnknown valueReference="{vr}" dependencies=""/>"#);
     }
     let _ = writeln!(x, "  </ModelStructure>");
     let _ = writeln!(x, "</fmiModelDescription>");
@@ -162,11 +166,12 @@ mod tests {
         assert!(xml.contains(r#"<Float64 name="max_stretch" valueReference="3" causality="output" variability="continuous" description="ratio"/>"#));
         assert!(xml.contains(r#"<Unit name="N.m"><BaseUnit kg="1" m="2" s="-2"/></Unit>"#));
         assert!(xml.contains(r#"stepSize="0.011111111111111112""#));
-        // Outputs are listed, and listed as initial unknowns; inputs are not.
+        // Outputs are listed, and listed as initial unknowns, with no direct
+        // feedthrough; inputs are not.
         for vr in [2, 3] {
-            assert!(xml.contains(&format!(r#"<Output valueReference="{vr}"/>"#)));
-            assert!(xml.contains(&format!(r#"<InitialUnknown valueReference="{vr}"/>"#)));
+            assert!(xml.contains(&format!(r#"<Output valueReference="{vr}" dependencies=""/>"#)));
+            assert!(xml.contains(&format!(r#"<InitialUnknown valueReference="{vr}" dependencies=""/>"#)));
         }
-        assert!(!xml.contains(r#"<Output valueReference="1"/>"#));
+        assert!(!xml.contains(r#"<Output valueReference="1""#));
     }
 }
