@@ -122,6 +122,8 @@ impl ClothUnit {
             let item = k.map_or(String::new(), |k| k.to_string());
             for (axis, name) in AXES.iter().enumerate() {
                 let var = Variable::new(format!("{prefix}{item}.{field}.{name}"), causality, unit, description);
+                // Outputs change only in a step: no feedthrough.
+                let var = if causality == Causality::Output { var.with_dependencies(vec![]) } else { var };
                 vars.push(var.with_start(start[axis]));
                 roles.push(Role { quantity, item: k.unwrap_or(0), axis });
             }
@@ -151,7 +153,7 @@ impl ClothUnit {
             (Quantity::LowestZ, "lowest_z", "m", "lowest particle height"),
             (Quantity::MaxStretch, "max_stretch", "1", "longest link over its rest length"),
         ] {
-            vars.push(Variable::new(name, Causality::Output, unit, description));
+            vars.push(Variable::new(name, Causality::Output, unit, description).with_dependencies(vec![]));
             roles.push(Role { quantity, item: 0, axis: 0 });
         }
         let values = vars.iter().map(|v| v.start).collect();

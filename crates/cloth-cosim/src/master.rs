@@ -9,6 +9,12 @@
 //!   feeding the end-of-step outputs back as inputs (with relaxation), until
 //!   the interface values change less than a tolerance.
 //!
+//! At a communication point the masters read an output with direct
+//! feedthrough ([`crate::Variable::dependencies`]) only after the inputs it
+//! depends on are set to their values there, in dependency order; a cycle
+//! of feedthrough outputs is a real algebraic loop and is reported
+//! ([`CosimError::AlgebraicLoop`]).
+//!
 //! Inputs between communication points are held (zero-order hold) or
 //! extrapolated linearly from the last two (first-order hold) for the
 //! explicit masters; the iterated master holds its end-of-step guess or
@@ -185,6 +191,13 @@ pub enum CosimError {
         /// The unit's reason.
         reason: String,
     },
+    /// Outputs with direct feedthrough feed each other's inputs in a cycle:
+    /// no explicit master can order them.
+    #[error("algebraic loop: the outputs {outputs:?} depend directly on inputs they feed, in a cycle")]
+    AlgebraicLoop {
+        /// The outputs in the loop (and those waiting on it), `unit.variable`.
+        outputs: Vec<String>,
+    },
     /// The macro step is not finite and positive.
     #[error("macro step {h} s: must be finite and > 0")]
     InvalidStep {
@@ -303,7 +316,7 @@ impl CoSimulation {
         if !(h.is_finite() && h > 0.0) {
             return Err(CosimError::InvalidStep { h });
         }
-        let start = self.outputs()?;
+        let start = self.resolved_outputs()?;
         let report = match self.master.clone() {
             Master::Jacobi(p) => self.jacobi(&start, h, p)?,
             Master::GaussSeidel(p) => self.gauss_seidel(&start, h, &p)?,
@@ -317,6 +330,51 @@ impl CoSimulation {
     /// Every connection's source value now.
     fn outputs(&self) -> Result<Vec<f64>, CosimError> {
         self.connections.iter().map(|c| self.get(c.from)).collect()
+    }
+
+    /// Every connection's source value at this communication point, each
+    /// output read once the connected inputs it depends on directly hold
+    /// their values here (set as they are resolved, in connection order
+    /// within each round, so the order is fixed).
+    fn resolved_outputs(&mut self) -> Result<Vec<f64>, CosimError> {
+        let n = self.connections.len();
+        let mut value: Vec<Option<f64>> = vec![None; n];
+        while value.iter().any(Option::is_none) {
+            let mut progress = false;
+            for k in 0..n {
+                if value[k].is_some() || !self.inputs_resolved(self.connections[k].from, &value) {
+                    continue;
+                }
+                let v = self.get(self.connections[k].from)?;
+                let to = self.connections[k].to;
+                self.units[to.unit].set(to.var, v)?;
+                value[k] = Some(v);
+                progress = true;
+            }
+            if !progress {
+                let outputs = (0..n)
+                    .filter(|&k| value[k].is_none())
+                    .map(|k| {
+                        let from = self.connections[k].from;
+                        let unit = &self.units[from.unit];
+                        format!("{}.{}", unit.name(), unit.variables()[from.var].name)
+                    })
+                    .collect();
+                return Err(CosimError::AlgebraicLoop { outputs });
+            }
+        }
+        Ok(value.into_iter().map(|v| v.expect("every value resolved")).collect())
+    }
+
+    /// Whether every input that output `from` depends on directly, and that
+    /// a connection feeds, holds its value at this communication point.
+    fn inputs_resolved(&self, from: Port, value: &[Option<f64>]) -> bool {
+        let vars = self.units[from.unit].variables();
+        let depends = |input: ValueRef| match &vars[from.var].dependencies {
+            Some(inputs) => inputs.contains(&input),
+            None => vars[input].causality == Causality::Input,
+        };
+        self.connections.iter().zip(value).all(|(c, v)| v.is_some() || c.to.unit != from.unit || !depends(c.to.var))
     }
 
     /// Slope of each connection's value from the last communication point

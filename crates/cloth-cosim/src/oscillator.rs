@@ -79,8 +79,8 @@ impl MassUnit {
     pub fn force_driven(osc: &Oscillator, x0: f64, substeps: usize) -> Self {
         let vars = vec![
             Variable::new("F", Causality::Input, "N", "coupling force on mass 1"),
-            Variable::new("x1", Causality::Output, "m", "position of mass 1").with_start(x0),
-            Variable::new("v1", Causality::Output, "m/s", "velocity of mass 1"),
+            Variable::new("x1", Causality::Output, "m", "position of mass 1").with_start(x0).with_dependencies(vec![]),
+            Variable::new("v1", Causality::Output, "m/s", "velocity of mass 1").with_dependencies(vec![]),
         ];
         Self::new("A", vars, osc.m1, osc.k1, 0.0, x0, substeps)
     }
@@ -90,9 +90,11 @@ impl MassUnit {
     pub fn displacement_driven(osc: &Oscillator, x0: f64, substeps: usize) -> Self {
         let vars = vec![
             Variable::new("x1", Causality::Input, "m", "position of mass 1"),
-            Variable::new("F", Causality::Output, "N", "coupling force on mass 1, k12 (x2 - x1)"),
-            Variable::new("x2", Causality::Output, "m", "position of mass 2").with_start(x0),
-            Variable::new("v2", Causality::Output, "m/s", "velocity of mass 2"),
+            // F reads the input x1 directly: feedthrough.
+            Variable::new("F", Causality::Output, "N", "coupling force on mass 1, k12 (x2 - x1)")
+                .with_dependencies(vec![0]),
+            Variable::new("x2", Causality::Output, "m", "position of mass 2").with_start(x0).with_dependencies(vec![]),
+            Variable::new("v2", Causality::Output, "m/s", "velocity of mass 2").with_dependencies(vec![]),
         ];
         Self::new("B", vars, osc.m2, osc.k2, osc.k12, x0, substeps)
     }

@@ -39,6 +39,11 @@ pub struct Variable {
     pub description: String,
     /// Value before the first step.
     pub start: f64,
+    /// Of an output, the inputs of the same unit its value at a
+    /// communication point depends on directly (FMI's `dependencies`):
+    /// `Some(vec![])` when it depends on none (it changes only in a step),
+    /// `None` when unknown, taken as every input.
+    pub dependencies: Option<Vec<ValueRef>>,
 }
 
 impl Variable {
@@ -49,7 +54,22 @@ impl Variable {
         unit: &'static str,
         description: impl Into<String>,
     ) -> Self {
-        Self { name: name.into(), causality, ty: VarType::Float64, unit, description: description.into(), start: 0.0 }
+        Self {
+            name: name.into(),
+            causality,
+            ty: VarType::Float64,
+            unit,
+            description: description.into(),
+            start: 0.0,
+            dependencies: None,
+        }
+    }
+
+    /// The same output, depending directly on the inputs `inputs` only
+    /// (none: it changes only in a step).
+    pub fn with_dependencies(mut self, inputs: Vec<ValueRef>) -> Self {
+        self.dependencies = Some(inputs);
+        self
     }
 
     /// The same variable with start value `start`.

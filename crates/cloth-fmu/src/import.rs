@@ -141,6 +141,24 @@ impl FmuUnit {
             vars.push(Variable::new(field("name")?, causality, unit, description).with_start(start));
             vrs.push(vr);
         }
+        // Outputs' direct dependencies on inputs (`<Output dependencies>`;
+        // absent: every input), as the unit's variable indices.
+        for element in xml.split("<Output ").skip(1) {
+            let tag = format!(" {}", &element[..element.find("/>").unwrap_or(element.len())]);
+            let Some(vr) = attribute(&tag, "valueReference").and_then(|v| v.parse::<ValueReference>().ok()) else {
+                continue;
+            };
+            let (Some(k), Some(list)) = (vrs.iter().position(|&r| r == vr), attribute(&tag, "dependencies")) else {
+                continue;
+            };
+            let inputs = list
+                .split_whitespace()
+                .filter_map(|d| d.parse::<ValueReference>().ok())
+                .filter_map(|d| vrs.iter().position(|&r| r == d))
+                .filter(|&j| vars[j].causality == Causality::Input)
+                .collect();
+            vars[k].dependencies = Some(inputs);
+        }
         // Unpack next to nothing else: a directory of its own.
         static COUNT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
         let n = COUNT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);

@@ -79,6 +79,8 @@ impl RapierUnit {
                 let start = starts.get(f).copied().unwrap_or_else(Vec3::zeros);
                 for (a, axis) in AXES.iter().enumerate() {
                     let var = Variable::new(format!("body{k}.{field}.{axis}"), *causality, unit, *description);
+                    // The body's state after the step: no feedthrough.
+                    let var = if *causality == Causality::Output { var.with_dependencies(vec![]) } else { var };
                     vars.push(var.with_start(start[a]));
                 }
             }
