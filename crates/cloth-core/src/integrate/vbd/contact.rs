@@ -52,15 +52,25 @@ impl Surroundings {
     }
 }
 
-/// The solids around a particle at `from` (m): each solid whose surface
-/// (at the step's end, `solids`) is closer than `reach` (m) becomes a
-/// plane, the two nearest kept; every other solid bounds the ball the
-/// particle may move in, its radius the solid's distance less the contact
-/// `thickness` (m). A distance's magnitude bounds the travel to the
-/// surface whatever its sign says, so meshes bound the ball too.
+/// The solids around a particle at `from` (m), found where each solid is
+/// at the step's start (`start`: the side of the surface the particle is
+/// on) and carried with it to the step's end (`end`): each solid whose
+/// surface is closer than `reach` (m) at either instant becomes a plane,
+/// the two nearest kept; every other solid bounds the ball the particle
+/// may move in, its radius the solid's least distance at the two instants
+/// less the contact `thickness` (m). A distance's magnitude bounds the
+/// travel to the surface whatever its sign says, so meshes bound the ball
+/// too. For a particle already at its end-of-step place, pass the end
+/// poses as both.
+///
+/// Carrying the start's plane keeps a particle a solid sweeps towards on
+/// the solid's near side: found against the end pose alone, a limb that
+/// moved past most of its width in one step pushed the particles it
+/// swept over out of its far side (the walking skirt at Table 1's
+/// resolution reached a stretch of 27).
 pub(crate) fn surroundings(
     model: &ClothModel,
-    solids: &[SolidPose],
+    (start, end): (&[SolidPose], &[SolidPose]),
     from: Vec3,
     reach: f64,
     thickness: f64,
@@ -68,27 +78,29 @@ pub(crate) fn surroundings(
     let mut kept: [(f64, Option<Plane>); 2] = [(f64::INFINITY, None); 2];
     let mut bound = f64::INFINITY;
     let mut queries = 0;
-    for (k, (c, pose)) in model.colliders().iter().zip(solids).enumerate() {
-        if !pose.near(&from, reach) {
-            bound = bound.min(pose.box_distance(&from));
+    for (k, ((c, before), after)) in model.colliders().iter().zip(start).zip(end).enumerate() {
+        if !before.near(&from, reach) && !after.near(&from, reach) {
+            bound = bound.min(before.box_distance(&from)).min(after.box_distance(&from));
             continue;
         }
         queries += 1;
-        let s = c.shape.closest(pose.pose(), from);
-        if s.distance_m >= reach {
-            bound = bound.min(s.distance_m.abs());
+        let s = c.shape.closest(before.pose(), from);
+        let (point, normal) = carried(before.pose(), after.pose(), s.point, s.normal);
+        let distance = s.distance_m.min(normal.dot(&(from - point)));
+        if distance >= reach {
+            bound = bound.min(distance.abs());
             continue;
         }
         let plane = Plane {
             collider: k as u32,
-            point: s.point,
-            normal: s.normal,
-            solid_velocity: pose.velocity_at(s.point),
+            point,
+            normal,
+            solid_velocity: after.velocity_at(point),
             friction: c.friction,
             lagged_normal_n: 0.0,
         };
         // Keep the two nearest; one pushed out bounds the ball instead.
-        let mut offer = (s.distance_m, Some(plane));
+        let mut offer = (distance, Some(plane));
         for slot in kept.iter_mut() {
             if offer.0 < slot.0 {
                 std::mem::swap(slot, &mut offer);
@@ -100,6 +112,13 @@ pub(crate) fn surroundings(
     }
     let found = Surroundings { planes: [kept[0].1, kept[1].1], centre: from, radius_m: (bound - thickness).max(0.0) };
     (found, queries)
+}
+
+/// A point and normal of a solid at `before`, where the solid's motion
+/// carries them at `after` (rigidly: the same place in the solid's frame).
+fn carried(before: &crate::BodyPose, after: &crate::BodyPose, point: Vec3, normal: Vec3) -> (Vec3, Vec3) {
+    let turn = after.rotation * before.rotation.inverse();
+    (after.position + turn * (point - before.position), turn * normal)
 }
 
 /// A solid's penalty and lagged friction on a particle at `x` moving at

@@ -395,7 +395,7 @@ impl crate::Integrator for Vbd {
             (*a, *q) = if fixed[i] || solids.is_empty() {
                 (Surroundings::free(xn[i]), 0)
             } else {
-                surroundings(model, solids, xn[i], reach(i), thickness)
+                surroundings(model, (solids_now, solids), xn[i], reach(i), thickness)
             };
         });
         for (i, (a, q)) in b.around.iter().zip(&b.queries).enumerate() {
@@ -514,7 +514,7 @@ impl crate::Integrator for Vbd {
                 let (around, cut, x) = (&mut b.around, &mut b.cut, &b.x);
                 around.par_iter_mut().zip(cut.par_iter_mut()).enumerate().for_each(|(i, (a, c))| {
                     if *c {
-                        *a = surroundings(model, solids, x[i], reach(i), thickness).0;
+                        *a = surroundings(model, (solids, solids), x[i], reach(i), thickness).0;
                         *c = false;
                     }
                 });
