@@ -26,7 +26,6 @@ mod handles;
 pub mod import;
 mod instance;
 pub mod package;
-mod zip;
 
 pub use description::{FmuInfo, model_description};
 pub use package::{FmuError, build_fmu, instantiation_token};

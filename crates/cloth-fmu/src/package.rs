@@ -143,10 +143,8 @@ pub fn build_fmu(scene: &Path, overrides: &[String], library: &Path, out: &Path)
         (format!("resources/{OVERRIDES_FILE}"), overrides_text.into_bytes()),
     ];
     entries.extend(mesh_entries);
-    if entries.iter().map(|(_, d)| d.len() as u64).sum::<u64>() > u64::from(u32::MAX) {
-        return Err(FmuError::Io { path: out.to_path_buf(), message: "larger than a ZIP without ZIP64 holds".into() });
-    }
-    std::fs::write(out, crate::zip::write_stored(&entries)).map_err(io(out))?;
+    std::fs::write(out, deflated(&entries).map_err(|e| FmuError::Io { path: out.to_path_buf(), message: e })?)
+        .map_err(io(out))?;
     let names =
         |c: cloth_cosim::Causality| variables.iter().filter(|v| v.causality == c).map(|v| v.name.clone()).collect();
     Ok(BuiltFmu {
@@ -157,9 +155,38 @@ pub fn build_fmu(scene: &Path, overrides: &[String], library: &Path, out: &Path)
     })
 }
 
-/// The entries of an FMU archive written by [`build_fmu`] (name, bytes).
+/// The archive of `entries` (path, contents), in order, deflated, with a
+/// fixed time stamp (1980-01-01) so that the same FMU gives the same bytes.
+fn deflated(entries: &[Entry]) -> Result<Vec<u8>, String> {
+    let mut zip = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
+    let options = zip::write::SimpleFileOptions::default()
+        .compression_method(zip::CompressionMethod::Deflated)
+        .last_modified_time(zip::DateTime::default())
+        .large_file(false);
+    for (name, data) in entries {
+        zip.start_file(name.as_str(), options).map_err(|e| format!("{name}: {e}"))?;
+        std::io::Write::write_all(&mut zip, data).map_err(|e| format!("{name}: {e}"))?;
+    }
+    Ok(zip.finish().map_err(|e| e.to_string())?.into_inner())
+}
+
+/// The files of an FMU archive (name, bytes), stored or deflated as any
+/// tool writes them; directory entries and the archive's comment are
+/// passed over.
 pub fn read_fmu(path: &Path) -> Result<Vec<Entry>, FmuError> {
-    let bytes = std::fs::read(path).map_err(io(path))?;
-    crate::zip::read_stored(&bytes)
-        .ok_or_else(|| FmuError::Io { path: path.to_path_buf(), message: "not an archive written by build_fmu".into() })
+    let bad = |message: String| FmuError::Io { path: path.to_path_buf(), message };
+    let file = std::fs::File::open(path).map_err(io(path))?;
+    let mut archive = zip::ZipArchive::new(file).map_err(|e| bad(format!("not a ZIP archive: {e}")))?;
+    let mut entries = Vec::new();
+    for k in 0..archive.len() {
+        let mut entry = archive.by_index(k).map_err(|e| bad(format!("entry {k}: {e}")))?;
+        if entry.is_dir() {
+            continue;
+        }
+        let name = entry.name().map_err(|e| bad(format!("entry {k}: its name: {e}")))?.to_string();
+        let mut data = Vec::with_capacity(entry.size() as usize);
+        std::io::Read::read_to_end(&mut entry, &mut data).map_err(|e| bad(format!("{name}: {e}")))?;
+        entries.push((name, data));
+    }
+    Ok(entries)
 }

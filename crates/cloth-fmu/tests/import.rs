@@ -153,3 +153,42 @@ fn a_mesh_solid_travels_in_the_fmu() {
     let pressed = fmu.get(fmu.find("solid0.force.z").unwrap()).unwrap();
     assert!(pressed < -0.1, "{pressed} N");
 }
+
+/// The FMU repacked as other tools write archives: directory entries
+/// before the files, the shared library stored and the rest deflated at
+/// the highest level, an archive comment. It loads and steps bit for bit
+/// as the FMU this crate wrote (which is deflated: smaller than its
+/// library alone).
+#[test]
+fn an_archive_laid_out_as_other_tools_write_it_loads_and_steps_the_same() {
+    let ours = fmu("ours");
+    let entries = cloth_fmu::package::read_fmu(&ours).unwrap();
+    let library_size = entries.iter().find(|(n, _)| n.starts_with("binaries/")).unwrap().1.len() as u64;
+    let size = std::fs::metadata(&ours).unwrap().len();
+    println!("FMU {size} bytes, its library {library_size} bytes");
+    assert!(size < library_size, "the FMU is not compressed: {size} bytes");
+    let theirs = std::env::temp_dir().join(format!("cloth-fmu-import-{}-theirs.fmu", std::process::id()));
+    let mut zip = zip::ZipWriter::new(std::fs::File::create(&theirs).unwrap());
+    let stored = zip::write::SimpleFileOptions::default().compression_method(zip::CompressionMethod::Stored);
+    let deflated = zip::write::SimpleFileOptions::default()
+        .compression_method(zip::CompressionMethod::Deflated)
+        .compression_level(Some(9));
+    for dir in ["binaries/", "binaries/x86_64-linux/", "resources/"] {
+        zip.add_directory(dir, stored).unwrap();
+    }
+    for (name, data) in &entries {
+        zip.start_file(name.as_str(), if name.starts_with("binaries/") { stored } else { deflated }).unwrap();
+        std::io::Write::write_all(&mut zip, data).unwrap();
+    }
+    zip.set_comment("written by another tool").unwrap();
+    zip.finish().unwrap();
+    let (mut a, mut b) = (FmuUnit::load(&ours, "a").unwrap(), FmuUnit::load(&theirs, "b").unwrap());
+    let h = 1.0 / 90.0;
+    for n in 0..5 {
+        a.do_step(n as f64 * h, h).unwrap();
+        b.do_step(n as f64 * h, h).unwrap();
+    }
+    for v in 0..a.variables().len() {
+        assert_eq!(a.get(v).unwrap().to_bits(), b.get(v).unwrap().to_bits(), "{}", a.variables()[v].name);
+    }
+}
