@@ -98,11 +98,95 @@ pub struct FmuUnit {
 // library and the log are `Send`.
 unsafe impl Send for FmuUnit {}
 
-/// An attribute of an XML start tag (`name="value"`), unescaped.
-fn attribute(tag: &str, name: &str) -> Option<String> {
-    let start = tag.find(&format!(" {name}=\""))? + name.len() + 3;
-    let end = start + tag[start..].find('"')?;
-    Some(tag[start..end].replace("&quot;", "\"").replace("&lt;", "<").replace("&gt;", ">").replace("&amp;", "&"))
+/// An FMU's unpacked directory, removed when the load fails before the
+/// unit that owns it exists.
+struct Unpacked {
+    dir: PathBuf,
+    handed_on: bool,
+}
+
+impl Drop for Unpacked {
+    fn drop(&mut self) {
+        if !self.handed_on {
+            let _ = std::fs::remove_dir_all(&self.dir);
+        }
+    }
+}
+
+/// What the importer reads of a `modelDescription.xml`.
+#[derive(Debug, Default)]
+struct Description {
+    token: Option<String>,
+    identifier: Option<String>,
+    /// `Float64` inputs, outputs and parameters, with their value references.
+    variables: Vec<(Variable, ValueReference)>,
+    /// `<Output>` value references and their `dependencies`, if given.
+    outputs: Vec<(ValueReference, Option<Vec<ValueReference>>)>,
+}
+
+/// Parses a model description with an XML parser: the instantiation
+/// token, the co-simulation model identifier, the `Float64` variables of
+/// causality input, output or parameter (the default causality is local,
+/// so a variable without one is passed over, as are other types) and the
+/// outputs' dependencies. Errors name what is missing or malformed.
+fn parse_description(xml: &str) -> Result<Description, String> {
+    use quick_xml::events::Event;
+    let mut reader = quick_xml::Reader::from_str(xml);
+    let mut d = Description::default();
+    let mut root = false;
+    loop {
+        let event = reader.read_event().map_err(|e| format!("XML at byte {}: {e}", reader.buffer_position()))?;
+        let element = match &event {
+            Event::Start(e) | Event::Empty(e) => e,
+            Event::Eof => break,
+            _ => continue,
+        };
+        let mut attributes = std::collections::BTreeMap::new();
+        for a in element.attributes() {
+            let a = a.map_err(|e| format!("XML attribute: {e}"))?;
+            let value = a.unescape_value().map_err(|e| format!("XML attribute value: {e}"))?;
+            attributes.insert(String::from_utf8_lossy(a.key.as_ref()).into_owned(), value.into_owned());
+        }
+        let get = |k: &str| attributes.get(k).cloned();
+        match element.name().as_ref() {
+            b"fmiModelDescription" => {
+                root = true;
+                d.token = get("instantiationToken");
+            }
+            b"CoSimulation" => d.identifier = get("modelIdentifier"),
+            b"Float64" => {
+                let causality = match get("causality").as_deref().unwrap_or("local") {
+                    "input" => Causality::Input,
+                    "output" => Causality::Output,
+                    "parameter" => Causality::Parameter,
+                    _ => continue, // independent (time), local, calculated parameters
+                };
+                let name = get("name").ok_or("a Float64 variable without a name")?;
+                let vr = get("valueReference")
+                    .and_then(|v| v.parse().ok())
+                    .ok_or_else(|| format!("{name}: no valueReference, or not a number"))?;
+                let start = match get("start") {
+                    Some(s) => s.parse().map_err(|_| format!("{name}: start {s:?} is not a number"))?,
+                    None => 0.0,
+                };
+                // Variables carry `'static` unit names: this crate's own units.
+                let unit = get("unit").and_then(|u| known_unit(&u)).map_or("", |(name, _)| name);
+                let description = get("description").unwrap_or_default();
+                d.variables.push((Variable::new(name, causality, unit, description).with_start(start), vr));
+            }
+            b"Output" => {
+                let Some(vr) = get("valueReference").and_then(|v| v.parse().ok()) else { continue };
+                let dependencies =
+                    get("dependencies").map(|l| l.split_whitespace().filter_map(|v| v.parse().ok()).collect());
+                d.outputs.push((vr, dependencies));
+            }
+            _ => {}
+        }
+    }
+    if !root {
+        return Err("not an FMI model description (no <fmiModelDescription>)".into());
+    }
+    Ok(d)
 }
 
 impl FmuUnit {
@@ -116,44 +200,18 @@ impl FmuUnit {
             .find(|(n, _)| n == "modelDescription.xml")
             .and_then(|(_, d)| String::from_utf8(d.clone()).ok())
             .ok_or_else(|| bad("no modelDescription.xml".into()))?;
-        let root =
-            &xml[xml.find("<fmiModelDescription").ok_or_else(|| bad("not an FMI model description".into()))?..];
-        let token = attribute(root, "instantiationToken").ok_or_else(|| bad("no instantiationToken".into()))?;
-        let cs = &xml[xml.find("<CoSimulation").ok_or_else(|| bad("not a co-simulation FMU".into()))?..];
-        let identifier = attribute(cs, "modelIdentifier").ok_or_else(|| bad("no modelIdentifier".into()))?;
-        let (mut vars, mut vrs) = (Vec::new(), Vec::new());
-        for element in xml.split("<Float64 ").skip(1) {
-            let tag = format!(" {}", &element[..element.find("/>").unwrap_or(element.len())]);
-            let field = |n: &str| attribute(&tag, n).ok_or_else(|| bad(format!("a Float64 variable without {n}")));
-            let causality = match field("causality")?.as_str() {
-                "input" => Causality::Input,
-                "output" => Causality::Output,
-                "parameter" => Causality::Parameter,
-                _ => continue, // time, locals
-            };
-            let vr =
-                field("valueReference")?.parse().map_err(|_| bad("a valueReference that is not a number".into()))?;
-            let start =
-                attribute(&tag, "start").map_or(Ok(0.0), |s| s.parse().map_err(|_| bad(format!("start {s}"))))?;
-            // Variables carry `'static` unit names: this crate's own units.
-            let unit = attribute(&tag, "unit").and_then(|u| known_unit(&u)).map_or("", |(name, _)| name);
-            let description = attribute(&tag, "description").unwrap_or_default();
-            vars.push(Variable::new(field("name")?, causality, unit, description).with_start(start));
-            vrs.push(vr);
-        }
-        // Outputs' direct dependencies on inputs (`<Output dependencies>`;
-        // absent: every input), as the unit's variable indices.
-        for element in xml.split("<Output ").skip(1) {
-            let tag = format!(" {}", &element[..element.find("/>").unwrap_or(element.len())]);
-            let Some(vr) = attribute(&tag, "valueReference").and_then(|v| v.parse::<ValueReference>().ok()) else {
-                continue;
-            };
-            let (Some(k), Some(list)) = (vrs.iter().position(|&r| r == vr), attribute(&tag, "dependencies")) else {
-                continue;
-            };
+        let d = parse_description(&xml).map_err(|e| bad(format!("modelDescription.xml: {e}")))?;
+        let token = d.token.ok_or_else(|| bad("modelDescription.xml: no instantiationToken".into()))?;
+        let identifier = d
+            .identifier
+            .ok_or_else(|| bad("modelDescription.xml: not a co-simulation FMU (no <CoSimulation>)".into()))?;
+        let (mut vars, vrs): (Vec<Variable>, Vec<ValueReference>) = d.variables.into_iter().unzip();
+        // Outputs' direct dependencies on inputs (absent: every input), as
+        // the unit's variable indices.
+        for (vr, dependencies) in d.outputs {
+            let (Some(k), Some(list)) = (vrs.iter().position(|&r| r == vr), dependencies) else { continue };
             let inputs = list
-                .split_whitespace()
-                .filter_map(|d| d.parse::<ValueReference>().ok())
+                .into_iter()
                 .filter_map(|d| vrs.iter().position(|&r| r == d))
                 .filter(|&j| vars[j].causality == Causality::Input)
                 .collect();
@@ -163,6 +221,7 @@ impl FmuUnit {
         static COUNT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
         let n = COUNT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let dir = std::env::temp_dir().join(format!("cloth-fmu-unit-{}-{n}", std::process::id()));
+        let mut unpacked = Unpacked { dir: dir.clone(), handed_on: false };
         for (entry, data) in &entries {
             let target = dir.join(entry);
             if entry.split('/').any(|part| part == "..") {
@@ -223,6 +282,8 @@ impl FmuUnit {
                 std::ptr::null(),
             )
         };
+        // From here the unit's drop removes the directory.
+        unpacked.handed_on = true;
         let mut unit = Self { name: name.into(), vars, vrs, f, instance, log, dir, _library: library };
         if instance.is_null() {
             return Err(bad(format!("instantiation failed: {}", unit.last_message())));
@@ -360,5 +421,68 @@ impl Unit for FmuUnit {
 
     fn deserialize_state(&self, bytes: &[u8]) -> Result<UnitState, UnitError> {
         Ok(UnitState(Box::new(FmuBytes(bytes.to_vec()))))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A model description as another tool might write it: a declaration
+    /// and a comment, single-quoted attributes, escaped text, a `Float64`
+    /// with no causality (local by default) and an `Int32`, both passed over.
+    const OTHER_TOOL: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
+<!-- exported by some tool -->
+<fmiModelDescription fmiVersion='3.0' modelName="m" instantiationToken="{1234}">
+  <CoSimulation modelIdentifier='model_x' canHandleVariableCommunicationStepSize="true"/>
+  <ModelVariables>
+    <Float64 name="time" valueReference="0" causality="independent" variability="continuous"/>
+    <Float64 name='u' valueReference='7' causality='input' start='1.5' description="force &amp; &quot;torque&quot;"/>
+    <Float64 name="y" valueReference="8" causality="output" unit="m"/>
+    <Float64 name="z" valueReference="9" causality="output"/>
+    <Float64 name="internal" valueReference="10"/>
+    <Int32 name="count" valueReference="11" causality="output"/>
+  </ModelVariables>
+  <ModelStructure>
+    <Output valueReference="8" dependencies="7"/>
+    <Output valueReference="9" dependencies=""/>
+  </ModelStructure>
+</fmiModelDescription>"#;
+
+    #[test]
+    fn a_description_from_another_tool_is_read_with_its_defaults() {
+        let d = parse_description(OTHER_TOOL).unwrap();
+        assert_eq!(d.token.as_deref(), Some("{1234}"));
+        assert_eq!(d.identifier.as_deref(), Some("model_x"));
+        let names: Vec<(&str, ValueReference)> = d.variables.iter().map(|(v, r)| (v.name.as_str(), *r)).collect();
+        assert_eq!(names, [("u", 7), ("y", 8), ("z", 9)]);
+        let u = &d.variables[0].0;
+        assert_eq!((u.causality, u.start, u.description.as_str()), (Causality::Input, 1.5, "force & \"torque\""));
+        assert_eq!(d.variables[1].0.unit, "m");
+        assert_eq!(d.outputs, [(8, Some(vec![7])), (9, Some(vec![]))]);
+        for bad in ["<notFmi/>", "<fmiModelDescription><Float64 valueReference=\"1\" causality=\"input\"/>", "<a"] {
+            assert!(parse_description(bad).is_err(), "{bad}");
+        }
+    }
+
+    /// An FMU whose library is missing is refused, and leaves no unpacked
+    /// directory behind.
+    #[test]
+    fn a_failed_load_leaves_no_directory_behind() {
+        let path = std::env::temp_dir().join(format!("cloth-fmu-no-library-{}.fmu", std::process::id()));
+        let mut zip = zip::ZipWriter::new(std::fs::File::create(&path).unwrap());
+        zip.start_file("modelDescription.xml", zip::write::SimpleFileOptions::default()).unwrap();
+        std::io::Write::write_all(&mut zip, OTHER_TOOL.as_bytes()).unwrap();
+        zip.finish().unwrap();
+        let e = FmuUnit::load(&path, "x").err().expect("no library to load");
+        assert!(e.to_string().contains("model_x.so"), "{e}");
+        let prefix = format!("cloth-fmu-unit-{}-", std::process::id());
+        let left: Vec<_> = std::fs::read_dir(std::env::temp_dir())
+            .unwrap()
+            .filter_map(|d| d.ok())
+            .filter(|d| d.file_name().to_string_lossy().starts_with(&prefix))
+            .collect();
+        assert!(left.is_empty(), "left behind: {:?}", left.iter().map(|d| d.path()).collect::<Vec<_>>());
+        let _ = std::fs::remove_file(&path);
     }
 }
