@@ -137,20 +137,12 @@ fn a_strip_held_at_both_ends_sags_as_the_elastic_catenary() {
     }
 }
 
-/// Square cells of 1.25 cm, every model. Measured: Choi & Ko -0.17%,
-/// Provot -0.18%, Volino -0.56%.
-#[test]
-#[ignore = "slow tier: cargo test --release -- --ignored"]
-fn every_model_sags_as_the_elastic_catenary_on_fine_cells() {
-    for kind in [ModelKind::ChoiKo, ModelKind::Provot, ModelKind::Volino] {
-        check_against_irvine(kind, [81, 5], 0.007);
-    }
-}
-
 /// The sag's error on coarse and oblong cells, in every model, for
-/// `docs/results/catenary.md`: Volino's triangles hold everywhere (asserted);
-/// the lattices' rows are printed (their constants are for square cells,
-/// and Choi & Ko's lateral links buckle on coarse ones).
+/// `docs/results/catenary.md`. Asserted: every model within 0.7% on square
+/// cells of 1.25 cm (measured: Choi & Ko -0.17%, Provot -0.18%, Volino
+/// -0.56%), and Volino's triangles everywhere (within 0.62%); the
+/// lattices' other rows are printed (their constants are for square
+/// cells, and Choi & Ko's lateral links buckle on coarse ones).
 #[test]
 #[ignore = "slow tier: cargo test --release -- --ignored"]
 fn the_catenary_on_coarse_and_oblong_cells() {
@@ -165,8 +157,8 @@ fn the_catenary_on_coarse_and_oblong_cells() {
             for kind in [ModelKind::ChoiKo, ModelKind::Provot, ModelKind::Volino] {
                 let sag = mid_sag(strip_of_width(kind, particles, width), particles, statics(), 20, 1.0);
                 row += &format!(" {:+.2}% |", (sag / exact - 1.0) * 100.0);
-                if kind == ModelKind::Volino {
-                    assert!((sag / exact - 1.0).abs() < 0.007, "volino {particles:?}: {sag} m against {exact} m");
+                if kind == ModelKind::Volino || particles == [81, 5] {
+                    assert!((sag / exact - 1.0).abs() < 0.007, "{kind:?} {particles:?}: {sag} m against {exact} m");
                 }
             }
             println!("{row}");
