@@ -24,8 +24,16 @@
 //!   cloth exerted on it;
 //! - outputs: `lowest_z` (m), `max_stretch` (longest link over its rest length).
 //!
+//! A step longer than the unit's largest internal step
+//! ([`ClothUnit::with_max_step`]; none by default) is taken as equal
+//! substeps no longer than it: the pins move linearly to their targets
+//! over them, the solids follow their given motion, and the outputs are
+//! the means over the whole step. So the cloth's motion at the
+//! communication points does not depend on the master's step.
+//!
 //! A step that fails in the solver or goes non-finite is discarded: the
-//! cloth stays at the start of the step, as FMI's `fmi3Discard` asks.
+//! cloth stays at the start of the step, as FMI's `fmi3Discard` asks
+//! (also when a later substep fails).
 
 use crate::unit::{Causality, StepOutcome, Unit, UnitError, UnitState, ValueRef, Variable, bytes, settable};
 use cloth_core::{BodyPose, ClothState, Simulation, SolidMotion, Vec3, wind::WindProfile};
@@ -66,6 +74,8 @@ pub struct ClothUnit {
     values: Vec<f64>,
     /// Input derivatives, per second.
     rates: Vec<f64>,
+    /// Largest internal step, s ([`ClothUnit::with_max_step`]).
+    max_step_s: f64,
 }
 
 const AXES: [&str; 3] = ["x", "y", "z"];
@@ -158,14 +168,98 @@ impl ClothUnit {
         }
         let values = vars.iter().map(|v| v.start).collect();
         let rates = vec![0.0; vars.len()];
-        let mut unit = Self { name: name.into(), sim, vars, roles, values, rates };
+        let mut unit = Self { name: name.into(), sim, vars, roles, values, rates, max_step_s: f64::INFINITY };
         unit.update_shape_outputs();
         unit
+    }
+
+    /// The same unit taking each step as equal substeps of at most
+    /// `max_step_s` (s; a scene's `dt_s` is the natural choice), so that its
+    /// motion does not depend on the master's step. Not finite and
+    /// positive: no substeps.
+    pub fn with_max_step(mut self, max_step_s: f64) -> Self {
+        self.max_step_s = if max_step_s.is_finite() && max_step_s > 0.0 { max_step_s } else { f64::INFINITY };
+        self
+    }
+
+    /// The largest internal step, s (infinite: none).
+    pub fn max_step(&self) -> f64 {
+        self.max_step_s
     }
 
     /// The wrapped simulation.
     pub fn simulation(&self) -> &Simulation {
         &self.sim
+    }
+
+    /// Substeps of a step of `h` s: the fewest no longer than the largest
+    /// internal step (a step a billionth longer still takes one).
+    fn substeps(&self, h: f64) -> usize {
+        ((h / self.max_step_s) * (1.0 - 1e-9)).ceil().max(1.0) as usize
+    }
+
+    /// Takes the step from `t` of `h` s as `n` substeps (inputs applied for
+    /// the whole step, the pins moved on linearly), the outputs the means
+    /// over it; on a failed substep everything goes back to `t`.
+    fn substepped(&mut self, t: f64, h: f64, n: usize) -> Result<StepOutcome, UnitError> {
+        let model = self.sim.model().clone();
+        let saved = self.get_state();
+        let pins: Vec<(usize, Vec3)> = (0..model.pins().len())
+            .filter(|&k| model.pins()[k].is_external())
+            .map(|k| (k, self.sim.control().pin_target(k).unwrap_or(model.pins()[k].anchor)))
+            .collect();
+        self.apply_inputs(t, h)?;
+        let origins = self.solid_origins(t);
+        let ends: Vec<Vec3> = pins.iter().map(|&(k, _)| self.sim.control().pin_target(k).unwrap_or_default()).collect();
+        let hs = h / n as f64;
+        let (mut linear, mut angular) = (vec![Vec3::zeros(); origins.len()], vec![Vec3::zeros(); origins.len()]);
+        let mut reactions = vec![Vec3::zeros(); model.pins().len()];
+        for i in 1..=n {
+            for (&(k, start), &end) in pins.iter().zip(&ends) {
+                let target = if i == n { end } else { start + (end - start) * (i as f64 / n as f64) };
+                self.sim.set_pin_target(k, target).map_err(|e| UnitError::StepFailed {
+                    unit: self.name.clone(),
+                    time_s: t,
+                    message: e.to_string(),
+                })?;
+            }
+            if let Err(e) = self.sim.step(hs) {
+                self.set_state(&saved)?;
+                let reason = format!("substep {i} of {n} ({hs} s each): {e}");
+                return Ok(StepOutcome::Discarded { last_time_s: t, reason });
+            }
+            for (k, origin) in origins.iter().enumerate() {
+                let impulse = self.sim.solid_impulse(k, *origin);
+                (linear[k], angular[k]) = (linear[k] + impulse.linear, angular[k] + impulse.angular);
+            }
+            for (k, r) in reactions.iter_mut().enumerate() {
+                *r += self.sim.pin_reaction(k) * hs;
+            }
+        }
+        for (i, role) in self.roles.iter().enumerate() {
+            let (k, a) = (role.item, role.axis);
+            self.values[i] = match role.quantity {
+                Quantity::SolidForce => linear[k][a] / h,
+                Quantity::SolidTorque => angular[k][a] / h,
+                Quantity::PinReaction => reactions[k][a] / h,
+                _ => continue,
+            };
+        }
+        self.update_shape_outputs();
+        Ok(StepOutcome::Completed)
+    }
+
+    /// Each solid's frame origin at time `t`, m (about which torques are given).
+    fn solid_origins(&self, t: f64) -> Vec<Vec3> {
+        let model = self.sim.model();
+        (0..model.colliders().len())
+            .map(|k| {
+                self.sim
+                    .control()
+                    .solid_motion(k)
+                    .map_or(model.colliders()[k].pose(t).position, |m| m.pose_at(t).position)
+            })
+            .collect()
     }
 
     fn update_shape_outputs(&mut self) {
@@ -224,17 +318,7 @@ impl ClothUnit {
 
     /// Reads the step's outputs; `h` turns impulses into mean forces.
     fn read_outputs(&mut self, h: f64) {
-        let model = self.sim.model().clone();
-        let origins: Vec<Vec3> = (0..model.colliders().len())
-            .map(|k| {
-                self.sim
-                    .control()
-                    .solid_motion(k)
-                    .map_or(model.colliders()[k].pose(self.sim.time() - h).position, |m| {
-                        m.pose_at(self.sim.time() - h).position
-                    })
-            })
-            .collect();
+        let origins = self.solid_origins(self.sim.time() - h);
         let impulses: Vec<_> = origins.iter().enumerate().map(|(k, o)| self.sim.solid_impulse(k, *o)).collect();
         for (i, role) in self.roles.iter().enumerate() {
             let (k, a) = (role.item, role.axis);
@@ -308,6 +392,10 @@ impl Unit for ClothUnit {
                 value: h,
                 message: "must be finite and > 0".into(),
             });
+        }
+        let n = self.substeps(h);
+        if n > 1 {
+            return self.substepped(t, h, n);
         }
         self.apply_inputs(t, h)?;
         match self.sim.step(h) {

@@ -206,3 +206,56 @@ b = { panel = 1, edge = "i_min" }
     }
     assert!(same_bits(&unit.simulation().state().x, &first));
 }
+
+/// The hanging cloth (11 x 11) with one pin driven from outside at
+/// 0.3 m/s, as a unit with internal steps of at most 1/90 s: stepped by a
+/// master at 1/90, 1/30, 0.1 and 1 s, it is at the same place at their
+/// common times (t = 1 s; measured 1.7e-14 m apart), its pin's mean
+/// reaction the same, and a step the solver cannot take (a PCG cap of 2
+/// iterations, unconverged refused) is discarded whole, the cloth back
+/// where it was before the substeps that did converge.
+#[test]
+fn substeps_make_the_motion_independent_of_the_macro_step() {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/scenes/hang.toml");
+    let unit = |extra: &[&str]| {
+        let base = ["panels.0.particles=[11, 11]", "pins.0.nodes=[[0, 10]]", "pins.0.motion={ kind = \"external\" }"];
+        let mut overrides: Vec<String> = base.iter().map(|s| s.to_string()).collect();
+        overrides.extend(extra.iter().map(|s| s.to_string()));
+        let (model, cfg) = Scene::parse_file(&path, &overrides).unwrap().build().unwrap();
+        ClothUnit::new("cloth", cfg.simulation(model)).with_max_step(cfg.dt_s)
+    };
+    let run = |h: f64| {
+        let mut u = unit(&[]);
+        let (x, reaction) = (u.find("pin0.target.x").unwrap(), u.find("pin0.reaction.z").unwrap());
+        let start = u.get(x).unwrap();
+        let steps = (1.0 / h).round() as usize;
+        let mut mean_reaction = 0.0;
+        for n in 0..steps {
+            let t = n as f64 * h;
+            u.set(x, start + 0.3 * (t + h)).unwrap();
+            assert_eq!(u.do_step(t, h).unwrap(), StepOutcome::Completed, "h = {h}");
+            mean_reaction += u.get(reaction).unwrap() * h;
+        }
+        (u.simulation().state().x.clone(), mean_reaction)
+    };
+    let (reference, reaction) = run(1.0 / 90.0);
+    for h in [1.0 / 30.0, 0.1, 1.0] {
+        let (x, r) = run(h);
+        let gap = x.iter().zip(&reference).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+        println!("h = {h}: {gap:.2e} m from the 1/90 s run at t = 1 s; mean pin reaction {r:.6} N ({reaction:.6} N)");
+        assert!(gap < 1e-9, "h = {h}: {gap} m");
+        assert!((r - reaction).abs() < 1e-9 * reaction.abs().max(1.0), "h = {h}: reaction {r} against {reaction}");
+    }
+    let mut stuck = unit(&["solver.max_iter=2", "solver.accept_unconverged=false"]);
+    let before = stuck.simulation().state().x.clone();
+    match stuck.do_step(0.0, 0.1).unwrap() {
+        StepOutcome::Discarded { last_time_s, reason } => {
+            assert_eq!(last_time_s, 0.0);
+            // Measured: the third substep failed, after two that converged.
+            assert!(reason.contains("substep 3 of 9"), "{reason}");
+        }
+        other => panic!("expected a discarded step, got {other:?}"),
+    }
+    assert!(same_bits(&stuck.simulation().state().x, &before));
+    assert_eq!(stuck.simulation().time(), 0.0);
+}

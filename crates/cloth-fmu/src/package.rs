@@ -95,10 +95,12 @@ pub(crate) fn unit_from_scene(path: &Path, overrides: &[String], name: &str) -> 
     unit_of(&load_scene(path, overrides)?, path, name)
 }
 
-/// The cloth unit of `scene` (read from `path`), named `name`.
+/// The cloth unit of `scene` (read from `path`), named `name`, taking a
+/// communication step longer than the scene's `dt_s` as substeps of at
+/// most `dt_s`.
 fn unit_of(scene: &Scene, path: &Path, name: &str) -> Result<ClothUnit, FmuError> {
     let (model, cfg) = scene.build().map_err(|kind| SceneError { file: path.to_path_buf(), kind })?;
-    Ok(ClothUnit::new(name, cfg.simulation(model)))
+    Ok(ClothUnit::new(name, cfg.simulation(model)).with_max_step(cfg.dt_s))
 }
 
 /// What [`build_fmu`] wrote.
@@ -129,7 +131,11 @@ pub fn build_fmu(scene: &Path, overrides: &[String], library: &Path, out: &Path)
     let info = FmuInfo {
         model_name: model_name.clone(),
         token,
-        description: format!("cloth scene {model_name} (Choi & Ko 2002 implicit cloth), co-simulation"),
+        description: format!(
+            "cloth scene {model_name} (Choi & Ko 2002 implicit cloth), co-simulation; internal steps of at most {} s, \
+             a longer communication step taken as equal substeps",
+            parsed.simulation.dt_s
+        ),
         step_s: parsed.simulation.dt_s,
         stop_s: parsed.simulation.duration_s,
     };
