@@ -22,6 +22,9 @@
 //!   start of the step): the mean the cloth exerted over the last step;
 //! - outputs, per pin `k`: `pin{k}.reaction.{x,y,z}` (N), the mean force the
 //!   cloth exerted on it;
+//! - outputs, per `[[pins]]` entry `s` (an attachment: a clamp, a hanger):
+//!   `attachment{s}.force.{x,y,z}` (N), its pins' reactions summed, and
+//!   `attachment{s}.moment.{x,y,z}` (N m) about their centroid;
 //! - outputs: `lowest_z` (m), `max_stretch` (longest link over its rest length).
 //!
 //! A step longer than the unit's largest internal step
@@ -51,6 +54,8 @@ enum Quantity {
     SolidForce,
     SolidTorque,
     PinReaction,
+    AttachmentForce,
+    AttachmentMoment,
     LowestZ,
     MaxStretch,
 }
@@ -118,6 +123,22 @@ const PIN_OUTPUTS: [VectorKind; 1] = [(
     "N",
     "mean force of the cloth on the pin over the last step",
 )];
+const ATTACHMENT_OUTPUTS: [VectorKind; 2] = [
+    (
+        Quantity::AttachmentForce,
+        "force",
+        Causality::Output,
+        "N",
+        "mean force of the cloth on the pins of one [[pins]] entry over the last step, summed",
+    ),
+    (
+        Quantity::AttachmentMoment,
+        "moment",
+        Causality::Output,
+        "N.m",
+        "moment of those forces about the pins' centroid at the end of the step",
+    ),
+];
 
 impl ClothUnit {
     /// Wraps `sim`; its external pins, solids and wind become inputs.
@@ -158,6 +179,15 @@ impl ClothUnit {
         }
         for k in 0..model.pins().len() {
             add("pin", k, &PIN_OUTPUTS[0], Vec3::zeros());
+        }
+        // One attachment per `[[pins]]` entry that pinned a particle.
+        let mut entries: Vec<usize> = model.pins().iter().map(|p| p.spec).collect();
+        entries.sort_unstable();
+        entries.dedup();
+        for s in entries {
+            for kind in &ATTACHMENT_OUTPUTS {
+                add("attachment", s, kind, Vec3::zeros());
+            }
         }
         for (quantity, name, unit, description) in [
             (Quantity::LowestZ, "lowest_z", "m", "lowest particle height"),
@@ -241,10 +271,11 @@ impl ClothUnit {
             self.values[i] = match role.quantity {
                 Quantity::SolidForce => linear[k][a] / h,
                 Quantity::SolidTorque => angular[k][a] / h,
-                Quantity::PinReaction => reactions[k][a] / h,
                 _ => continue,
             };
         }
+        let means: Vec<Vec3> = reactions.iter().map(|r| r / h).collect();
+        self.set_pin_outputs(&means);
         self.update_shape_outputs();
         Ok(StepOutcome::Completed)
     }
@@ -320,16 +351,38 @@ impl ClothUnit {
     fn read_outputs(&mut self, h: f64) {
         let origins = self.solid_origins(self.sim.time() - h);
         let impulses: Vec<_> = origins.iter().enumerate().map(|(k, o)| self.sim.solid_impulse(k, *o)).collect();
+        let reactions: Vec<Vec3> = (0..self.sim.model().pins().len()).map(|k| self.sim.pin_reaction(k)).collect();
         for (i, role) in self.roles.iter().enumerate() {
             let (k, a) = (role.item, role.axis);
             self.values[i] = match role.quantity {
                 Quantity::SolidForce => impulses[k].linear[a] / h,
                 Quantity::SolidTorque => impulses[k].angular[a] / h,
-                Quantity::PinReaction => self.sim.pin_reaction(k)[a],
                 _ => continue,
             };
         }
+        self.set_pin_outputs(&reactions);
         self.update_shape_outputs();
+    }
+
+    /// The pins' outputs from their mean reactions `reactions` (N): each
+    /// pin's, and each attachment's sum and moment about its pins'
+    /// centroid where they are now.
+    fn set_pin_outputs(&mut self, reactions: &[Vec3]) {
+        let (model, x) = (self.sim.model(), &self.sim.state().x);
+        for (i, role) in self.roles.iter().enumerate() {
+            let (k, a) = (role.item, role.axis);
+            let of_entry = || model.pins().iter().zip(reactions).filter(move |(p, _)| p.spec == k);
+            self.values[i] = match role.quantity {
+                Quantity::PinReaction => reactions[k][a],
+                Quantity::AttachmentForce => of_entry().map(|(_, r)| r[a]).sum(),
+                Quantity::AttachmentMoment => {
+                    let count = of_entry().count() as f64;
+                    let centroid = of_entry().map(|(p, _)| x[p.particle]).sum::<Vec3>() / count;
+                    of_entry().map(|(p, r)| (x[p.particle] - centroid).cross(r)).sum::<Vec3>()[a]
+                }
+                _ => continue,
+            };
+        }
     }
 }
 

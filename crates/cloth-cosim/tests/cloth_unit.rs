@@ -259,3 +259,48 @@ fn substeps_make_the_motion_independent_of_the_macro_step() {
     assert!(same_bits(&stuck.simulation().state().x, &before));
     assert_eq!(stuck.simulation().time(), 0.0);
 }
+
+/// The hanging cloth settled to statics (backward Euler, Newton, steps of
+/// 1 s), held at a corner and a node 40% along the same edge: its one
+/// attachment (the `[[pins]]` entry holding both) carries the cloth's
+/// weight, is the sum of its pins' reactions, and its moment about the
+/// pins' centroid is that of the two reactions.
+#[test]
+fn an_attachment_carries_the_weight_its_pins_carry() {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/scenes/hang.toml");
+    let overrides: Vec<String> = [
+        "panels.0.particles=[11, 11]",
+        "pins.0.nodes=[[0, 10], [4, 10]]",
+        "simulation.integrator=backward-euler",
+        "solver.rel_tol=1e-10",
+        "solver.newton.iterations=30",
+        "solver.newton.tolerance_m=1e-10",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let (model, cfg) = Scene::parse_file(&path, &overrides).unwrap().build().unwrap();
+    let weight = model.masses().iter().sum::<f64>() * 9.81;
+    let mut unit = ClothUnit::new("cloth", cfg.simulation(model));
+    for n in 0..20 {
+        assert_eq!(unit.do_step(n as f64, 1.0).unwrap(), StepOutcome::Completed);
+    }
+    let v = |name: &str| unit.get(unit.find(name).unwrap()).unwrap();
+    let force = [v("attachment0.force.x"), v("attachment0.force.y"), v("attachment0.force.z")];
+    let pins: Vec<[f64; 3]> = (0..2).map(|k| ["x", "y", "z"].map(|a| v(&format!("pin{k}.reaction.{a}")))).collect();
+    println!("attachment force {force:?} N, weight {weight} N");
+    for a in 0..3 {
+        assert_eq!(force[a], pins[0][a] + pins[1][a], "axis {a}");
+    }
+    // Measured: 8.7e-11 of the weight (Newton stops at 1e-10 m).
+    assert!((force[2] + weight).abs() < 2e-10 * weight, "{} N against the weight {weight} N", -force[2]);
+    // Two pins: the moment about their centroid is d x (r1 - r0) / 2.
+    let x = &unit.simulation().state().x;
+    let particles: Vec<usize> = unit.simulation().model().pins().iter().map(|p| p.particle).collect();
+    let d = x[particles[1]] - x[particles[0]];
+    let r = |k: usize| cloth_core::Vec3::from(pins[k]);
+    let expected = d.cross(&(r(1) - r(0))) / 2.0;
+    let moment = cloth_core::Vec3::new(v("attachment0.moment.x"), v("attachment0.moment.y"), v("attachment0.moment.z"));
+    println!("moment {moment:?} N m, expected {expected:?} N m");
+    assert!((moment - expected).norm() <= 1e-12 * expected.norm().max(1e-9));
+}
