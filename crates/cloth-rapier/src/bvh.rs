@@ -186,7 +186,9 @@ impl Bvh {
             return w.fail("the file has no frames".into());
         }
         let values_per_frame: usize = joints.iter().map(|j: &BvhJoint| j.channels.len()).sum();
-        let mut values = Vec::with_capacity(frames * values_per_frame);
+        // Each value is one word of the file: never reserve more than it holds.
+        let left = w.words.len() - w.next;
+        let mut values = Vec::with_capacity(frames.saturating_mul(values_per_frame).min(left));
         for frame in 0..frames {
             let line = w.line();
             if w.peek().is_none() {
@@ -294,6 +296,10 @@ fn read_joint(w: &mut Words<'_>, parent: Option<usize>, joints: &mut Vec<BvhJoin
     let offset = Vec3::new(w.number("OFFSET x")?, w.number("OFFSET y")?, w.number("OFFSET z")?);
     w.expect("CHANNELS")?;
     let n = w.count("the number of channels")?;
+    if n > 6 {
+        w.next -= 1;
+        return w.fail(format!("CHANNELS {n}: a joint has at most 6 (three positions, three rotations)"));
+    }
     let mut channels = Vec::with_capacity(n);
     for _ in 0..n {
         let c = w.take("a channel name")?;

@@ -85,7 +85,10 @@ fn bvh_channels_compose_in_the_order_listed() {
 
 #[test]
 fn bvh_errors_name_the_line_and_the_problem() {
-    let cases: [(String, usize, &str); 7] = [
+    let cases: [(String, usize, &str); 9] = [
+        // Counts the file cannot hold: refused, never allocated (they aborted the process).
+        (TWO_JOINTS.replace("CHANNELS 3", "CHANNELS 99999999999"), 9, "at most 6"),
+        (TWO_JOINTS.replace("Frames: 2", "Frames: 99999999999"), 20, "ends at frame 2"),
         (TWO_JOINTS.replace("30 0.5 -40 1.5 -2 10 20 -60 45", "30 0.5 -40 1.5 -2 10 20 -60"), 20, "has 8 values"),
         (TWO_JOINTS.replace("30 0.5 -40 1.5 -2 10 20 -60 45", "30 0.5 -40 1.5 -2 10 20 -60 45 7"), 20, "more than"),
         (TWO_JOINTS.replace("Frames: 2", "Frames: 3"), 20, "ends at frame 2"),

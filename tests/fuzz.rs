@@ -1,0 +1,133 @@
+//! The readers against malformed input: every fixture scene, OBJ mesh,
+//! URDF rig and BVH motion, mutated many ways (characters changed, cut
+//! short, lines dropped, doubled or swapped, numbers replaced by NaN,
+//! infinities, 1e308, negatives), must be read into a value or refused
+//! with an error. None may panic.
+
+use cloth_core::scene::Scene;
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::path::{Path, PathBuf};
+
+/// xorshift64*: a fixed sequence, so a failure replays.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    }
+
+    fn below(&mut self, n: usize) -> usize {
+        (self.next() % n.max(1) as u64) as usize
+    }
+}
+
+const NUMBERS: [&str; 10] = ["nan", "inf", "-inf", "1e308", "-1e308", "-1", "0", "1e-320", "99999999999", ""];
+
+/// One mutation of `text`.
+fn mutate(text: &str, rng: &mut Rng) -> String {
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    if lines.is_empty() {
+        return String::new();
+    }
+    let k = rng.below(lines.len());
+    match rng.below(6) {
+        0 => {
+            let chars: Vec<char> = lines[k].chars().collect();
+            if !chars.is_empty() {
+                let at = rng.below(chars.len());
+                let new = b"=[]{}\",.-09eE#x \t"[rng.below(17)] as char;
+                lines[k] = chars[..at].iter().chain(std::iter::once(&new)).chain(&chars[at + 1..]).collect();
+            }
+        }
+        1 => {
+            let keep: String = text.chars().take(rng.below(text.chars().count())).collect();
+            return keep;
+        }
+        2 => {
+            lines.remove(k);
+        }
+        3 => {
+            let copy = lines[k].clone();
+            lines.insert(k, copy);
+        }
+        4 => {
+            // The first number-like token of the line, replaced.
+            let line = &lines[k];
+            if let Some(start) = line.find(|c: char| c.is_ascii_digit()) {
+                let end = line[start..]
+                    .find(|c: char| !(c.is_ascii_digit() || c == '.' || c == 'e' || c == '-'))
+                    .map_or(line.len(), |e| start + e);
+                lines[k] = format!("{}{}{}", &line[..start], NUMBERS[rng.below(NUMBERS.len())], &line[end..]);
+            }
+        }
+        _ => {
+            let j = rng.below(lines.len());
+            lines.swap(k, j);
+        }
+    }
+    lines.join("\n")
+}
+
+fn fixtures(dir: &str, ext: &str) -> Vec<PathBuf> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../fixtures").join(dir);
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == ext))
+        .collect();
+    files.sort();
+    files
+}
+
+/// Feeds `rounds` mutations of each file to `read`; returns the inputs
+/// that panicked (file, round).
+fn panics(files: &[PathBuf], rounds: usize, read: impl Fn(&str, &Path)) -> Vec<(PathBuf, usize)> {
+    let mut found = Vec::new();
+    let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
+    for file in files {
+        let text = std::fs::read_to_string(file).unwrap();
+        for round in 0..rounds {
+            let input = mutate(&text, &mut rng);
+            if catch_unwind(AssertUnwindSafe(|| read(&input, file))).is_err() {
+                found.push((file.clone(), round));
+            }
+        }
+    }
+    found
+}
+
+#[test]
+fn malformed_inputs_are_refused_never_panic() {
+    // Panics are caught and counted here; keep their messages short.
+    let default_hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(|info| eprintln!("panic: {info}")));
+    let scenes = panics(&fixtures("scenes", "toml"), 200, |text, _| {
+        if let Ok(scene) = Scene::parse(text, &[]) {
+            // Keep a mutated grid small: the readers are under test, not the builder's speed.
+            let small = scene.panels.iter().all(|p| p.particles[0] * p.particles[1] <= 20_000);
+            if small {
+                let _ = scene.build();
+            }
+        }
+    });
+    let objs = panics(&fixtures("meshes", "obj"), 1000, |text, _| {
+        let _ = cloth_collide::parse_obj(text);
+    });
+    let rigs = panics(&fixtures("rigs", "urdf"), 500, |text, file| {
+        let _ = cloth_rapier::rig::Rig::parse(text, file, Default::default());
+    });
+    let motions = panics(&fixtures("motions", "bvh"), 2000, |text, file| {
+        let _ = cloth_rapier::bvh::Bvh::parse(text, file);
+    });
+    std::panic::set_hook(default_hook);
+    for (what, found) in [("scenes", &scenes), ("OBJ", &objs), ("URDF", &rigs), ("BVH", &motions)] {
+        println!("{what}: {} panics", found.len());
+    }
+    assert!(
+        scenes.is_empty() && objs.is_empty() && rigs.is_empty() && motions.is_empty(),
+        "{scenes:?} {objs:?} {rigs:?} {motions:?}"
+    );
+}
