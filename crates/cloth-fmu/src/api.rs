@@ -9,7 +9,7 @@
 
 use crate::instance::{Instance, Phase, log_to};
 pub use crate::instance::{LogMessage, Status};
-use cloth_cosim::{StepOutcome, Unit, UnitState};
+use cloth_cosim::{StepOutcome, Unit};
 use std::ffi::{CStr, c_char, c_void};
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::PathBuf;
@@ -497,22 +497,22 @@ pub unsafe extern "C" fn fmi3SetClock(
 /// it when not null).
 ///
 /// # Safety
-/// `state` points to null or to a state this instance made.
+/// `state` is a valid pointer to null or to a state handle (an unknown
+/// or freed handle is refused).
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi3GetFMUState(instance: *mut c_void, state: *mut *mut c_void) -> Status {
     call(instance, "fmi3GetFMUState", &ANY, |inst| {
         if state.is_null() {
             return Err("FMUState is null".into());
         }
-        let saved = Box::new(inst.unit.get_state());
-        // SAFETY: `state` is a valid pointer; a non-null `*state` is a
-        // `Box<UnitState>` this FMU made and the host has not freed.
-        unsafe {
-            if !(*state).is_null() {
-                drop(Box::from_raw(*state as *mut UnitState));
-            }
-            *state = Box::into_raw(saved) as *mut c_void;
+        // SAFETY: `state` is a valid pointer to the host's handle.
+        let previous = unsafe { *state };
+        if !previous.is_null() {
+            // The state given is overwritten: freed, a new one in its place.
+            drop(crate::handles::release_state(previous)?);
         }
+        // SAFETY: as above.
+        unsafe { *state = crate::handles::register_state(inst.unit.get_state()) };
         Ok(Status::Ok)
     })
 }
@@ -520,15 +520,16 @@ pub unsafe extern "C" fn fmi3GetFMUState(instance: *mut c_void, state: *mut *mut
 /// `fmi3SetFMUState`: the cloth back to a state got before.
 ///
 /// # Safety
-/// `state` is null or a state this instance made and not freed.
+/// None beyond the C API's: state handles are looked up, an unknown or
+/// freed one refused.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi3SetFMUState(instance: *mut c_void, state: *mut c_void) -> Status {
     call(instance, "fmi3SetFMUState", &ANY, |inst| {
         if state.is_null() {
             return Err("FMUState is null".into());
         }
-        // SAFETY: a `Box<UnitState>` this FMU made.
-        let saved = unsafe { &*(state as *const UnitState) };
+        // SAFETY: a live state of the registry (freed only by `release_state`).
+        let saved = unsafe { &*crate::handles::state(state)? };
         inst.unit.set_state(saved).map_err(|e| e.to_string())?;
         Ok(Status::Ok)
     })
@@ -537,19 +538,20 @@ pub unsafe extern "C" fn fmi3SetFMUState(instance: *mut c_void, state: *mut c_vo
 /// `fmi3FreeFMUState`: frees `*state` and sets it to null.
 ///
 /// # Safety
-/// `state` points to null or to a state this instance made.
+/// `state` is a valid pointer to null or to a state handle (an unknown
+/// or freed handle is refused).
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi3FreeFMUState(instance: *mut c_void, state: *mut *mut c_void) -> Status {
     call(instance, "fmi3FreeFMUState", &ANY, |_| {
         if state.is_null() {
             return Err("FMUState is null".into());
         }
-        // SAFETY: as in `fmi3GetFMUState`.
-        unsafe {
-            if !(*state).is_null() {
-                drop(Box::from_raw(*state as *mut UnitState));
-                *state = std::ptr::null_mut();
-            }
+        // SAFETY: `state` is a valid pointer to the host's handle.
+        let handle = unsafe { *state };
+        if !handle.is_null() {
+            drop(crate::handles::release_state(handle)?);
+            // SAFETY: as above.
+            unsafe { *state = std::ptr::null_mut() };
         }
         Ok(Status::Ok)
     })
@@ -558,20 +560,21 @@ pub unsafe extern "C" fn fmi3FreeFMUState(instance: *mut c_void, state: *mut *mu
 /// The serialised bytes of `state`.
 ///
 /// # Safety
-/// `state` is null or a state this instance made and not freed.
+/// None beyond the C API's: state handles are looked up, an unknown or
+/// freed one refused.
 unsafe fn serialized(inst: &Instance, state: *mut c_void) -> Result<Vec<u8>, String> {
     if state.is_null() {
         return Err("FMUState is null".into());
     }
-    // SAFETY: the caller's contract.
-    let saved = unsafe { &*(state as *const UnitState) };
+    // SAFETY: a live state of the registry.
+    let saved = unsafe { &*crate::handles::state(state)? };
     inst.unit.serialize_state(saved).map_err(|e| e.to_string())
 }
 
 /// `fmi3SerializedFMUStateSize`.
 ///
 /// # Safety
-/// `state` is a state this instance made; `size` is writable.
+/// `size` is writable (state handles are looked up).
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi3SerializedFMUStateSize(
     instance: *mut c_void,
@@ -628,13 +631,13 @@ pub unsafe extern "C" fn fmi3DeserializeFMUState(
         if state.is_null() {
             return Err("FMUState is null".into());
         }
-        // SAFETY: as in `fmi3GetFMUState`.
-        unsafe {
-            if !(*state).is_null() {
-                drop(Box::from_raw(*state as *mut UnitState));
-            }
-            *state = Box::into_raw(Box::new(restored)) as *mut c_void;
+        // SAFETY: `state` is a valid pointer to the host's handle.
+        let previous = unsafe { *state };
+        if !previous.is_null() {
+            drop(crate::handles::release_state(previous)?);
         }
+        // SAFETY: as above.
+        unsafe { *state = crate::handles::register_state(restored) };
         Ok(Status::Ok)
     })
 }

@@ -1,9 +1,11 @@
-//! The instances the host holds, by handle. A handle is an opaque number,
-//! never reused, that every call looks up before it touches an instance:
-//! a handle already freed (a double free, a call after free) or never
-//! given is refused and logged, never dereferenced.
+//! The instances and FMU states the host holds, by handle. A handle is an
+//! opaque number, never reused, that every call looks up before it
+//! touches an instance or a state: a handle already freed (a double free,
+//! a call after free) or never given is refused and logged, never
+//! dereferenced.
 
 use crate::instance::{Instance, LogMessage, Status, log_to};
+use cloth_cosim::UnitState;
 use std::collections::BTreeMap;
 use std::ffi::c_void;
 use std::sync::Mutex;
@@ -19,9 +21,12 @@ struct Registry {
     /// Freed handles and the logger each was made with (callback and
     /// environment), to say so through it.
     freed: BTreeMap<usize, (Option<LogMessage>, usize)>,
+    /// Live FMU states (`Box::into_raw`, as addresses).
+    states: BTreeMap<usize, usize>,
 }
 
-static REGISTRY: Mutex<Registry> = Mutex::new(Registry { next: FIRST, live: BTreeMap::new(), freed: BTreeMap::new() });
+static REGISTRY: Mutex<Registry> =
+    Mutex::new(Registry { next: FIRST, live: BTreeMap::new(), freed: BTreeMap::new(), states: BTreeMap::new() });
 
 fn registry() -> std::sync::MutexGuard<'static, Registry> {
     // A panic elsewhere never leaves the maps half-written: keep going.
@@ -79,4 +84,33 @@ fn refuse(r: &Registry, handle: *mut c_void, function: &str) {
         }
         None => eprintln!("cloth_fmu: {function}: {h:#x} is not an instance of this FMU; call refused"),
     }
+}
+
+/// Takes an FMU state into the registry; its handle for the host.
+pub(crate) fn register_state(state: UnitState) -> *mut std::ffi::c_void {
+    let address = Box::into_raw(Box::new(state)) as usize;
+    let mut r = registry();
+    let handle = r.next;
+    r.next += 16;
+    r.states.insert(handle, address);
+    handle as *mut std::ffi::c_void
+}
+
+/// The FMU state behind a live state handle.
+pub(crate) fn state(handle: *mut std::ffi::c_void) -> Result<*const UnitState, String> {
+    let r = registry();
+    r.states.get(&(handle as usize)).map(|&a| a as *const UnitState).ok_or_else(|| {
+        format!("FMUState {:#x} is not a live state of this FMU (freed, or never given)", handle as usize)
+    })
+}
+
+/// Takes a live state handle's state out of the registry, to free it.
+pub(crate) fn release_state(handle: *mut std::ffi::c_void) -> Result<Box<UnitState>, String> {
+    let mut r = registry();
+    let address = r.states.remove(&(handle as usize)).ok_or_else(|| {
+        format!("FMUState {:#x} is not a live state of this FMU (freed already, or never given)", handle as usize)
+    })?;
+    // SAFETY: registered by `register_state` from `Box::into_raw`, removed
+    // just now, so taken once.
+    Ok(unsafe { Box::from_raw(address as *mut UnitState) })
 }

@@ -358,3 +358,110 @@ fn any_macro_step_gives_the_same_cloth_at_common_times() {
         assert!(worst < 1e-12, "h = {h}: {worst}");
     }
 }
+
+/// Random call sequences on the C API (a fixed xorshift sequence, 3,000
+/// calls): every function in any mode, with value references in and out
+/// of range, values NaN, 1e308 or ordinary, steps negative, zero, huge or
+/// from the wrong time, states got, set, serialised, freed twice and used
+/// after they were freed, instances freed and called after. Every call
+/// returns a status; none crashes the host.
+#[test]
+fn random_call_sequences_never_crash_the_host() {
+    let dir = resources("random");
+    let mut rng = 0x2545_F491_4F6C_DD1Du64;
+    let mut next = move |n: u64| {
+        rng ^= rng >> 12;
+        rng ^= rng << 25;
+        rng ^= rng >> 27;
+        rng.wrapping_mul(0x9E37_79B9_7F4A_7C15) % n
+    };
+    let values = [0.25, f64::NAN, 1e308, -1.0, 0.0, 1e-300];
+    let mut fmu = instantiate(&dir, &token(), 9);
+    let mut freed: Vec<*mut c_void> = Vec::new();
+    let mut states: Vec<*mut c_void> = Vec::new();
+    let mut statuses = [0usize; 5];
+    let mut t = 0.0;
+    for _ in 0..3000 {
+        let vr = next(12) as u32;
+        let value = values[next(values.len() as u64) as usize];
+        let pick = |k: u64, list: &Vec<*mut c_void>| list.get(k as usize).copied().unwrap_or(0xbad0 as *mut c_void);
+        let status = unsafe {
+            match next(14) {
+                0 => fmi3EnterInitializationMode(fmu, false, 0.0, 0.0, false, 0.0),
+                1 => fmi3ExitInitializationMode(fmu),
+                2 => fmi3SetFloat64(fmu, &vr, 1, &value, 1),
+                3 => {
+                    let mut out = 0.0;
+                    fmi3GetFloat64(fmu, &vr, 1, &mut out, 1)
+                }
+                4 | 5 => {
+                    let h = [1.0 / 90.0, 0.05, -0.01, 0.0, 1e300][next(5) as usize];
+                    let status = step(fmu, if next(4) == 0 { t + 1.0 } else { t }, h);
+                    if status == Status::Ok {
+                        t += h;
+                    }
+                    status
+                }
+                6 => fmi3Terminate(fmu),
+                7 => {
+                    t = 0.0;
+                    fmi3Reset(fmu)
+                }
+                8 => {
+                    let mut s = std::ptr::null_mut();
+                    let status = fmi3GetFMUState(fmu, &mut s);
+                    if !s.is_null() {
+                        states.push(s);
+                    }
+                    status
+                }
+                9 => fmi3SetFMUState(fmu, pick(next(states.len() as u64 + 1), &states)),
+                10 => {
+                    // Freed states stay in the list: later calls use them after free.
+                    let mut s = pick(next(states.len() as u64 + 1), &states);
+                    fmi3FreeFMUState(fmu, &mut s)
+                }
+                11 => {
+                    let s = pick(next(states.len() as u64 + 1), &states);
+                    let mut size = 0usize;
+                    let status = fmi3SerializedFMUStateSize(fmu, s, &mut size);
+                    if status == Status::Ok {
+                        let mut bytes = vec![0u8; size];
+                        fmi3SerializeFMUState(fmu, s, bytes.as_mut_ptr(), size);
+                        if next(2) == 0 && size > 0 {
+                            bytes[next(size as u64) as usize] ^= 0x40;
+                        }
+                        let mut back = std::ptr::null_mut();
+                        let status = fmi3DeserializeFMUState(fmu, bytes.as_ptr(), size, &mut back);
+                        if !back.is_null() {
+                            states.push(back);
+                        }
+                        status
+                    } else {
+                        status
+                    }
+                }
+                12 => {
+                    // Free the instance (or a freed one again), and carry on with a new one.
+                    let victim = if next(3) == 0 { pick(next(freed.len() as u64 + 1), &freed) } else { fmu };
+                    fmi3FreeInstance(victim);
+                    if victim == fmu {
+                        freed.push(fmu);
+                        fmu = instantiate(&dir, &token(), 9);
+                        t = 0.0;
+                    }
+                    Status::Ok
+                }
+                _ => {
+                    // A call on an instance already freed.
+                    let mut out = 0.0;
+                    fmi3GetFloat64(pick(next(freed.len() as u64 + 1), &freed), &vr, 1, &mut out, 1)
+                }
+            }
+        };
+        statuses[status as usize] += 1;
+    }
+    unsafe { fmi3FreeInstance(fmu) };
+    println!("statuses ok/warning/discard/error/fatal: {statuses:?}; {} instances freed on the way", freed.len());
+    assert!(statuses[0] > 100 && statuses[3] > 100, "{statuses:?}");
+}
