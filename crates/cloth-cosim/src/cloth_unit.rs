@@ -242,7 +242,7 @@ impl ClothUnit {
         let origins = self.solid_origins(t);
         let ends: Vec<Vec3> = pins.iter().map(|&(k, _)| self.sim.control().pin_target(k).unwrap_or_default()).collect();
         let hs = h / n as f64;
-        let (mut linear, mut angular) = (vec![Vec3::zeros(); origins.len()], vec![Vec3::zeros(); origins.len()]);
+        let mut impulses = vec![(Vec3::zeros(), Vec3::zeros()); origins.len()];
         let mut reactions = vec![Vec3::zeros(); model.pins().len()];
         for i in 1..=n {
             for (&(k, start), &end) in pins.iter().zip(&ends) {
@@ -258,25 +258,16 @@ impl ClothUnit {
                 let reason = format!("substep {i} of {n} ({hs} s each): {e}");
                 return Ok(StepOutcome::Discarded { last_time_s: t, reason });
             }
-            for (k, origin) in origins.iter().enumerate() {
+            for (k, (origin, (linear, angular))) in origins.iter().zip(&mut impulses).enumerate() {
                 let impulse = self.sim.solid_impulse(k, *origin);
-                (linear[k], angular[k]) = (linear[k] + impulse.linear, angular[k] + impulse.angular);
+                (*linear, *angular) = (*linear + impulse.linear, *angular + impulse.angular);
             }
             for (k, r) in reactions.iter_mut().enumerate() {
                 *r += self.sim.pin_reaction(k) * hs;
             }
         }
-        for (i, role) in self.roles.iter().enumerate() {
-            let (k, a) = (role.item, role.axis);
-            self.values[i] = match role.quantity {
-                Quantity::SolidForce => linear[k][a] / h,
-                Quantity::SolidTorque => angular[k][a] / h,
-                _ => continue,
-            };
-        }
         let means: Vec<Vec3> = reactions.iter().map(|r| r / h).collect();
-        self.set_pin_outputs(&means);
-        self.update_shape_outputs();
+        self.set_step_outputs(&impulses, &means, h);
         Ok(StepOutcome::Completed)
     }
 
@@ -350,17 +341,32 @@ impl ClothUnit {
     /// Reads the step's outputs; `h` turns impulses into mean forces.
     fn read_outputs(&mut self, h: f64) {
         let origins = self.solid_origins(self.sim.time() - h);
-        let impulses: Vec<_> = origins.iter().enumerate().map(|(k, o)| self.sim.solid_impulse(k, *o)).collect();
+        let impulses: Vec<(Vec3, Vec3)> = origins
+            .iter()
+            .enumerate()
+            .map(|(k, o)| {
+                let impulse = self.sim.solid_impulse(k, *o);
+                (impulse.linear, impulse.angular)
+            })
+            .collect();
         let reactions: Vec<Vec3> = (0..self.sim.model().pins().len()).map(|k| self.sim.pin_reaction(k)).collect();
+        self.set_step_outputs(&impulses, &reactions, h);
+    }
+
+    /// Every output after a step of `h` s: each solid's mean force and
+    /// torque from its `impulses` (linear N s, angular N m s) over the
+    /// step, the pins' and attachments' from their mean `reactions` (N),
+    /// and the cloth's shape.
+    fn set_step_outputs(&mut self, impulses: &[(Vec3, Vec3)], reactions: &[Vec3], h: f64) {
         for (i, role) in self.roles.iter().enumerate() {
             let (k, a) = (role.item, role.axis);
             self.values[i] = match role.quantity {
-                Quantity::SolidForce => impulses[k].linear[a] / h,
-                Quantity::SolidTorque => impulses[k].angular[a] / h,
+                Quantity::SolidForce => impulses[k].0[a] / h,
+                Quantity::SolidTorque => impulses[k].1[a] / h,
                 _ => continue,
             };
         }
-        self.set_pin_outputs(&reactions);
+        self.set_pin_outputs(reactions);
         self.update_shape_outputs();
     }
 

@@ -506,15 +506,25 @@ pub unsafe extern "C" fn fmi3GetFMUState(instance: *mut c_void, state: *mut *mut
             return Err("FMUState is null".into());
         }
         // SAFETY: `state` is a valid pointer to the host's handle.
-        let previous = unsafe { *state };
-        if !previous.is_null() {
-            // The state given is overwritten: freed, a new one in its place.
-            drop(crate::handles::release_state(previous)?);
-        }
-        // SAFETY: as above.
-        unsafe { *state = crate::handles::register_state(inst.unit.get_state()) };
+        unsafe { replace_state(state, inst.unit.get_state())? };
         Ok(Status::Ok)
     })
+}
+
+/// Puts `new` in the host's handle `*state`; a state already there is
+/// overwritten (freed, the new one in its place), an unknown one refused.
+///
+/// # Safety
+/// `state` is a valid, non-null pointer to the host's handle.
+unsafe fn replace_state(state: *mut *mut c_void, new: cloth_cosim::UnitState) -> Result<(), String> {
+    // SAFETY: the caller's contract.
+    let previous = unsafe { *state };
+    if !previous.is_null() {
+        drop(crate::handles::release_state(previous)?);
+    }
+    // SAFETY: as above.
+    unsafe { *state = crate::handles::register_state(new) };
+    Ok(())
 }
 
 /// `fmi3SetFMUState`: the cloth back to a state got before.
@@ -632,12 +642,7 @@ pub unsafe extern "C" fn fmi3DeserializeFMUState(
             return Err("FMUState is null".into());
         }
         // SAFETY: `state` is a valid pointer to the host's handle.
-        let previous = unsafe { *state };
-        if !previous.is_null() {
-            drop(crate::handles::release_state(previous)?);
-        }
-        // SAFETY: as above.
-        unsafe { *state = crate::handles::register_state(restored) };
+        unsafe { replace_state(state, restored)? };
         Ok(Status::Ok)
     })
 }

@@ -33,12 +33,20 @@ fn registry() -> std::sync::MutexGuard<'static, Registry> {
     REGISTRY.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
+impl Registry {
+    /// A handle never given before.
+    fn new_handle(&mut self) -> usize {
+        let handle = self.next;
+        self.next += 16;
+        handle
+    }
+}
+
 /// Takes `instance` into the registry; its handle for the host.
 pub(crate) fn register(instance: Instance) -> *mut c_void {
     let address = Box::into_raw(Box::new(instance)) as usize;
     let mut r = registry();
-    let handle = r.next;
-    r.next += 16;
+    let handle = r.new_handle();
     r.live.insert(handle, address);
     handle as *mut c_void
 }
@@ -87,17 +95,16 @@ fn refuse(r: &Registry, handle: *mut c_void, function: &str) {
 }
 
 /// Takes an FMU state into the registry; its handle for the host.
-pub(crate) fn register_state(state: UnitState) -> *mut std::ffi::c_void {
+pub(crate) fn register_state(state: UnitState) -> *mut c_void {
     let address = Box::into_raw(Box::new(state)) as usize;
     let mut r = registry();
-    let handle = r.next;
-    r.next += 16;
+    let handle = r.new_handle();
     r.states.insert(handle, address);
-    handle as *mut std::ffi::c_void
+    handle as *mut c_void
 }
 
 /// The FMU state behind a live state handle.
-pub(crate) fn state(handle: *mut std::ffi::c_void) -> Result<*const UnitState, String> {
+pub(crate) fn state(handle: *mut c_void) -> Result<*const UnitState, String> {
     let r = registry();
     r.states.get(&(handle as usize)).map(|&a| a as *const UnitState).ok_or_else(|| {
         format!("FMUState {:#x} is not a live state of this FMU (freed, or never given)", handle as usize)
@@ -105,7 +112,7 @@ pub(crate) fn state(handle: *mut std::ffi::c_void) -> Result<*const UnitState, S
 }
 
 /// Takes a live state handle's state out of the registry, to free it.
-pub(crate) fn release_state(handle: *mut std::ffi::c_void) -> Result<Box<UnitState>, String> {
+pub(crate) fn release_state(handle: *mut c_void) -> Result<Box<UnitState>, String> {
     let mut r = registry();
     let address = r.states.remove(&(handle as usize)).ok_or_else(|| {
         format!("FMUState {:#x} is not a live state of this FMU (freed already, or never given)", handle as usize)

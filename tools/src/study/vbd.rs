@@ -88,6 +88,29 @@ struct Outcome {
     stable: bool,
 }
 
+impl Outcome {
+    /// The run's row of the study's CSV.
+    fn csv_row(&self, scene: String, method: String, h: f64) -> [String; 7] {
+        [
+            scene,
+            method,
+            h.to_string(),
+            format!("{:.6e}", self.error),
+            format!("{:.2}", self.cpu_s),
+            format!("{:.4}", self.strain_ratio),
+            self.stable.to_string(),
+        ]
+    }
+}
+
+/// The reference run of `case` ([`reference_overrides`]): its final
+/// positions and its mean tensile strain over the steps.
+fn reference(case: &Case, pool: &rayon::ThreadPool) -> Result<(Vec<Vec3>, f64)> {
+    let all: Vec<String> = case.overrides.iter().cloned().chain(reference_overrides()).collect();
+    let (_, sim, strain) = strained_run(&PathBuf::from(case.scene), &all, pool)?;
+    Ok((sim.state().x.clone(), strain))
+}
+
 fn run(case: &Case, method: &[String], reference: &(Vec<Vec3>, f64), pool: &rayon::ThreadPool) -> Result<Outcome> {
     let overrides: Vec<String> = case.overrides.iter().cloned().chain(method.iter().cloned()).collect();
     let (r, sim, strain) = strained_run(&PathBuf::from(case.scene), &overrides, pool)?;
@@ -132,9 +155,7 @@ pub fn vbd(args: &StudyArgs) -> Result<()> {
     );
     let mut plots = Vec::new();
     for case in cases(args.quick) {
-        let all: Vec<String> = case.overrides.iter().cloned().chain(reference_overrides()).collect();
-        let (_, reference_sim, strain) = strained_run(&PathBuf::from(case.scene), &all, &pool)?;
-        let reference = (reference_sim.state().x.clone(), strain);
+        let reference = reference(&case, &pool)?;
         let _ = writeln!(
             md,
             "## {}\n\n`{} {}`; reference mean tensile strain {:.3e}.\n\n\
@@ -162,15 +183,7 @@ pub fn vbd(args: &StudyArgs) -> Result<()> {
                 let mut o = overrides.clone();
                 o.push(format!("simulation.dt_s={h}"));
                 let out = run(&case, &o, &reference, &pool)?;
-                csv.row([
-                    case.name.to_string(),
-                    label.clone(),
-                    h.to_string(),
-                    format!("{:.6e}", out.error),
-                    format!("{:.2}", out.cpu_s),
-                    format!("{:.4}", out.strain_ratio),
-                    out.stable.to_string(),
-                ])?;
+                csv.row(out.csv_row(case.name.to_string(), label.clone(), h))?;
                 let shown = if out.stable { format!("{:.2e}", out.error) } else { "blew up".into() };
                 let strain = if out.stable { format!("{:.3}", out.strain_ratio) } else { "-".into() };
                 let _ = writeln!(md, "| {label} | 1/{:.0} | {shown} | {:.2} | {strain} |", 1.0 / h, out.cpu_s);
@@ -217,9 +230,7 @@ fn stiffness_table(args: &StudyArgs, pool: &rayon::ThreadPool, csv: &mut CsvTabl
         overrides.push(format!("material.tensile_stiffness_n_m={e}"));
         overrides.push(format!("material.buckling_stiffness_n_m={e}"));
         let case = Case { name: "hanging cloth, stiffer", scene: "fixtures/scenes/hang.toml", overrides };
-        let all: Vec<String> = case.overrides.iter().cloned().chain(reference_overrides()).collect();
-        let (_, reference_sim, strain) = strained_run(&PathBuf::from(case.scene), &all, pool)?;
-        let reference = (reference_sim.state().x.clone(), strain);
+        let reference = reference(&case, pool)?;
         let _ = write!(md, "| {e:.0e} |");
         for &k in sweeps {
             let method = [
@@ -228,15 +239,7 @@ fn stiffness_table(args: &StudyArgs, pool: &rayon::ThreadPool, csv: &mut CsvTabl
                 "simulation.dt_s=0.016666666666666666".into(),
             ];
             let out = run(&case, &method, &reference, pool)?;
-            csv.row([
-                format!("hanging cloth, E = {e} N/m"),
-                format!("VBD {k} sweeps"),
-                (1.0 / 60.0).to_string(),
-                format!("{:.6e}", out.error),
-                format!("{:.2}", out.cpu_s),
-                format!("{:.4}", out.strain_ratio),
-                out.stable.to_string(),
-            ])?;
+            csv.row(out.csv_row(format!("hanging cloth, E = {e} N/m"), format!("VBD {k} sweeps"), 1.0 / 60.0))?;
             if out.stable {
                 let _ = write!(md, " {:.2} ({:.1e} m) |", out.strain_ratio, out.error);
             } else {

@@ -156,7 +156,7 @@ fn add_external_forces(
     (scratch, force): (&mut ForceBuffers, &mut [Vec3]),
     mut external: Option<&mut Vec<Vec3>>,
 ) {
-    let present = crate::terms::external(model).next().is_some() || control.forces().is_some();
+    let present = crate::integrator::has_external_forces(model, control);
     if let Some(e) = external.as_deref_mut() {
         // Without any, an empty list (not last step's forces).
         e.clear();

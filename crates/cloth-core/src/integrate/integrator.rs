@@ -629,7 +629,7 @@ pub(crate) fn reject_self_collision(model: &ClothModel, integrator: &'static str
 /// forces into `ws.external`; false (and nothing computed) when there are
 /// neither.
 pub(crate) fn external_forces(model: &ClothModel, state: &ClothState, control: &Control, ws: &mut Workspace) -> bool {
-    if crate::terms::external(model).next().is_none() && control.forces().is_none() {
+    if !has_external_forces(model, control) {
         return false;
     }
     ws.external.iter_mut().for_each(|f| *f = Vec3::zeros());
@@ -638,6 +638,12 @@ pub(crate) fn external_forces(model: &ClothModel, state: &ClothState, control: &
     crate::terms::add_external_forces(&at, &mut ws.external_scratch, &mut ws.external);
     control.add_forces_to(&mut ws.external);
     true
+}
+
+/// Whether any force from outside the cloth acts: an external term of the
+/// model (the wind's) or the control's forces.
+pub(crate) fn has_external_forces(model: &ClothModel, control: &Control) -> bool {
+    crate::terms::external(model).next().is_some() || control.forces().is_some()
 }
 
 pub(crate) fn check_step(model: &ClothModel, state: &ClothState, h: f64) -> Result<(), StepError> {

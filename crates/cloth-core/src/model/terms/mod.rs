@@ -188,15 +188,11 @@ pub fn external(model: &ClothModel) -> impl Iterator<Item = &dyn ForceTerm> + '_
     EXTERNAL_TERMS.iter().map(|t| *t as &dyn ForceTerm).chain(extra).filter(move |t| t.acts_on(model) && t.external())
 }
 
-/// Adds every external term's forces at `at` to `out`, N; false (nothing
-/// added) when no external term acts.
-pub fn add_external_forces(at: &At<'_>, scratch: &mut ForceBuffers, out: &mut [Vec3]) -> bool {
-    let mut any = false;
+/// Adds every external term's forces at `at` to `out`, N.
+pub fn add_external_forces(at: &At<'_>, scratch: &mut ForceBuffers, out: &mut [Vec3]) {
     for term in external(at.model) {
         term.add_forces(at, scratch, out);
-        any = true;
     }
-    any
 }
 
 /// The acting terms the implicit steps linearise on the diagonal (not
