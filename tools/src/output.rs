@@ -129,6 +129,11 @@ pub struct Summary {
     pub contacts_max: usize,
     /// Deepest any particle was inside a solid, over all steps and the final state, m.
     pub max_penetration_m: f64,
+    /// The force the cloth pulls its pins with, summed over the pins and
+    /// averaged over the run's last 0.5 s, N (none without pins). At rest,
+    /// the weight the pins carry.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pin_load_n: Option<[f64; 3]>,
     /// Most self-collision pairs in one step.
     pub self_contacts_max: usize,
     /// Contacts released because they pulled.

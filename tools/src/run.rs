@@ -177,6 +177,9 @@ pub(crate) fn simulate_steps(
     let wall = Instant::now();
     let cpu_start = process_cpu_s();
     let mut solid_poses = SolidPoses::default();
+    let pins = runner.sim().model().pins().len();
+    let pin_window = ((0.5 / cfg.dt_s).ceil() as usize).max(1);
+    let mut pin_loads = std::collections::VecDeque::with_capacity(pin_window + 1);
     let write_frame = |sim: &Simulation, stages: &mut StageWall, poses: &mut SolidPoses| -> Result<()> {
         if let Some((every, dir)) = &frames
             && sim.state().steps.is_multiple_of(*every)
@@ -212,6 +215,12 @@ pub(crate) fn simulate_steps(
                 newton.add(r.newton.as_ref());
                 energy.add(&r);
                 peak_stretch = peak_stretch.max(runner.sim().model().max_stretch_ratio(&runner.sim().state().x));
+                if pins > 0 {
+                    pin_loads.push_back((0..pins).map(|k| runner.sim().pin_reaction(k)).sum::<Vec3>());
+                    if pin_loads.len() > pin_window {
+                        pin_loads.pop_front();
+                    }
+                }
                 bar.set_message(format!("t = {:.3} s, CG {}", runner.sim().time(), r.cg_iterations));
             }
             Err(e) => {
@@ -273,6 +282,7 @@ pub(crate) fn simulate_steps(
         solid_triangles: model.colliders().iter().map(|c| c.shape.triangle_count()).sum(),
         contacts_max: contacts.contacts_max,
         max_penetration_m: contacts.max_penetration_m.max(sim.max_penetration()),
+        pin_load_n: (!pin_loads.is_empty()).then(|| (pin_loads.iter().sum::<Vec3>() / pin_loads.len() as f64).into()),
         self_contacts_max: contacts.self_contacts_max,
         released_contacts_total: contacts.released,
         narrow_phase_queries_total: contacts.queries,
@@ -315,6 +325,7 @@ fn coupled_summary(mut summary: Summary, run: &CoupledRun, start: Momentum, tota
         master: match run.master {
             Master::Staggered => "staggered",
             Master::Iterated(_) => "iterated",
+            Master::Monolithic(_) => "monolithic",
         }
         .to_string(),
         passes_total: totals.passes,

@@ -23,10 +23,10 @@ pub mod scene;
 // Every module also under its own name at the root, so paths stay short
 // (`cloth_core::laws`, `cloth_core::contacts`) and inside the crate too.
 pub use contact::{colliders, contacts};
-pub use integrate::control;
 pub use integrate::energy::{EnergyReport, GAIN_TOLERANCE};
 pub use integrate::explicit::ENERGY_WINDOW;
 pub use integrate::vbd::{self, Vbd, VbdParams};
+pub use integrate::{bodies, control};
 use integrate::{energy, explicit, integrator, matrix_free, newton, sim, state};
 pub use model::seams::{self, SeamSide, SeamSpec, Stitch};
 pub use model::{colouring, element_laws, elements, forces, laws, terms, wind};
@@ -38,6 +38,7 @@ pub use colliders::{Collider, ColliderSpec, CollisionSpec, SelfCollision, SelfCo
 pub use constraints::{StrainLimitReport, apply_strain_limit};
 pub use contacts::ContactStats;
 pub use control::{Control, ControlError, SolidImpulse, SolidMotion};
+pub use integrate::bodies::{BodyError, BodyInSolve};
 pub use integrator::{
     AdaptiveParams, BackwardEuler, Bdf2, ContactSetParams, Integrator, IntegratorKind, NewtonParams, NewtonReport,
     SolverParams, StageTimes, StepError, StepReport, Workspace,

@@ -9,6 +9,7 @@
 
 mod block_sparse;
 mod cg;
+mod coupled;
 mod filter;
 mod multigrid;
 mod par;
@@ -17,6 +18,7 @@ mod precond;
 
 pub use block_sparse::{BlockPattern, BlockSparseMatrix, PatternError};
 pub use cg::{CgScratch, cg_fixed_iterations};
+pub use coupled::{CoupledPcg, RigidCoupling, RigidLink};
 pub use filter::{Constraint, ConstraintFilter, FilterError};
 pub use multigrid::{Aggregation, Cycle, K_CYCLE_MIN_NODES, Multigrid, MultigridError, SMOOTHED_MIN_NODES};
 pub use par::{ROW_CHUNK, dot};

@@ -42,7 +42,7 @@ impl Default for PcgParams {
 impl PcgParams {
     /// The squared residual norm a solve stops at, `rel_tol^2 |r_ref|^2`,
     /// from the reference's squared norm `ref_sq`.
-    fn stop_sq(&self, ref_sq: f64) -> f64 {
+    pub(crate) fn stop_sq(&self, ref_sq: f64) -> f64 {
         self.rel_tol * self.rel_tol * ref_sq
     }
 }
@@ -469,7 +469,11 @@ fn needs_filtered_hierarchy(params: &PcgParams, filter: &ConstraintFilter) -> bo
 /// exactly. Each block is computed from its original alone (`S_i A_ij`,
 /// then `S_j` on the right), so the result does not depend on the
 /// filter's entry order nor on the threads.
-fn filter_in_place(a: &mut BlockSparseMatrix, filter: &ConstraintFilter, saved: &mut Vec<Vec<(usize, Mat3)>>) {
+pub(crate) fn filter_in_place(
+    a: &mut BlockSparseMatrix,
+    filter: &ConstraintFilter,
+    saved: &mut Vec<Vec<(usize, Mat3)>>,
+) {
     saved.resize_with(a.n().div_ceil(ROW_CHUNK), Vec::new);
     // Each changed block belongs to one row: its own when the row is
     // constrained (`S_i A_ij S_j`), else its column's (`A_ij S_j`). So the

@@ -71,6 +71,35 @@ impl Default for IteratedCoupling {
     }
 }
 
+/// Parameters of the monolithic coupling.
+///
+/// The cloth's solve knows a body's inertia, gravity and the cloth, not
+/// rapier's contacts and joints on it. When rapier's step ends a body
+/// elsewhere than the solve assumed (a ball landing on a plate through
+/// the cloth), the step is repeated with rapier's extra impulse in the
+/// body's guess, until the two agree; a body that meets only cloth agrees
+/// after one pass.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MonolithicCoupling {
+    /// Most passes per step; the last is kept (reported as not converged)
+    /// when they disagree still. Default 10.
+    pub max_passes: usize,
+    /// Agreement: every mean velocity component within `abs_tol_m_s +
+    /// rel_tol |value|` (m/s, rad/s). Defaults 1e-3 and 1e-3: rapier
+    /// turns a body by its substeps' rotations, which differ from one turn
+    /// at the mean angular velocity at second order in the step (up to
+    /// 2e-4 rad/s measured on the hammock's ball); a contact's is larger.
+    pub abs_tol_m_s: f64,
+    /// See `abs_tol_m_s`.
+    pub rel_tol: f64,
+}
+
+impl Default for MonolithicCoupling {
+    fn default() -> Self {
+        Self { max_passes: 10, abs_tol_m_s: 1e-3, rel_tol: 1e-3 }
+    }
+}
+
 /// How cloth and bodies are stepped together.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Master {
@@ -79,24 +108,36 @@ pub enum Master {
     Staggered,
     /// Passes repeated until the bodies' mean velocities agree with the guess.
     Iterated(IteratedCoupling),
+    /// The bodies inside the cloth's solve: every dynamic body a cloth
+    /// touches or holds joins its implicit step as six unknowns
+    /// ([`cloth_core::bodies`]), so the cloth and the body answer each
+    /// other within the step; rapier then steps with the cloth's
+    /// impulses. One pass, unless rapier's own contacts or joints moved a
+    /// body away from where the cloth's solve put it (see
+    /// [`MonolithicCoupling`]). Needs an assembled implicit integrator
+    /// (`bdf2`, `backward-euler`). A body several cloths share meets them
+    /// one after the other, each seeing what the ones before did to it.
+    Monolithic(MonolithicCoupling),
 }
 
 impl Default for Master {
+    /// Monolithic: what a scene with an assembled implicit integrator uses.
     fn default() -> Self {
-        Master::Iterated(IteratedCoupling::default())
+        Master::Monolithic(MonolithicCoupling::default())
     }
 }
 
 /// What a coupled step did.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CouplingReport {
-    /// Passes made (1 for the staggered master; `max_iterations + 1` when
+    /// Passes made (1 for the staggered and monolithic masters; `max_iterations + 1` when
     /// not converged: the best pass is repeated).
     pub iterations: usize,
-    /// Whether the mean velocities agreed with the guess (always for staggered).
+    /// Whether the mean velocities agreed with the guess (always for
+    /// staggered and monolithic).
     pub converged: bool,
     /// Largest change of a mean velocity in the accepted pass over its tolerance
-    /// (0 for staggered).
+    /// (0 for staggered and monolithic).
     pub residual: f64,
     /// Cloth-body contacts in the accepted pass.
     pub contacts: usize,
@@ -108,29 +149,33 @@ pub struct CouplingReport {
 
 /// The impulse the cloths gave one body in a pass.
 #[derive(Debug, Clone, Copy, Default)]
-struct BodyImpulse {
-    linear: Vec3,
+pub(crate) struct BodyImpulse {
+    pub(crate) linear: Vec3,
     /// About the body's centre of mass at the start of the step.
-    angular: Vec3,
+    pub(crate) angular: Vec3,
 }
 
 /// What one pass produced.
-struct Pass {
+pub(crate) struct Pass {
     /// Mean velocities of the coupled dynamic bodies (6 per body).
-    end: Vec<f64>,
+    pub(crate) end: Vec<f64>,
+    /// With the bodies in the solve: the mean velocities the cloths'
+    /// solves left them (6 per body), which rapier's step reproduces
+    /// unless its own contacts or joints act on them.
+    pub(crate) assumed: Vec<f64>,
     /// Cloth-body contacts.
-    contacts: usize,
+    pub(crate) contacts: usize,
     /// Each cloth's step report.
-    reports: Vec<StepReport>,
+    pub(crate) reports: Vec<StepReport>,
 }
 
 /// A body some cloth touches or holds, and how it starts the step.
 #[derive(Debug, Clone, Copy)]
-struct Coupled {
-    handle: RigidBodyHandle,
-    start: BodyStart,
+pub(crate) struct Coupled {
+    pub(crate) handle: RigidBodyHandle,
+    pub(crate) start: BodyStart,
     /// Index of its 6 guess values, for dynamic bodies.
-    slot: Option<usize>,
+    pub(crate) slot: Option<usize>,
 }
 
 impl ClothSet {
@@ -142,20 +187,27 @@ impl ClothSet {
         if !(h.is_finite() && h > 0.0) {
             return Err(CouplingError::Params { field: "dt", message: format!("must be finite and > 0, got {h}") });
         }
-        if let Master::Iterated(p) = master {
-            check_iterated(p)?;
+        match master {
+            Master::Iterated(p) => check_iterated(p)?,
+            Master::Monolithic(p) => crate::monolithic::check(p)?,
+            Master::Staggered => {}
         }
         let coupled = self.coupled_bodies(world);
         let slots = coupled.iter().filter(|c| c.slot.is_some()).count();
         let gravity = vec_from_rapier(world.gravity);
         // First guess: each dynamic body's velocity after gravity alone.
         // (The staggered master's only guess: the cloth sees the body
-        // move as if the cloth were not there.)
+        // move as if the cloth were not there.) The monolithic master's is
+        // the body's velocity now: a body resting on cloth is then found
+        // where it rests, not where gravity alone would take it (contacts
+        // at its rim came and went every step, and a 0.2 kg box rocked at
+        // 2 cm/s); the solve adds gravity and the cloth's answer.
         let mut guess = vec![0.0; 6 * slots];
         for c in &coupled {
             if let Some(s) = c.slot {
                 let rb = &world.bodies[c.handle];
-                let v = vec_from_rapier(rb.linvel()) + gravity * (rb.gravity_scale() * h);
+                let share = if matches!(master, Master::Monolithic(_)) { 0.0 } else { 1.0 };
+                let v = vec_from_rapier(rb.linvel()) + gravity * (rb.gravity_scale() * h * share);
                 let w = vec_from_rapier(rb.angvel());
                 guess[6 * s..6 * s + 6].copy_from_slice(&[v.x, v.y, v.z, w.x, w.y, w.z]);
             }
@@ -170,26 +222,20 @@ impl ClothSet {
             }
             Ok(())
         };
-        let result = match master {
-            Master::Staggered => self.pass(world, &coupled, &guess, h).map(|pass| CouplingReport {
-                iterations: 1,
-                converged: true,
-                residual: 0.0,
-                contacts: pass.contacts,
-                coupled_bodies: coupled.len(),
-                cloths: pass.reports,
-            }),
-            Master::Iterated(p) => self.iterate(world, &coupled, &mut guess, h, p, time_s, &rollback).map(
-                |(iterations, residual, pass)| CouplingReport {
-                    iterations,
-                    converged: residual <= 1.0,
-                    residual,
-                    contacts: pass.contacts,
-                    coupled_bodies: coupled.len(),
-                    cloths: pass.reports,
-                },
-            ),
+        let report = |(iterations, residual, pass): (usize, f64, Pass)| CouplingReport {
+            iterations,
+            converged: residual <= 1.0,
+            residual,
+            contacts: pass.contacts,
+            coupled_bodies: coupled.len(),
+            cloths: pass.reports,
         };
+        let result = match master {
+            Master::Staggered => self.pass(world, &coupled, &guess, h, master).map(|pass| (1, 0.0, pass)),
+            Master::Monolithic(p) => self.monolithic(world, &coupled, &mut guess, h, p, &rollback),
+            Master::Iterated(p) => self.iterate(world, &coupled, &mut guess, h, p, time_s, &rollback),
+        }
+        .map(report);
         if result.is_err() {
             rollback(self, world)?;
         }
@@ -214,7 +260,7 @@ impl ClothSet {
             if iteration > 1 {
                 rollback(self, world)?;
             }
-            let pass = self.pass(world, coupled, guess, h)?;
+            let pass = self.pass(world, coupled, guess, h, &Master::Iterated(*p))?;
             let end = &pass.end;
             let weight: Vec<f64> = end.iter().map(|y| 1.0 / (p.abs_tol_m_s + p.rel_tol * y.abs())).collect();
             let scaled =
@@ -234,7 +280,7 @@ impl ClothSet {
         // map jump, and there may be no fixed point: keep the best pass.
         rollback(self, world)?;
         guess.copy_from_slice(&best.1);
-        let pass = self.pass(world, coupled, guess, h)?;
+        let pass = self.pass(world, coupled, guess, h, &Master::Iterated(*p))?;
         // That pass gave the bodies impulses that disagree with the motion
         // the cloth saw (the guess): for a body lighter than the cloth,
         // energy from nothing (a 36 mg ball on a 36 g cloth was thrown up
@@ -288,20 +334,25 @@ impl ClothSet {
 
     /// One pass with end velocities `guess`: cloths step, bodies receive
     /// the impulses, rapier steps. Returns the end velocities and the
-    /// number of cloth-body contacts.
-    fn pass(
+    /// number of cloth-body contacts. With the monolithic master the
+    /// dynamic bodies join each cloth's solve, and each cloth sees the
+    /// bodies as the cloths before it left them.
+    pub(crate) fn pass(
         &mut self,
         world: &mut PhysicsWorld,
         coupled: &[Coupled],
         guess: &[f64],
         h: f64,
+        master: &Master,
     ) -> Result<Pass, CouplingError> {
-        let twist = |c: &Coupled| c.slot.map_or((Vec3::zeros(), Vec3::zeros()), |s| mean_twist(guess, s));
+        let in_solve = matches!(master, Master::Monolithic(_));
+        let mut seen = guess.to_vec();
         let find = |handle: RigidBodyHandle| coupled.iter().position(|c| c.handle == handle);
         let mut impulses = vec![BodyImpulse::default(); coupled.len()];
         let mut contacts = 0;
         let mut reports = Vec::new();
         for (index, cloth) in self.cloths_mut().enumerate() {
+            let twist = |c: &Coupled| c.slot.map_or((Vec3::zeros(), Vec3::zeros()), |s| mean_twist(&seen, s));
             let t = cloth.sim.time();
             let fail = |message: String| CouplingError::Cloth { cloth: index, time_s: t, message };
             for s in &cloth.solids {
@@ -327,28 +378,73 @@ impl ClothSet {
                 cloth.sim.set_pin_target(a.pin, target).map_err(|e| fail(e.to_string()))?;
                 targets.push((k, a.pin, target));
             }
-            reports.push(cloth.sim.step(h).map_err(|e| fail(e.to_string()))?);
+            // Levers of the impulses: about the centre of mass at the start,
+            // or, for bodies in the solve, where the solve moved it about.
+            let about: Vec<Vec3> = coupled
+                .iter()
+                .map(|c| match c.slot {
+                    Some(s) if in_solve => c.start.com + mean_twist(&seen, s).0 * h,
+                    _ => c.start.com,
+                })
+                .collect();
+            let joined =
+                if in_solve { crate::monolithic::bodies_in_solve(cloth, world, coupled, &seen, h) } else { vec![] };
+            cloth.sim.set_bodies(joined).map_err(|e| fail(e.to_string()))?;
+            let stepped = cloth.sim.step(h);
+            // Bodies join one step at a time: the next master may not be this one.
+            cloth.sim.set_bodies(Vec::new()).map_err(|e| fail(e.to_string()))?;
+            reports.push(stepped.map_err(|e| fail(e.to_string()))?);
+            let mut got_here = vec![BodyImpulse::default(); coupled.len()];
             for s in &cloth.solids {
                 let Some(k) = s.body.and_then(find) else { continue };
-                let got = cloth.sim.solid_impulse(s.solid, coupled[k].start.com);
-                impulses[k].linear += got.linear;
-                impulses[k].angular += got.angular;
+                let got = cloth.sim.solid_impulse(s.solid, about[k]);
+                got_here[k].linear += got.linear;
+                got_here[k].angular += got.angular;
                 contacts += got.contacts;
             }
             for (k, pin, at) in targets {
                 let j = cloth.sim.pin_reaction(pin) * h;
-                impulses[k].linear += j;
-                impulses[k].angular += (at - coupled[k].start.com).cross(&j);
+                got_here[k].linear += j;
+                got_here[k].angular += (at - about[k]).cross(&j);
+            }
+            for (k, j) in got_here.iter().enumerate() {
+                impulses[k].linear += j.linear;
+                impulses[k].angular += j.angular;
+                if in_solve && let Some(s) = coupled[k].slot {
+                    crate::monolithic::add_impulse(
+                        world,
+                        &world.bodies[coupled[k].handle],
+                        j,
+                        &mut seen[6 * s..6 * s + 6],
+                    );
+                }
             }
         }
+        let mut held = Vec::new();
+        let saved_bodies: Vec<(f64, f64)> = coupled
+            .iter()
+            .filter(|c| c.slot.is_some())
+            .map(|c| {
+                let rb = &world.bodies[c.handle];
+                (rb.gravity_scale(), crate::monolithic::gravity_share(world, rb))
+            })
+            .collect();
         for (c, j) in coupled.iter().zip(&impulses) {
             if c.slot.is_some() {
                 let rb = &mut world.bodies[c.handle];
-                rb.apply_impulse(vec_to_rapier(j.linear), true);
-                rb.apply_torque_impulse(vec_to_rapier(j.angular), true);
+                if in_solve {
+                    // As the solve took it: a force over rapier's substeps.
+                    held.push((c.handle, crate::monolithic::apply_as_force(rb, j, h)));
+                } else {
+                    rb.apply_impulse(vec_to_rapier(j.linear), true);
+                    rb.apply_torque_impulse(vec_to_rapier(j.angular), true);
+                }
             }
         }
         world.step();
+        for (handle, forces) in held {
+            crate::monolithic::restore_forces(&mut world.bodies[handle], forces);
+        }
         let mut end = vec![0.0; guess.len()];
         for c in coupled {
             if let Some(s) = c.slot {
@@ -363,30 +459,46 @@ impl ClothSet {
                 }
             }
         }
-        Ok(Pass { end, contacts, reports })
+        let mut assumed = seen;
+        if in_solve {
+            for c in coupled {
+                if let Some(s) = c.slot {
+                    let fall = crate::monolithic::free_fall(world, &saved_bodies[s], h);
+                    (0..3).for_each(|k| assumed[6 * s + k] += fall[k]);
+                }
+            }
+        }
+        Ok(Pass { end, assumed, contacts, reports })
     }
 }
 
 /// Body `slot`'s mean linear (m/s) and angular (rad/s) velocity over the
 /// step in a guess or a pass's result (6 values per body).
-fn mean_twist(values: &[f64], slot: usize) -> (Vec3, Vec3) {
+pub(crate) fn mean_twist(values: &[f64], slot: usize) -> (Vec3, Vec3) {
     let at = |k: usize| Vec3::from_column_slice(&values[6 * slot + k..6 * slot + k + 3]);
     (at(0), at(3))
 }
 
+/// Checks a master's pass count (named `field`) and its agreement tolerances.
+pub(crate) fn check_passes(
+    field: &'static str,
+    passes: usize,
+    abs_tol: f64,
+    rel_tol: f64,
+) -> Result<(), CouplingError> {
+    let bad = |field, message: String| Err(CouplingError::Params { field, message });
+    if passes == 0 {
+        return bad(field, "must be >= 1".into());
+    }
+    if !(abs_tol.is_finite() && abs_tol >= 0.0 && rel_tol.is_finite() && rel_tol >= 0.0) || abs_tol + rel_tol == 0.0 {
+        return bad("abs_tol_m_s", format!("tolerances must be finite, >= 0 and not both 0: {abs_tol} and {rel_tol}"));
+    }
+    Ok(())
+}
+
 fn check_iterated(p: &IteratedCoupling) -> Result<(), CouplingError> {
     let bad = |field, message: String| Err(CouplingError::Params { field, message });
-    if p.max_iterations == 0 {
-        return bad("max_iterations", "must be >= 1".into());
-    }
-    if !(p.abs_tol_m_s.is_finite() && p.abs_tol_m_s >= 0.0 && p.rel_tol.is_finite() && p.rel_tol >= 0.0)
-        || p.abs_tol_m_s + p.rel_tol == 0.0
-    {
-        return bad(
-            "abs_tol_m_s",
-            format!("tolerances must be finite, >= 0 and not both 0: {} and {}", p.abs_tol_m_s, p.rel_tol),
-        );
-    }
+    check_passes("max_iterations", p.max_iterations, p.abs_tol_m_s, p.rel_tol)?;
     match p.relaxation {
         Relaxation::Fixed(w) | Relaxation::QuasiNewton { initial: w } if !(w > 0.0 && w <= 1.0) => {
             bad("relaxation", format!("omega must be in (0, 1], got {w}"))

@@ -25,6 +25,7 @@ pub mod character;
 pub mod cloth_set;
 pub mod convert;
 pub mod coupling;
+mod monolithic;
 pub mod motion;
 pub mod rig;
 pub mod rig_scene;
@@ -33,7 +34,7 @@ pub mod unit;
 pub mod world;
 
 pub use cloth_set::{Attachment, ClothBuilder, ClothHandle, ClothSet, CoupledCloth, CoupledSnapshot, CouplingError};
-pub use coupling::{CouplingReport, IteratedCoupling, Master};
+pub use coupling::{CouplingReport, IteratedCoupling, Master, MonolithicCoupling};
 pub use rapier3d_f64;
 pub use rapier3d_f64::prelude::PhysicsWorld;
 pub use rig::{JointKind, JointValue, Rig, RigError, RigOptions, RigPose, UpAxis};

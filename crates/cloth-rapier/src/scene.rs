@@ -22,10 +22,12 @@
 //! body = "post"
 //!
 //! [coupling]                   # optional, these are the defaults
-//! master = "iterated"          # or "staggered"
-//! max_iterations = 20
-//! abs_tol_m_s = 1e-6
-//! rel_tol = 1e-6
+//! master = "monolithic"        # or "iterated", "staggered"; "iterated" is
+//!                              # the default for integrators without a
+//!                              # linear solve (vbd, explicit)
+//! max_iterations = 20          # most passes a step (monolithic: 10)
+//! abs_tol_m_s = 1e-6           # agreement of the bodies' mean velocities,
+//! rel_tol = 1e-6               # m/s and rad/s (monolithic: 1e-3 and 1e-3)
 //! relaxation = "quasi-newton"  # or "fixed"
 //! omega = 0.5                  # fixed relaxation, or the quasi-Newton's first step
 //! accept_unconverged = true   # keep the best pass when contacts keep switching
@@ -37,7 +39,7 @@
 
 use crate::cloth_set::{ClothBuilder, ClothHandle, ClothSet, CouplingError};
 use crate::convert::{pose_to_rapier, vec_to_rapier};
-use crate::coupling::{CouplingReport, IteratedCoupling, Master};
+use crate::coupling::{CouplingReport, IteratedCoupling, Master, MonolithicCoupling};
 use crate::rig_scene::{RigSection, SceneRig};
 use cloth_collide::{BodyPose, ShapeSpec, SolidShape};
 use cloth_core::colliders::rotation_from_degrees;
@@ -130,6 +132,8 @@ pub enum MasterName {
     /// Passes until the bodies' end velocities agree.
     #[default]
     Iterated,
+    /// The bodies inside the cloth's solve, one pass per step.
+    Monolithic,
 }
 
 /// Relaxation by name.
@@ -147,14 +151,15 @@ pub enum RelaxationName {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct CouplingSection {
-    /// Master.
-    pub master: MasterName,
-    /// Most passes per step.
-    pub max_iterations: usize,
-    /// Absolute velocity tolerance, m/s (and rad/s).
-    pub abs_tol_m_s: f64,
-    /// Relative tolerance.
-    pub rel_tol: f64,
+    /// Master; unset: monolithic when the integrator has a linear solve
+    /// for bodies to join, else iterated.
+    pub master: Option<MasterName>,
+    /// Most passes per step (unset: the master's default).
+    pub max_iterations: Option<usize>,
+    /// Absolute velocity tolerance, m/s (and rad/s) (unset: the master's default).
+    pub abs_tol_m_s: Option<f64>,
+    /// Relative tolerance (unset: the master's default).
+    pub rel_tol: Option<f64>,
     /// Guess update.
     pub relaxation: RelaxationName,
     /// Relaxation factor, (0, 1].
@@ -167,10 +172,10 @@ impl Default for CouplingSection {
     fn default() -> Self {
         let d = IteratedCoupling::default();
         Self {
-            master: MasterName::Iterated,
-            max_iterations: d.max_iterations,
-            abs_tol_m_s: d.abs_tol_m_s,
-            rel_tol: d.rel_tol,
+            master: None,
+            max_iterations: None,
+            abs_tol_m_s: None,
+            rel_tol: None,
             relaxation: RelaxationName::QuasiNewton,
             omega: 0.5,
             accept_unconverged: d.accept_unconverged,
@@ -179,14 +184,22 @@ impl Default for CouplingSection {
 }
 
 impl CouplingSection {
-    /// The master these settings describe.
-    pub fn master(&self) -> Master {
-        match self.master {
+    /// The master these settings describe, for an integrator that takes
+    /// bodies into its solve (`takes_bodies`) or not.
+    pub fn master(&self, takes_bodies: bool) -> Master {
+        let default = if takes_bodies { MasterName::Monolithic } else { MasterName::Iterated };
+        let (d, m) = (IteratedCoupling::default(), MonolithicCoupling::default());
+        match self.master.unwrap_or(default) {
             MasterName::Staggered => Master::Staggered,
+            MasterName::Monolithic => Master::Monolithic(MonolithicCoupling {
+                max_passes: self.max_iterations.unwrap_or(m.max_passes),
+                abs_tol_m_s: self.abs_tol_m_s.unwrap_or(m.abs_tol_m_s),
+                rel_tol: self.rel_tol.unwrap_or(m.rel_tol),
+            }),
             MasterName::Iterated => Master::Iterated(IteratedCoupling {
-                max_iterations: self.max_iterations,
-                abs_tol_m_s: self.abs_tol_m_s,
-                rel_tol: self.rel_tol,
+                max_iterations: self.max_iterations.unwrap_or(d.max_iterations),
+                abs_tol_m_s: self.abs_tol_m_s.unwrap_or(d.abs_tol_m_s),
+                rel_tol: self.rel_tol.unwrap_or(d.rel_tol),
                 relaxation: match self.relaxation {
                     RelaxationName::Fixed => Relaxation::Fixed(self.omega),
                     RelaxationName::QuasiNewton => Relaxation::QuasiNewton { initial: self.omega },
@@ -313,7 +326,8 @@ impl CoupledScene {
             }
             None => None,
         };
-        self.check_coupling()?;
+        let takes_bodies = config.integrator.build().takes_bodies();
+        self.check_coupling(takes_bodies)?;
         let mut builder = ClothBuilder::new(model.clone()).integrator(config.integrator).solver(config.solver);
         for (k, a) in self.attachments.iter().enumerate() {
             let field = |name: &str| format!("attachments[{k}].{name}");
@@ -348,22 +362,27 @@ impl CoupledScene {
             let own = cloths.get_mut(cloth).expect("just inserted").simulation_mut();
             own.restore(&jittered).map_err(|e| invalid("simulation.initial_jitter_m".into(), e.to_string()))?;
         }
-        Ok(CoupledRun { world, cloths, cloth, bodies, rig, master: self.coupling.master(), config })
+        Ok(CoupledRun { world, cloths, cloth, bodies, rig, master: self.coupling.master(takes_bodies), config })
     }
 
-    fn check_coupling(&self) -> Result<(), SceneErrorKind> {
+    fn check_coupling(&self, takes_bodies: bool) -> Result<(), SceneErrorKind> {
         let c = &self.coupling;
         let invalid =
             |field: &str, message: String| SceneErrorKind::Invalid { field: format!("coupling.{field}"), message };
-        if c.max_iterations == 0 {
+        if c.master == Some(MasterName::Monolithic) && !takes_bodies {
+            let message = "needs an integrator with a linear solve (bdf2, backward-euler); use \"iterated\"";
+            return Err(invalid("master", message.into()));
+        }
+        if c.max_iterations == Some(0) {
             return Err(invalid("max_iterations", "must be >= 1".into()));
         }
-        for (name, v) in [("abs_tol_m_s", c.abs_tol_m_s), ("rel_tol", c.rel_tol)] {
+        let (abs, rel) = (c.abs_tol_m_s.unwrap_or(1.0), c.rel_tol.unwrap_or(1.0));
+        for (name, v) in [("abs_tol_m_s", abs), ("rel_tol", rel)] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(invalid(name, format!("must be finite and >= 0, got {v}")));
             }
         }
-        if c.abs_tol_m_s + c.rel_tol == 0.0 {
+        if abs + rel == 0.0 {
             return Err(invalid("abs_tol_m_s", "abs_tol_m_s and rel_tol cannot both be 0".into()));
         }
         if !(c.omega > 0.0 && c.omega <= 1.0) {

@@ -59,7 +59,7 @@ fn ball(run: &CoupledRun) -> &rapier3d_f64::prelude::RigidBody {
 /// cloth gains, with backward Euler's contact impulses read from the solve.
 #[test]
 fn a_ball_thrown_into_a_free_cloth_keeps_the_total_momentum() {
-    for master in ["staggered", "iterated"] {
+    for master in ["staggered", "iterated", "monolithic"] {
         let mut run = build(&scene(""), &[&format!("coupling.master=\"{master}\"")]);
         let start = run.cloths.momentum(&run.world);
         let (mut worst, mut worst_angular, mut contacts) = (0.0f64, 0.0f64, 0);
@@ -245,7 +245,7 @@ pins = 0
 body = "pole"
 "#
     );
-    for master in ["staggered", "iterated"] {
+    for master in ["staggered", "iterated", "monolithic"] {
         let mut run = build(&text, &["simulation.duration_s=0.3", &format!("coupling.master=\"{master}\"")]);
         let start = run.cloths.momentum(&run.world);
         let mut worst = 0.0f64;

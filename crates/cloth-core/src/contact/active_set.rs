@@ -323,6 +323,61 @@ pub(crate) fn stick_or_slide(
     changed
 }
 
+/// Reads the normal forces of one particle's held (active, not pressed)
+/// contacts from the unfiltered residual (see [`release_pulling`]);
+/// returns the held entries and the constraint force, N (`None`: none held).
+#[allow(clippy::type_complexity)]
+fn read_normal_forces(
+    group: &mut [SolidContact],
+    matrix: &BlockSparseMatrix,
+    rhs: &[Vec3],
+    unknown: &[Vec3],
+    force_coefficient: f64,
+) -> Option<((usize, Option<usize>), Vec3)> {
+    let i = group[0].particle as usize;
+    let mut active = (0..group.len()).filter(|&k| group[k].active && !group[k].pressed);
+    let (a, second) = (active.next()?, active.next());
+    // A squeezed particle's holding contact also carries the push of
+    // the solid pressing from the other side (not part of the solve).
+    let pressing: Vec3 = group.iter().filter(|c| c.active && c.pressed).map(|c| c.normal * c.normal_force_n).sum();
+    let force = (matrix.row_times(i, unknown) - rhs[i]) / force_coefficient - pressing;
+    match second {
+        None => group[a].normal_force_n = group[a].normal.dot(&force),
+        Some(b) => {
+            let (na, nb) = (group[a].normal, group[b].normal);
+            let (p, q) = two_direction_coefficients(&na, &nb, na.dot(&force), nb.dot(&force));
+            (group[a].normal_force_n, group[b].normal_force_n) = (p, q);
+        }
+    }
+    Some(((a, second), force))
+}
+
+/// Reads the constraint forces of the last solve into the contacts of the
+/// particles `chosen` picks, without releasing any: the normal forces,
+/// and a stuck contact's tangential force. A body in the solve took
+/// exactly these forces, so its reported impulse must be them too, even
+/// when the contact passes ended on a solve whose forces no pass read.
+pub(crate) fn read_contact_forces(
+    contacts: &mut [SolidContact],
+    matrix: &BlockSparseMatrix,
+    rhs: &[Vec3],
+    (unknown, force_coefficient): (&[Vec3], f64),
+    chosen: impl Fn(&SolidContact) -> bool,
+) {
+    for group in contacts.chunk_by_mut(same_particle) {
+        if !group.iter().any(&chosen) {
+            continue;
+        }
+        let Some(((a, second), force)) = read_normal_forces(group, matrix, rhs, unknown, force_coefficient) else {
+            continue;
+        };
+        let c = &mut group[a];
+        if second.is_none() && c.friction_mode == FrictionMode::Stick {
+            c.solve_constant_n = force - c.normal * c.normal.dot(&force);
+        }
+    }
+}
+
 /// Reads each contact's normal force from the unfiltered residual,
 /// `f_c = (A u - b)_i / force_coefficient` (split along both normals for
 /// a two-solid contact), and releases those that pull; the particle is
@@ -341,22 +396,9 @@ pub(crate) fn release_pulling(
 ) -> usize {
     let mut released = 0;
     for group in contacts.chunk_by_mut(same_particle) {
-        let i = group[0].particle as usize;
-        let mut active = (0..group.len()).filter(|&k| group[k].active && !group[k].pressed);
-        let (first, second) = (active.next(), active.next());
-        let Some(a) = first else { continue };
-        // A squeezed particle's holding contact also carries the push of
-        // the solid pressing from the other side (not part of the solve).
-        let pressing: Vec3 = group.iter().filter(|c| c.active && c.pressed).map(|c| c.normal * c.normal_force_n).sum();
-        let force = (matrix.row_times(i, unknown) - rhs[i]) / force_coefficient - pressing;
-        match second {
-            None => group[a].normal_force_n = group[a].normal.dot(&force),
-            Some(b) => {
-                let (na, nb) = (group[a].normal, group[b].normal);
-                let (p, q) = two_direction_coefficients(&na, &nb, na.dot(&force), nb.dot(&force));
-                (group[a].normal_force_n, group[b].normal_force_n) = (p, q);
-            }
-        }
+        let Some(((a, second), _)) = read_normal_forces(group, matrix, rhs, unknown, force_coefficient) else {
+            continue;
+        };
         let mut changed = false;
         for k in [Some(a), second].into_iter().flatten() {
             let c = &mut group[k];

@@ -17,6 +17,7 @@
 //! Inputs persist from step to step until changed or cleared, as a motor
 //! command would: set them only when they change.
 
+use crate::bodies::{BodyError, BodyInSolve};
 use crate::{ClothModel, Vec3};
 use cloth_collide::BodyPose;
 use nalgebra::UnitQuaternion;
@@ -147,6 +148,10 @@ pub enum ControlError {
         got: usize,
     },
     /// A value is NaN or infinite.
+    /// A body set to join the solve was refused.
+    #[error(transparent)]
+    Body(#[from] BodyError),
+    /// A value is NaN or infinite.
     #[error("{what}: not finite")]
     NonFinite {
         /// Which input.
@@ -167,6 +172,8 @@ pub struct Control {
     forces: Vec<Vec3>,
     has_forces: bool,
     wind: Option<Vec3>,
+    /// Rigid bodies that join the solve.
+    bodies: Vec<BodyInSolve>,
 }
 
 impl Control {
@@ -180,7 +187,30 @@ impl Control {
             forces: Vec::new(),
             has_forces: false,
             wind: None,
+            bodies: Vec::new(),
         }
+    }
+
+    /// Lets `bodies` join the next steps' solves (monolithic coupling, see
+    /// [`crate::bodies`]): each drives some external solids and pins, whose
+    /// motions and targets (set as usual) are its predicted motion. Replaces
+    /// the bodies set before; an empty list makes every solid and pin
+    /// prescribed again. Only the assembled implicit integrators take
+    /// bodies ([`crate::StepError::BodiesNeedMatrix`]).
+    pub fn set_bodies(&mut self, model: &ClothModel, bodies: Vec<BodyInSolve>) -> Result<(), ControlError> {
+        crate::bodies::check_bodies(model, &bodies)?;
+        self.bodies = bodies;
+        Ok(())
+    }
+
+    /// The bodies in the solve.
+    pub fn bodies(&self) -> &[BodyInSolve] {
+        &self.bodies
+    }
+
+    /// Whether solid `index` is a shape of a body in the solve.
+    pub fn is_solid_in_solve(&self, index: usize) -> bool {
+        self.bodies.iter().any(|b| b.solids.contains(&index))
     }
 
     /// Sets the motion of externally driven solid `index` (its index among

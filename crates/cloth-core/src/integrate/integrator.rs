@@ -43,6 +43,11 @@ pub trait Integrator: Send + Sync + std::fmt::Debug {
     fn restarts_history_at_contacts(&self) -> bool {
         false
     }
+
+    /// Whether rigid bodies can join its solve ([`crate::Control::set_bodies`]).
+    fn takes_bodies(&self) -> bool {
+        false
+    }
 }
 
 /// Backward Euler (Baraff & Witkin 1998, Eq. 16):
@@ -61,6 +66,10 @@ pub struct Bdf2;
 impl Integrator for BackwardEuler {
     fn name(&self) -> &'static str {
         IntegratorKind::BackwardEuler.name()
+    }
+
+    fn takes_bodies(&self) -> bool {
+        true
     }
 
     fn restarts_history_at_contacts(&self) -> bool {
@@ -84,6 +93,10 @@ impl Integrator for BackwardEuler {
 impl Integrator for Bdf2 {
     fn name(&self) -> &'static str {
         IntegratorKind::Bdf2.name()
+    }
+
+    fn takes_bodies(&self) -> bool {
+        true
     }
 
     fn restarts_history_at_contacts(&self) -> bool {
@@ -333,6 +346,9 @@ fn uncommitted_step<S: Linearised>(
     let mut stats = loads.stats;
     let settled = settle_contacts(step, ws, rules, force_coefficient, &mut stats)?;
     let (mut report, mut solve_s) = (settled.report, settled.solve_s);
+    if ws.bodies.active() {
+        ws.bodies.follow(&mut ws.contacts, h);
+    }
     (report.force_evaluations, report.substeps) = (1, 1);
     let (mut forces_s, mut assembly_s) = (timing.links_s, timing.gather_s + pins_s);
     // 5. Newton iterations with a line search on the nonlinear step
@@ -427,6 +443,10 @@ fn constrain_start<S: Linearised>(step: StepInputs<'_, S>, ws: &mut Workspace, r
     for i in 0..state.len() {
         ws.unknown[i] = scheme.guess(state, &ws.aux, i);
     }
+    let paths = PinPaths::new(model, control, &state.x, state.time_s, h);
+    let factors = (h, scheme.force_coefficient(h), scheme.position_per_unknown(h));
+    let multigrid = step.solver.preconditioner == cloth_linalg::PreconditionerKind::Multigrid;
+    ws.bodies.prepare(model, multigrid, control.bodies(), |p| paths.position(p, state.time_s + h), factors);
 }
 
 /// What the response needs to know of the solves.
@@ -687,8 +707,12 @@ pub(crate) fn solve(
     solver: &SolverParams,
 ) -> Result<(StepReport, f64), StepError> {
     let t0 = Instant::now();
-    let result =
-        ws.pcg.solve_in_place(&mut ws.system.matrix, &ws.system.rhs, &ws.filter, &solver.pcg(), &mut ws.unknown);
+    let result = if ws.bodies.active() {
+        ws.bodies.link(&ws.filter, &ws.contacts.solid, state.len());
+        ws.bodies.solve(&ws.system.matrix, &ws.system.rhs, &ws.filter, &solver.pcg(), &mut ws.unknown)
+    } else {
+        ws.pcg.solve_in_place(&mut ws.system.matrix, &ws.system.rhs, &ws.filter, &solver.pcg(), &mut ws.unknown)
+    };
     let elapsed = t0.elapsed().as_secs_f64();
     let fail = |source| StepError::Solver { step: state.steps + 1, time_s: state.time_s, source };
     let report = match result {

@@ -5,6 +5,7 @@
 //! solver [`vbd`]), and
 //! [`crate::Simulation`], which owns model, state, control and workspace.
 
+pub mod bodies;
 pub mod control;
 pub(crate) mod energy;
 pub(crate) mod explicit;

@@ -12,8 +12,8 @@
 
 use super::integrator::{Linearised, StepInputs, add_solve, solve};
 use crate::contacts::{
-    FrictionMode, SolidContact, add_penetrating, constrain_contacts, release_pulling, stick_frictional_contacts,
-    stick_or_slide,
+    FrictionMode, SolidContact, add_penetrating, constrain_contacts, read_contact_forces, release_pulling,
+    stick_frictional_contacts, stick_or_slide,
 };
 use crate::{ClothModel, ContactStats, SolverParams, StepError, StepReport, Workspace};
 
@@ -131,7 +131,9 @@ pub(crate) struct Settled {
 pub(crate) fn stick_frictional<S>(step: StepInputs<'_, S>, contacts: &mut [SolidContact]) -> usize {
     let StepInputs { model, control, h, .. } = step;
     let prescribed = |i: usize| model.is_pinned(i) || control.is_held(i);
-    let driven = |k: usize| model.colliders()[k].is_external() && !control.is_solid_prescribed(k);
+    let driven = |k: usize| {
+        model.colliders()[k].is_external() && !control.is_solid_prescribed(k) && !control.is_solid_in_solve(k)
+    };
     stick_frictional_contacts(contacts, h, prescribed, driven)
 }
 
@@ -177,6 +179,13 @@ pub(crate) fn settle_contacts<S: Linearised>(
         let settled = released + added + slid == 0;
         let sliding = || ws.contacts.solid.iter().any(|c| c.friction_mode == FrictionMode::Slide);
         match settling.after_pass(settled, pass == last, sliding) {
+            // Bodies in the solve take the forces of the last solve: it
+            // must be of the set that stands.
+            NextSolve::Done if !settled && ws.bodies.active() => {
+                let (r, s) = solve(ws, state, solver)?;
+                add_solve(&mut report, &mut solve_s, &r, s, true);
+                break;
+            }
             NextSolve::Done => break,
             NextSolve::Last(params) => {
                 let (r, s) = solve(ws, state, &params)?;
@@ -189,6 +198,11 @@ pub(crate) fn settle_contacts<S: Linearised>(
                 add_solve(&mut report, &mut solve_s, &r, s, settling.exact());
             }
         }
+    }
+    if ws.bodies.active() {
+        let (matrix, rhs, solved) = (&ws.system.matrix, &ws.system.rhs, (&ws.unknown[..], force_coefficient));
+        let bodies = &ws.bodies;
+        read_contact_forces(&mut ws.contacts.solid, matrix, rhs, solved, |c| bodies.holds(c));
     }
     Ok(Settled { report, solve_s, unresolved })
 }

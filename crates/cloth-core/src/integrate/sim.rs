@@ -104,6 +104,9 @@ impl Simulation {
     /// closed. On error the state is unchanged.
     pub fn step(&mut self, h: f64) -> Result<StepReport, StepError> {
         let (model, control) = (&self.model, &self.control);
+        if !control.bodies().is_empty() && !self.integrator.takes_bodies() {
+            return Err(StepError::BodiesNeedMatrix { integrator: self.integrator.name() });
+        }
         let mut report = self.integrator.step(model, &mut self.state, control, h, &mut self.workspace, &self.solver)?;
         let integrator = self.integrator.as_ref();
         super::finish::finish_step(model, control, integrator, &mut self.state, &mut self.workspace, &mut report, h);
@@ -181,6 +184,21 @@ impl Simulation {
     /// Sets external forces on every particle, N, for the next steps.
     pub fn set_external_forces(&mut self, forces: &[Vec3]) -> Result<(), ControlError> {
         self.control.set_forces(&self.model, forces)
+    }
+
+    /// Lets rigid bodies join the next steps' solves (see
+    /// [`Control::set_bodies`]).
+    pub fn set_bodies(&mut self, bodies: Vec<crate::BodyInSolve>) -> Result<(), ControlError> {
+        self.control.set_bodies(&self.model, bodies)
+    }
+
+    /// Body `k`'s change of mean linear (m/s) and angular (rad/s) velocity
+    /// over the last step from the motion set for it, as the solve found
+    /// it (`M dv` is the normal and pin impulse the cloth gave it; friction
+    /// comes on top, see [`crate::bodies`]). `None` when no such body took
+    /// part in the last step.
+    pub fn body_velocity_change(&self, k: usize) -> Option<(Vec3, Vec3)> {
+        self.workspace.bodies.velocity_change.get(k).copied()
     }
 
     /// Removes the external forces.

@@ -424,6 +424,13 @@ pub enum StepError {
         /// The integrator's scene name.
         integrator: &'static str,
     },
+    /// Bodies were set to join the solve ([`crate::Control::set_bodies`]),
+    /// which only the assembled implicit steps have.
+    #[error("integrator {integrator} has no linear solve for bodies to join: use backward-euler or bdf2")]
+    BodiesNeedMatrix {
+        /// The integrator's scene name.
+        integrator: &'static str,
+    },
     /// A fixed-step explicit integrator was asked for a step its seams'
     /// stitches make unstable ([`ClothModel::explicit_stitch_step_limit`]).
     #[error(
@@ -484,6 +491,8 @@ pub struct Workspace {
     pub(crate) pin_forces: Vec<Vec3>,
     /// Scratch of the energy monitor.
     pub(crate) energy: crate::forces::EnergyBuffers,
+    /// Rigid bodies in the solve.
+    pub(crate) bodies: crate::bodies::BodyBuffers,
 }
 
 impl Workspace {
@@ -512,6 +521,7 @@ impl Workspace {
             contacts: ContactBuffers::default(),
             pin_forces: vec![Vec3::zeros(); model.pins().len()],
             energy: crate::forces::EnergyBuffers::new(model),
+            bodies: Default::default(),
         }
     }
 }

@@ -1,0 +1,372 @@
+//! Rigid bodies inside the cloth's linear solve (monolithic coupling).
+//!
+//! A body that drives some of the model's external solids and pins (a
+//! rapier body the cloth touches or hangs from) can join the implicit
+//! step as six unknowns: the change of its mean linear and angular
+//! velocity over the step from the motion the control set. The particles
+//! it holds (its pins, and the contacts with its solids) then follow it
+//! in the solve, and it takes their reactions: `M_b dq_b = -h sum_i J_i^T
+//! f_i`, the same impulse `h f` the cloth reports on it
+//! ([`crate::Simulation::solid_impulse`], pin reactions). The solve is
+//! [`cloth_linalg::CoupledPcg`]'s reduced saddle-point system, positive
+//! definite with the cloth's matrix.
+//!
+//! The motion set for the body is a guess (its free flight, or where it
+//! went last step); `BodyInSolve::ahead_m_s` says how far the guess is
+//! from the free flight, so that the body row reads `M (dq + ahead) = -h
+//! J^T f`.
+//!
+//! In the cloth's unknown a body's change is `y = g dq` with `g = h /
+//! (dx'/du)` (`h` for BDF2, whose unknown is a displacement, `1` for
+//! backward Euler's velocity change), and its mass block is `K = c_f /
+//! (h g) M_b` with the scheme's force coefficient `c_f`: the body row
+//! then reads `M_b dq = -h J^T f` for the force `f = (A x - b) / c_f` that
+//! the constrained rows carry.
+//!
+//! Friction on a body's contacts is decided in the solve, as on a
+//! prescribed solid: a stuck particle follows the body in all three
+//! directions, a sliding one's `mu N` loads the body's row. Newton
+//! corrections (when asked for) see the bodies on the motion the settled
+//! solve gave them.
+
+use crate::contacts::{ContactBuffers, FrictionMode, SolidContact};
+use crate::control::SolidMotion;
+use crate::{ClothModel, Mat3, Vec3};
+use cloth_collide::BodyPose;
+use cloth_linalg::{ConstraintFilter, CoupledPcg, RigidCoupling};
+use nalgebra::UnitQuaternion;
+use nalgebra::{Matrix3x6, Matrix6, Vector6};
+
+/// A rigid body that joins the cloth's solve for the next step.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BodyInSolve {
+    /// Mass, kg (finite, > 0).
+    pub mass_kg: f64,
+    /// Inertia tensor about the centre of mass, world axes, kg m^2
+    /// (symmetric positive definite).
+    pub inertia_kg_m2: Mat3,
+    /// Centre of mass at the end of the step on the motion set for its
+    /// solids and pins, m (the levers of its particles start there).
+    pub com_m: Vec3,
+    /// How much faster that motion moves the centre of mass over the step
+    /// (mean velocity, m/s) than the body would move without the cloth:
+    /// zero when the motion set is the body's free flight. Any motion
+    /// will do as the step's guess; the solve corrects it.
+    pub ahead_m_s: Vec3,
+    /// The same for its mean angular velocity, rad/s.
+    pub ahead_rad_s: Vec3,
+    /// The model's external solids that are this body's shapes.
+    pub solids: Vec<usize>,
+    /// The model's external pins attached to it.
+    pub pins: Vec<usize>,
+}
+
+/// Why a body was refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum BodyError {
+    /// Mass not finite or not positive.
+    #[error("body {body}: mass {mass_kg} kg must be finite and > 0")]
+    Mass {
+        /// The body's index in the list given.
+        body: usize,
+        /// The mass given.
+        mass_kg: f64,
+    },
+    /// The inertia tensor is not finite, symmetric and positive definite.
+    #[error("body {body}: inertia tensor must be finite, symmetric and positive definite")]
+    Inertia {
+        /// The body.
+        body: usize,
+    },
+    /// The centre of mass or the guess's head start is not finite.
+    #[error("body {body}: centre of mass or head start not finite")]
+    Com {
+        /// The body.
+        body: usize,
+    },
+    /// A solid that is not the model's, not external, or claimed twice.
+    #[error("body {body}: solid {solid} is not an external solid of the model, or belongs to another body")]
+    Solid {
+        /// The body.
+        body: usize,
+        /// The solid index given.
+        solid: usize,
+    },
+    /// A pin that is not the model's, not external, or claimed twice.
+    #[error("body {body}: pin {pin} is not an external pin of the model, or belongs to another body")]
+    Pin {
+        /// The body.
+        body: usize,
+        /// The pin index given.
+        pin: usize,
+    },
+}
+
+/// Checks `bodies` against `model`: each solid and pin external and
+/// claimed once.
+pub(crate) fn check_bodies(model: &ClothModel, bodies: &[BodyInSolve]) -> Result<(), BodyError> {
+    let mut solid_taken = vec![false; model.colliders().len()];
+    let mut pin_taken = vec![false; model.pins().len()];
+    for (body, b) in bodies.iter().enumerate() {
+        if !(b.mass_kg.is_finite() && b.mass_kg > 0.0) {
+            return Err(BodyError::Mass { body, mass_kg: b.mass_kg });
+        }
+        let i = &b.inertia_kg_m2;
+        let symmetric = (i - i.transpose()).amax() <= 1e-12 * i.amax();
+        if !(i.iter().all(|c| c.is_finite()) && symmetric && i.cholesky().is_some()) {
+            return Err(BodyError::Inertia { body });
+        }
+        if ![b.com_m, b.ahead_m_s, b.ahead_rad_s].iter().all(|v| v.iter().all(|c| c.is_finite())) {
+            return Err(BodyError::Com { body });
+        }
+        for &solid in &b.solids {
+            let external = model.colliders().get(solid).is_some_and(|c| c.is_external());
+            if !external || std::mem::replace(&mut solid_taken[solid], true) {
+                return Err(BodyError::Solid { body, solid });
+            }
+        }
+        for &pin in &b.pins {
+            let external = model.pins().get(pin).is_some_and(|p| p.is_external());
+            if !external || std::mem::replace(&mut pin_taken[pin], true) {
+                return Err(BodyError::Pin { body, pin });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// `J = [I | -[r]x]`: a point at lever `r` from the centre of mass moves
+/// by `J (dx, dtheta)`.
+pub fn lever(r: Vec3) -> Matrix3x6<f64> {
+    let mut j = Matrix3x6::zeros();
+    j.fixed_view_mut::<3, 3>(0, 0).copy_from(&Mat3::identity());
+    j.fixed_view_mut::<3, 3>(0, 3).copy_from(&-r.cross_matrix());
+    j
+}
+
+/// A particle's body, while linking: none yet, one, or several (a
+/// particle between two bodies, or a body and a fixed solid, stays
+/// outside the coupling: its contacts act on it as on prescribed solids).
+const NO_BODY: usize = usize::MAX;
+const MIXED: usize = usize::MAX - 1;
+
+/// The step's bodies and their coupled solve.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct BodyBuffers {
+    coupling: RigidCoupling,
+    solver: CoupledPcg,
+    /// Each body's unknown in the cloth's units.
+    y: Vec<Vector6<f64>>,
+    /// `g`: the cloth unknown per body velocity (see the module).
+    unknown_per_velocity: f64,
+    /// The scheme's force coefficient `c_f`.
+    force_coefficient: f64,
+    /// Each body's centre of mass at the end of the step.
+    com: Vec<Vec3>,
+    /// Each body's load from its guess's head start, `-K g ahead`.
+    ahead: Vec<Vector6<f64>>,
+    /// The body of each model solid, or `NO_BODY`.
+    solid_body: Vec<usize>,
+    /// `(body, particle, lever)` of every pin on a body.
+    pins: Vec<(usize, usize, Vec3)>,
+    /// Scratch: each particle's body among its active contacts.
+    particle_body: Vec<usize>,
+    /// Whether the solver has the model's multigrid hierarchy.
+    has_multigrid: bool,
+    /// Each body's mean velocity change over the step, m/s and rad/s.
+    pub(crate) velocity_change: Vec<(Vec3, Vec3)>,
+}
+
+impl BodyBuffers {
+    /// Sets the step's bodies: their mass blocks for a scheme with force
+    /// coefficient `c_f` and `dx'/du = position_per_unknown`, their pins'
+    /// levers to the pins' targets at `t + h`.
+    pub(crate) fn prepare(
+        &mut self,
+        model: &ClothModel,
+        multigrid: bool,
+        bodies: &[BodyInSolve],
+        pin_target: impl Fn(usize) -> Vec3,
+        (h, c_f, position_per_unknown): (f64, f64, f64),
+    ) {
+        if multigrid && !bodies.is_empty() && !self.has_multigrid {
+            self.solver.set_multigrid(model.multigrid());
+            self.has_multigrid = true;
+        }
+        self.coupling.clear();
+        self.pins.clear();
+        self.com.clear();
+        self.ahead.clear();
+        self.solid_body.clear();
+        self.solid_body.resize(model.colliders().len(), NO_BODY);
+        self.unknown_per_velocity = h / position_per_unknown;
+        self.force_coefficient = c_f;
+        let scale = c_f / (h * self.unknown_per_velocity);
+        for (k, b) in bodies.iter().enumerate() {
+            let mut m = Matrix6::zeros();
+            m.fixed_view_mut::<3, 3>(0, 0).copy_from(&(Mat3::identity() * (b.mass_kg * scale)));
+            m.fixed_view_mut::<3, 3>(3, 3).copy_from(&(b.inertia_kg_m2 * scale));
+            let k_body = self.coupling.add_body(m);
+            // `M (dq + ahead) = -h J^T f` in the cloth's units.
+            let ahead = Vector6::new(
+                b.ahead_m_s.x,
+                b.ahead_m_s.y,
+                b.ahead_m_s.z,
+                b.ahead_rad_s.x,
+                b.ahead_rad_s.y,
+                b.ahead_rad_s.z,
+            );
+            self.ahead.push(-(m * ahead) * self.unknown_per_velocity);
+            debug_assert_eq!(k_body, k);
+            self.com.push(b.com_m);
+            for &s in &b.solids {
+                self.solid_body[s] = k;
+            }
+            for &p in &b.pins {
+                self.pins.push((k, model.pins()[p].particle, pin_target(p) - b.com_m));
+            }
+        }
+        self.y.clear();
+        self.y.resize(bodies.len(), Vector6::zeros());
+        self.velocity_change.clear();
+        self.velocity_change.resize(bodies.len(), (Vec3::zeros(), Vec3::zeros()));
+    }
+
+    /// Whether `c` is a contact with a body's solid.
+    pub(crate) fn holds(&self, c: &SolidContact) -> bool {
+        self.solid_body.get(c.collider as usize).is_some_and(|&b| b != NO_BODY)
+    }
+
+    /// Whether any body joins the step.
+    pub(crate) fn active(&self) -> bool {
+        self.coupling.body_count() > 0
+    }
+
+    /// Links the particles the bodies hold under `filter`: their pins, and
+    /// particles whose active constrained contacts are all with one body.
+    pub(crate) fn link(&mut self, filter: &ConstraintFilter, contacts: &[SolidContact], n: usize) {
+        self.coupling.clear_links();
+        for (k, load) in self.ahead.iter().enumerate() {
+            self.coupling.add_load(k, *load);
+        }
+        let constrained = |i: usize| Mat3::identity() - filter.projector(i);
+        for &(body, i, r) in &self.pins {
+            self.coupling.link(body, i, constrained(i) * lever(r));
+        }
+        self.particle_body.clear();
+        self.particle_body.resize(n, NO_BODY);
+        for c in contacts.iter().filter(|c| c.active && !c.pressed) {
+            // A solid of no body counts as a body of its own: a particle
+            // it also holds stays where that solid puts it.
+            let (i, body) = (c.particle as usize, self.solid_body[c.collider as usize]);
+            let body = if body == NO_BODY { MIXED } else { body };
+            let slot = &mut self.particle_body[i];
+            *slot = if *slot == NO_BODY || *slot == body { body } else { MIXED };
+        }
+        for c in contacts.iter().filter(|c| c.active && c.pressed) {
+            // A body pressing a particle onto another solid pushes it with
+            // a fixed force: the body takes the opposite.
+            let body = self.solid_body[c.collider as usize];
+            if body != NO_BODY {
+                let j = lever(c.point - self.com[body]);
+                let push = c.normal * c.normal_force_n;
+                self.coupling.add_load(body, -(j.transpose() * push) * self.force_coefficient);
+            }
+        }
+        for c in contacts.iter().filter(|c| c.active && !c.pressed) {
+            let i = c.particle as usize;
+            let body = self.particle_body[i];
+            if body < MIXED && !filter.is_free(i) {
+                let j = lever(c.point - self.com[body]);
+                self.coupling.link(body, i, constrained(i) * j);
+                if c.friction_mode == FrictionMode::Slide {
+                    // The sliding friction the particle takes, the body gives.
+                    self.coupling.add_load(body, -(j.transpose() * c.solve_constant_n) * self.force_coefficient);
+                }
+                // One link a particle, whatever its number of contacts.
+                self.particle_body[i] = NO_BODY;
+            }
+        }
+    }
+
+    /// The coupled solve of `a x = b` under `filter` (see
+    /// [`cloth_linalg::CoupledPcg::solve`]); `x` is the cloth's unknown.
+    pub(crate) fn solve(
+        &mut self,
+        a: &cloth_linalg::BlockSparseMatrix,
+        b: &[Vec3],
+        filter: &ConstraintFilter,
+        params: &cloth_linalg::PcgParams,
+        x: &mut [Vec3],
+    ) -> Result<cloth_linalg::PcgInfo, cloth_linalg::PcgError> {
+        let result = self.solver.solve(a, b, filter, &self.coupling, params, (x, &mut self.y));
+        let g = self.unknown_per_velocity;
+        for (out, y) in self.velocity_change.iter_mut().zip(&self.y) {
+            *out = (Vec3::new(y[0], y[1], y[2]) / g, Vec3::new(y[3], y[4], y[5]) / g);
+        }
+        result
+    }
+
+    /// Moves the bodies' solids to where the solve took them: each
+    /// contact's solid velocity by the body's change at the contact point,
+    /// and the step's copy of each solid's motion, so what follows the
+    /// solve (friction, no bounce, the last projection out of solids, the
+    /// energy balance) sees the body as it moves. (Left on the guess, the
+    /// projection pushed particles that had followed a body below its
+    /// guess out of the guess.)
+    pub(crate) fn follow(&self, contacts: &mut ContactBuffers, h: f64) {
+        for c in contacts.solid.iter_mut() {
+            let body = self.solid_body[c.collider as usize];
+            if body != NO_BODY {
+                let (dv, dw) = self.velocity_change[body];
+                c.solid_velocity += dv + dw.cross(&(c.point - self.com[body]));
+            }
+        }
+        for (k, motion) in contacts.external.iter_mut().enumerate() {
+            let body = self.solid_body.get(k).copied().unwrap_or(NO_BODY);
+            let Some(m) = motion.as_mut().filter(|_| body != NO_BODY) else { continue };
+            let (dv, dw) = self.velocity_change[body];
+            let (end, com) = (m.pose_at(m.time_s + h), self.com[body]);
+            let turn = UnitQuaternion::from_scaled_axis(dw * h);
+            let moved =
+                BodyPose { position: com + dv * h + turn * (end.position - com), rotation: turn * end.rotation };
+            *m = SolidMotion::between(m.time_s, m.pose, moved, h);
+        }
+        contacts.next.time = None;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Where a body's material point ends when the step turns the body by
+    /// `h dw` about its centre of mass and moves it by `h dv` (as
+    /// `BodyBuffers::follow` and rapier do).
+    fn moved(point: Vec3, com: Vec3, (dv, dw): (Vec3, Vec3), h: f64) -> Vec3 {
+        com + dv * h + UnitQuaternion::from_scaled_axis(dw * h) * (point - com)
+    }
+
+    /// The solve's link map `J` is the Jacobian of the rigid motion: central
+    /// differences of the moved point in each of the six velocities.
+    #[test]
+    fn the_lever_is_the_jacobian_of_the_rigid_motion() {
+        let (com, point, h) = (Vec3::new(0.3, -0.2, 1.1), Vec3::new(0.45, 0.1, 0.9), 0.01);
+        let j = lever(point - com);
+        let eps = 1e-4;
+        let mut worst: f64 = 0.0;
+        for k in 0..6 {
+            let mut d = [Vec3::zeros(), Vec3::zeros()];
+            d[k / 3][k % 3] = eps;
+            let plus = moved(point, com, (d[0], d[1]), h);
+            let minus = moved(point, com, (-d[0], -d[1]), h);
+            let fd = (plus - minus) / (2.0 * eps * h);
+            worst = worst.max((fd - j.column(k)).norm());
+        }
+        // Measured 8.2e-11: the round-off of differences of 1e-6 m.
+        assert!(worst < 1e-10, "J off finite differences by {worst:e}");
+        // A mutant with the lever's sign flipped is far off.
+        let wrong = lever(com - point);
+        assert!((wrong.column(3) - j.column(3)).norm() > 0.1);
+    }
+}

@@ -1,0 +1,223 @@
+//! What the monolithic master hands a cloth about each dynamic body
+//! (mass, inertia, where its centre of mass ends), and how the cloth's
+//! impulse goes back to rapier.
+//!
+//! The cloth's impulse `J` reaches the body as the force `J / h` over the
+//! step, which rapier integrates in each of its `N` substeps: the body
+//! ends the step `J / M` faster and its centre of mass moves by
+//! `h s J / M` more, with `s = (N + 1) / (2 N)` ([`gravity_share`]). The
+//! cloth's solve, which sees where the body ends the step, therefore
+//! takes the body's mass as `M / s` (and its inertia as `I / s`). As an
+//! impulse at the start of the step instead, a body resting on cloth
+//! would end each step falling at `g h (N - 1) / (2 N)` while staying
+//! where it is (1.4 cm/s at 90 Hz with 4 substeps).
+
+use crate::cloth_set::{ClothSet, CoupledCloth, CouplingError};
+use crate::convert::{vec_from_rapier, vec_to_rapier};
+use crate::coupling::{BodyImpulse, Coupled, mean_twist};
+use crate::coupling::{MonolithicCoupling, Pass};
+use crate::world::world_inertia;
+use cloth_core::{BodyInSolve, Vec3};
+use nalgebra::Matrix3;
+use rapier3d_f64::prelude::{LockedAxes, PhysicsWorld, RigidBody};
+
+/// How much stiffer than the body's own mass a locked axis is made: the
+/// cloth's solve then moves the body along it by a millionth of what a free
+/// one would move.
+const LOCKED_SCALE: f64 = 1e6;
+
+/// The share of `g h` by which gravity moves a body's mean velocity over
+/// one rapier step: rapier's `N` substeps each add `g h / N` to the
+/// velocity before moving the body, so the centre of mass moves by
+/// `h v0 + g h^2 (N + 1) / (2 N)`.
+pub(crate) fn gravity_share(world: &PhysicsWorld, rb: &RigidBody) -> f64 {
+    let substeps = (world.integration_parameters.num_solver_iterations + rb.additional_solver_iterations()).max(1);
+    let n = substeps as f64;
+    (n + 1.0) / (2.0 * n)
+}
+
+impl ClothSet {
+    /// Monolithic passes from the guess `guess` (each body's velocity now,
+    /// 6 per body) until rapier ends every body where the cloths' solves
+    /// left it: a disagreement is an impulse of rapier's own (a contact, a
+    /// joint), added to the body's guess for the next pass. Returns the
+    /// passes, the last disagreement over its tolerance, and the last pass.
+    pub(crate) fn monolithic(
+        &mut self,
+        world: &mut PhysicsWorld,
+        coupled: &[Coupled],
+        guess: &mut [f64],
+        h: f64,
+        p: &MonolithicCoupling,
+        rollback: &dyn Fn(&mut ClothSet, &mut PhysicsWorld) -> Result<(), CouplingError>,
+    ) -> Result<(usize, f64, Pass), CouplingError> {
+        let master = crate::Master::Monolithic(*p);
+        let mut passes = 0;
+        loop {
+            passes += 1;
+            let pass = self.pass(world, coupled, guess, h, &master)?;
+            let residual = pass
+                .end
+                .iter()
+                .zip(&pass.assumed)
+                .map(|(end, assumed)| (end - assumed).abs() / (p.abs_tol_m_s + p.rel_tol * end.abs()))
+                .fold(0.0, f64::max);
+            if residual <= 1.0 || passes == p.max_passes {
+                return Ok((passes, residual, pass));
+            }
+            rollback(self, world)?;
+            // Plain fixed point: interface quasi-Newton took 4.6 passes a
+            // step on ten balls jostling in the cloth, this 3.6.
+            for ((g, end), assumed) in guess.iter_mut().zip(&pass.end).zip(&pass.assumed) {
+                *g += end - assumed;
+            }
+        }
+    }
+}
+
+/// Checks the monolithic master's parameters.
+pub(crate) fn check(p: &MonolithicCoupling) -> Result<(), CouplingError> {
+    crate::coupling::check_passes("max_passes", p.max_passes, p.abs_tol_m_s, p.rel_tol)
+}
+
+/// How far gravity moves a body's mean velocity over one rapier step, m/s,
+/// from its `(gravity_scale, gravity_share)`.
+pub(crate) fn free_fall(world: &PhysicsWorld, (scale, share): &(f64, f64), h: f64) -> Vec3 {
+    vec_from_rapier(world.gravity) * (scale * h * share)
+}
+
+/// The bodies of `cloth` that join its solve this step: every dynamic
+/// coupled body with a solid or an attachment in this cloth, its centre of
+/// mass ending where the mean velocities `seen` take it.
+pub(crate) fn bodies_in_solve(
+    cloth: &CoupledCloth,
+    world: &PhysicsWorld,
+    coupled: &[Coupled],
+    seen: &[f64],
+    h: f64,
+) -> Vec<BodyInSolve> {
+    let mut out = Vec::new();
+    for c in coupled {
+        let Some(slot) = c.slot else { continue };
+        let solids: Vec<usize> = cloth.solids.iter().filter(|s| s.body == Some(c.handle)).map(|s| s.solid).collect();
+        let pins: Vec<usize> = cloth.attachments.iter().filter(|a| a.body == c.handle).map(|a| a.pin).collect();
+        if solids.is_empty() && pins.is_empty() {
+            continue;
+        }
+        let rb = &world.bodies[c.handle];
+        let (mass_kg, inertia_kg_m2) = effective_mass_properties(world, rb);
+        let (v, _) = mean_twist(seen, slot);
+        // The guess leaves out gravity: it is that far ahead of free flight.
+        let gravity = vec_from_rapier(world.gravity) * (rb.gravity_scale() * h * gravity_share(world, rb));
+        out.push(BodyInSolve {
+            mass_kg,
+            inertia_kg_m2,
+            com_m: c.start.com + v * h,
+            ahead_m_s: -gravity,
+            ahead_rad_s: Vec3::zeros(),
+            solids,
+            pins,
+        });
+    }
+    out
+}
+
+/// Mass and world inertia, with locked axes stiffened by [`LOCKED_SCALE`]
+/// (a translation lock needs a mass per axis, which the solve does not
+/// take: any locked translation makes the whole mass stiff).
+fn locked_mass_properties(rb: &RigidBody) -> (f64, Matrix3<f64>) {
+    let locked = rb.locked_axes();
+    let mut inertia = world_inertia(rb);
+    let largest = inertia.symmetric_eigenvalues().max().max(f64::MIN_POSITIVE);
+    for (flag, axis) in [
+        (LockedAxes::ROTATION_LOCKED_X, Vec3::x()),
+        (LockedAxes::ROTATION_LOCKED_Y, Vec3::y()),
+        (LockedAxes::ROTATION_LOCKED_Z, Vec3::z()),
+    ] {
+        if locked.contains(flag) {
+            inertia += axis * axis.transpose() * (largest * LOCKED_SCALE);
+        }
+    }
+    let translation_locked = locked.intersects(LockedAxes::TRANSLATION_LOCKED);
+    let mass = rb.mass() * if translation_locked { LOCKED_SCALE } else { 1.0 };
+    (mass, inertia)
+}
+
+/// Mass and inertia as the end of rapier's step sees them (see the module).
+fn effective_mass_properties(world: &PhysicsWorld, rb: &RigidBody) -> (f64, Matrix3<f64>) {
+    let (mass, inertia) = locked_mass_properties(rb);
+    let share = gravity_share(world, rb);
+    (mass / share, inertia / share)
+}
+
+/// Moves a body's mean velocities `seen` (6 values) by impulse `j`: what
+/// the next cloth sees of it.
+pub(crate) fn add_impulse(world: &PhysicsWorld, rb: &RigidBody, j: &BodyImpulse, seen: &mut [f64]) {
+    let (mass, inertia) = effective_mass_properties(world, rb);
+    let dv = j.linear / mass;
+    let dw = inertia.try_inverse().map_or(Vec3::zeros(), |inv| inv * j.angular);
+    for k in 0..3 {
+        seen[k] += dv[k];
+        seen[3 + k] += dw[k];
+    }
+}
+
+/// The force and torque a body's user set before the cloth's were added.
+pub(crate) type UserForces = (rapier3d_f64::math::Vector, rapier3d_f64::math::AngVector);
+
+/// Adds the cloth's impulse `j` as the force `j / h` (and torque) for the
+/// coming rapier step; returns the user's own, for [`restore_forces`].
+pub(crate) fn apply_as_force(rb: &mut RigidBody, j: &BodyImpulse, h: f64) -> UserForces {
+    let saved = (rb.user_force(), rb.user_torque());
+    rb.add_force(vec_to_rapier(j.linear / h), true);
+    rb.add_torque(vec_to_rapier(j.angular / h), true);
+    saved
+}
+
+/// Puts back the user's force and torque after the step, bit for bit.
+pub(crate) fn restore_forces(rb: &mut RigidBody, (force, torque): UserForces) {
+    rb.reset_forces(false);
+    rb.reset_torques(false);
+    rb.add_force(force, false);
+    rb.add_torque(torque, false);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rapier3d_f64::prelude::{ColliderBuilder, RigidBodyBuilder};
+
+    /// A free body falls as [`gravity_share`] says, with the cloth's
+    /// impulse as a force on top: the monolithic master's prediction of
+    /// rapier's step; the user's own force is kept.
+    #[test]
+    fn a_free_body_ends_where_the_gravity_share_puts_it() {
+        for substeps in [1, 4, 7] {
+            let mut world = PhysicsWorld { gravity: vec_to_rapier(Vec3::new(0.0, 0.0, -9.81)), ..Default::default() };
+            world.integration_parameters.dt = 0.01;
+            world.integration_parameters.num_solver_iterations = substeps;
+            let body = world.bodies.insert(RigidBodyBuilder::dynamic().linvel(vec_to_rapier(Vec3::new(0.3, 0.0, 1.0))));
+            let collider = ColliderBuilder::ball(0.1).density(500.0);
+            let (bodies, colliders) = (&mut world.bodies, &mut world.colliders);
+            colliders.insert_with_parent(collider, body, bodies);
+            let j = Vec3::new(0.0, 0.2, 0.5);
+            let rb = &world.bodies[body];
+            let (x0, v0, m) = (vec_from_rapier(rb.center_of_mass()), vec_from_rapier(rb.linvel()), rb.mass());
+            let share = gravity_share(&world, rb);
+            let user = Vec3::new(0.1, 0.0, 0.0);
+            world.bodies[body].add_force(vec_to_rapier(user), false);
+            let impulse = BodyImpulse { linear: j, angular: Vec3::zeros() };
+            let saved = apply_as_force(&mut world.bodies[body], &impulse, 0.01);
+            world.step();
+            restore_forces(&mut world.bodies[body], saved);
+            let rb = &world.bodies[body];
+            let moved = vec_from_rapier(rb.center_of_mass()) - x0;
+            let dv = Vec3::new(0.0, 0.0, -9.81) * 0.01 + (j + user * 0.01) / m;
+            let predicted = (v0 + dv * share) * 0.01;
+            assert!((moved - predicted).norm() < 1e-15, "{substeps} substeps: {moved} vs {predicted}");
+            // The end velocity takes the whole impulse; the user's force stays.
+            assert!((vec_from_rapier(rb.linvel()) - (v0 + dv)).norm() < 1e-14);
+            assert_eq!(vec_from_rapier(rb.user_force()), user);
+        }
+    }
+}
