@@ -2,9 +2,9 @@
 //! [`ClothHandle`]s, built with [`ClothBuilder`].
 
 use crate::convert::pose_from_rapier;
-use crate::world::{CollideWith, Momentum, WorldSnapshot, WorldSolid, bodies_momentum, import_colliders};
+use crate::world::{CollideWith, Momentum, WorldSnapshot, WorldSolid, admitted_colliders, bodies_momentum};
 use cloth_core::{ClothModel, ClothState, IntegratorKind, ModelError, Simulation, SolverParams, Vec3};
-use rapier3d_f64::prelude::{PhysicsWorld, RigidBodyHandle};
+use rapier3d_f64::prelude::{InteractionGroups, PhysicsWorld, RigidBodyHandle};
 
 /// A cloth pin held at a point of a rigid body; the cloth's pull on the pin
 /// goes back to the body.
@@ -25,6 +25,9 @@ pub struct CoupledCloth {
     pub(crate) sim: Simulation,
     pub(crate) solids: Vec<WorldSolid>,
     pub(crate) attachments: Vec<Attachment>,
+    /// Which colliders it meets, and its collision groups.
+    collide: CollideWith,
+    groups: InteractionGroups,
 }
 
 impl CoupledCloth {
@@ -47,6 +50,18 @@ impl CoupledCloth {
     /// The pins held by bodies.
     pub fn attachments(&self) -> &[Attachment] {
         &self.attachments
+    }
+
+    /// Takes in the colliders added to `world` since the cloth last looked
+    /// (each step does), as new solids of its model.
+    pub(crate) fn sync_colliders(&mut self, world: &PhysicsWorld) -> Result<(), CouplingError> {
+        let known = |h| self.solids.iter().any(|s| s.collider == h);
+        let (solids, links) = admitted_colliders(self.sim.model(), world, (&self.collide, self.groups), |h| !known(h));
+        if !solids.is_empty() {
+            self.sim.add_solids(solids)?;
+            self.solids.extend(links);
+        }
+        Ok(())
     }
 }
 
@@ -127,6 +142,7 @@ pub struct ClothBuilder {
     solver: SolverParams,
     attach: Vec<(usize, RigidBodyHandle)>,
     collide: CollideWith,
+    groups: InteractionGroups,
 }
 
 impl ClothBuilder {
@@ -139,6 +155,7 @@ impl ClothBuilder {
             solver: SolverParams::default(),
             attach: Vec::new(),
             collide: CollideWith::All,
+            groups: InteractionGroups::all(),
         }
     }
 
@@ -166,6 +183,14 @@ impl ClothBuilder {
         self
     }
 
+    /// The cloth's collision groups (default all): it meets a collider
+    /// only when the collider's groups and these test each other, as two
+    /// rapier colliders do (`InteractionGroups::test`).
+    pub fn collision_groups(mut self, groups: InteractionGroups) -> Self {
+        self.groups = groups;
+        self
+    }
+
     fn build(self, world: &PhysicsWorld) -> Result<CoupledCloth, CouplingError> {
         let g = world.gravity;
         let world_g = [g.x, g.y, g.z];
@@ -188,8 +213,10 @@ impl ClothBuilder {
             let local_point = frame.rotation.inverse() * (p.anchor - frame.position);
             attachments.push(Attachment { pin, body, local_point });
         }
-        let (model, solids) = import_colliders(self.model, world, &self.collide)?;
-        Ok(CoupledCloth { sim: Simulation::new(model, self.integrator, self.solver), solids, attachments })
+        let (new, solids) = admitted_colliders(&self.model, world, (&self.collide, self.groups), |_| true);
+        let model = self.model.with_solids(new)?;
+        let sim = Simulation::new(model, self.integrator, self.solver);
+        Ok(CoupledCloth { sim, solids, attachments, collide: self.collide, groups: self.groups })
     }
 }
 
@@ -226,8 +253,10 @@ impl ClothSet {
         Self::default()
     }
 
-    /// Adds a cloth built against `world`: the colliders it meets are those
-    /// in the world now (colliders added later are not seen by this cloth).
+    /// Adds a cloth built against `world`: it meets the colliders in the
+    /// world now, and those added later from the next step on. (A removed
+    /// collider's solid stays where it was last seen; a collider's shape
+    /// or collision groups changed later are not seen.)
     pub fn insert(&mut self, builder: ClothBuilder, world: &PhysicsWorld) -> Result<ClothHandle, CouplingError> {
         let cloth = builder.build(world)?;
         let index = match self.slots.iter().position(|s| s.cloth.is_none()) {

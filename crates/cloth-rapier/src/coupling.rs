@@ -34,7 +34,7 @@ use crate::convert::{pose_to_rapier, rotation_from_rapier, vec_from_rapier, vec_
 use crate::world::{BodyStart, Drive, WorldSnapshot};
 use cloth_core::{ClothState, StepReport, Vec3};
 use cloth_cosim::{GuessUpdate, Relaxation};
-use rapier3d_f64::prelude::{PhysicsWorld, RigidBodyHandle};
+use rapier3d_f64::prelude::{EventHandler, PhysicsHooks, PhysicsWorld, RigidBodyHandle};
 
 /// Parameters of the iterated coupling.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -167,6 +167,8 @@ pub(crate) struct Pass {
     pub(crate) contacts: usize,
     /// Each cloth's step report.
     pub(crate) reports: Vec<StepReport>,
+    /// What rapier reported in this pass's step.
+    pub(crate) events: crate::events::RecordedEvents,
 }
 
 /// A body some cloth touches or holds, and how it starts the step.
@@ -183,6 +185,22 @@ impl ClothSet {
     /// `integration_parameters.dt` with `master`. On error the world and
     /// every cloth are back where they were.
     pub fn step(&mut self, world: &mut PhysicsWorld, master: &Master) -> Result<CouplingReport, CouplingError> {
+        self.step_with_events(world, master, &(), &())
+    }
+
+    /// As [`ClothSet::step`], with rapier's physics hooks (filters and
+    /// contact modifications of body-body pairs, in every pass) and event
+    /// handler. A step may step rapier more than once (the iterated
+    /// master; a monolithic step whose bodies rapier's contacts moved):
+    /// `events` hears only the accepted pass, after it, with the contact
+    /// pairs as it left them.
+    pub fn step_with_events(
+        &mut self,
+        world: &mut PhysicsWorld,
+        master: &Master,
+        hooks: &dyn PhysicsHooks,
+        events: &dyn EventHandler,
+    ) -> Result<CouplingReport, CouplingError> {
         let h = world.integration_parameters.dt;
         if !(h.is_finite() && h > 0.0) {
             return Err(CouplingError::Params { field: "dt", message: format!("must be finite and > 0, got {h}") });
@@ -191,6 +209,9 @@ impl ClothSet {
             Master::Iterated(p) => check_iterated(p)?,
             Master::Monolithic(p) => crate::monolithic::check(p)?,
             Master::Staggered => {}
+        }
+        for cloth in self.cloths_mut() {
+            cloth.sync_colliders(world)?;
         }
         let coupled = self.coupled_bodies(world);
         let slots = coupled.iter().filter(|c| c.slot.is_some()).count();
@@ -222,35 +243,38 @@ impl ClothSet {
             }
             Ok(())
         };
-        let report = |(iterations, residual, pass): (usize, f64, Pass)| CouplingReport {
-            iterations,
-            converged: residual <= 1.0,
-            residual,
-            contacts: pass.contacts,
-            coupled_bodies: coupled.len(),
-            cloths: pass.reports,
-        };
+        let (rollback, hooks) = (&rollback, (master, hooks));
         let result = match master {
-            Master::Staggered => self.pass(world, &coupled, &guess, h, master).map(|pass| (1, 0.0, pass)),
-            Master::Monolithic(p) => self.monolithic(world, &coupled, &mut guess, h, p, &rollback),
-            Master::Iterated(p) => self.iterate(world, &coupled, &mut guess, h, p, time_s, &rollback),
+            Master::Staggered => self.pass(world, &coupled, &guess, h, hooks).map(|pass| (1, 0.0, pass)),
+            Master::Monolithic(p) => self.monolithic(world, &coupled, &mut guess, (h, p, hooks.1), rollback),
+            Master::Iterated(p) => self.iterate(world, &coupled, &mut guess, (h, p, hooks.1), time_s, rollback),
+        };
+        match result {
+            Ok((iterations, residual, pass)) => {
+                pass.events.deliver(world, events);
+                Ok(CouplingReport {
+                    iterations,
+                    converged: residual <= 1.0,
+                    residual,
+                    contacts: pass.contacts,
+                    coupled_bodies: coupled.len(),
+                    cloths: pass.reports,
+                })
+            }
+            Err(e) => {
+                rollback(self, world)?;
+                Err(e)
+            }
         }
-        .map(report);
-        if result.is_err() {
-            rollback(self, world)?;
-        }
-        result
     }
 
     /// Passes until the end velocities agree with the guess.
-    #[allow(clippy::too_many_arguments)]
     fn iterate(
         &mut self,
         world: &mut PhysicsWorld,
         coupled: &[Coupled],
         guess: &mut [f64],
-        h: f64,
-        p: &IteratedCoupling,
+        (h, p, hooks): (f64, &IteratedCoupling, &dyn PhysicsHooks),
         time_s: f64,
         rollback: &dyn Fn(&mut ClothSet, &mut PhysicsWorld) -> Result<(), CouplingError>,
     ) -> Result<(usize, f64, Pass), CouplingError> {
@@ -260,7 +284,7 @@ impl ClothSet {
             if iteration > 1 {
                 rollback(self, world)?;
             }
-            let pass = self.pass(world, coupled, guess, h, &Master::Iterated(*p))?;
+            let pass = self.pass(world, coupled, guess, h, (&Master::Iterated(*p), hooks))?;
             let end = &pass.end;
             let weight: Vec<f64> = end.iter().map(|y| 1.0 / (p.abs_tol_m_s + p.rel_tol * y.abs())).collect();
             let scaled =
@@ -280,7 +304,7 @@ impl ClothSet {
         // map jump, and there may be no fixed point: keep the best pass.
         rollback(self, world)?;
         guess.copy_from_slice(&best.1);
-        let pass = self.pass(world, coupled, guess, h, &Master::Iterated(*p))?;
+        let pass = self.pass(world, coupled, guess, h, (&Master::Iterated(*p), hooks))?;
         // That pass gave the bodies impulses that disagree with the motion
         // the cloth saw (the guess): for a body lighter than the cloth,
         // energy from nothing (a 36 mg ball on a 36 g cloth was thrown up
@@ -343,7 +367,7 @@ impl ClothSet {
         coupled: &[Coupled],
         guess: &[f64],
         h: f64,
-        master: &Master,
+        (master, hooks): (&Master, &dyn PhysicsHooks),
     ) -> Result<Pass, CouplingError> {
         let in_solve = matches!(master, Master::Monolithic(_));
         let mut seen = guess.to_vec();
@@ -441,7 +465,8 @@ impl ClothSet {
                 }
             }
         }
-        world.step();
+        let events = crate::events::RecordedEvents::default();
+        world.step_with_events(hooks, &events);
         for (handle, forces) in held {
             crate::monolithic::restore_forces(&mut world.bodies[handle], forces);
         }
@@ -468,7 +493,7 @@ impl ClothSet {
                 }
             }
         }
-        Ok(Pass { end, assumed, contacts, reports })
+        Ok(Pass { end, assumed, contacts, reports, events })
     }
 }
 

@@ -25,6 +25,7 @@ pub mod character;
 pub mod cloth_set;
 pub mod convert;
 pub mod coupling;
+mod events;
 mod monolithic;
 pub mod motion;
 pub mod rig;

@@ -19,7 +19,7 @@ use crate::coupling::{MonolithicCoupling, Pass};
 use crate::world::world_inertia;
 use cloth_core::{BodyInSolve, Vec3};
 use nalgebra::Matrix3;
-use rapier3d_f64::prelude::{LockedAxes, PhysicsWorld, RigidBody};
+use rapier3d_f64::prelude::{LockedAxes, PhysicsHooks, PhysicsWorld, RigidBody};
 
 /// How much stiffer than the body's own mass a locked axis is made: the
 /// cloth's solve then moves the body along it by a millionth of what a free
@@ -47,15 +47,14 @@ impl ClothSet {
         world: &mut PhysicsWorld,
         coupled: &[Coupled],
         guess: &mut [f64],
-        h: f64,
-        p: &MonolithicCoupling,
+        (h, p, hooks): (f64, &MonolithicCoupling, &dyn PhysicsHooks),
         rollback: &dyn Fn(&mut ClothSet, &mut PhysicsWorld) -> Result<(), CouplingError>,
     ) -> Result<(usize, f64, Pass), CouplingError> {
         let master = crate::Master::Monolithic(*p);
         let mut passes = 0;
         loop {
             passes += 1;
-            let pass = self.pass(world, coupled, guess, h, &master)?;
+            let pass = self.pass(world, coupled, guess, h, (&master, hooks))?;
             let residual = pass
                 .end
                 .iter()

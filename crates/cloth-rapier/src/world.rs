@@ -8,8 +8,8 @@ use cloth_core::{BodyPose, ClothModel, Collider, ModelError, SolidMotion, Vec3};
 use nalgebra::{Matrix3, UnitQuaternion};
 use rapier3d_f64::math::Pose;
 use rapier3d_f64::prelude::{
-    BroadPhaseBvh, CCDSolver, ColliderHandle, ColliderSet, ImpulseJointSet, IslandManager, MultibodyJointSet,
-    NarrowPhase, PhysicsWorld, RigidBody, RigidBodyHandle, RigidBodySet, SoftBodySet,
+    BroadPhaseBvh, CCDSolver, ColliderHandle, ColliderSet, ImpulseJointSet, InteractionGroups, IslandManager,
+    MultibodyJointSet, NarrowPhase, PhysicsWorld, RigidBody, RigidBodyHandle, RigidBodySet, SoftBodySet,
 };
 
 /// Which of the world's colliders a cloth collides with. Sensors never.
@@ -57,11 +57,26 @@ pub fn import_colliders(
     world: &PhysicsWorld,
     which: &CollideWith,
 ) -> Result<(ClothModel, Vec<WorldSolid>), ModelError> {
+    let (solids, links) = admitted_colliders(&model, world, (which, InteractionGroups::all()), |_| true);
+    Ok((model.with_solids(solids)?, links))
+}
+
+/// The world's colliders a cloth with collision groups `groups` meets
+/// (sensors and disabled colliders never; a collider whose groups and the
+/// cloth's do not test each other, neither) among those `fresh` picks, as
+/// solids numbered after `model`'s, and which solid stands for which.
+pub(crate) fn admitted_colliders(
+    model: &ClothModel,
+    world: &PhysicsWorld,
+    (which, groups): (&CollideWith, InteractionGroups),
+    fresh: impl Fn(ColliderHandle) -> bool,
+) -> (Vec<Collider>, Vec<WorldSolid>) {
     let first = model.colliders().len();
     let mut links = Vec::new();
     let mut solids = Vec::new();
     for (handle, collider) in world.colliders.iter() {
-        if collider.is_sensor() || !collider.is_enabled() || !which.admits(handle) {
+        let meets = collider.collision_groups().test(groups);
+        if collider.is_sensor() || !collider.is_enabled() || !which.admits(handle) || !meets || !fresh(handle) {
             continue;
         }
         let body = collider.parent();
@@ -76,7 +91,7 @@ pub fn import_colliders(
         solids.push(Collider::external(shape, pose_from_rapier(&frame), collider.friction()).with_yielding(dynamic));
         links.push(WorldSolid { solid: first + links.len(), collider: handle, body });
     }
-    Ok((model.with_solids(solids)?, links))
+    (solids, links)
 }
 
 /// How a body moves over one step, as the cloth sees it.

@@ -1,6 +1,6 @@
 //! Two-way coupling: momentum, replay, and mass ratios.
 
-use cloth_rapier::{CoupledRun, CoupledScene, Momentum};
+use cloth_rapier::{CoupledRun, CoupledScene, Master, Momentum};
 
 /// Zero gravity, backward Euler at 5 ms for 0.5 s, a light cloth
 /// (0.1 kg/m^2, 500 N/m) and a tight solve.
@@ -183,10 +183,9 @@ fn mass_ratios_from_1e_3_to_1e3_stay_stable_with_the_iterated_master() {
     }
 }
 
-/// A kinematic plate rising at 0.2 m/s lifts the cloth lying on it: the
-/// cloth rides on the plate's top at the contact thickness.
-#[test]
-fn a_kinematic_plate_lifts_the_cloth() {
+/// A kinematic plate rising at 0.2 m/s with the cloth lying on it, and
+/// the ball falling onto both from 2 m.
+fn plate_run() -> CoupledRun {
     let plate = r#"
 [[bodies]]
 name = "plate"
@@ -197,7 +196,15 @@ motion = { kind = "linear", velocity_m_s = [0.0, 0.0, 0.2] }
 "#;
     let overrides =
         ["simulation.effects=[\"gravity\", \"bending\", \"damping\"]", "bodies.0.position_m=[0.0, 0.0, 2.0]"];
-    let mut run = build(&scene(plate), &overrides);
+    build(&scene(plate), &overrides)
+}
+
+/// A kinematic plate rising at 0.2 m/s lifts the cloth lying on it: the
+/// cloth rides on the plate's top at the contact thickness; the ball that
+/// lands on both at the end does not push the cloth into the plate.
+#[test]
+fn a_kinematic_plate_lifts_the_cloth() {
+    let mut run = plate_run();
     let plate = run.bodies.iter().find(|b| b.name == "plate").unwrap().handle;
     for _ in 0..run.config.steps {
         run.step().unwrap();
@@ -321,4 +328,119 @@ thickness_m = 0.005
     println!("the cloth slid {slid:.4} m along y; on the body it ends {apart:.1e} m from the scene collider's");
     assert!(slid < -0.02, "the cloth should slide: {slid}");
     assert_eq!(apart, 0.0);
+}
+
+/// Collision events reach the handler once, from the pass each step
+/// keeps, and physics hooks reach rapier: the ball landing on the plate
+/// through the cloth makes the monolithic master repeat steps.
+#[test]
+fn events_come_from_the_kept_pass_and_hooks_reach_rapier() {
+    use rapier3d_f64::prelude::*;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    struct Count(AtomicUsize, AtomicUsize);
+    impl EventHandler for Count {
+        fn handle_collision_event(
+            &self,
+            _: &RigidBodySet,
+            _: &ColliderSet,
+            e: CollisionEvent,
+            _: Option<&ContactPair>,
+        ) {
+            if e.started() {
+                self.0.fetch_add(1, Ordering::Relaxed);
+            } else {
+                self.1.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+        fn handle_contact_force_event(&self, _: f64, _: &RigidBodySet, _: &ColliderSet, _: &ContactPair, _: f64) {}
+        fn handle_soft_body_tear_event(&self, _: &SoftBodySet, _: &SoftBodyTearEvent) {}
+    }
+    struct Hooks(AtomicUsize);
+    impl PhysicsHooks for Hooks {
+        fn filter_contact_pair(&self, _: &PairFilterContext) -> Option<SolverFlags> {
+            self.0.fetch_add(1, Ordering::Relaxed);
+            Some(SolverFlags::COMPUTE_RIGID_IMPULSES)
+        }
+    }
+    let mut run = plate_run();
+    let ball = run.bodies.iter().find(|b| b.name == "ball").unwrap().handle;
+    let collider = run.world.bodies[ball].colliders()[0];
+    let events = ActiveEvents::COLLISION_EVENTS;
+    run.world.colliders[collider].set_active_events(events);
+    run.world.colliders[collider].set_active_hooks(ActiveHooks::FILTER_CONTACT_PAIRS);
+    let (count, hooks) = (Count(AtomicUsize::new(0), AtomicUsize::new(0)), Hooks(AtomicUsize::new(0)));
+    let master = run.master;
+    let (mut repeated, mut passes_at_start) = (0, 0);
+    for _ in 0..run.config.steps {
+        let before = count.0.load(Ordering::Relaxed);
+        let report = run.cloths.step_with_events(&mut run.world, &master, &hooks, &count).unwrap();
+        repeated += usize::from(report.iterations > 1);
+        if count.0.load(Ordering::Relaxed) > before {
+            passes_at_start = report.iterations;
+        }
+    }
+    let (started, stopped, filtered) =
+        (count.0.load(Ordering::Relaxed), count.1.load(Ordering::Relaxed), hooks.0.load(Ordering::Relaxed));
+    println!(
+        "{repeated} steps repeated; ball-plate contact started {started} (in a step of {passes_at_start} passes), \
+         stopped {stopped}; hook called {filtered}"
+    );
+    // Every pass of that step started the contact in rapier.
+    assert!(passes_at_start > 1, "the landing repeats its step");
+    assert_eq!(started, 1, "one start event, not one a pass");
+    assert!(filtered > 0, "the hooks reach rapier");
+}
+
+/// A cloth meets a collider added to the world after it was inserted,
+/// from the next step on, and not one whose collision groups exclude it.
+#[test]
+fn a_floor_added_later_holds_the_cloth_unless_its_groups_exclude_it() {
+    use cloth_rapier::{ClothBuilder, ClothSet};
+    use rapier3d_f64::prelude::*;
+    let text = r#"
+[simulation]
+integrator = "bdf2"
+dt_s = 0.01
+duration_s = 0.6
+effects = ["gravity", "bending", "damping"]
+gravity_m_s2 = [0.0, 0.0, -9.81]
+
+[material]
+areal_density_kg_m2 = 0.1
+tensile_stiffness_n_m = 500.0
+flexural_rigidity_n_m = 1e-5
+buckling_stiffness_n_m = 500.0
+damping_n_s_m = 0.05
+
+[[panels]]
+particles = [7, 7]
+size_m = [0.3, 0.3]
+origin_m = [-0.15, -0.15, 0.3]
+"#;
+    let (model, config) = cloth_core::scene::Scene::parse(text, &[]).unwrap().build().unwrap();
+    let lowest = |cloth_groups: InteractionGroups, floor_groups: InteractionGroups| {
+        let mut world = PhysicsWorld { gravity: Vector::new(0.0, 0.0, -9.81), ..Default::default() };
+        world.integration_parameters.dt = config.dt_s;
+        let mut set = ClothSet::new();
+        let builder = ClothBuilder::new(model.clone()).integrator(config.integrator).collision_groups(cloth_groups);
+        let cloth = set.insert(builder, &world).unwrap();
+        for step in 0..config.steps {
+            if step == 10 {
+                // The floor's top at z = 0, after the cloth was inserted.
+                let floor = ColliderBuilder::cuboid(1.0, 1.0, 0.05).translation(Vector::new(0.0, 0.0, -0.05));
+                world.colliders.insert(floor.collision_groups(floor_groups));
+            }
+            set.step(&mut world, &Master::default()).unwrap();
+        }
+        set.get(cloth).unwrap().simulation().state().x.iter().map(|p| p.z).fold(f64::INFINITY, f64::min)
+    };
+    let (g1, g2) = (Group::GROUP_1, Group::GROUP_2);
+    let held = lowest(InteractionGroups::new(g1, g1, InteractionTestMode::And), InteractionGroups::all());
+    let passed = lowest(
+        InteractionGroups::new(g1, g1, InteractionTestMode::And),
+        InteractionGroups::new(g2, g2, InteractionTestMode::And),
+    );
+    println!("lowest particle: on the floor {held:.4} m, through the excluded floor {passed:.4} m");
+    assert!((held - 0.005).abs() < 1e-4, "the floor added later holds the cloth at its thickness: {held}");
+    assert!(passed < -0.5, "the excluded floor lets it fall: {passed}");
 }

@@ -203,6 +203,12 @@ impl Control {
         Ok(())
     }
 
+    /// Makes room for solids added to the model (none set, not prescribed).
+    pub(crate) fn grow_solids(&mut self, model: &ClothModel) {
+        self.solids.resize(model.colliders().len(), None);
+        self.prescribed_solids.resize(model.colliders().len(), false);
+    }
+
     /// The bodies in the solve.
     pub fn bodies(&self) -> &[BodyInSolve] {
         &self.bodies

@@ -201,6 +201,21 @@ impl Simulation {
         self.workspace.bodies.velocity_change.get(k).copied()
     }
 
+    /// Adds solids to the model mid-run (a collider added to a world the
+    /// cloth shares), keeping the state, the integrator, the solver
+    /// settings and every control input. The new solids come after the
+    /// model's, at indices `colliders().len()..`.
+    pub fn add_solids(&mut self, solids: Vec<crate::Collider>) -> Result<(), crate::ModelError> {
+        if solids.is_empty() {
+            return Ok(());
+        }
+        let model = Arc::new((*self.model).clone().with_solids(solids)?);
+        self.workspace = Workspace::new(&model, &self.solver);
+        self.control.grow_solids(&model);
+        self.model = model;
+        Ok(())
+    }
+
     /// Removes the external forces.
     pub fn clear_external_forces(&mut self) {
         self.control.clear_forces();
