@@ -341,3 +341,31 @@ fn holds_that_do_not_fit_the_model_are_refused() {
     let holds: Vec<(usize, f64)> = sim.control().holds().iter().map(|(i, t)| (*i, t.z)).collect();
     assert_eq!(holds, [(1, 0.2), (3, 0.3)]);
 }
+
+/// A force no cloth survives (1e6 N on one corner of the hanging cloth)
+/// stretches a link past `blow_up_stretch` in one step: the step fails,
+/// names the link and its stretch, and leaves the state as it was; with
+/// the force gone the run goes on.
+#[test]
+fn a_blown_up_step_is_refused_and_named() {
+    let (mut sim, _) = simulation("hang.toml", &[]);
+    let h = 1.0 / 90.0;
+    for _ in 0..3 {
+        sim.step(h).unwrap();
+    }
+    let before = sim.snapshot();
+    let n = sim.model().particle_count();
+    let mut forces = vec![Vec3::zeros(); n];
+    let corner = (0..n).find(|&i| !sim.model().is_pinned(i)).unwrap();
+    forces[corner] = Vec3::new(1e6, 0.0, 0.0);
+    sim.set_external_forces(&forces).unwrap();
+    let err = sim.step(h).unwrap_err();
+    println!("{err}");
+    let StepError::BlewUp { step, i, j, stretch, limit, .. } = err else { panic!("expected a blow-up, got {err}") };
+    assert_eq!(step, 4);
+    assert!(i == corner || j == corner, "the link named ({i}, {j}) holds the pulled particle {corner}");
+    assert!(stretch > limit && limit == 100.0);
+    assert_eq!(sim.snapshot(), before, "the state is the step's start");
+    sim.clear_external_forces();
+    sim.step(h).unwrap();
+}

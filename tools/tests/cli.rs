@@ -133,6 +133,8 @@ fn an_explicit_run_that_blows_up_without_overflowing_is_flagged() {
             .args(["--set", "panels.0.particles=[21, 21]", "--set", "pins.0.nodes=[[0, 20], [20, 20]]"])
             .args(["--set", "simulation.model=\"provot\"", "--set", "simulation.integrator=\"symplectic-euler\""])
             .args(["--set", &format!("simulation.dt_s={dt}"), "--set", "simulation.duration_s=0.1"])
+            // Let it blow up all the way, as the monitor is watched on.
+            .args(["--set", "solver.blow_up_stretch=inf"])
             .arg("--out")
             .arg(&out)
             .output()

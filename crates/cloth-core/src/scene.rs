@@ -25,6 +25,7 @@
 //! accept_unconverged = true
 //! fixed_cg_iterations = 4      # backward-euler-fixed-cg only
 //! energy_guard = true          # bdf2 retakes a step that creates energy as backward Euler
+//! blow_up_stretch = 100.0      # a step leaving a link longer than this x its rest length fails
 //!
 //! [solver.newton]              # backward-euler and bdf2
 //! iterations = 1               # most linear solves per step (1: the single linearised step)

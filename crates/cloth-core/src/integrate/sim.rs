@@ -15,6 +15,8 @@ pub struct Simulation {
     solver: SolverParams,
     workspace: Workspace,
     control: Control,
+    /// The state at the start of the current step.
+    start: ClothState,
 }
 
 /// Builds a [`Simulation`]: BDF2 with the default [`SolverParams`] unless
@@ -91,6 +93,7 @@ impl Simulation {
         let model = model.into();
         Self {
             state: ClothState::at_rest(&model),
+            start: ClothState::at_rest(&model),
             workspace: Workspace::new(&model, &solver),
             control: Control::for_model(&model),
             integrator,
@@ -107,7 +110,16 @@ impl Simulation {
         if !control.bodies().is_empty() && !self.integrator.takes_bodies() {
             return Err(StepError::BodiesNeedMatrix { integrator: self.integrator.name() });
         }
+        // The step's start, to go back to if the step blows up (into a
+        // buffer kept from step to step: no allocation).
+        self.start.clone_from(&self.state);
         let mut report = self.integrator.step(model, &mut self.state, control, h, &mut self.workspace, &self.solver)?;
+        let limit = self.solver.blow_up_stretch;
+        if let Some((stretch, i, j)) = model.most_stretched(&self.state.x).filter(|s| s.0 > limit) {
+            std::mem::swap(&mut self.state, &mut self.start);
+            let (step, time_s) = (self.state.steps + 1, self.state.time_s);
+            return Err(StepError::BlewUp { step, time_s, i, j, stretch, limit });
+        }
         let integrator = self.integrator.as_ref();
         super::finish::finish_step(model, control, integrator, &mut self.state, &mut self.workspace, &mut report, h);
         Ok(report)

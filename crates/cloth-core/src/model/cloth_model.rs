@@ -553,6 +553,19 @@ impl ClothModel {
         let ratio = |l: &StretchLink| (x[l.j as usize] - x[l.i as usize]).norm() / l.rest;
         self.stretch.par_iter().with_min_len(Self::STRETCH_CHUNK).map(ratio).reduce(|| 0.0, f64::max)
     }
+    /// The most stretched link at `x`: its length over its rest length
+    /// and its particles (the first such link on a tie); `None` without
+    /// links. Same result whatever the thread count.
+    pub fn most_stretched(&self, x: &[Vec3]) -> Option<(f64, usize, usize)> {
+        use rayon::prelude::*;
+        let ratio = |(k, l): (usize, &StretchLink)| ((x[l.j as usize] - x[l.i as usize]).norm() / l.rest, k);
+        let larger = |a: (f64, usize), b: (f64, usize)| {
+            if b.0 > a.0 || (b.0 == a.0 && b.1 < a.1) || a.0.is_nan() { b } else { a }
+        };
+        let stretch = self.stretch.par_iter().enumerate().with_min_len(Self::STRETCH_CHUNK).map(ratio);
+        let (ratio, k) = stretch.reduce(|| (f64::NEG_INFINITY, usize::MAX), larger);
+        self.stretch.get(k).map(|l| (ratio, l.i as usize, l.j as usize))
+    }
     /// Pins.
     pub fn pins(&self) -> &[Pin] {
         &self.pins
