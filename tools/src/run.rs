@@ -79,6 +79,21 @@ impl Runner {
     }
 }
 
+/// The coupling master in words, with its settings.
+fn describe_master(master: &Master) -> String {
+    match master {
+        Master::Staggered => "staggered (one pass a step)".into(),
+        Master::Monolithic(p) => format!(
+            "monolithic (bodies in the cloth's solve; at most {} passes, agreement {} m/s + {} relative)",
+            p.max_passes, p.abs_tol_m_s, p.rel_tol
+        ),
+        Master::Iterated(p) => format!(
+            "iterated (at most {} passes, agreement {} m/s + {} relative)",
+            p.max_iterations, p.abs_tol_m_s, p.rel_tol
+        ),
+    }
+}
+
 /// Coupling counters over a run.
 #[derive(Default)]
 pub(crate) struct CouplingTotals {
@@ -99,7 +114,7 @@ pub fn validate(path: &Path, overrides: &[String]) -> Result<()> {
     let (_, cfg, runner) = Runner::load(path, overrides)?;
     let model = runner.sim().model();
     if let Runner::Coupled(run) = &runner {
-        println!("{}: {} rigid bodies, coupled {:?}", path.display(), run.bodies.len(), run.master);
+        println!("{}: {} rigid bodies, coupled {}", path.display(), run.bodies.len(), describe_master(&run.master));
     }
     println!(
         "{}: ok ({} particles, {} type-1 and {} type-2 links, {} pins, {} steps of {} s with {})",
