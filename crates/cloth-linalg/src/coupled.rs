@@ -260,12 +260,7 @@ impl CoupledPcg {
         (ref_sq, mut r_sq): (f64, f64),
     ) -> Result<PcgInfo, PcgError> {
         if params.preconditioner == PreconditionerKind::Multigrid && self.has_multigrid {
-            let mut f = match self.filtered.take() {
-                Some(f) if f.pattern() == a.pattern() => f,
-                _ => BlockSparseMatrix::new(a.pattern().clone()),
-            };
-            f.values_mut().copy_from_slice(a.values());
-            crate::pcg::filter_in_place(&mut f, filter, &mut self.saved_blocks);
+            let f = crate::pcg::filtered_copy(self.filtered.take(), a, filter, &mut self.saved_blocks);
             self.precond.update(PreconditionerKind::Multigrid, &f);
             self.filtered = Some(f);
         } else {

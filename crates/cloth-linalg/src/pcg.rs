@@ -170,14 +170,7 @@ impl Pcg {
         if !needs_filtered_hierarchy(params, filter) {
             return self.iterate(a, filter, params, x, start, None);
         }
-        let mut f = match self.filtered.take() {
-            Some(f) if f.pattern() == a.pattern() => f,
-            _ => BlockSparseMatrix::new(a.pattern().clone()),
-        };
-        f.values_mut().par_chunks_mut(ROW_CHUNK).zip(a.values().par_chunks(ROW_CHUNK)).for_each(|(fv, av)| {
-            fv.copy_from_slice(av);
-        });
-        filter_in_place(&mut f, filter, &mut self.saved_blocks);
+        let f = filtered_copy(self.filtered.take(), a, filter, &mut self.saved_blocks);
         // S A S c = S (S A S + (I - S) d) c for c = S c: iterating on the
         // filtered copy gives the same iterates.
         let result = self.iterate(&f, filter, params, x, start, None);
@@ -469,11 +462,26 @@ fn needs_filtered_hierarchy(params: &PcgParams, filter: &ConstraintFilter) -> bo
 /// exactly. Each block is computed from its original alone (`S_i A_ij`,
 /// then `S_j` on the right), so the result does not depend on the
 /// filter's entry order nor on the threads.
-pub(crate) fn filter_in_place(
-    a: &mut BlockSparseMatrix,
+/// `S A S + (I - S) d` as a copy of `a`, in `previous` when it has `a`'s
+/// pattern (no allocation from solve to solve).
+pub(crate) fn filtered_copy(
+    previous: Option<BlockSparseMatrix>,
+    a: &BlockSparseMatrix,
     filter: &ConstraintFilter,
     saved: &mut Vec<Vec<(usize, Mat3)>>,
-) {
+) -> BlockSparseMatrix {
+    let mut f = match previous {
+        Some(f) if f.pattern() == a.pattern() => f,
+        _ => BlockSparseMatrix::new(a.pattern().clone()),
+    };
+    f.values_mut().par_chunks_mut(ROW_CHUNK).zip(a.values().par_chunks(ROW_CHUNK)).for_each(|(fv, av)| {
+        fv.copy_from_slice(av);
+    });
+    filter_in_place(&mut f, filter, saved);
+    f
+}
+
+fn filter_in_place(a: &mut BlockSparseMatrix, filter: &ConstraintFilter, saved: &mut Vec<Vec<(usize, Mat3)>>) {
     saved.resize_with(a.n().div_ceil(ROW_CHUNK), Vec::new);
     // Each changed block belongs to one row: its own when the row is
     // constrained (`S_i A_ij S_j`), else its column's (`A_ij S_j`). So the

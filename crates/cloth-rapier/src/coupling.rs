@@ -412,7 +412,7 @@ impl ClothSet {
                 })
                 .collect();
             let joined =
-                if in_solve { crate::monolithic::bodies_in_solve(cloth, world, coupled, &seen, h) } else { vec![] };
+                if in_solve { crate::monolithic::bodies_in_solve(cloth, world, coupled, &about, h) } else { vec![] };
             cloth.sim.set_bodies(joined).map_err(|e| fail(e.to_string()))?;
             let stepped = cloth.sim.step(h);
             // Bodies join one step at a time: the next master may not be this one.
@@ -445,14 +445,6 @@ impl ClothSet {
             }
         }
         let mut held = Vec::new();
-        let saved_bodies: Vec<(f64, f64)> = coupled
-            .iter()
-            .filter(|c| c.slot.is_some())
-            .map(|c| {
-                let rb = &world.bodies[c.handle];
-                (rb.gravity_scale(), crate::monolithic::gravity_share(world, rb))
-            })
-            .collect();
         for (c, j) in coupled.iter().zip(&impulses) {
             if c.slot.is_some() {
                 let rb = &mut world.bodies[c.handle];
@@ -488,7 +480,7 @@ impl ClothSet {
         if in_solve {
             for c in coupled {
                 if let Some(s) = c.slot {
-                    let fall = crate::monolithic::free_fall(world, &saved_bodies[s], h);
+                    let fall = crate::monolithic::free_fall(world, &world.bodies[c.handle], h);
                     (0..3).for_each(|k| assumed[6 * s + k] += fall[k]);
                 }
             }

@@ -14,7 +14,7 @@
 
 use crate::cloth_set::{ClothSet, CoupledCloth, CouplingError};
 use crate::convert::{vec_from_rapier, vec_to_rapier};
-use crate::coupling::{BodyImpulse, Coupled, mean_twist};
+use crate::coupling::{BodyImpulse, Coupled};
 use crate::coupling::{MonolithicCoupling, Pass};
 use crate::world::world_inertia;
 use cloth_core::{BodyInSolve, Vec3};
@@ -79,25 +79,27 @@ pub(crate) fn check(p: &MonolithicCoupling) -> Result<(), CouplingError> {
     crate::coupling::check_passes("max_passes", p.max_passes, p.abs_tol_m_s, p.rel_tol)
 }
 
-/// How far gravity moves a body's mean velocity over one rapier step, m/s,
-/// from its `(gravity_scale, gravity_share)`.
-pub(crate) fn free_fall(world: &PhysicsWorld, (scale, share): &(f64, f64), h: f64) -> Vec3 {
-    vec_from_rapier(world.gravity) * (scale * h * share)
+/// How far gravity moves a body's mean velocity over one rapier step of
+/// `h`, m/s (its gravity scale and [`gravity_share`] included).
+pub(crate) fn free_fall(world: &PhysicsWorld, rb: &RigidBody, h: f64) -> Vec3 {
+    vec_from_rapier(world.gravity) * (rb.gravity_scale() * h * gravity_share(world, rb))
 }
 
 /// The bodies of `cloth` that join its solve this step: every dynamic
 /// coupled body with a solid or an attachment in this cloth, its centre of
-/// mass ending where the mean velocities `seen` take it.
+/// mass ending at `com_end` (per coupled body, where the guess takes it).
 pub(crate) fn bodies_in_solve(
     cloth: &CoupledCloth,
     world: &PhysicsWorld,
     coupled: &[Coupled],
-    seen: &[f64],
+    com_end: &[Vec3],
     h: f64,
 ) -> Vec<BodyInSolve> {
     let mut out = Vec::new();
-    for c in coupled {
-        let Some(slot) = c.slot else { continue };
+    for (c, &com_m) in coupled.iter().zip(com_end) {
+        if c.slot.is_none() {
+            continue;
+        }
         let solids: Vec<usize> = cloth.solids.iter().filter(|s| s.body == Some(c.handle)).map(|s| s.solid).collect();
         let pins: Vec<usize> = cloth.attachments.iter().filter(|a| a.body == c.handle).map(|a| a.pin).collect();
         if solids.is_empty() && pins.is_empty() {
@@ -105,14 +107,12 @@ pub(crate) fn bodies_in_solve(
         }
         let rb = &world.bodies[c.handle];
         let (mass_kg, inertia_kg_m2) = effective_mass_properties(world, rb);
-        let (v, _) = mean_twist(seen, slot);
-        // The guess leaves out gravity: it is that far ahead of free flight.
-        let gravity = vec_from_rapier(world.gravity) * (rb.gravity_scale() * h * gravity_share(world, rb));
         out.push(BodyInSolve {
             mass_kg,
             inertia_kg_m2,
-            com_m: c.start.com + v * h,
-            ahead_m_s: -gravity,
+            com_m,
+            // The guess leaves out gravity: it is that far ahead of free flight.
+            ahead_m_s: -free_fall(world, rb, h),
             ahead_rad_s: Vec3::zeros(),
             solids,
             pins,

@@ -206,7 +206,7 @@ impl BodyBuffers {
             let mut m = Matrix6::zeros();
             m.fixed_view_mut::<3, 3>(0, 0).copy_from(&(Mat3::identity() * (b.mass_kg * scale)));
             m.fixed_view_mut::<3, 3>(3, 3).copy_from(&(b.inertia_kg_m2 * scale));
-            let k_body = self.coupling.add_body(m);
+            self.coupling.add_body(m);
             // `M (dq + ahead) = -h J^T f` in the cloth's units.
             let ahead = Vector6::new(
                 b.ahead_m_s.x,
@@ -217,7 +217,6 @@ impl BodyBuffers {
                 b.ahead_rad_s.z,
             );
             self.ahead.push(-(m * ahead) * self.unknown_per_velocity);
-            debug_assert_eq!(k_body, k);
             self.com.push(b.com_m);
             for &s in &b.solids {
                 self.solid_body[s] = k;

@@ -147,7 +147,6 @@ pub enum ControlError {
         /// Forces given.
         got: usize,
     },
-    /// A value is NaN or infinite.
     /// A body set to join the solve was refused.
     #[error(transparent)]
     Body(#[from] BodyError),
