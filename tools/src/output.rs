@@ -224,14 +224,20 @@ pub struct BodySummary {
 /// What the cloth-body coupling did over a run.
 #[derive(Debug, Serialize)]
 pub struct CouplingSummary {
-    /// `staggered` or `iterated`.
+    /// `staggered`, `iterated` or `monolithic`.
     pub master: String,
-    /// Cloth-plus-bodies passes over the run (1 per step when staggered).
+    /// Cloth-plus-bodies passes over the run (1 per step when staggered;
+    /// monolithic: the cloths' solves, 1 or 2 a step).
     pub passes_total: u64,
     pub passes_max: usize,
     pub passes_mean: f64,
-    /// Steps whose iteration kept its best pass unconverged.
+    /// Steps whose residual stayed over 1: the iterated master's best pass
+    /// unconverged; the monolithic master's bodies moved, where cloth
+    /// meets them, more than its tolerance from what rapier's contacts saw.
     pub unconverged_steps: u64,
+    /// The largest step residual over its tolerance
+    /// (`cloth_rapier::CouplingReport::residual`).
+    pub residual_max: f64,
     /// Change of the total linear momentum of cloth and dynamic bodies over
     /// the run, N s. Gravity, pins and fixed or kinematic bodies change it;
     /// in a free scene without gravity it is the coupling's drift.

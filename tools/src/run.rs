@@ -84,8 +84,9 @@ fn describe_master(master: &Master) -> String {
     match master {
         Master::Staggered => "staggered (one pass a step)".into(),
         Master::Monolithic(p) => format!(
-            "monolithic (bodies in the cloth's solve; at most {} passes, agreement {} m/s + {} relative)",
-            p.max_passes, p.abs_tol_m_s, p.rel_tol
+            "monolithic (bodies in the cloth's solve; at most {} solves a step, agreement {})",
+            p.max_solves,
+            p.tol_m.map_or("a fifth of the contact layer".into(), |t| format!("{t} m"))
         ),
         Master::Iterated(p) => format!(
             "iterated (at most {} passes, agreement {} m/s + {} relative)",
@@ -100,6 +101,7 @@ pub(crate) struct CouplingTotals {
     passes: u64,
     passes_max: usize,
     unconverged: u64,
+    residual_max: f64,
 }
 
 impl CouplingTotals {
@@ -107,6 +109,7 @@ impl CouplingTotals {
         self.passes += r.iterations as u64;
         self.passes_max = self.passes_max.max(r.iterations);
         self.unconverged += u64::from(!r.converged);
+        self.residual_max = self.residual_max.max(r.residual);
     }
 }
 
@@ -347,6 +350,7 @@ fn coupled_summary(mut summary: Summary, run: &CoupledRun, start: Momentum, tota
         passes_max: totals.passes_max,
         passes_mean: totals.passes as f64 / steps as f64,
         unconverged_steps: totals.unconverged,
+        residual_max: totals.residual_max,
         linear_momentum_change_n_s: (end.linear - start.linear).into(),
         angular_momentum_change_n_m_s: (end.angular - start.angular).into(),
     });

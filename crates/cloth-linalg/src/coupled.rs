@@ -147,6 +147,8 @@ pub struct CoupledPcg {
     filtered: Option<BlockSparseMatrix>,
     saved_blocks: Vec<Vec<(usize, crate::Mat3)>>,
     has_multigrid: bool,
+    /// What the multigrid was last built from.
+    hierarchy: crate::pcg::HierarchySource,
 }
 
 /// Sum of `a_b . b_b` over bodies, in body order.
@@ -160,6 +162,7 @@ impl CoupledPcg {
     pub fn set_multigrid(&mut self, mg: crate::Multigrid) {
         self.precond.set_multigrid(mg);
         self.has_multigrid = true;
+        self.hierarchy.forget();
     }
 
     fn resize(&mut self, n: usize, m: usize) {
@@ -259,11 +262,29 @@ impl CoupledPcg {
         y: &mut [Vector6<f64>],
         (ref_sq, mut r_sq): (f64, f64),
     ) -> Result<PcgInfo, PcgError> {
+        let mut partial_refill = false;
         if params.preconditioner == PreconditionerKind::Multigrid && self.has_multigrid {
-            let f = crate::pcg::filtered_copy(self.filtered.take(), a, filter, &mut self.saved_blocks);
-            self.precond.update(PreconditionerKind::Multigrid, &f);
+            // A contact pass solves the same matrix under another filter:
+            // the copy is filtered again where the filters differ, and the
+            // hierarchy refills only what the changed particles reach.
+            let changed = self.hierarchy.changes(a, filter);
+            let f = match (self.filtered.take(), changed.is_some()) {
+                (Some(mut f), true) => {
+                    crate::pcg::refilter(&mut f, filter, &mut self.saved_blocks);
+                    f
+                }
+                (previous, _) => crate::pcg::filtered_copy(previous, a, filter, &mut self.saved_blocks),
+            };
+            match changed {
+                Some(changed) => {
+                    partial_refill = self.precond.update_rows(PreconditionerKind::Multigrid, &f, changed).1
+                }
+                None => _ = self.precond.update(PreconditionerKind::Multigrid, &f),
+            }
+            self.hierarchy.built(a, true);
             self.filtered = Some(f);
         } else {
+            self.hierarchy.forget();
             self.precond.update(PreconditionerKind::BlockJacobi, a);
         }
         for (inv, k) in self.body_inv.iter_mut().zip(&coupling.bodies) {
@@ -282,7 +303,7 @@ impl CoupledPcg {
         let mut iterations = 0;
         while r_sq > tol_sq {
             if iterations == params.max_iter {
-                let info = PcgInfo { iterations, rel_residual: (r_sq / ref_sq).sqrt(), partial_refill: false };
+                let info = PcgInfo { iterations, rel_residual: (r_sq / ref_sq).sqrt(), partial_refill };
                 return Err(PcgError::NotConverged { info });
             }
             iterations += 1;
@@ -334,7 +355,7 @@ impl CoupledPcg {
                 *c = s + beta * *c;
             }
         }
-        Ok(PcgInfo { iterations, rel_residual: (r_sq / ref_sq).sqrt(), partial_refill: false })
+        Ok(PcgInfo { iterations, rel_residual: (r_sq / ref_sq).sqrt(), partial_refill })
     }
 
     /// `(s, sy) = P^-1 (r, ry)` (particles filtered), returning `r.s + ry.sy`.

@@ -121,14 +121,60 @@ pub struct Pcg {
     /// Original blocks changed by `filter_in_place`, for restoring: one
     /// list per chunk of [`ROW_CHUNK`] rows.
     saved_blocks: Vec<Vec<(usize, Mat3)>>,
-    /// What [`Pcg::solve_in_place`] last built the multigrid hierarchy
-    /// from: the unfiltered matrix's [`BlockSparseMatrix::revision`] and
-    /// the filter's projectors by particle (see [`Pcg::hierarchy_changes`]).
-    hierarchy_from: Option<(u64, Vec<(usize, Mat3)>)>,
+    /// What [`Pcg::solve_in_place`] last built the multigrid hierarchy from.
+    hierarchy: HierarchySource,
+}
+
+/// What a multigrid hierarchy was last built from: the unfiltered
+/// matrix's [`BlockSparseMatrix::revision`] and the filter's projectors
+/// by particle. A solve with the same matrix under another filter (a
+/// contact pass) then refills only what the particles whose projector
+/// changed reach.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct HierarchySource {
+    from: Option<(u64, Vec<(usize, Mat3)>)>,
     /// Scratch: the current filter's projectors, and the particles whose
     /// projector changed since the hierarchy was built.
     projectors: Vec<(usize, Mat3)>,
     changed: Vec<usize>,
+}
+
+impl HierarchySource {
+    /// Collects `filter`'s projectors (by particle) and, when the
+    /// hierarchy was last built from this very `a` (its revision as the
+    /// last solve left it), the particles whose projector differs from
+    /// then: the rows and columns in which the filtered operator differs.
+    /// Returns them, or `None` when the hierarchy must be rebuilt whole.
+    pub(crate) fn changes(&mut self, a: &BlockSparseMatrix, filter: &ConstraintFilter) -> Option<&[usize]> {
+        self.projectors.clear();
+        self.projectors.extend(filter.iter().map(|(i, s, _)| (i, *s)));
+        self.projectors.sort_unstable_by_key(|&(i, _)| i);
+        self.changed.clear();
+        let (revision, old) = self.from.as_ref()?;
+        if *revision != a.revision() {
+            return None;
+        }
+        // Released or turned (a free particle's projector is the identity,
+        // which no constraint's is), then added.
+        let same = |p: &Mat3, q: &Mat3| p.iter().zip(q.iter()).all(|(a, b)| a.to_bits() == b.to_bits());
+        let kept = |i: usize| old.binary_search_by_key(&i, |&(j, _)| j).is_ok();
+        self.changed.extend(old.iter().filter(|(i, s)| !same(&filter.projector(*i), s)).map(|&(i, _)| i));
+        self.changed.extend(self.projectors.iter().map(|&(i, _)| i).filter(|&i| !kept(i)));
+        Some(&self.changed)
+    }
+
+    /// Records that the hierarchy was built (`built`) from `a` under the
+    /// filter last given to [`HierarchySource::changes`], or forgets it.
+    pub(crate) fn built(&mut self, a: &BlockSparseMatrix, built: bool) {
+        let projectors = std::mem::take(&mut self.projectors);
+        let old = std::mem::replace(&mut self.from, built.then(|| (a.revision(), projectors)));
+        self.projectors = old.map(|(_, p)| p).unwrap_or_default();
+    }
+
+    /// Forgets the hierarchy's source: the next solve rebuilds it whole.
+    pub(crate) fn forget(&mut self) {
+        self.from = None;
+    }
 }
 
 impl Pcg {
@@ -162,7 +208,7 @@ impl Pcg {
         params: &PcgParams,
         x: &mut [Vec3],
     ) -> Result<PcgInfo, PcgError> {
-        self.hierarchy_from = None;
+        self.hierarchy.forget();
         let Some(start) = self.begin(a, b, filter, params, x)? else { return Ok(PcgInfo::default()) };
         if let Some(info) = converged_at_start(params, start) {
             return Ok(info);
@@ -197,7 +243,7 @@ impl Pcg {
         x: &mut [Vec3],
     ) -> Result<PcgInfo, PcgError> {
         let Some(start) = self.begin(a, b, filter, params, x)? else { return Ok(PcgInfo::default()) };
-        // Before the hierarchy is touched: it stays the one `hierarchy_from`
+        // Before the hierarchy is touched: it stays the one `hierarchy`
         // describes.
         if let Some(info) = converged_at_start(params, start) {
             return Ok(info);
@@ -205,9 +251,8 @@ impl Pcg {
         if params.preconditioner != PreconditionerKind::Multigrid {
             return self.iterate(a, filter, params, x, start, None);
         }
-        let partial = self.hierarchy_changes(a, filter);
-        let changed = std::mem::take(&mut self.changed);
-        let changed_rows = partial.then_some(&changed[..]);
+        let mut hierarchy = std::mem::take(&mut self.hierarchy);
+        let changed_rows = hierarchy.changes(a, filter);
         let result = if needs_filtered_hierarchy(params, filter) {
             let mut saved = std::mem::take(&mut self.saved_blocks);
             filter_in_place(a, filter, &mut saved);
@@ -218,35 +263,9 @@ impl Pcg {
         } else {
             self.iterate(a, filter, params, x, start, changed_rows)
         };
-        self.changed = changed;
-        let built = !matches!(result, Err(PcgError::NoMultigridHierarchy));
-        let projectors = std::mem::take(&mut self.projectors);
-        let old = std::mem::replace(&mut self.hierarchy_from, built.then(|| (a.revision(), projectors)));
-        self.projectors = old.map(|(_, p)| p).unwrap_or_default();
+        hierarchy.built(a, !matches!(result, Err(PcgError::NoMultigridHierarchy)));
+        self.hierarchy = hierarchy;
         result
-    }
-
-    /// Collects `filter`'s projectors into `self.projectors` (by particle)
-    /// and, when the hierarchy was last built from this very `a` (its
-    /// revision as the last solve left it), the particles whose projector
-    /// differs from then into `self.changed`: the rows and columns in which
-    /// the filtered operator differs. Returns whether that comparison holds.
-    fn hierarchy_changes(&mut self, a: &BlockSparseMatrix, filter: &ConstraintFilter) -> bool {
-        self.projectors.clear();
-        self.projectors.extend(filter.iter().map(|(i, s, _)| (i, *s)));
-        self.projectors.sort_unstable_by_key(|&(i, _)| i);
-        self.changed.clear();
-        let Some((revision, old)) = &self.hierarchy_from else { return false };
-        if *revision != a.revision() {
-            return false;
-        }
-        // Released or turned (a free particle's projector is the identity,
-        // which no constraint's is), then added.
-        let same = |p: &Mat3, q: &Mat3| p.iter().zip(q.iter()).all(|(a, b)| a.to_bits() == b.to_bits());
-        let kept = |i: usize| old.binary_search_by_key(&i, |&(j, _)| j).is_ok();
-        self.changed.extend(old.iter().filter(|(i, s)| !same(&filter.projector(*i), s)).map(|&(i, _)| i));
-        self.changed.extend(self.projectors.iter().map(|&(i, _)| i).filter(|&i| !kept(i)));
-        true
     }
 
     /// Checks the inputs and computes the starting residual. Returns `None`
@@ -380,7 +399,7 @@ impl Pcg {
 
     /// Sets the hierarchy for [`PreconditionerKind::Multigrid`].
     pub fn set_multigrid(&mut self, mg: crate::Multigrid) {
-        self.hierarchy_from = None;
+        self.hierarchy.forget();
         self.precond.set_multigrid(mg);
     }
 
@@ -479,6 +498,14 @@ pub(crate) fn filtered_copy(
     });
     filter_in_place(&mut f, filter, saved);
     f
+}
+
+/// `f`, a [`filtered_copy`] of a matrix (originals of its filtered blocks
+/// in `saved`), filtered again under `filter`: only the blocks either
+/// filter touches are rewritten, no copy of the matrix.
+pub(crate) fn refilter(f: &mut BlockSparseMatrix, filter: &ConstraintFilter, saved: &mut Vec<Vec<(usize, Mat3)>>) {
+    restore_filtered(f, saved);
+    filter_in_place(f, filter, saved);
 }
 
 fn filter_in_place(a: &mut BlockSparseMatrix, filter: &ConstraintFilter, saved: &mut Vec<Vec<(usize, Mat3)>>) {

@@ -74,29 +74,34 @@ impl Default for IteratedCoupling {
 /// Parameters of the monolithic coupling.
 ///
 /// The cloth's solve knows a body's inertia, gravity and the cloth, not
-/// rapier's contacts and joints on it. When rapier's step ends a body
-/// elsewhere than the solve assumed (a ball landing on a plate through
-/// the cloth), the step is repeated with rapier's extra impulse in the
-/// body's guess, until the two agree; a body that meets only cloth agrees
-/// after one pass.
+/// rapier's contacts and joints on it, which act in rapier's step after
+/// it. When they end a body elsewhere than the solve assumed where a
+/// cloth meets it (a ball landing on a plate through the cloth), the
+/// cloths are solved once more with rapier's extra motion in the body's
+/// guess, and the body is moved to where that solve leaves it; rapier
+/// steps once either way. A body that meets only cloth agrees at once.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MonolithicCoupling {
-    /// Most passes per step; the last is kept (reported as not converged)
-    /// when they disagree still. Default 10.
-    pub max_passes: usize,
-    /// Agreement: every mean velocity component within `abs_tol_m_s +
-    /// rel_tol |value|` (m/s, rad/s). Defaults 1e-3 and 1e-3: rapier
-    /// turns a body by its substeps' rotations, which differ from one turn
-    /// at the mean angular velocity at second order in the step (up to
-    /// 2e-4 rad/s measured on the hammock's ball); a contact's is larger.
-    pub abs_tol_m_s: f64,
-    /// See `abs_tol_m_s`.
-    pub rel_tol: f64,
+    /// The cloths' solves per step, 1 or 2: with 1, what rapier's
+    /// contacts do within the step is left to the next step, where the
+    /// cloth meets the body where rapier put it. Default 2.
+    pub max_solves: usize,
+    /// Agreement where a cloth meets a body, m: rapier's step and the
+    /// cloths' solve put each pinned point, and each contact point along
+    /// its normal, within `tol_m` of each other at the end of the step.
+    /// Default (`None`): a fifth of the thinnest cloth's contact layer
+    /// (1 mm for the default 5 mm layer). A body that ends closer to the
+    /// cloth than the solve assumed by less than that leaves its particles
+    /// within the layer, which the next step's contacts take up.
+    pub tol_m: Option<f64>,
 }
+
+/// The share of the contact layer that is [`MonolithicCoupling::tol_m`]'s default.
+pub(crate) const TOL_LAYER_SHARE: f64 = 0.2;
 
 impl Default for MonolithicCoupling {
     fn default() -> Self {
-        Self { max_passes: 10, abs_tol_m_s: 1e-3, rel_tol: 1e-3 }
+        Self { max_solves: 2, tol_m: None }
     }
 }
 
@@ -111,9 +116,9 @@ pub enum Master {
     /// The bodies inside the cloth's solve: every dynamic body a cloth
     /// touches or holds joins its implicit step as six unknowns
     /// ([`cloth_core::bodies`]), so the cloth and the body answer each
-    /// other within the step; rapier then steps with the cloth's
-    /// impulses. One pass, unless rapier's own contacts or joints moved a
-    /// body away from where the cloth's solve put it (see
+    /// other within the step; rapier then steps once with the cloth's
+    /// impulses (a second solve of the cloths when rapier's own contacts
+    /// or joints moved a body where a cloth meets it: see
     /// [`MonolithicCoupling`]). Needs an assembled implicit integrator
     /// (`bdf2`, `backward-euler`). A body several cloths share meets them
     /// one after the other, each seeing what the ones before did to it.
@@ -130,14 +135,17 @@ impl Default for Master {
 /// What a coupled step did.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CouplingReport {
-    /// Passes made (1 for the staggered and monolithic masters; `max_iterations + 1` when
-    /// not converged: the best pass is repeated).
+    /// Passes made: 1 for the staggered master; the iterated master's
+    /// passes (`max_iterations + 1` when not converged: the best pass is
+    /// repeated); the monolithic master's solves of the cloths (1 or 2).
     pub iterations: usize,
-    /// Whether the mean velocities agreed with the guess (always for
-    /// staggered and monolithic).
+    /// Whether `residual <= 1` (always for staggered).
     pub converged: bool,
-    /// Largest change of a mean velocity in the accepted pass over its tolerance
-    /// (0 for staggered and monolithic).
+    /// Iterated: the largest change of a mean velocity in the accepted
+    /// pass over its tolerance. Monolithic: how far the motion rapier's
+    /// contacts saw differs, where the cloths meet the bodies, from the
+    /// one the cloths' last solve gave them, over the tolerance
+    /// ([`MonolithicCoupling`]). 0 for staggered.
     pub residual: f64,
     /// Cloth-body contacts in the accepted pass.
     pub contacts: usize,
@@ -155,18 +163,41 @@ pub(crate) struct BodyImpulse {
     pub(crate) angular: Vec3,
 }
 
-/// What one pass produced.
-pub(crate) struct Pass {
-    /// Mean velocities of the coupled dynamic bodies (6 per body).
-    pub(crate) end: Vec<f64>,
+/// A point where a cloth holds or presses a body, at the end of the
+/// cloths' solves.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Hold {
+    /// From the body's centre of mass (where the solve moved it), m.
+    pub(crate) lever: Vec3,
+    /// A contact's outward normal (the cloth resists only along it);
+    /// `None` for a pin, which holds in every direction.
+    pub(crate) normal: Option<Vec3>,
+}
+
+/// What the cloths' solves of one pass produced.
+pub(crate) struct Solved {
+    /// The impulse each coupled body took.
+    pub(crate) impulses: Vec<BodyImpulse>,
     /// With the bodies in the solve: the mean velocities the cloths'
     /// solves left them (6 per body), which rapier's step reproduces
-    /// unless its own contacts or joints act on them.
+    /// unless its own contacts or joints act on them; else the guess.
     pub(crate) assumed: Vec<f64>,
+    /// Where each coupled body is held or pressed.
+    pub(crate) holds: Vec<Vec<Hold>>,
     /// Cloth-body contacts.
     pub(crate) contacts: usize,
     /// Each cloth's step report.
     pub(crate) reports: Vec<StepReport>,
+    /// Whether the bodies were in the solves.
+    pub(crate) in_solve: bool,
+}
+
+/// What one pass produced.
+pub(crate) struct Pass {
+    /// Mean velocities of the coupled dynamic bodies after rapier's step (6 per body).
+    pub(crate) end: Vec<f64>,
+    /// The cloths' half.
+    pub(crate) solved: Solved,
     /// What rapier reported in this pass's step.
     pub(crate) events: crate::events::RecordedEvents,
 }
@@ -182,18 +213,22 @@ pub(crate) struct Coupled {
 
 impl ClothSet {
     /// Steps every cloth and the rapier world together by the world's
-    /// `integration_parameters.dt` with `master`. On error the world and
-    /// every cloth are back where they were.
+    /// `integration_parameters.dt` with `master`. Errors: see
+    /// [`ClothSet::step_with_events`].
     pub fn step(&mut self, world: &mut PhysicsWorld, master: &Master) -> Result<CouplingReport, CouplingError> {
         self.step_with_events(world, master, &(), &())
     }
 
     /// As [`ClothSet::step`], with rapier's physics hooks (filters and
-    /// contact modifications of body-body pairs, in every pass) and event
-    /// handler. A step may step rapier more than once (the iterated
-    /// master; a monolithic step whose bodies rapier's contacts moved):
+    /// contact modifications of body-body pairs, in every rapier step)
+    /// and event handler. The iterated master steps rapier once a pass:
     /// `events` hears only the accepted pass, after it, with the contact
-    /// pairs as it left them.
+    /// pairs as it left them. The others step it once.
+    ///
+    /// On error every cloth is back where it was, and so is the world,
+    /// unless rapier's own step made a body non-finite
+    /// ([`CouplingError::NonFiniteBody`]): the world is then as that step
+    /// left it (only the iterated master keeps a copy of the world).
     pub fn step_with_events(
         &mut self,
         world: &mut PhysicsWorld,
@@ -234,19 +269,20 @@ impl ClothSet {
             }
         }
         let time_s = self.cloths_mut().next().map_or(0.0, |c| c.sim.time());
-        let saved_world = WorldSnapshot::take(world);
+        // Only the iterated master repeats rapier's step; the others step it
+        // once and need only the cloths' start.
+        let saved_world = matches!(master, Master::Iterated(_)).then(|| WorldSnapshot::take(world));
         let saved_cloths: Vec<ClothState> = self.cloths_mut().map(|c| c.sim.snapshot()).collect();
         let rollback = |set: &mut ClothSet, world: &mut PhysicsWorld| -> Result<(), CouplingError> {
-            saved_world.restore(world);
-            for (index, (c, s)) in set.cloths_mut().zip(&saved_cloths).enumerate() {
-                c.sim.restore(s).map_err(|e| CouplingError::Cloth { cloth: index, time_s, message: e.to_string() })?;
+            if let Some(saved) = &saved_world {
+                saved.restore(world);
             }
-            Ok(())
+            set.restore_cloths(&saved_cloths, time_s)
         };
         let (rollback, hooks) = (&rollback, (master, hooks));
         let result = match master {
             Master::Staggered => self.pass(world, &coupled, &guess, h, hooks).map(|pass| (1, 0.0, pass)),
-            Master::Monolithic(p) => self.monolithic(world, &coupled, &mut guess, (h, p, hooks.1), rollback),
+            Master::Monolithic(p) => self.monolithic(world, &coupled, &mut guess, (h, p, hooks.1), &saved_cloths),
             Master::Iterated(p) => self.iterate(world, &coupled, &mut guess, (h, p, hooks.1), time_s, rollback),
         };
         match result {
@@ -256,9 +292,9 @@ impl ClothSet {
                     iterations,
                     converged: residual <= 1.0,
                     residual,
-                    contacts: pass.contacts,
+                    contacts: pass.solved.contacts,
                     coupled_bodies: coupled.len(),
-                    cloths: pass.reports,
+                    cloths: pass.solved.reports,
                 })
             }
             Err(e) => {
@@ -266,6 +302,14 @@ impl ClothSet {
                 Err(e)
             }
         }
+    }
+
+    /// Puts every cloth back to `saved` (taken at `time_s`).
+    pub(crate) fn restore_cloths(&mut self, saved: &[ClothState], time_s: f64) -> Result<(), CouplingError> {
+        for (index, (c, s)) in self.cloths_mut().zip(saved).enumerate() {
+            c.sim.restore(s).map_err(|e| CouplingError::Cloth { cloth: index, time_s, message: e.to_string() })?;
+        }
+        Ok(())
     }
 
     /// Passes until the end velocities agree with the guess.
@@ -370,9 +414,25 @@ impl ClothSet {
         (master, hooks): (&Master, &dyn PhysicsHooks),
     ) -> Result<Pass, CouplingError> {
         let in_solve = matches!(master, Master::Monolithic(_));
+        let solved = self.solve_cloths(world, coupled, guess, h, in_solve)?;
+        self.step_bodies(world, coupled, solved, h, hooks)
+    }
+
+    /// The cloths' half of a pass: every cloth steps with the bodies on
+    /// `guess` (in its solve when `in_solve`), and the impulses each body
+    /// took are summed.
+    pub(crate) fn solve_cloths(
+        &mut self,
+        world: &PhysicsWorld,
+        coupled: &[Coupled],
+        guess: &[f64],
+        h: f64,
+        in_solve: bool,
+    ) -> Result<Solved, CouplingError> {
         let mut seen = guess.to_vec();
         let find = |handle: RigidBodyHandle| coupled.iter().position(|c| c.handle == handle);
         let mut impulses = vec![BodyImpulse::default(); coupled.len()];
+        let mut holds = vec![Vec::new(); coupled.len()];
         let mut contacts = 0;
         let mut reports = Vec::new();
         for (index, cloth) in self.cloths_mut().enumerate() {
@@ -425,11 +485,18 @@ impl ClothSet {
                 got_here[k].linear += got.linear;
                 got_here[k].angular += got.angular;
                 contacts += got.contacts;
+                let touching = cloth.sim.contacts().iter().filter(|c| c.collider as usize == s.solid);
+                holds[k].extend(
+                    touching
+                        .filter(|c| c.impulse_n_s != Vec3::zeros())
+                        .map(|c| Hold { lever: c.point - about[k], normal: Some(c.normal) }),
+                );
             }
             for (k, pin, at) in targets {
                 let j = cloth.sim.pin_reaction(pin) * h;
                 got_here[k].linear += j;
                 got_here[k].angular += (at - about[k]).cross(&j);
+                holds[k].push(Hold { lever: at - about[k], normal: None });
             }
             for (k, j) in got_here.iter().enumerate() {
                 impulses[k].linear += j.linear;
@@ -444,11 +511,33 @@ impl ClothSet {
                 }
             }
         }
+        let mut assumed = seen;
+        if in_solve {
+            for c in coupled {
+                if let Some(s) = c.slot {
+                    let fall = crate::monolithic::free_fall(world, &world.bodies[c.handle], h);
+                    (0..3).for_each(|k| assumed[6 * s + k] += fall[k]);
+                }
+            }
+        }
+        Ok(Solved { impulses, assumed, holds, contacts, reports, in_solve })
+    }
+
+    /// Rapier's half of a pass: the bodies receive the cloths' impulses
+    /// and rapier steps.
+    pub(crate) fn step_bodies(
+        &mut self,
+        world: &mut PhysicsWorld,
+        coupled: &[Coupled],
+        solved: Solved,
+        h: f64,
+        hooks: &dyn PhysicsHooks,
+    ) -> Result<Pass, CouplingError> {
         let mut held = Vec::new();
-        for (c, j) in coupled.iter().zip(&impulses) {
+        for (c, j) in coupled.iter().zip(&solved.impulses) {
             if c.slot.is_some() {
                 let rb = &mut world.bodies[c.handle];
-                if in_solve {
+                if solved.in_solve {
                     // As the solve took it: a force over rapier's substeps.
                     held.push((c.handle, crate::monolithic::apply_as_force(rb, j, h)));
                 } else {
@@ -462,7 +551,7 @@ impl ClothSet {
         for (handle, forces) in held {
             crate::monolithic::restore_forces(&mut world.bodies[handle], forces);
         }
-        let mut end = vec![0.0; guess.len()];
+        let mut end = vec![0.0; solved.assumed.len()];
         for c in coupled {
             if let Some(s) = c.slot {
                 let rb = &world.bodies[c.handle];
@@ -476,16 +565,7 @@ impl ClothSet {
                 }
             }
         }
-        let mut assumed = seen;
-        if in_solve {
-            for c in coupled {
-                if let Some(s) = c.slot {
-                    let fall = crate::monolithic::free_fall(world, &world.bodies[c.handle], h);
-                    (0..3).for_each(|k| assumed[6 * s + k] += fall[k]);
-                }
-            }
-        }
-        Ok(Pass { end, assumed, contacts, reports, events })
+        Ok(Pass { end, solved, events })
     }
 }
 

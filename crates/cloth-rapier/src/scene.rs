@@ -25,9 +25,13 @@
 //! master = "monolithic"        # or "iterated", "staggered"; "iterated" is
 //!                              # the default for integrators without a
 //!                              # linear solve (vbd, explicit)
-//! max_iterations = 20          # most passes a step (monolithic: 10)
-//! abs_tol_m_s = 1e-6           # agreement of the bodies' mean velocities,
-//! rel_tol = 1e-6               # m/s and rad/s (monolithic: 1e-3 and 1e-3)
+//! max_iterations = 20          # most passes a step (monolithic: solves of
+//!                              # the cloths, 1 or 2; default 2)
+//! abs_tol_m_s = 1e-6           # iterated: agreement of the bodies' mean
+//! rel_tol = 1e-6               # velocities, m/s and rad/s
+//! tol_m = 1e-3                 # monolithic: agreement of the points where
+//!                              # cloth meets body at the step's end, m
+//!                              # (default a fifth of the contact layer)
 //! relaxation = "quasi-newton"  # or "fixed"
 //! omega = 0.5                  # fixed relaxation, or the quasi-Newton's first step
 //! accept_unconverged = true   # keep the best pass when contacts keep switching
@@ -154,12 +158,15 @@ pub struct CouplingSection {
     /// Master; unset: monolithic when the integrator has a linear solve
     /// for bodies to join, else iterated.
     pub master: Option<MasterName>,
-    /// Most passes per step (unset: the master's default).
+    /// Most passes per step; for the monolithic master its solves of the
+    /// cloths, 1 or 2 (unset: the master's default).
     pub max_iterations: Option<usize>,
     /// Absolute velocity tolerance, m/s (and rad/s) (unset: the master's default).
     pub abs_tol_m_s: Option<f64>,
     /// Relative tolerance (unset: the master's default).
     pub rel_tol: Option<f64>,
+    /// Monolithic master: agreement of the points where cloth meets body, m.
+    pub tol_m: Option<f64>,
     /// Guess update.
     pub relaxation: RelaxationName,
     /// Relaxation factor, (0, 1].
@@ -176,6 +183,7 @@ impl Default for CouplingSection {
             max_iterations: None,
             abs_tol_m_s: None,
             rel_tol: None,
+            tol_m: None,
             relaxation: RelaxationName::QuasiNewton,
             omega: 0.5,
             accept_unconverged: d.accept_unconverged,
@@ -192,9 +200,8 @@ impl CouplingSection {
         match self.master.unwrap_or(default) {
             MasterName::Staggered => Master::Staggered,
             MasterName::Monolithic => Master::Monolithic(MonolithicCoupling {
-                max_passes: self.max_iterations.unwrap_or(m.max_passes),
-                abs_tol_m_s: self.abs_tol_m_s.unwrap_or(m.abs_tol_m_s),
-                rel_tol: self.rel_tol.unwrap_or(m.rel_tol),
+                max_solves: self.max_iterations.unwrap_or(m.max_solves),
+                tol_m: self.tol_m.or(m.tol_m),
             }),
             MasterName::Iterated => Master::Iterated(IteratedCoupling {
                 max_iterations: self.max_iterations.unwrap_or(d.max_iterations),
@@ -375,6 +382,26 @@ impl CoupledScene {
         }
         if c.max_iterations == Some(0) {
             return Err(invalid("max_iterations", "must be >= 1".into()));
+        }
+        let monolithic = c.master.unwrap_or(if takes_bodies { MasterName::Monolithic } else { MasterName::Iterated })
+            == MasterName::Monolithic;
+        if monolithic {
+            if let Some(n) = c.max_iterations.filter(|n| *n > 2) {
+                return Err(invalid(
+                    "max_iterations",
+                    format!("the monolithic master solves the cloths 1 or 2 times a step, got {n}"),
+                ));
+            }
+            for (name, set) in [("abs_tol_m_s", c.abs_tol_m_s.is_some()), ("rel_tol", c.rel_tol.is_some())] {
+                if set {
+                    return Err(invalid(name, "the monolithic master's agreement is coupling.tol_m (m)".into()));
+                }
+            }
+        } else if c.tol_m.is_some() {
+            return Err(invalid("tol_m", "only the monolithic master takes it".into()));
+        }
+        if let Some(t) = c.tol_m.filter(|t| !(t.is_finite() && *t > 0.0)) {
+            return Err(invalid("tol_m", format!("must be finite and > 0, got {t}")));
         }
         let (abs, rel) = (c.abs_tol_m_s.unwrap_or(1.0), c.rel_tol.unwrap_or(1.0));
         for (name, v) in [("abs_tol_m_s", abs), ("rel_tol", rel)] {
