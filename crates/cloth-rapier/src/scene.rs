@@ -14,6 +14,8 @@
 //! density_kg_m3 = 1000.0       # or mass_kg = 2.0 (not both); default density 1000
 //! friction = 0.5               # Coulomb coefficient, cloth-body and body-body
 //! restitution = 0.0
+//! linear_damping_1_s = 0.0     # dynamic bodies: rapier's damping, 1/s
+//! angular_damping_1_s = 0.0    # (a body in a fluid)
 //! motion = { kind = "fixed" }  # kinematic bodies: path of the frame origin, as pins
 //! spin_deg_s = [0.0, 0.0, 0.0] # kinematic bodies: angular velocity
 //!
@@ -109,6 +111,13 @@ pub struct BodySpec {
     /// Restitution of body-body contacts (default 0).
     #[serde(default)]
     pub restitution: f64,
+    /// Dynamic bodies: rapier's linear damping, 1/s (the velocity decays
+    /// as `exp(-c t)` without other forces; a body in a fluid). Default 0.
+    #[serde(default)]
+    pub linear_damping_1_s: f64,
+    /// Dynamic bodies: rapier's angular damping, 1/s. Default 0.
+    #[serde(default)]
+    pub angular_damping_1_s: f64,
     /// Path of a kinematic body's frame origin, as an offset from `position_m`.
     #[serde(default = "fixed")]
     pub motion: PinMotion,
@@ -446,6 +455,15 @@ fn add_body(
     };
     non_negative("friction", b.friction)?;
     non_negative("restitution", b.restitution)?;
+    non_negative("linear_damping_1_s", b.linear_damping_1_s)?;
+    non_negative("angular_damping_1_s", b.angular_damping_1_s)?;
+    for (name, damping) in
+        [("linear_damping_1_s", b.linear_damping_1_s), ("angular_damping_1_s", b.angular_damping_1_s)]
+    {
+        if b.kind != BodyKind::Dynamic && damping > 0.0 {
+            return Err((name.into(), "only dynamic bodies are damped".into()));
+        }
+    }
     b.motion.validate().map_err(|(f, m)| (format!("motion.{f}"), m))?;
     let moving = b.motion != PinMotion::Fixed || b.spin_deg_s != [0.0; 3];
     if b.kind != BodyKind::Kinematic && moving {
@@ -484,7 +502,9 @@ fn add_body(
     let builder = match b.kind {
         BodyKind::Dynamic => RigidBodyBuilder::dynamic()
             .linvel(vec_to_rapier(Vec3::from(b.velocity_m_s)))
-            .angvel(vec_to_rapier(Vec3::from(b.angular_velocity_deg_s.map(f64::to_radians)))),
+            .angvel(vec_to_rapier(Vec3::from(b.angular_velocity_deg_s.map(f64::to_radians))))
+            .linear_damping(b.linear_damping_1_s)
+            .angular_damping(b.angular_damping_1_s),
         BodyKind::Kinematic => RigidBodyBuilder::kinematic_position_based(),
         BodyKind::Fixed => RigidBodyBuilder::fixed(),
     };

@@ -481,3 +481,19 @@ fn coupling_settings_the_master_does_not_read_are_refused_by_name() {
     let run = build(&scene(""), &["coupling.max_iterations=1", "coupling.tol_m=1e-3"]);
     assert_eq!(run.master, Master::Monolithic(cloth_rapier::MonolithicCoupling { max_solves: 1, tol_m: Some(1e-3) }));
 }
+
+/// A dynamic body's damping reaches rapier; a fixed body's, or a negative
+/// one, is refused by name.
+#[test]
+fn body_damping_reaches_rapier_and_bad_values_are_named() {
+    let run = build(&scene(""), &["bodies.0.linear_damping_1_s=2.0", "bodies.0.angular_damping_1_s=3.0"]);
+    assert_eq!((ball(&run).linear_damping(), ball(&run).angular_damping()), (2.0, 3.0));
+    for (overrides, field) in [
+        (&["bodies.0.linear_damping_1_s=-1.0"][..], "linear_damping_1_s"),
+        (&["bodies.0.kind=\"fixed\"", "bodies.0.angular_damping_1_s=1.0"][..], "bodies[0].angular_damping_1_s"),
+    ] {
+        let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+        let err = CoupledScene::parse(&scene(""), &overrides).and_then(|s| s.build()).unwrap_err();
+        assert!(err.to_string().contains(field), "{overrides:?}: {err}");
+    }
+}
