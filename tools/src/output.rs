@@ -144,6 +144,10 @@ pub struct Summary {
     pub hash_builds_total: u64,
     /// The error that stopped the run, if any.
     pub error: Option<String>,
+    /// What looked wrong before the first step (a character of an
+    /// implausible height, or lying on its side); absent when nothing did.
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub warnings: Vec<String>,
     pub stage_wall_s: StageWall,
     /// Rigid bodies at the end (scenes with `[[bodies]]`).
     #[serde(skip_serializing_if = "Option::is_none")]

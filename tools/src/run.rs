@@ -48,6 +48,22 @@ impl Runner {
         Ok((coupled.scene, run.config, Runner::Coupled(Box::new(run))))
     }
 
+    /// What looks wrong before the first step (see [`CoupledRun::warnings`]).
+    pub(crate) fn warnings(&self) -> Vec<String> {
+        match self {
+            Runner::Alone(_) => Vec::new(),
+            Runner::Coupled(run) => run.warnings(),
+        }
+    }
+
+    /// A name for each of the cloth's solids (see [`CoupledRun::solid_names`]).
+    pub(crate) fn solid_names(&self) -> Vec<String> {
+        match self {
+            Runner::Alone(sim) => (0..sim.model().colliders().len()).map(|k| format!("colliders[{k}]")).collect(),
+            Runner::Coupled(run) => run.solid_names(),
+        }
+    }
+
     pub(crate) fn sim(&self) -> &Simulation {
         match self {
             Runner::Alone(sim) => sim,
@@ -117,7 +133,15 @@ pub fn validate(path: &Path, overrides: &[String]) -> Result<()> {
     let (_, cfg, runner) = Runner::load(path, overrides)?;
     let model = runner.sim().model();
     if let Runner::Coupled(run) = &runner {
-        println!("{}: {} rigid bodies, coupled {}", path.display(), run.bodies.len(), describe_master(&run.master));
+        let links = run.rig.as_ref().map_or(String::new(), |r| format!(" and the rig's {} links", r.rig.links.len()));
+        let master = describe_master(&run.master);
+        println!("{}: {} rigid bodies{links}, coupled {master}", path.display(), run.bodies.len());
+        if let Some(rig) = &run.rig {
+            println!("{}: {}", path.display(), rig.summary(&run.world));
+        }
+    }
+    for warning in runner.warnings() {
+        println!("{}: warning: {warning}", path.display());
     }
     println!(
         "{}: ok ({} particles, {} type-1 and {} type-2 links, {} pins, {} steps of {} s with {})",
@@ -210,6 +234,10 @@ pub(crate) fn simulate_steps(
         }
         Ok(())
     };
+    let warnings = runner.warnings();
+    for w in &warnings {
+        eprintln!("{}: warning: {w}", scene_path.display());
+    }
     write_frame(runner.sim(), &mut stages, &mut solid_poses)?;
     for _ in 0..cfg.steps {
         let t = Instant::now();
@@ -252,7 +280,7 @@ pub(crate) fn simulate_steps(
     bar.finish_and_clear();
     if let Some((_, dir)) = &frames {
         let path = dir.join(SOLIDS_FILE);
-        std::fs::write(&path, solid_poses.to_json(runner.sim().model())?)
+        std::fs::write(&path, solid_poses.to_json(runner.sim().model(), &runner.solid_names())?)
             .with_context(|| format!("writing {}", path.display()))?;
     }
     let wall_s = wall.elapsed().as_secs_f64();
@@ -306,6 +334,7 @@ pub(crate) fn simulate_steps(
         narrow_phase_queries_total: contacts.queries,
         hash_builds_total: contacts.hash_builds,
         error,
+        warnings,
         stage_wall_s: stages,
         bodies: None,
         coupling: None,
@@ -597,10 +626,16 @@ impl SolidPoses {
         self.frames.push((sim.state().steps, solid_poses(sim)));
     }
 
-    /// `{"solids": [{"vertices": [x, y, z, ...], "triangles": [a, b, c, ...]}],
-    /// "frames": [{"step": n, "poses": [[x, y, z, qw, qx, qy, qz], ...]}]}`.
-    fn to_json(&self, model: &ClothModel) -> Result<String> {
-        let solids = solid_meshes_json(model);
+    /// `{"solids": [{"name": "pelvis", "vertices": [x, y, z, ...], "triangles": [a, b, c, ...]}],
+    /// "frames": [{"step": n, "poses": [[x, y, z, qw, qx, qy, qz], ...]}]}`;
+    /// a solid's name is its body's, its rig link's, or `colliders[k]`.
+    fn to_json(&self, model: &ClothModel, names: &[String]) -> Result<String> {
+        let mut solids = solid_meshes_json(model);
+        if let serde_json::Value::Array(list) = &mut solids {
+            for (solid, name) in list.iter_mut().zip(names) {
+                solid["name"] = serde_json::Value::String(name.clone());
+            }
+        }
         let frames: Vec<serde_json::Value> =
             self.frames.iter().map(|(step, poses)| serde_json::json!({ "step": step, "poses": poses })).collect();
         Ok(serde_json::to_string(&serde_json::json!({ "solids": solids, "frames": frames }))?)

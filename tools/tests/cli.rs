@@ -396,3 +396,36 @@ fn bench_table1_refuses_bad_options() {
         assert!(stderr.contains(message), "{flag} {value}: {stderr}");
     }
 }
+
+/// `cloth validate` prints the rig (links, height, up axis and scale, the
+/// joints the motion drives) and warns about a character at the wrong
+/// scale, naming the key; `cloth run` warns before its first step, keeps
+/// the warning in summary.json, and names each solid in solids.json.
+#[test]
+fn rigs_are_described_warned_about_and_their_solids_named() {
+    let walk = scene("skirt-walk.toml");
+    let ok = cloth().args(["validate", walk.to_str().unwrap()]).output().unwrap();
+    let text = String::from_utf8_lossy(&ok.stdout);
+    assert!(ok.status.success());
+    assert!(text.contains("rig's 15 links") && text.contains("1.760 m tall") && text.contains("up axis z"), "{text}");
+    assert!(text.contains("the motion drives waist") && !text.contains("warning"), "{text}");
+    let tall = cloth().args(["validate", walk.to_str().unwrap(), "--set", "rig.scale=4.0"]).output().unwrap();
+    let text = String::from_utf8_lossy(&tall.stdout);
+    assert!(text.contains("warning") && text.contains("7.04 m tall") && text.contains("set rig.scale"), "{text}");
+    let out = out_dir("rig-warning");
+    let run = cloth()
+        .args(["run", walk.to_str().unwrap(), "--quiet", "--frames", "1"])
+        .args(["--set", "rig.scale=4.0", "--set", "simulation.duration_s=0.02", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(err.contains("skirt-walk.toml: warning") && err.contains("rig.scale"), "{err}");
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert!(s["warnings"][0].as_str().unwrap().contains("rig.scale"), "{s}");
+    let solids: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("frames/solids.json")).unwrap()).unwrap();
+    let names: Vec<&str> = solids["solids"].as_array().unwrap().iter().map(|s| s["name"].as_str().unwrap()).collect();
+    assert!(names.contains(&"pelvis") && names.contains(&"foot_r"), "{names:?}");
+}

@@ -28,6 +28,7 @@ pub mod coupling;
 mod events;
 mod monolithic;
 pub mod motion;
+mod names;
 pub mod rig;
 pub mod rig_scene;
 pub mod scene;

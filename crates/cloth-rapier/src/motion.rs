@@ -164,10 +164,23 @@ impl Clip {
                 Translation3::from(Vec3::from(key.root_position_m)),
                 rotation_from_degrees(key.root_rotation_deg),
             );
+            let unknown: Vec<(String, String)> = key
+                .joints
+                .keys()
+                .filter(|name| rig.joint(name).is_none())
+                .map(|name| {
+                    let names = rig.joints.iter().map(|j| j.name.as_str());
+                    (field(&format!("joints.{name}")), crate::names::unknown("rig joint", name, names))
+                })
+                .collect();
+            match unknown.as_slice() {
+                [] => {}
+                [(f, m)] => return Err(invalid(f.clone(), m.clone())),
+                _ => return Err(invalid(field("joints"), crate::names::all(&unknown))),
+            }
             for (name, value) in &key.joints {
                 let field = field(&format!("joints.{name}"));
-                let j =
-                    rig.joint(name).ok_or_else(|| invalid(field.clone(), format!("the rig has no joint {name:?}")))?;
+                let j = rig.joint(name).expect("unknown joints are refused above");
                 pose.joints[j] = joint_value(rig.joints[j].kind, value).map_err(|m| invalid(field, m))?;
             }
             times_s.push(key.time_s);
@@ -184,23 +197,39 @@ impl Clip {
         if !(map.scale.is_finite() && map.scale > 0.0) {
             return Err(invalid("scale".into(), format!("must be finite and > 0, got {}", map.scale)));
         }
-        let root =
-            bvh.joint(&map.root).ok_or_else(|| invalid("root".into(), format!("no BVH joint {:?}", map.root)))?;
+        // Every name that does not resolve, at once, with the nearest ones.
+        let bvh_names = || bvh.joints.iter().map(|j| j.name.as_str());
+        let rig_names = || rig.joints.iter().map(|j| j.name.as_str());
+        let mut problems = Vec::new();
+        let root = bvh.joint(&map.root);
+        if root.is_none() {
+            problems.push(("root".to_string(), crate::names::unknown("BVH joint", &map.root, bvh_names())));
+        }
         // (rig joint, BVH joint) in the rig's joint order.
         let mut pairs: Vec<Option<usize>> = vec![None; rig.joints.len()];
         for (rig_joint, bvh_joint) in &map.joints {
             let field = format!("joints.{rig_joint}");
-            let j = rig.joint(rig_joint).ok_or_else(|| invalid(field.clone(), "the rig has no such joint".into()))?;
-            let b =
-                bvh.joint(bvh_joint).ok_or_else(|| invalid(field.clone(), format!("no BVH joint {bvh_joint:?}")))?;
+            let (j, b) = (rig.joint(rig_joint), bvh.joint(bvh_joint));
+            if j.is_none() {
+                problems.push((field.clone(), crate::names::unknown("rig joint", rig_joint, rig_names())));
+            }
+            if b.is_none() {
+                problems.push((field.clone(), crate::names::unknown("BVH joint", bvh_joint, bvh_names())));
+            }
+            let (Some(j), Some(b)) = (j, b) else { continue };
             if matches!(rig.joints[j].kind, JointKind::Fixed | JointKind::Prismatic { .. }) {
-                return Err(invalid(
-                    field,
-                    format!("{:?} joints do not turn: BVH rotations drive the others", rig.joints[j].kind),
-                ));
+                let message = format!("{:?} joints do not turn: BVH rotations drive the others", rig.joints[j].kind);
+                problems.push((field, message));
+                continue;
             }
             pairs[j] = Some(b);
         }
+        match (root, problems.as_slice()) {
+            (_, [(field, message)]) => return Err(invalid(field.clone(), message.clone())),
+            (Some(_), []) => {}
+            _ => return Err(invalid("joints".into(), crate::names::all(&problems))),
+        }
+        let root = root.expect("an unknown root is a problem above");
         let up = map.up_axis.turn();
         let mut rest = Vec::new();
         rig.link_poses(&rig.rest_pose(), &mut rest).map_err(|e| invalid(String::new(), e.to_string()))?;

@@ -47,6 +47,14 @@ pub struct RigOptions {
 }
 
 impl UpAxis {
+    /// As scene files spell it.
+    pub fn name(self) -> &'static str {
+        match self {
+            UpAxis::Z => "z",
+            UpAxis::Y => "y",
+        }
+    }
+
     /// The turn that takes this up axis to the world's Z.
     pub fn turn(self) -> UnitQuaternion<f64> {
         match self {

@@ -112,6 +112,86 @@ pub struct SceneRig {
     pub bodies: RigBodies,
     /// What moves it.
     pub motion: RigMotion,
+    /// The URDF file.
+    pub file: PathBuf,
+    /// The up axis and scale it was read with.
+    pub options: RigOptions,
+    /// The rig joints the motion drives (the others stay at rest), by name.
+    pub driven: Vec<String>,
+}
+
+/// What a scene's rig is, as `cloth validate` prints it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RigSummary {
+    /// The robot's name in the URDF.
+    pub name: String,
+    /// The URDF file.
+    pub file: PathBuf,
+    /// Links and joints.
+    pub links: usize,
+    /// Joints.
+    pub joints: usize,
+    /// The joints the motion drives.
+    pub driven: Vec<String>,
+    /// The character's extent at the start: along z (its height when it
+    /// stands) and the largest horizontal one, m.
+    pub height_m: f64,
+    /// See `height_m`.
+    pub length_m: f64,
+    /// The up axis and scale used.
+    pub options: RigOptions,
+}
+
+/// A standing character's height is within this range, m.
+pub const PLAUSIBLE_HEIGHT_M: [f64; 2] = [0.3, 3.0];
+
+impl std::fmt::Display for RigSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let driven = if self.driven.is_empty() { "none".to_string() } else { self.driven.join(", ") };
+        write!(
+            f,
+            "rig {:?} from {}: {} links, {} joints; {:.3} m tall, {:.3} m across at the start \
+             (up axis {}, scale {} m per unit); the motion drives {}",
+            self.name,
+            self.file.display(),
+            self.links,
+            self.joints,
+            self.height_m,
+            self.length_m,
+            self.options.up_axis.name(),
+            self.options.scale,
+            driven
+        )
+    }
+}
+
+impl RigSummary {
+    /// What looks wrong: a height outside [`PLAUSIBLE_HEIGHT_M`] (the scale),
+    /// or a character longer than tall (the up axis), each naming the key.
+    pub fn warnings(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        let [low, high] = PLAUSIBLE_HEIGHT_M;
+        if !(low..=high).contains(&self.height_m) {
+            out.push(format!(
+                "{}: the character is {:.2} m tall, outside {low}-{high} m: set rig.scale \
+                 (metres per URDF unit, now {})",
+                self.file.display(),
+                self.height_m,
+                self.options.scale
+            ));
+        }
+        if self.length_m > 1.5 * self.height_m {
+            out.push(format!(
+                "{}: the character is {:.2} m across and {:.2} m tall: it lies on its side; set rig.up_axis \
+                 (now \"{}\")",
+                self.file.display(),
+                self.length_m,
+                self.height_m,
+                self.options.up_axis.name()
+            ));
+        }
+        out
+    }
 }
 
 impl SceneRig {
@@ -129,6 +209,35 @@ impl SceneRig {
     /// The body of the link named `name`.
     pub fn body(&self, name: &str) -> Option<rapier3d_f64::prelude::RigidBodyHandle> {
         self.rig.link(name).map(|l| self.bodies.handles[l])
+    }
+
+    /// The name of the link whose body is `handle`.
+    pub fn link_of(&self, handle: rapier3d_f64::prelude::RigidBodyHandle) -> Option<&str> {
+        let k = self.bodies.handles.iter().position(|&h| h == handle)?;
+        Some(&self.rig.links[k].name)
+    }
+
+    /// The rig as it stands in `world` now (its links' colliders' bounds).
+    pub fn summary(&self, world: &PhysicsWorld) -> RigSummary {
+        let (mut lo, mut hi) = (nalgebra::Vector3::repeat(f64::INFINITY), nalgebra::Vector3::repeat(f64::NEG_INFINITY));
+        for &h in &self.bodies.handles {
+            for &c in world.bodies[h].colliders() {
+                let aabb = world.colliders[c].compute_aabb();
+                lo = lo.inf(&crate::convert::vec_from_rapier(aabb.mins));
+                hi = hi.sup(&crate::convert::vec_from_rapier(aabb.maxs));
+            }
+        }
+        let size = if lo.x.is_finite() { hi - lo } else { nalgebra::Vector3::zeros() };
+        RigSummary {
+            name: self.rig.name.clone(),
+            file: self.file.clone(),
+            links: self.rig.links.len(),
+            joints: self.rig.joints.len(),
+            driven: self.driven.clone(),
+            height_m: size.z,
+            length_m: size.x.max(size.y),
+            options: self.options,
+        }
     }
 }
 
@@ -151,8 +260,8 @@ impl RigSection {
             return Err((field("friction"), format!("must be finite and >= 0, got {}", self.friction)));
         }
         let urdf = base_dir.join(&self.urdf);
-        let rig = Rig::load(&urdf, RigOptions { up_axis: self.up_axis, scale: self.scale })
-            .map_err(|e| (field("urdf"), e.to_string()))?;
+        let options = RigOptions { up_axis: self.up_axis, scale: self.scale };
+        let rig = Rig::load(&urdf, options).map_err(|e| (field("urdf"), e.to_string()))?;
         let (clip, file) = match &self.motion {
             RigMotionSpec::Rest => (Clip { times_s: vec![0.0], poses: vec![rig.rest_pose()] }, urdf.clone()),
             RigMotionSpec::Keyframes { file } => {
@@ -180,9 +289,19 @@ impl RigSection {
                 rotation_from_degrees(self.rotation_deg),
             ),
         };
+        let driven = driven_joints(&clip, &rig);
         let motion = RigMotion::new(clip, &rig, playback, &file).map_err(|e| (field("motion"), e.to_string()))?;
         let bodies = RigBodies::insert(&rig, world, &motion.pose_at(0.0), self.friction, &urdf)
             .map_err(|e| (field("urdf"), e.to_string()))?;
-        Ok(SceneRig { rig, bodies, motion })
+        Ok(SceneRig { rig, bodies, motion, file: urdf, options, driven })
     }
+}
+
+/// The joints `clip` moves away from the rest pose at some key, by name.
+fn driven_joints(clip: &Clip, rig: &Rig) -> Vec<String> {
+    let rest = rig.rest_pose();
+    (rig.joints.iter().enumerate())
+        .filter(|(j, _)| clip.poses.iter().any(|p| p.joints[*j] != rest.joints[*j]))
+        .map(|(_, joint)| joint.name.clone())
+        .collect()
 }

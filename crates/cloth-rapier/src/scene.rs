@@ -345,14 +345,30 @@ impl CoupledScene {
         let takes_bodies = config.integrator.build().takes_bodies();
         self.check_coupling(takes_bodies)?;
         let mut builder = ClothBuilder::new(model.clone()).integrator(config.integrator).solver(config.solver);
+        let body_of = |name: &str| {
+            let scene_body = bodies.iter().find(|b| b.name == name).map(|b| b.handle);
+            scene_body.or_else(|| rig.as_ref().and_then(|r| r.body(name)))
+        };
+        // Every attachment naming no body, at once, with the nearest names.
+        let known: Vec<&str> = bodies
+            .iter()
+            .map(|b| b.name.as_str())
+            .chain(rig.iter().flat_map(|r| r.rig.links.iter().map(|l| l.name.as_str())))
+            .collect();
+        let unknown: Vec<(String, String)> = (self.attachments.iter().enumerate())
+            .filter(|(_, a)| body_of(&a.body).is_none())
+            .map(|(k, a)| {
+                (format!("attachments[{k}].body"), crate::names::unknown("body or rig link", &a.body, known.clone()))
+            })
+            .collect();
+        match unknown.as_slice() {
+            [] => {}
+            [(f, m)] => return Err(invalid(f.clone(), m.clone())),
+            _ => return Err(invalid("attachments".into(), crate::names::all(&unknown))),
+        }
         for (k, a) in self.attachments.iter().enumerate() {
             let field = |name: &str| format!("attachments[{k}].{name}");
-            let body = bodies
-                .iter()
-                .find(|b| b.name == a.body)
-                .map(|b| b.handle)
-                .or_else(|| rig.as_ref().and_then(|r| r.body(&a.body)))
-                .ok_or_else(|| invalid(field("body"), format!("no body or rig link named {:?}", a.body)))?;
+            let body = body_of(&a.body).expect("unknown bodies are refused above");
             let pins: Vec<usize> = (0..model.pins().len()).filter(|&p| model.pins()[p].spec == a.pins).collect();
             if pins.is_empty() {
                 return Err(invalid(field("pins"), format!("no [[pins]] entry {}", a.pins)));
@@ -515,6 +531,30 @@ fn add_body(
 }
 
 impl CoupledRun {
+    /// What looks wrong with the scene before its first step (a character
+    /// of an implausible height or lying on its side), each naming the
+    /// file and the key to set.
+    pub fn warnings(&self) -> Vec<String> {
+        self.rig.as_ref().map(|r| r.summary(&self.world).warnings()).unwrap_or_default()
+    }
+
+    /// A name for each of the cloth's solids, in the model's order: its
+    /// `[[bodies]]` name or rig link, or `colliders[k]` for the scene's own.
+    pub fn solid_names(&self) -> Vec<String> {
+        let cloth = &self.cloths[self.cloth];
+        let n = cloth.simulation().model().colliders().len();
+        let mut names: Vec<String> = (0..n).map(|k| format!("colliders[{k}]")).collect();
+        for s in cloth.world_solids() {
+            let Some(handle) = s.body else { continue };
+            let scene_body = self.bodies.iter().find(|b| b.handle == handle).map(|b| b.name.as_str());
+            let link = self.rig.as_ref().and_then(|r| r.link_of(handle));
+            if let (Some(name), Some(slot)) = (scene_body.or(link), names.get_mut(s.solid)) {
+                *slot = name.to_string();
+            }
+        }
+        names
+    }
+
     /// Steps cloth and bodies once with the scene's master.
     pub fn step(&mut self) -> Result<CouplingReport, CouplingError> {
         let master = self.master;

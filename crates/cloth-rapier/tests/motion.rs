@@ -183,6 +183,38 @@ fn a_bad_name_table_names_the_entry() {
     assert!(Clip::from_bvh(&bvh, &path, &rig, &map).unwrap_err().to_string().contains("root"));
 }
 
+/// Every wrong name of a table is reported at once, each with the names it
+/// resembles: a misspelt rig joint, a BVH joint that is not in the file,
+/// and the root.
+#[test]
+fn every_wrong_name_is_reported_at_once_with_the_nearest_names() {
+    let rig = mannequin();
+    let path = fixture("motions", "walk.bvh");
+    let bvh = Bvh::load(&path).unwrap();
+    let mut map = mannequin_map();
+    map.joints.remove("knee_l");
+    map.joints.insert("kne_l".into(), "LeftLeg".into());
+    map.joints.insert("hip_l".into(), "LeftUpperLeg".into());
+    map.root = "Hip".into();
+    let err = Clip::from_bvh(&bvh, &path, &rig, &map).unwrap_err();
+    let text = err.to_string();
+    println!("{text}");
+    assert!(matches!(&err, MotionError::Invalid { field, .. } if field == "joints"), "{err}");
+    assert!(text.starts_with(&path.display().to_string()), "names the file: {text}");
+    for part in [
+        "root: no BVH joint \"Hip\" (nearest: \"Hips\"",
+        "joints.kne_l: no rig joint \"kne_l\" (nearest: \"knee_l\"",
+        "joints.hip_l: no BVH joint \"LeftUpperLeg\" (nearest: \"LeftUpLeg\"",
+    ] {
+        assert!(text.contains(part), "{part} missing from {text}");
+    }
+    let keys = KEYS.replace("knee_l = 60", "kne_l = 60").replace("shoulder_l = [0.0, 0.0, 90.0]", "sholder_l = 4");
+    let err = Clip::parse_keyframes(&keys, Path::new("keys.toml"), &rig).unwrap_err().to_string();
+    println!("{err}");
+    assert!(err.contains("keys[1].joints.kne_l: no rig joint \"kne_l\" (nearest: \"knee_l\""), "{err}");
+    assert!(err.contains("keys[1].joints.sholder_l: no rig joint \"sholder_l\" (nearest: \"shoulder_l\""), "{err}");
+}
+
 const KEYS: &str = r#"
 [[keys]]
 time_s = 0.0
@@ -303,7 +335,7 @@ fn rig_scene_errors_name_the_field_and_the_file() {
         (text.clone(), &["rig.friction=nan"], "rig.friction"),
         (text.replace("knee_l = \"LeftLeg\"", "knee_l = \"LeftKnee\""), &[], "joints.knee_l"),
         (text.replace("walk.bvh", "missing.bvh"), &[], "missing.bvh"),
-        (text.replace("body = \"pelvis\"", "body = \"hips\""), &[], "no body or rig link named \"hips\""),
+        (text.replace("body = \"pelvis\"", "body = \"pelvs\""), &[], "attachments[0].body: no body or rig link \"pelvs\" (nearest: \"pelvis\""),
         (
             text.replace("[[attachments]]", "[[bodies]]\nname = \"pelvis\"\nkind = \"fixed\"\nshape = { kind = \"ball\", radius_m = 0.1 }\n\n[[attachments]]"),
             &[],
@@ -314,4 +346,36 @@ fn rig_scene_errors_name_the_field_and_the_file() {
         let err = build(&text, overrides).unwrap_err().to_string();
         assert!(err.contains(expected), "{err:?} should mention {expected:?}");
     }
+    // Two wrong attachments: both at once.
+    let twice = text.replace("body = \"pelvis\"", "body = \"pelvs\"\n\n[[attachments]]\npins = 0\nbody = \"torsoo\"");
+    let err = build(&twice, &[]).unwrap_err().to_string();
+    assert!(err.contains("attachments[0].body: no body or rig link \"pelvs\" (nearest: \"pelvis\""), "{err}");
+    assert!(err.contains("attachments[1].body: no body or rig link \"torsoo\" (nearest: \"torso\""), "{err}");
+}
+
+/// A character at the wrong scale, or read with the wrong up axis, gets a
+/// warning before the first step naming the file and the key to set; the
+/// rig's summary says what was read; each solid is named by its link.
+#[test]
+fn a_wrong_scale_or_up_axis_is_warned_about_by_key() {
+    let path = fixture("scenes", "skirt-walk.toml");
+    let build = |overrides: &[&str]| {
+        let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+        cloth_rapier::CoupledScene::load(&path, &overrides).unwrap().build().unwrap()
+    };
+    let run = build(&[]);
+    assert!(run.warnings().is_empty(), "{:?}", run.warnings());
+    let summary = run.rig.as_ref().unwrap().summary(&run.world);
+    println!("{summary}");
+    assert!((summary.height_m - 1.76).abs() < 0.01 && summary.links == 15, "{summary}");
+    assert!(summary.driven.iter().any(|j| j == "knee_l") && !summary.driven.iter().any(|j| j == "ankle_l"));
+    let names = run.solid_names();
+    assert!(names.iter().any(|n| n == "pelvis") && names.iter().any(|n| n == "shin_l"), "{names:?}");
+    let tall = build(&["rig.scale=4.0"]).warnings();
+    println!("{tall:?}");
+    assert!(tall.len() == 1 && tall[0].contains("mannequin.urdf") && tall[0].contains("rig.scale"), "{tall:?}");
+    let lying = build(&["rig.up_axis=\"y\""]).warnings();
+    println!("{lying:?}");
+    assert!(lying.len() == 1 && lying[0].contains("lies on its side") && lying[0].contains("rig.up_axis"));
+    assert!(build(&["rig.scale=0.1"]).warnings()[0].contains("0.18 m tall"));
 }
