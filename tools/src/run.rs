@@ -31,7 +31,8 @@ fn load(path: &Path, overrides: &[String]) -> Result<(Scene, ClothModel, RunConf
 /// A cloth alone, or a cloth coupled with rapier bodies (a scene with
 /// `[[bodies]]` or a `[rig]`).
 pub(crate) enum Runner {
-    Alone(Box<Simulation>),
+    /// A cloth alone, and what its scene allowed that looks wrong.
+    Alone(Box<Simulation>, Option<String>),
     Coupled(Box<CoupledRun>),
 }
 
@@ -41,7 +42,15 @@ impl Runner {
         let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
         if !has_bodies(&text) {
             let (scene, model, cfg) = load(path, overrides)?;
-            return Ok((scene, cfg, Runner::Alone(Box::new(cfg.simulation(model)))));
+            let sim = cfg.simulation(model);
+            let name = |k: usize| format!("colliders[{k}]");
+            let allowed = cloth_core::scene::check_start_outside(
+                &sim.particles_inside(|_, _| false),
+                scene.allows_start_inside(),
+                name,
+            )
+            .map_err(|kind| SceneError { file: path.into(), kind })?;
+            return Ok((scene, cfg, Runner::Alone(Box::new(sim), allowed)));
         }
         let coupled = CoupledScene::load(path, overrides)?;
         let run = coupled.build().map_err(|kind| SceneError { file: path.into(), kind })?;
@@ -51,7 +60,7 @@ impl Runner {
     /// What looks wrong before the first step (see [`CoupledRun::warnings`]).
     pub(crate) fn warnings(&self) -> Vec<String> {
         match self {
-            Runner::Alone(_) => Vec::new(),
+            Runner::Alone(_, allowed) => allowed.iter().cloned().collect(),
             Runner::Coupled(run) => run.warnings(),
         }
     }
@@ -59,14 +68,14 @@ impl Runner {
     /// A name for each of the cloth's solids (see [`CoupledRun::solid_names`]).
     pub(crate) fn solid_names(&self) -> Vec<String> {
         match self {
-            Runner::Alone(sim) => (0..sim.model().colliders().len()).map(|k| format!("colliders[{k}]")).collect(),
+            Runner::Alone(sim, _) => (0..sim.model().colliders().len()).map(|k| format!("colliders[{k}]")).collect(),
             Runner::Coupled(run) => run.solid_names(),
         }
     }
 
     pub(crate) fn sim(&self) -> &Simulation {
         match self {
-            Runner::Alone(sim) => sim,
+            Runner::Alone(sim, _) => sim,
             Runner::Coupled(run) => run.cloths[run.cloth].simulation(),
         }
     }
@@ -75,7 +84,7 @@ impl Runner {
     /// between steps; stepped only through [`Runner::step`].
     pub(crate) fn sim_mut(&mut self) -> &mut Simulation {
         match self {
-            Runner::Alone(sim) => sim,
+            Runner::Alone(sim, _) => sim,
             Runner::Coupled(run) => {
                 run.cloths.get_mut(run.cloth).expect("the scene's own cloth handle").simulation_mut()
             }
@@ -85,7 +94,7 @@ impl Runner {
     /// One step of `h` (a coupled run steps by its scene's step).
     pub(crate) fn step(&mut self, h: f64, totals: &mut CouplingTotals) -> Result<StepReport, String> {
         match self {
-            Runner::Alone(sim) => sim.step(h).map_err(|e| e.to_string()),
+            Runner::Alone(sim, _) => sim.step(h).map_err(|e| e.to_string()),
             Runner::Coupled(run) => {
                 let report = run.step().map_err(|e| e.to_string())?;
                 totals.add(&report);
@@ -194,7 +203,7 @@ pub(crate) fn simulate_steps(
     cfg.steps = max_steps.map_or(cfg.steps, |m| m.min(cfg.steps));
     let start_momentum = match &runner {
         Runner::Coupled(run) => Some(run.cloths.momentum(&run.world)),
-        Runner::Alone(_) => None,
+        Runner::Alone(..) => None,
     };
     let mut coupling = CouplingTotals::default();
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;

@@ -409,13 +409,22 @@ fn rigs_are_described_warned_about_and_their_solids_named() {
     assert!(ok.status.success());
     assert!(text.contains("rig's 15 links") && text.contains("1.760 m tall") && text.contains("up axis z"), "{text}");
     assert!(text.contains("the motion drives waist") && !text.contains("warning"), "{text}");
+    // At 4 m per unit the character is 7 m tall and the skirt starts
+    // inside its pelvis: an error naming the key, listing the particles.
     let tall = cloth().args(["validate", walk.to_str().unwrap(), "--set", "rig.scale=4.0"]).output().unwrap();
+    let err = String::from_utf8_lossy(&tall.stderr);
+    assert!(!tall.status.success() && err.contains("collision.allow_start_inside") && err.contains("\"pelvis\""));
+    let allow = ["--set", "collision.allow_start_inside=true"];
+    let tall =
+        cloth().args(["validate", walk.to_str().unwrap(), "--set", "rig.scale=4.0"]).args(allow).output().unwrap();
     let text = String::from_utf8_lossy(&tall.stdout);
     assert!(text.contains("warning") && text.contains("7.04 m tall") && text.contains("set rig.scale"), "{text}");
     let out = out_dir("rig-warning");
     let run = cloth()
         .args(["run", walk.to_str().unwrap(), "--quiet", "--frames", "1"])
-        .args(["--set", "rig.scale=4.0", "--set", "simulation.duration_s=0.02", "--out"])
+        .args(["--set", "rig.scale=4.0", "--set", "simulation.duration_s=0.02"])
+        .args(allow)
+        .arg("--out")
         .arg(&out)
         .output()
         .unwrap();
@@ -428,4 +437,26 @@ fn rigs_are_described_warned_about_and_their_solids_named() {
         serde_json::from_str(&std::fs::read_to_string(out.join("frames/solids.json")).unwrap()).unwrap();
     let names: Vec<&str> = solids["solids"].as_array().unwrap().iter().map(|s| s["name"].as_str().unwrap()).collect();
     assert!(names.contains(&"pelvis") && names.contains(&"foot_r"), "{names:?}");
+}
+
+/// Cloth that starts inside one of the scene's own solids stops `cloth
+/// validate` with an error naming the file, the key, the particles and
+/// the solid; allowed, it is a warning.
+#[test]
+fn cloth_starting_inside_a_collider_is_named() {
+    let drape = scene("drape-sphere.toml");
+    let through = ["--set", "colliders.0.position_m=[0.0, 0.0, 0.3]"];
+    let bad = cloth().args(["validate", drape.to_str().unwrap()]).args(through).output().unwrap();
+    assert!(!bad.status.success());
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(err.contains("drape-sphere.toml") && err.contains("collision.allow_start_inside"), "{err}");
+    assert!(err.contains("particle 840 in \"colliders[0]\" by 200.0 mm") && err.contains("402 particles"), "{err}");
+    let allowed = cloth()
+        .args(["validate", drape.to_str().unwrap()])
+        .args(through)
+        .args(["--set", "collision.allow_start_inside=true"])
+        .output()
+        .unwrap();
+    assert!(allowed.status.success());
+    assert!(String::from_utf8_lossy(&allowed.stdout).contains("warning: the cloth starts inside solids"));
 }

@@ -293,6 +293,15 @@ impl SolidShape {
         let pose = self.pose(body);
         let query = to_parry(p);
         let (proj, feature) = self.shape.project_point_and_get_feature(&pose, query);
+        if !proj.point.is_finite() {
+            // A query at a ball's centre (parry divides by its distance
+            // from it): every surface point is closest; take the one along
+            // the shape frame's +Z, at the depth the distance query gives.
+            let distance = self.shape.distance_to_point(&pose, query, false);
+            let normal = pose.rotation * Vector::Z;
+            let point = query - normal * distance;
+            return SurfacePoint { point: from_parry(point), normal: from_parry(normal), distance_m: distance };
+        }
         let diff = query - proj.point;
         let len = diff.length();
         let sign = if proj.is_inside { -1.0 } else { 1.0 };
@@ -388,6 +397,21 @@ mod tests {
             }
             assert_eq!(inward, 0, "{spec:?}: {inward} of {} faces wind inward", triangles.len());
         }
+    }
+
+    /// A point at a ball's very centre is inside by the radius, with a
+    /// unit normal and a surface point on the ball (parry's projection of
+    /// it divides by zero: it went through as NaN, and the point counted
+    /// as outside).
+    #[test]
+    fn the_centre_of_a_ball_is_inside_by_its_radius() {
+        let body = at(Vec3::new(0.2, -0.1, 0.4));
+        let c = sd(&ShapeSpec::Ball { radius_m: 0.08 }, &body, body.position);
+        assert_eq!(c.distance_m, -0.08);
+        assert!((c.normal.norm() - 1.0).abs() < 1e-15 && ((c.point - body.position).norm() - 0.08).abs() < 1e-15);
+        // A hair off the centre: the same depth, the normal along the offset.
+        let near = sd(&ShapeSpec::Ball { radius_m: 0.08 }, &body, body.position + Vec3::new(1e-9, 0.0, 0.0));
+        assert!((near.distance_m + 0.08).abs() < 2e-9 && near.normal.x > 0.999, "{near:?}");
     }
 
     #[test]

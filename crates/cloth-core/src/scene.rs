@@ -84,6 +84,7 @@
 //!
 //! [collision]                  # optional; cloth-solid contact settings
 //! thickness_m = 0.005          # distance kept from solid surfaces, m
+//! allow_start_inside = false   # cloth starting inside a solid: an error naming it
 //!
 //! [[colliders]]                # any number; none: no narrow phase runs
 //! shape = { kind = "ball", radius_m = 0.3 }
@@ -160,7 +161,56 @@ pub struct Scene {
 #[serde(deny_unknown_fields)]
 pub struct CollisionSection {
     /// Distance kept between particles and solid surfaces, m (default 0.005).
+    #[serde(default = "default_thickness")]
     pub thickness_m: f64,
+    /// Start even if some of the cloth is inside a solid (a warning lists
+    /// it); by default that is an error naming the particles and solids.
+    #[serde(default)]
+    pub allow_start_inside: bool,
+}
+
+fn default_thickness() -> f64 {
+    crate::colliders::DEFAULT_THICKNESS_M
+}
+
+/// Particles listed by name in a report of cloth inside solids; the rest are counted.
+const INSIDE_LISTED: usize = 5;
+
+/// `particle 12 in "thigh_l" by 13.2 mm, ...; 40 particles in all`: the
+/// deepest first. `name` names a solid by its index.
+pub fn describe_inside(inside: &[crate::contacts::Inside], name: impl Fn(usize) -> String) -> String {
+    let mut sorted = inside.to_vec();
+    sorted.sort_by(|a, b| b.depth_m.total_cmp(&a.depth_m).then(a.particle.cmp(&b.particle)));
+    let listed: Vec<String> = sorted
+        .iter()
+        .take(INSIDE_LISTED)
+        .map(|i| format!("particle {} in {:?} by {:.1} mm", i.particle, name(i.solid), i.depth_m * 1e3))
+        .collect();
+    format!("{}; {} particles in all", listed.join(", "), inside.len())
+}
+
+/// The check of a scene's start: cloth inside a solid is an error naming
+/// the particles and solids (field `collision.allow_start_inside`), or,
+/// when `allow`ed, a warning returned.
+pub fn check_start_outside(
+    inside: &[crate::contacts::Inside],
+    allow: bool,
+    name: impl Fn(usize) -> String,
+) -> Result<Option<String>, SceneErrorKind> {
+    if inside.is_empty() {
+        return Ok(None);
+    }
+    let what = describe_inside(inside, name);
+    if allow {
+        return Ok(Some(format!("the cloth starts inside solids: {what}")));
+    }
+    Err(SceneErrorKind::Invalid {
+        field: "collision.allow_start_inside".into(),
+        message: format!(
+            "the cloth starts inside solids: {what}; move the cloth or the solids (or the rig's settle pose), \
+             or set collision.allow_start_inside = true"
+        ),
+    })
 }
 
 /// An effect a scene can ask for.
@@ -309,6 +359,11 @@ impl EffectName {
 }
 
 impl Scene {
+    /// Whether `[collision] allow_start_inside` is set.
+    pub fn allows_start_inside(&self) -> bool {
+        self.collision.is_some_and(|c| c.allow_start_inside)
+    }
+
     /// Reads `path`, applies `overrides` (`a.b=value`, array elements by
     /// index: `panels.0.particles=[75, 75]`), parses and validates.
     pub fn load(path: &Path, overrides: &[String]) -> Result<Self, SceneError> {

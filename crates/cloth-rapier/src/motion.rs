@@ -273,6 +273,31 @@ impl Clip {
     }
 }
 
+/// The rest pose of `rig` with `values` (keyframe notation: degrees, or
+/// `[x, y, z]` degrees for ball joints) on the joints they name. Every
+/// unknown name and bad value is reported, as `(field, message)` with the
+/// field `joints.<name>`.
+pub fn joints_from_values(
+    rig: &Rig,
+    values: &BTreeMap<String, toml::Value>,
+) -> Result<Vec<JointValue>, Vec<(String, String)>> {
+    let mut joints = rig.rest_pose().joints;
+    let mut problems = Vec::new();
+    for (name, value) in values {
+        let field = format!("joints.{name}");
+        let Some(j) = rig.joint(name) else {
+            let names = rig.joints.iter().map(|j| j.name.as_str());
+            problems.push((field, crate::names::unknown("rig joint", name, names)));
+            continue;
+        };
+        match joint_value(rig.joints[j].kind, value) {
+            Ok(v) => joints[j] = v,
+            Err(m) => problems.push((field, m)),
+        }
+    }
+    if problems.is_empty() { Ok(joints) } else { Err(problems) }
+}
+
 /// The angle of `q`'s twist about `axis` (swing-twist decomposition), rad, in (-pi, pi].
 pub fn twist_angle(q: &UnitQuaternion<f64>, axis: &nalgebra::Unit<Vec3>) -> f64 {
     let along = q.imag().dot(axis);
@@ -432,6 +457,17 @@ impl RigMotion {
         Ok(Self { clip, playback, rest, cycle })
     }
 
+    /// Holds `joints` (one value per rig joint) instead of the rest pose
+    /// while settling and blends from them into the clip.
+    pub fn settling_at(mut self, joints: Vec<JointValue>) -> Result<Self, MotionError> {
+        if joints.len() != self.rest.joints.len() {
+            let message = format!("{} joint values for a rig of {}", joints.len(), self.rest.joints.len());
+            return Err(MotionError::Invalid { file: PathBuf::new(), field: "settle_pose".into(), message });
+        }
+        self.rest.joints = joints;
+        Ok(self)
+    }
+
     /// The clip.
     pub fn clip(&self) -> &Clip {
         &self.clip
@@ -442,8 +478,8 @@ impl RigMotion {
         &self.playback
     }
 
-    /// The pose at time `t`, s (from the start of the run): the rest pose
-    /// until `settle_s`; then the clip plays from its start, weighted
+    /// The pose at time `t`, s (from the start of the run): the settle pose
+    /// (the rest pose unless [`RigMotion::settling_at`]) until `settle_s`; then the clip plays from its start, weighted
     /// against the rest pose by a smoothstep that reaches the clip after
     /// `blend_s`, so every joint and the root start from rest with zero
     /// velocity and reach the clip's own velocity without a jump.
@@ -463,6 +499,9 @@ impl RigMotion {
         };
         if tau < blend_s {
             pose = blend(&self.rest, &pose, smoothstep(tau / blend_s));
+        } else if t < settle_s {
+            // No blend: the settle pose until the clip starts.
+            pose = self.rest.clone();
         }
         pose.root = placement * pose.root;
         pose

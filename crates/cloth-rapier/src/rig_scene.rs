@@ -9,7 +9,9 @@
 //! friction = 0.3                    # Coulomb coefficient, cloth on every link
 //! position_m = [0.0, 0.0, 0.0]      # where the character stands
 //! rotation_deg = [0.0, 0.0, 0.0]    # about x, then y, then z (fixed axes)
-//! settle_s = 0.5                    # at the rest pose first (the garment settles)
+//! settle_s = 0.5                    # at the settle pose first (the garment settles)
+//! settle_pose = "rest"              # or "first-frame" (the motion's first pose), or
+//!                                   # { joints = { elbow_l = 30.0, shoulder_l = [0.0, 0.0, -60.0] } }
 //! blend_s = 0.3                     # then blends into the motion's first pose
 //! looping = true                    # loop the motion, carrying the root's displacement
 //! motion = { kind = "bvh", file = "../motions/walk.bvh", root = "Hips",
@@ -22,7 +24,7 @@
 
 use crate::bvh::Bvh;
 use crate::character::RigBodies;
-use crate::motion::{BvhMap, Clip, Playback, RigMotion, unit_scale, y_up};
+use crate::motion::{BvhMap, Clip, Playback, RigMotion, joints_from_values, unit_scale, y_up};
 use crate::rig::{Rig, RigOptions, RigPose, UpAxis};
 use cloth_core::colliders::rotation_from_degrees;
 use nalgebra::{Isometry3, Translation3};
@@ -64,6 +66,38 @@ fn yes() -> bool {
     true
 }
 
+/// A named settle pose.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum SettlePoseName {
+    /// The URDF's zero joint values.
+    #[default]
+    Rest,
+    /// The motion's first pose.
+    FirstFrame,
+}
+
+/// The pose the character holds while the garment settles (`settle_s`),
+/// before it blends into the motion.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum SettlePose {
+    /// `"rest"` or `"first-frame"`.
+    Named(SettlePoseName),
+    /// `{ joints = { elbow_l = 30.0, shoulder_l = [0.0, 0.0, -60.0] } }`:
+    /// joint values over the rest pose, degrees, as in keyframe files.
+    Joints {
+        /// Rig joint -> value.
+        joints: BTreeMap<String, toml::Value>,
+    },
+}
+
+impl Default for SettlePose {
+    fn default() -> Self {
+        SettlePose::Named(SettlePoseName::Rest)
+    }
+}
+
 fn default_friction() -> f64 {
     0.3
 }
@@ -89,9 +123,12 @@ pub struct RigSection {
     /// Its heading: about x, then y, then z (fixed axes), degrees.
     #[serde(default)]
     pub rotation_deg: [f64; 3],
-    /// Time at rest before the motion, s.
+    /// Time at the settle pose before the motion, s.
     #[serde(default)]
     pub settle_s: f64,
+    /// The pose held while settling (default the rest pose).
+    #[serde(default)]
+    pub settle_pose: SettlePose,
     /// Time to blend into the motion, s.
     #[serde(default)]
     pub blend_s: f64,
@@ -290,7 +327,22 @@ impl RigSection {
             ),
         };
         let driven = driven_joints(&clip, &rig);
-        let motion = RigMotion::new(clip, &rig, playback, &file).map_err(|e| (field("motion"), e.to_string()))?;
+        let settle = match &self.settle_pose {
+            SettlePose::Named(SettlePoseName::Rest) => None,
+            SettlePose::Named(SettlePoseName::FirstFrame) => Some(clip.poses[0].joints.clone()),
+            SettlePose::Joints { joints } => Some(joints_from_values(&rig, joints).map_err(|problems| {
+                let problems: Vec<(String, String)> =
+                    problems.into_iter().map(|(f, m)| (format!("rig.settle_pose.{f}"), m)).collect();
+                match problems.as_slice() {
+                    [(f, m)] => (f.clone(), m.clone()),
+                    _ => (field("settle_pose.joints"), crate::names::all(&problems)),
+                }
+            })?),
+        };
+        let mut motion = RigMotion::new(clip, &rig, playback, &file).map_err(|e| (field("motion"), e.to_string()))?;
+        if let Some(joints) = settle {
+            motion = motion.settling_at(joints).map_err(|e| (field("settle_pose"), e.to_string()))?;
+        }
         let bodies = RigBodies::insert(&rig, world, &motion.pose_at(0.0), self.friction, &urdf)
             .map_err(|e| (field("urdf"), e.to_string()))?;
         Ok(SceneRig { rig, bodies, motion, file: urdf, options, driven })

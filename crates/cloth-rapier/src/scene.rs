@@ -49,7 +49,7 @@ use crate::coupling::{CouplingReport, IteratedCoupling, Master, MonolithicCoupli
 use crate::rig_scene::{RigSection, SceneRig};
 use cloth_collide::{BodyPose, ShapeSpec, SolidShape};
 use cloth_core::colliders::rotation_from_degrees;
-use cloth_core::scene::{RunConfig, Scene, SceneError, SceneErrorKind};
+use cloth_core::scene::{RunConfig, Scene, SceneError, SceneErrorKind, check_start_outside};
 use cloth_core::{PinMotion, Vec3};
 use cloth_cosim::Relaxation;
 use nalgebra::UnitQuaternion;
@@ -290,6 +290,8 @@ pub struct CoupledRun {
     pub master: Master,
     /// Time step, steps, integrator and solver.
     pub config: RunConfig,
+    /// What the scene allowed that looks wrong (cloth starting inside a solid).
+    allowed: Vec<String>,
 }
 
 impl std::fmt::Debug for CoupledRun {
@@ -394,7 +396,21 @@ impl CoupledScene {
             let own = cloths.get_mut(cloth).expect("just inserted").simulation_mut();
             own.restore(&jittered).map_err(|e| invalid("simulation.initial_jitter_m".into(), e.to_string()))?;
         }
-        Ok(CoupledRun { world, cloths, cloth, bodies, rig, master: self.coupling.master(takes_bodies), config })
+        let master = self.coupling.master(takes_bodies);
+        let mut run = CoupledRun { world, cloths, cloth, bodies, rig, master, config, allowed: Vec::new() };
+        let names = run.solid_names();
+        // A pin inside the body it is attached to is held there by design.
+        let c = &run.cloths[cloth];
+        let pin_body = |particle: usize| {
+            let pins = c.simulation().model().pins();
+            c.attachments().iter().find(|a| pins[a.pin].particle == particle).map(|a| a.body)
+        };
+        let solid_body = |solid: usize| c.world_solids().iter().find(|s| s.solid == solid).and_then(|s| s.body);
+        let held = |particle: usize, solid: usize| pin_body(particle).is_some_and(|b| solid_body(solid) == Some(b));
+        let inside = c.simulation().particles_inside(held);
+        let allow = self.scene.allows_start_inside();
+        run.allowed.extend(check_start_outside(&inside, allow, |k| names[k].clone())?);
+        Ok(run)
     }
 
     fn check_coupling(&self, takes_bodies: bool) -> Result<(), SceneErrorKind> {
@@ -532,10 +548,12 @@ fn add_body(
 
 impl CoupledRun {
     /// What looks wrong with the scene before its first step (a character
-    /// of an implausible height or lying on its side), each naming the
-    /// file and the key to set.
+    /// of an implausible height or lying on its side, cloth allowed to
+    /// start inside a solid), each naming the file or the key to set.
     pub fn warnings(&self) -> Vec<String> {
-        self.rig.as_ref().map(|r| r.summary(&self.world).warnings()).unwrap_or_default()
+        let mut out = self.rig.as_ref().map(|r| r.summary(&self.world).warnings()).unwrap_or_default();
+        out.extend(self.allowed.iter().cloned());
+        out
     }
 
     /// A name for each of the cloth's solids, in the model's order: its

@@ -497,3 +497,23 @@ fn body_damping_reaches_rapier_and_bad_values_are_named() {
         assert!(err.to_string().contains(field), "{overrides:?}: {err}");
     }
 }
+
+/// Cloth that starts inside a body is an error naming the particles, the
+/// body and the key that allows it; allowed, it is a warning.
+#[test]
+fn cloth_starting_inside_a_body_is_named() {
+    let through = ["bodies.0.position_m=[0.0, 0.0, 0.0]"];
+    let overrides: Vec<String> = through.iter().map(|s| s.to_string()).collect();
+    let err = CoupledScene::parse(&scene(""), &overrides).and_then(|s| s.build()).unwrap_err();
+    let text = err.to_string();
+    println!("{text}");
+    assert!(
+        matches!(&err, cloth_core::scene::SceneErrorKind::Invalid { field, .. } if field == "collision.allow_start_inside"),
+        "{text}"
+    );
+    // The centre particle (6, 6) is 8 cm deep in the ball.
+    assert!(text.contains("particle 84 in \"ball\" by 80.0 mm") && text.contains("particles in all"), "{text}");
+    let run = build(&scene(""), &[through[0], "collision.allow_start_inside=true"]);
+    let warnings = run.warnings();
+    assert!(warnings.len() == 1 && warnings[0].contains("particle 84 in \"ball\""), "{warnings:?}");
+}

@@ -371,11 +371,48 @@ fn a_wrong_scale_or_up_axis_is_warned_about_by_key() {
     assert!(summary.driven.iter().any(|j| j == "knee_l") && !summary.driven.iter().any(|j| j == "ankle_l"));
     let names = run.solid_names();
     assert!(names.iter().any(|n| n == "pelvis") && names.iter().any(|n| n == "shin_l"), "{names:?}");
-    let tall = build(&["rig.scale=4.0"]).warnings();
+    // The skirt then starts inside the character too: allowed here, and
+    // reported after the rig's warning.
+    let allow = "collision.allow_start_inside=true";
+    let tall = build(&["rig.scale=4.0", allow]).warnings();
     println!("{tall:?}");
-    assert!(tall.len() == 1 && tall[0].contains("mannequin.urdf") && tall[0].contains("rig.scale"), "{tall:?}");
-    let lying = build(&["rig.up_axis=\"y\""]).warnings();
+    assert!(tall.len() == 2 && tall[0].contains("mannequin.urdf") && tall[0].contains("rig.scale"), "{tall:?}");
+    assert!(tall[1].contains("starts inside") && tall[1].contains("in \"pelvis\""), "{tall:?}");
+    let lying = build(&["rig.up_axis=\"y\"", allow]).warnings();
     println!("{lying:?}");
-    assert!(lying.len() == 1 && lying[0].contains("lies on its side") && lying[0].contains("rig.up_axis"));
-    assert!(build(&["rig.scale=0.1"]).warnings()[0].contains("0.18 m tall"));
+    assert!(lying[0].contains("lies on its side") && lying[0].contains("rig.up_axis"), "{lying:?}");
+    assert!(build(&["rig.scale=0.1", allow]).warnings()[0].contains("0.18 m tall"));
+}
+
+/// The settle pose can be the motion's first frame or joint values over
+/// the rest pose; the character holds it until the motion blends in, and
+/// wrong joint names are reported with the nearest ones.
+#[test]
+fn a_settle_pose_is_held_before_the_motion() {
+    let path = fixture("scenes", "skirt-walk.toml");
+    let build = |overrides: &[&str]| {
+        let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+        cloth_rapier::CoupledScene::load(&path, &overrides)
+            .and_then(|s| s.build().map_err(|kind| cloth_core::scene::SceneError { file: path.clone(), kind }))
+    };
+    let run = build(&[]).unwrap();
+    let rig = run.rig.as_ref().unwrap();
+    let elbow = rig.rig.joint("elbow_l").unwrap();
+    assert_eq!(rig.pose_at(0.2).joints, rig.rig.rest_pose().joints, "rest by default");
+    let first = rig.motion.clip().poses[0].joints.clone();
+    let run = build(&["rig.settle_pose=\"first-frame\""]).unwrap();
+    assert_eq!(run.rig.as_ref().unwrap().pose_at(0.2).joints, first);
+    for blend in ["1.0", "0.0"] {
+        let run = build(&["rig.settle_pose={ joints = { elbow_l = 30.0 } }", &format!("rig.blend_s={blend}")]).unwrap();
+        let rig = run.rig.as_ref().unwrap();
+        assert_eq!(rig.pose_at(0.2).joints[elbow], JointValue::Angle(30f64.to_radians()), "blend {blend}");
+        let knee = rig.rig.joint("knee_l").unwrap();
+        assert_eq!(rig.pose_at(0.2).joints[knee], JointValue::Angle(0.0));
+    }
+    let err = build(&["rig.settle_pose={ joints = { elbw_l = 30.0, knee_l = [1.0, 2.0, 3.0] } }"]).unwrap_err();
+    let text = err.to_string();
+    println!("{text}");
+    assert!(text.contains("skirt-walk.toml") && text.contains("rig.settle_pose.joints"), "{text}");
+    assert!(text.contains("rig.settle_pose.joints.elbw_l: no rig joint \"elbw_l\" (nearest: \"elbow_l\""), "{text}");
+    assert!(text.contains("rig.settle_pose.joints.knee_l"), "{text}");
 }

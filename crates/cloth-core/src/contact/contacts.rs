@@ -36,6 +36,7 @@
 // What a user of the library sees: the contacts a step reports, the
 // counters, and the contact laws.
 pub use super::contact_laws::*;
+pub use super::projection::Inside;
 pub use super::self_collision::MIN_SELF_GAP;
 pub use super::types::{ContactStats, FrictionMode, SelfContact, SolidContact};
 

@@ -151,6 +151,41 @@ pub(crate) fn collide_after_step(
     stats
 }
 
+/// A particle inside a solid.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Inside {
+    /// The particle.
+    pub particle: usize,
+    /// The solid it is deepest in (index among the model's colliders).
+    pub solid: usize,
+    /// How deep, m (> 0).
+    pub depth_m: f64,
+}
+
+/// Every particle at positions `x` that is inside a solid at time `t`,
+/// with the solid it is deepest in, in particle order (see
+/// [`max_penetration`] for where the solids are); pairs `(particle,
+/// solid)` that `held` says hold each other (a pin attached to that
+/// solid's body) are left out.
+pub(crate) fn particles_inside(
+    model: &ClothModel,
+    control: &Control,
+    (x, t): (&[Vec3], f64),
+    held: impl Fn(usize, usize) -> bool,
+) -> Vec<Inside> {
+    let mut deepest: Vec<Option<Inside>> = vec![None; x.len()];
+    let mut frames = SolidFrames::default();
+    for (solid, (c, s)) in model.colliders().iter().zip(frames.at(model, control.solid_motions(), t)).enumerate() {
+        for (particle, p) in x.iter().enumerate().filter(|(i, p)| s.near(p, 0.0) && !held(*i, solid)) {
+            let depth_m = -c.shape.closest(s.pose(), *p).distance_m;
+            if depth_m > 0.0 && deepest[particle].is_none_or(|d| depth_m > d.depth_m) {
+                deepest[particle] = Some(Inside { particle, solid, depth_m });
+            }
+        }
+    }
+    deepest.into_iter().flatten().collect()
+}
+
 /// Deepest any particle at positions `x` is inside a solid at time `t`, m
 /// (0 when none is inside), with externally driven solids where `control`
 /// puts them. A diagnostic: it queries every particle near every solid.

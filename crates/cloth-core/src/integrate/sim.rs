@@ -1,7 +1,7 @@
 //! A simulation: an immutable model, the explicit state, an integrator and
 //! its scratch space.
 
-use crate::contacts::max_penetration;
+use crate::contacts::{max_penetration, particles_inside};
 use crate::control::{Control, ControlError, SolidImpulse, SolidMotion};
 use crate::{ClothModel, ClothState, Integrator, IntegratorKind, SolverParams, StepError, StepReport, Vec3, Workspace};
 use std::sync::Arc;
@@ -267,6 +267,14 @@ impl Simulation {
     /// external solids where the control put them.
     pub fn max_penetration(&self) -> f64 {
         max_penetration(&self.model, &self.control, &self.state.x, self.state.time_s)
+    }
+
+    /// Every particle inside a solid now, with the solid it is deepest in,
+    /// in particle order (external solids where the control put them),
+    /// but for the pairs `(particle, solid)` that `held` names (a pin
+    /// inside the body that holds it).
+    pub fn particles_inside(&self, held: impl Fn(usize, usize) -> bool) -> Vec<crate::contacts::Inside> {
+        particles_inside(&self.model, &self.control, (&self.state.x, self.state.time_s), held)
     }
 
     /// Where solid `index` is now: on its scene path, or, driven from
