@@ -174,7 +174,7 @@ pub fn table1(args: &BenchArgs) -> Result<()> {
     let mut rows = Vec::new();
     for garment in &GARMENTS {
         let paper: Vec<PaperRow> = garment.paper.iter().map(|&k| PAPER[k]).collect();
-        let measured = measure(Path::new(garment.scene), garment.overrides, args)?;
+        let measured = measure(&cloth_tools::in_checkout(garment.scene), garment.overrides, args)?;
         let speedup = match measured.cpu_s_per_frame {
             Some(ours) => paper.iter().map(|p| p.cpu_s_per_frame / ours).collect(),
             None => vec![],

@@ -3,26 +3,38 @@
 use anyhow::{Context, Result, bail};
 use std::path::{Path, PathBuf};
 
-/// The FMU's shared library: `library` when given, else the newer
-/// `libcloth_fmu.so` beside this executable or in its `deps/`.
+/// The FMU's shared library: `library` when given, else
+/// `CLOTH_FMU_LIBRARY`, else the newest `libcloth_fmu.so` beside this
+/// executable, in its `deps/`, or in the release build of the checkout it
+/// was built from (`cargo install --path tools` installs the executable
+/// alone).
 fn find_library(library: Option<&Path>) -> Result<PathBuf> {
     if let Some(path) = library {
         return Ok(path.to_path_buf());
     }
+    if let Some(path) = std::env::var_os("CLOTH_FMU_LIBRARY") {
+        return Ok(PathBuf::from(path));
+    }
     let exe = std::env::current_exe().context("locating the cloth executable")?;
     let dir = exe.parent().context("the cloth executable has no directory")?;
     let name = format!("lib{}.so", cloth_fmu::MODEL_IDENTIFIER);
+    let checkout = Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/release");
     // Building cloth-fmu on its own leaves one copy beside the executable,
-    // building the tools another in deps/: take the newer.
+    // building the tools another in deps/: take the newest.
     let modified = |p: &PathBuf| std::fs::metadata(p).and_then(|m| m.modified()).ok();
-    let newest = [dir.join(&name), dir.join("deps").join(&name)]
+    let newest = [dir.join(&name), dir.join("deps").join(&name), checkout.join(&name)]
         .into_iter()
         .filter_map(|p| modified(&p).map(|t| (t, p)))
         .max_by_key(|(t, _)| *t);
     if let Some((_, path)) = newest {
         return Ok(path);
     }
-    bail!("no {name} beside {}: build it with `cargo build --release -p cloth-fmu`, or give --library", exe.display())
+    bail!(
+        "no {name} beside {} or in {}: build it with `cargo build --release -p cloth-fmu`, \
+         or give --library (or CLOTH_FMU_LIBRARY)",
+        exe.display(),
+        checkout.display()
+    )
 }
 
 /// Writes the FMU of `scene` (with `overrides`) to `out`.

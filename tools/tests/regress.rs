@@ -140,3 +140,13 @@ fn a_new_case_and_a_broken_scene_fail_the_run() {
     assert!(out.contains("| table1-skirt | - | - | - | FAILED |"), "{out}");
     assert!(err.contains("4 of 5 cases did not run"), "{err}");
 }
+
+/// Outside the checkout (an installed `cloth`), the default fixtures are
+/// the checkout's the binary was built from.
+#[test]
+fn regress_finds_the_fixtures_from_anywhere() {
+    let elsewhere = std::env::temp_dir();
+    let o = cloth().current_dir(&elsewhere).args(["regress", "--only", "freefall"]).output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("| freefall |") && stdout(&o).contains("| same |"), "{}", stdout(&o));
+}

@@ -7,7 +7,6 @@ use crate::svg::{Axes, Series, line_plot};
 use anyhow::{Context, Result};
 use cloth_tools::table::CsvTable;
 use std::fmt::Write as _;
-use std::path::PathBuf;
 
 /// Cost and CG iterations per step of the implicit step (BDF2, the
 /// multigrid PCG) against the particle count, on the hanging cloth and the
@@ -32,7 +31,7 @@ pub fn scaling(args: &StudyArgs) -> Result<()> {
     );
     let (mut cost_series, mut cg_series, mut slopes) = (Vec::new(), Vec::new(), Vec::new());
     for (name, pins, duration) in scenes {
-        let scene = PathBuf::from(format!("fixtures/scenes/{name}.toml"));
+        let scene = cloth_tools::in_checkout(format!("fixtures/scenes/{name}.toml"));
         let (mut cost, mut cg, mut log_points) = (Vec::new(), Vec::new(), Vec::new());
         for &n in sizes {
             let mut o = grid(n, pins);
@@ -176,7 +175,7 @@ pub fn cosim(args: &StudyArgs) -> Result<()> {
 pub fn bending(args: &StudyArgs) -> Result<()> {
     use cloth_core::reference::CantileverStrip;
     let pool = setup(args)?;
-    let scene = PathBuf::from("fixtures/scenes/cantilever.toml");
+    let scene = cloth_tools::in_checkout("fixtures/scenes/cantilever.toml");
     // Model names as the table shows them, with the overrides that select them.
     let models: &[(&str, &[&str])] = if args.quick {
         &[("volino", &["simulation.model=\"volino\""])]
@@ -308,7 +307,7 @@ pub fn large_steps(args: &StudyArgs) -> Result<()> {
          Newton corrections / step | CG / step | wall (s) |\n|---|---|---|---|---|---|---|---|---|\n",
     );
     for (name, overrides) in &scenes {
-        let scene = PathBuf::from(format!("fixtures/scenes/{name}.toml"));
+        let scene = cloth_tools::in_checkout(format!("fixtures/scenes/{name}.toml"));
         let mut reference: Option<Vec<cloth_core::Vec3>> = None;
         for &h in steps {
             for &newton in newtons {

@@ -9,7 +9,6 @@ use anyhow::Result;
 use cloth_core::{ClothModel, Vec3};
 use cloth_tools::table::CsvTable;
 use std::fmt::Write as _;
-use std::path::PathBuf;
 
 /// One scene of the study: its file and overrides, simulated for 1 s.
 struct Case {
@@ -107,13 +106,13 @@ impl Outcome {
 /// positions and its mean tensile strain over the steps.
 fn reference(case: &Case, pool: &rayon::ThreadPool) -> Result<(Vec<Vec3>, f64)> {
     let all: Vec<String> = case.overrides.iter().cloned().chain(reference_overrides()).collect();
-    let (_, sim, strain) = strained_run(&PathBuf::from(case.scene), &all, pool)?;
+    let (_, sim, strain) = strained_run(&cloth_tools::in_checkout(case.scene), &all, pool)?;
     Ok((sim.state().x.clone(), strain))
 }
 
 fn run(case: &Case, method: &[String], reference: &(Vec<Vec3>, f64), pool: &rayon::ThreadPool) -> Result<Outcome> {
     let overrides: Vec<String> = case.overrides.iter().cloned().chain(method.iter().cloned()).collect();
-    let (r, sim, strain) = strained_run(&PathBuf::from(case.scene), &overrides, pool)?;
+    let (r, sim, strain) = strained_run(&cloth_tools::in_checkout(case.scene), &overrides, pool)?;
     Ok(Outcome {
         error: if r.stable { rms(&sim.state().x, &reference.0) } else { f64::NAN },
         cpu_s: r.cpu_s,

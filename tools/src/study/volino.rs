@@ -10,7 +10,7 @@ use crate::svg::{Axes, Series, line_plot};
 use anyhow::Result;
 use cloth_tools::table::CsvTable;
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// Exact time to fall 1 m at g = 10 m/s^2.
 const EXACT_FALL_S: f64 = 0.447_213_595_499_958;
@@ -75,7 +75,7 @@ fn accurate(rel_error: Option<f64>) -> bool {
 /// Volino's free-fall test: fall time against the condition coefficient
 /// `K = E d^-1 l^-2 h^2`, per method and model.
 pub fn freefall(args: &StudyArgs) -> Result<()> {
-    let scene = PathBuf::from("fixtures/scenes/freefall.toml");
+    let scene = cloth_tools::in_checkout("fixtures/scenes/freefall.toml");
     let pool = setup(args)?;
     let ks: Vec<f64> = if args.quick {
         vec![0.5, 64.0]
@@ -187,7 +187,7 @@ pub fn freefall(args: &StudyArgs) -> Result<()> {
 /// vertical; steps, CG iterations and wall time until it first gets there,
 /// against the step size, per method.
 pub fn drape(args: &StudyArgs) -> Result<()> {
-    let scene = PathBuf::from("fixtures/scenes/drape-edge.toml");
+    let scene = cloth_tools::in_checkout("fixtures/scenes/drape-edge.toml");
     let pool = setup(args)?;
     let n = if args.quick { 26 } else { 101 };
     let implicit_h = [0.0005, 0.001, 0.002, 0.005, 0.01, 0.02, 0.05];
@@ -279,7 +279,7 @@ pub fn drape(args: &StudyArgs) -> Result<()> {
 /// Cost per polygon per step of every method and model across grid sizes
 /// (Volino's Fig. 1 table); backward Euler also per CG iteration.
 pub fn cost(args: &StudyArgs) -> Result<()> {
-    let scene = PathBuf::from("fixtures/scenes/hang.toml");
+    let scene = cloth_tools::in_checkout("fixtures/scenes/hang.toml");
     let pool = setup(args)?;
     let sizes: &[usize] = if args.quick { &[11, 21] } else { &[21, 41, 61, 81] };
     let models: &[&str] = &["choi-ko", "provot", "volino"];
@@ -380,7 +380,7 @@ pub fn cost(args: &StudyArgs) -> Result<()> {
 /// Work-precision: RMS position error after 1 s of the swinging hanging
 /// cloth against a converged reference, versus wall time, per method.
 pub fn precision(args: &StudyArgs) -> Result<()> {
-    let scene = PathBuf::from("fixtures/scenes/hang.toml");
+    let scene = cloth_tools::in_checkout("fixtures/scenes/hang.toml");
     let pool = setup(args)?;
     let n = if args.quick { 11 } else { 21 };
     let base = |extra: &[String]| -> Vec<String> {
