@@ -14,7 +14,7 @@
 
 use crate::run::{CouplingTotals, Runner, solid_meshes_json, solid_poses};
 use crate::view::{read_request, respond};
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use cloth_core::wind::WindProfile;
 use cloth_core::{ControlError, Simulation, Vec3};
 use std::io::Write;
@@ -92,7 +92,11 @@ pub fn live(scene: &Path, overrides: &[String], port: u16, seconds: Option<f64>,
     listener.set_nonblocking(true)?;
     loop {
         if deadline.is_some_and(|d| Instant::now() >= d) {
-            return Ok(());
+            // A run that stopped on an error ends the command with it.
+            return match shared.lock().ok().and_then(|s| s.error.clone()) {
+                Some(error) => bail!("{}: the run stopped at {error}", scene.display()),
+                None => Ok(()),
+            };
         }
         match listener.accept() {
             Ok((stream, _)) => {
@@ -121,6 +125,7 @@ fn simulate(mut runner: Runner, h: f64, external_wind: bool, shared: &Mutex<Shar
     loop {
         let Ok((wind, holds)) = shared.lock().map(|s| (s.wind_requested, s.holds_requested.clone())) else { return };
         if let Err(e) = apply_inputs(runner.sim_mut(), external_wind.then_some(wind), &holds) {
+            eprintln!("the run stopped: {e}; the page shows its last state");
             if let Ok(mut s) = shared.lock() {
                 s.error = Some(e.to_string());
             }
@@ -131,7 +136,9 @@ fn simulate(mut runner: Runner, h: f64, external_wind: bool, shared: &Mutex<Shar
         let wall = start.elapsed().as_secs_f64();
         let Ok(mut s) = shared.lock() else { return };
         if let Err(e) = result {
-            s.error = Some(format!("t = {:.4} s: {e}", sim.time()));
+            let message = format!("t = {:.4} s: {e}", sim.time());
+            eprintln!("the run stopped at {message}; the page shows its last state");
+            s.error = Some(message);
             return;
         }
         s.positions = flat(sim);
@@ -262,6 +269,11 @@ fn serve(
                 .to_string()
             };
             respond(&mut stream, "200 OK", "application/json", body.as_bytes())
+        }
+        "/wind" | "/hold" | "/release" if let Some(error) = lock()?.error.clone() => {
+            // Inputs to a run that has stopped change nothing: say so.
+            let body = format!("the run stopped at {error}\n");
+            respond(&mut stream, "409 Conflict", "text/plain", body.as_bytes())
         }
         "/wind" if !external_wind => respond(
             &mut stream,

@@ -203,6 +203,51 @@ fn a_wind_set_live_blows_the_flag() {
     assert_eq!(live_state_after(&server, 0.0)["wind_m_s"], serde_json::json!([0.0, 8.0, 0.0]));
 }
 
+/// A live run that blows up stops with its error in the state the page
+/// polls, and refuses the page's inputs after it with that error, instead
+/// of answering as if it ran on.
+#[test]
+fn a_live_run_that_blows_up_says_so() {
+    let explicit = ["--set", "simulation.integrator=\"symplectic-euler\"", "--set", "simulation.dt_s=0.02"];
+    let server = live("flag.toml", &[&FLAG_LIVE[..], &explicit[..]].concat());
+    let started = std::time::Instant::now();
+    let state = loop {
+        let (_, body) = server.request("GET", "/live.json");
+        let state: serde_json::Value = serde_json::from_slice(&body).unwrap();
+        if !state["error"].is_null() {
+            break state;
+        }
+        assert!(started.elapsed().as_secs() < 60, "the explicit step did not blow up");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    let error = state["error"].as_str().unwrap();
+    assert!(error.contains("blown up") && error.contains("t = "), "{error}");
+    for path in ["/wind?x=0&y=1&z=0", "/hold?particle=40&x=0&y=0&z=1", "/release"] {
+        let (status, body) = server.request("GET", path);
+        let text = String::from_utf8_lossy(&body);
+        assert_eq!(status, 409, "{path}: {text}");
+        assert!(text.contains("the run stopped at t = "), "{path}: {text}");
+    }
+}
+
+/// ... and `cloth live --seconds` ends with that error, not exit 0.
+#[test]
+fn a_live_run_that_blew_up_exits_with_its_error() {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenes/flag.toml");
+    let explicit = ["--set", "simulation.integrator=\"symplectic-euler\"", "--set", "simulation.dt_s=0.02"];
+    let out = cloth()
+        .arg("live")
+        .arg(&scene)
+        .args(FLAG_LIVE)
+        .args(explicit)
+        .args(["--port", "0", "--seconds", "1"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(err.contains("flag.toml: the run stopped at t = ") && err.contains("blown up"), "{err}");
+}
+
 #[test]
 fn live_refuses_a_wind_it_cannot_set() {
     // A scene whose wind is not external: no wind control.
@@ -238,6 +283,8 @@ fn chromium_sets_the_wind_live_and_draws_the_flag() {
     let title = server.title_in_chromium(&chromium, "check&wind=0,8,0");
     println!("{title}");
     assert!(title.contains("; wind 0,8,0;"), "{title}");
+    // The wind pad keeps its own 90 px: it does not cover the view.
+    assert!(title.ends_with("; pad 90x90"), "{title}");
     let cloth: f64 =
         title.split("cloth ").nth(1).and_then(|t| t.split(';').next()).and_then(|n| n.parse().ok()).unwrap_or(0.0);
     assert!(cloth > 1000.0, "{title}");
