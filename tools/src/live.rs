@@ -47,6 +47,12 @@ struct Shared {
     holds_applied: Vec<(usize, [f64; 3], [f64; 3])>,
     /// Why the simulation stopped, if it did.
     error: Option<String>,
+    /// The page paused the run (it then steps only on `/step`).
+    paused: bool,
+    /// Steps the page asked for while paused, not yet taken.
+    steps_requested: u64,
+    /// The page asked to go back to the start.
+    reset_requested: bool,
 }
 
 /// Runs `scene` live and serves it on 127.0.0.1:`port`.
@@ -74,6 +80,9 @@ pub fn live(scene: &Path, overrides: &[String], port: u16, seconds: Option<f64>,
         holds_requested: Vec::new(),
         holds_applied: Vec::new(),
         error: None,
+        paused: false,
+        steps_requested: 0,
+        reset_requested: false,
     }));
     // Read by every connection's thread, never changed.
     let pinned: Arc<[bool]> = (0..sim.model().particle_count()).map(|i| sim.model().is_pinned(i)).collect();
@@ -118,12 +127,42 @@ fn flat(sim: &Simulation) -> Vec<f64> {
 }
 
 /// Steps `sim` by `h` for ever, never ahead of the wall clock, publishing
-/// each state; stops at the first step error (published).
+/// each state; paused, it steps only when the page asks, and a reset puts
+/// it back at its start (the page's holds let go). Stops at the first step
+/// error (published).
 fn simulate(mut runner: Runner, h: f64, external_wind: bool, shared: &Mutex<Shared>) {
-    let start = Instant::now();
+    let initial = runner.snapshot();
+    // The wall-clock instant of simulated time 0, moved on by pauses.
+    let mut start = Instant::now();
     let mut coupling = CouplingTotals::default();
+    let mut was_paused = false;
     loop {
-        let Ok((wind, holds)) = shared.lock().map(|s| (s.wind_requested, s.holds_requested.clone())) else { return };
+        let Ok(mut s) = shared.lock() else { return };
+        if was_paused && !s.paused {
+            // Resumed: real time goes on from where the run is.
+            start = Instant::now() - Duration::from_secs_f64(runner.sim().time());
+        }
+        was_paused = s.paused;
+        if std::mem::take(&mut s.reset_requested) {
+            if let Err(e) = runner.restore(&initial) {
+                s.error = Some(format!("reset: {e}"));
+                return;
+            }
+            s.holds_requested.clear();
+            publish(&mut s, &runner, external_wind, &[], 0.0);
+            start = Instant::now();
+            continue;
+        }
+        if s.paused {
+            if s.steps_requested == 0 {
+                drop(s);
+                std::thread::sleep(Duration::from_millis(10));
+                continue;
+            }
+            s.steps_requested -= 1;
+        }
+        let (paused, wind, holds) = (s.paused, s.wind_requested, s.holds_requested.clone());
+        drop(s);
         if let Err(e) = apply_inputs(runner.sim_mut(), external_wind.then_some(wind), &holds) {
             eprintln!("the run stopped: {e}; the page shows its last state");
             if let Ok(mut s) = shared.lock() {
@@ -141,19 +180,29 @@ fn simulate(mut runner: Runner, h: f64, external_wind: bool, shared: &Mutex<Shar
             s.error = Some(message);
             return;
         }
-        s.positions = flat(sim);
-        (s.time_s, s.steps, s.rate) = (sim.time(), sim.state().steps, sim.time() / wall.max(1e-9));
-        s.wind_applied = if external_wind { wind } else { [0.0; 3] };
-        s.poses = solid_poses(sim);
-        s.holds_applied =
-            holds.iter().map(|&(i, target)| (i, target, sim.hold_reaction(i).unwrap_or_default().into())).collect();
+        let wind = if external_wind { wind } else { [0.0; 3] };
+        publish(&mut s, &runner, external_wind, &holds, sim.time() / wall.max(1e-9));
+        s.wind_applied = wind;
         drop(s);
         // Real time at most: wait until the wall clock reaches the cloth.
         let ahead = sim.time() - start.elapsed().as_secs_f64();
-        if ahead > 0.0 {
+        if ahead > 0.0 && !paused {
             std::thread::sleep(Duration::from_secs_f64(ahead));
         }
     }
+}
+
+/// Publishes the run's state (positions, time, solids, holds) for the page.
+fn publish(s: &mut Shared, runner: &Runner, external_wind: bool, holds: &[(usize, [f64; 3])], rate: f64) {
+    let sim = runner.sim();
+    s.positions = flat(sim);
+    (s.time_s, s.steps, s.rate) = (sim.time(), sim.state().steps, rate);
+    if !external_wind {
+        s.wind_applied = [0.0; 3];
+    }
+    s.poses = solid_poses(sim);
+    s.holds_applied =
+        holds.iter().map(|&(i, target)| (i, target, sim.hold_reaction(i).unwrap_or_default().into())).collect();
 }
 
 /// Sets the page's wind (when the scene's is external) and makes the held
@@ -265,12 +314,15 @@ fn serve(
                     "poses": s.poses,
                     "holds": holds,
                     "error": s.error,
+                    "paused": s.paused,
                 })
                 .to_string()
             };
             respond(&mut stream, "200 OK", "application/json", body.as_bytes())
         }
-        "/wind" | "/hold" | "/release" if let Some(error) = lock()?.error.clone() => {
+        "/wind" | "/hold" | "/release" | "/pause" | "/resume" | "/step" | "/reset"
+            if let Some(error) = lock()?.error.clone() =>
+        {
             // Inputs to a run that has stopped change nothing: say so.
             let body = format!("the run stopped at {error}\n");
             respond(&mut stream, "409 Conflict", "text/plain", body.as_bytes())
@@ -320,6 +372,22 @@ fn serve(
             let released = before - s.holds_requested.len();
             drop(s);
             let body = serde_json::json!({ "released": released }).to_string();
+            respond(&mut stream, "200 OK", "application/json", body.as_bytes())
+        }
+        "/pause" | "/resume" | "/step" | "/reset" => {
+            let mut s = lock()?;
+            match path {
+                "/pause" => s.paused = true,
+                "/resume" => (s.paused, s.steps_requested) = (false, 0),
+                "/step" if !s.paused => {
+                    drop(s);
+                    return respond(&mut stream, "409 Conflict", "text/plain", b"running: pause first\n");
+                }
+                "/step" => s.steps_requested += 1,
+                _ => s.reset_requested = true,
+            }
+            let body = serde_json::json!({ "paused": s.paused, "steps_requested": s.steps_requested }).to_string();
+            drop(s);
             respond(&mut stream, "200 OK", "application/json", body.as_bytes())
         }
         _ => respond(&mut stream, "404 Not Found", "text/plain", b"not found\n"),

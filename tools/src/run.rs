@@ -36,6 +36,12 @@ pub(crate) enum Runner {
     Coupled(Box<CoupledRun>),
 }
 
+/// A saved [`Runner`].
+pub(crate) enum RunnerState {
+    Alone(cloth_core::ClothState),
+    Coupled(Box<cloth_rapier::cloth_set::CoupledSnapshot>),
+}
+
 impl Runner {
     /// Loads `path`: with `[[bodies]]` a coupled run, else a cloth alone.
     pub(crate) fn load(path: &Path, overrides: &[String]) -> Result<(Scene, RunConfig, Runner)> {
@@ -77,6 +83,26 @@ impl Runner {
         match self {
             Runner::Alone(sim, _) => sim,
             Runner::Coupled(run) => run.cloths[run.cloth].simulation(),
+        }
+    }
+
+    /// Where the run is now, to come back to ([`Runner::restore`]).
+    pub(crate) fn snapshot(&self) -> RunnerState {
+        match self {
+            Runner::Alone(sim, _) => RunnerState::Alone(sim.snapshot()),
+            Runner::Coupled(run) => RunnerState::Coupled(Box::new(run.cloths.save(&run.world))),
+        }
+    }
+
+    /// Puts the run back where [`Runner::snapshot`] took it.
+    pub(crate) fn restore(&mut self, state: &RunnerState) -> std::result::Result<(), String> {
+        match (self, state) {
+            (Runner::Alone(sim, _), RunnerState::Alone(s)) => sim.restore(s).map_err(|e| e.to_string()),
+            (Runner::Coupled(run), RunnerState::Coupled(s)) => {
+                let run = &mut **run;
+                run.cloths.restore(s, &mut run.world).map_err(|e| e.to_string())
+            }
+            _ => Err("a snapshot of another kind of run".into()),
         }
     }
 

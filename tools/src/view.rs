@@ -160,9 +160,14 @@ pub fn view(out: &Path, port: u16, seconds: Option<f64>) -> Result<()> {
         match listener.accept() {
             Ok((mut stream, _)) => {
                 stream.set_nonblocking(false)?;
-                if let Err(e) = serve(&mut stream, out) {
-                    eprintln!("request failed: {e}");
-                }
+                // One thread a connection: a client holding an idle
+                // connection open stalls only itself.
+                let out = out.to_path_buf();
+                std::thread::spawn(move || {
+                    if let Err(e) = serve(&mut stream, &out) {
+                        eprintln!("request failed: {e}");
+                    }
+                });
             }
             Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => std::thread::sleep(Duration::from_millis(10)),
             Err(e) => return Err(e.into()),

@@ -105,6 +105,22 @@ fn the_server_answers_the_page_and_refuses_the_rest() {
     assert_eq!(server.request("POST", "/run.json").0, 405);
 }
 
+/// A client holding an idle connection open does not stall the others:
+/// with one open and silent, requests are answered at once (before, the
+/// server waited out the idle one's 5 s read timeout).
+#[test]
+fn an_idle_connection_does_not_stall_the_server() {
+    let out = drape_run("idle");
+    let server = Server::start(&out);
+    let _idle = TcpStream::connect(&server.address).unwrap();
+    let started = std::time::Instant::now();
+    for _ in 0..3 {
+        assert_eq!(server.request("GET", "/run.json").0, 200);
+    }
+    let waited = started.elapsed();
+    assert!(waited < std::time::Duration::from_secs(2), "three requests took {waited:?}");
+}
+
 #[test]
 fn view_names_what_is_missing() {
     let empty = std::env::temp_dir().join(format!("cloth-view-empty-{}", std::process::id()));
@@ -351,4 +367,53 @@ fn chromium_grabs_the_flag_and_lets_it_go() {
     assert!((at - target).norm() < 1e-9, "{at} vs {target}");
     assert!(title.contains("; released at "), "{title}");
     assert_eq!(live_state_after(&server, 0.0)["holds"], serde_json::json!([]));
+}
+
+/// Live pause, step and reset: paused, the run stays where it is; a step
+/// takes exactly one step of the scene's size; a reset puts the cloth
+/// back at its start; resumed, it runs on in real time.
+#[test]
+fn a_live_run_pauses_steps_and_resets() {
+    let server = live("flag.toml", &FLAG_LIVE);
+    let json = |path: &str| {
+        let (status, body) = server.request("GET", path);
+        assert_eq!(status, 200, "{path}: {}", String::from_utf8_lossy(&body));
+        serde_json::from_slice::<serde_json::Value>(&body).unwrap()
+    };
+    let start = json("/live.json");
+    assert_eq!(server.request("GET", "/step").0, 409, "stepping a running run");
+    live_state_after(&server, 0.2);
+    assert_eq!(json("/pause")["paused"], true);
+    std::thread::sleep(std::time::Duration::from_millis(100));
+    let paused = json("/live.json");
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    assert_eq!(json("/live.json")["time_s"], paused["time_s"], "a paused run does not move");
+    assert_eq!(paused["paused"], true);
+    json("/step");
+    let h = 1.0 / 90.0;
+    let started = std::time::Instant::now();
+    let stepped = loop {
+        let s = json("/live.json");
+        if s["steps"] != paused["steps"] {
+            break s;
+        }
+        assert!(started.elapsed().as_secs() < 30, "the step was not taken");
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    };
+    assert_eq!(stepped["steps"].as_u64(), paused["steps"].as_u64().map(|n| n + 1));
+    assert!((stepped["time_s"].as_f64().unwrap() - paused["time_s"].as_f64().unwrap() - h).abs() < 1e-12);
+    json("/reset");
+    let started = std::time::Instant::now();
+    let reset = loop {
+        let s = json("/live.json");
+        if s["steps"] == 0 {
+            break s;
+        }
+        assert!(started.elapsed().as_secs() < 30, "the reset was not made");
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    };
+    assert_eq!(reset["positions"], start["positions"], "back at the start");
+    assert_eq!(json("/resume")["paused"], false);
+    let resumed = live_state_after(&server, 0.2);
+    assert!(resumed["rate"].as_f64().unwrap() < 1.5, "real time after the pause: rate {}", resumed["rate"]);
 }
