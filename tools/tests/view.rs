@@ -130,6 +130,28 @@ fn view_names_what_is_missing() {
     assert!(String::from_utf8_lossy(&output.stderr).contains("summary.json"));
 }
 
+/// A garment on a walking character is followed: the page sees that the
+/// cloth travels farther than its size and keeps the camera on it, so the
+/// skirt is still in the middle of the view at the end of the walk
+/// (unfollowed, `?follow=0`, it has walked out of it).
+#[test]
+fn chromium_follows_a_walking_garment() {
+    let Some(chromium) = common::outside_tool("CHROMIUM", "chromium-headless-shell") else { return };
+    let out = common::recorded_run("view", "walk", "skirt-walk.toml", &["simulation.duration_s=2.5"]);
+    let server = Server::start(&out);
+    let cloth_drawn = |title: &str| -> u64 {
+        title.split("cloth ").nth(1).and_then(|t| t.split(';').next()).and_then(|n| n.parse().ok()).unwrap_or(0)
+    };
+    let followed = server.title_in_chromium(&chromium, "check&frame=last");
+    let unfollowed = server.title_in_chromium(&chromium, "check&frame=last&follow=0");
+    println!("{followed}\n{unfollowed}");
+    assert!(followed.ends_with("follow on") && cloth_drawn(&followed) > 2000, "{followed}");
+    assert!(
+        unfollowed.ends_with("follow off") && cloth_drawn(&unfollowed) < cloth_drawn(&followed) / 4,
+        "{unfollowed}"
+    );
+}
+
 /// The page in headless Chromium (software WebGL): in the first frame (the
 /// flat cloth above the ball) and the last (draped on it) the cloth alone
 /// and the ball alone each cover part of the middle of the canvas, and
