@@ -172,6 +172,11 @@ pub struct SeamSummary {
 /// What the Newton iterations did over a run.
 #[derive(Debug, Serialize)]
 pub struct NewtonSummary {
+    /// Steps whose Newton iterations the run engaged itself, its steps
+    /// being large for its material (`solver.newton.auto_trigger`).
+    pub automatic_steps: u64,
+    /// The end of the first of them, s (none: never).
+    pub engaged_at_s: Option<f64>,
     /// Newton corrections after each step's first linear solve.
     pub corrections_total: u64,
     pub corrections_max: usize,

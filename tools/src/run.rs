@@ -293,7 +293,7 @@ pub(crate) fn simulate_steps(
                 stages.collision += r.stages.collision_s;
                 stages.self_collision += r.stages.self_collision_s;
                 contacts.add(&r.contacts);
-                newton.add(r.newton.as_ref());
+                newton.add(r.newton.as_ref(), runner.sim().time());
                 energy.add(&r);
                 peak_stretch = peak_stretch.max(runner.sim().model().max_stretch_ratio(&runner.sim().state().x));
                 if pins > 0 {
@@ -425,6 +425,9 @@ fn coupled_summary(mut summary: Summary, run: &CoupledRun, start: Momentum, tota
 #[derive(Default)]
 struct NewtonTotals {
     steps: u64,
+    /// Steps whose iterations the run engaged itself, and when it did, s.
+    automatic: u64,
+    engaged_at_s: Option<f64>,
     corrections: u64,
     corrections_max: usize,
     backtracks: u64,
@@ -433,9 +436,13 @@ struct NewtonTotals {
 }
 
 impl NewtonTotals {
-    fn add(&mut self, r: Option<&cloth_core::NewtonReport>) {
+    fn add(&mut self, r: Option<&cloth_core::NewtonReport>, t_s: f64) {
         let Some(r) = r else { return };
         self.steps += 1;
+        if r.automatic {
+            self.automatic += 1;
+            self.engaged_at_s.get_or_insert(t_s);
+        }
         self.corrections += r.corrections as u64;
         self.corrections_max = self.corrections_max.max(r.corrections);
         self.backtracks += r.backtracks as u64;
@@ -445,6 +452,8 @@ impl NewtonTotals {
 
     fn summary(&self) -> Option<NewtonSummary> {
         (self.steps > 0).then(|| NewtonSummary {
+            automatic_steps: self.automatic,
+            engaged_at_s: self.engaged_at_s,
             corrections_total: self.corrections,
             corrections_max: self.corrections_max,
             corrections_mean: self.corrections as f64 / self.steps as f64,
@@ -559,6 +568,16 @@ pub fn run(args: &RunArgs) -> Result<()> {
             summary.self_contacts_max,
             summary.stage_wall_s.collision,
             summary.stage_wall_s.self_collision
+        );
+    }
+    if let Some(n) = summary.newton.as_ref().filter(|n| n.automatic_steps > 0) {
+        eprintln!(
+            "{}: steps large for the material from t = {:.4} s on: {} steps took Newton iterations \
+             (solver.newton.auto_trigger; {} of them unconverged)",
+            args.scene.display(),
+            n.engaged_at_s.unwrap_or(0.0),
+            n.automatic_steps,
+            n.unconverged_steps
         );
     }
     if let Some(line) = summary.energy.as_ref().and_then(|e| energy_warning(&summary.integrator, e.flagged_steps)) {

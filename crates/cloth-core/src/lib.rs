@@ -40,8 +40,8 @@ pub use contacts::ContactStats;
 pub use control::{Control, ControlError, SolidImpulse, SolidMotion};
 pub use integrate::bodies::{BodyError, BodyInSolve};
 pub use integrator::{
-    AdaptiveParams, BackwardEuler, Bdf2, ContactSetParams, Integrator, IntegratorKind, NewtonParams, NewtonReport,
-    SolverParams, StageTimes, StepError, StepReport, Workspace,
+    AUTO_NEWTON_MIN_K_H2_M, AdaptiveParams, BackwardEuler, Bdf2, ContactSetParams, Integrator, IntegratorKind,
+    NewtonParams, NewtonReport, SolverParams, StageTimes, StepError, StepReport, Workspace,
 };
 pub use material::{BendConstants, Compressive, Lattice, Material, Membrane};
 pub use model::{

@@ -31,6 +31,8 @@
 //! iterations = 1               # most linear solves per step (1: the single linearised step)
 //! tolerance_m = 1e-6           # Newton stops at this residual (as a distance, m)
 //! trigger = 0.0                # Newton only on steps whose linearised tension is off by more (share of k_s L; 0: always)
+//! auto_trigger = 0.5           # iterations = 1: a step off by more is large for the material; Newton from it on (0: never)
+//! auto_iterations = 10         # the iterations taken then
 //!
 //! [solver.contacts]            # backward-euler and bdf2 with solids
 //! max_passes = 30              # most re-solves of a step's contact set (fewer: faster, friction beyond Coulomb)

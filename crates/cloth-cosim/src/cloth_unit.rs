@@ -86,6 +86,9 @@ pub struct ClothUnit {
 const AXES: [&str; 3] = ["x", "y", "z"];
 const TAG: &[u8; 8] = b"clothunt";
 
+/// Scalars before the particles' vectors in a serialised state.
+const HEAD: usize = 6;
+
 /// The variables of one kind of 3-vector: quantity, name after the item
 /// (`pin{k}.` or `solid{k}.`), causality, unit, description.
 type VectorKind = (Quantity, &'static str, Causality, &'static str, &'static str);
@@ -486,13 +489,15 @@ impl Unit for ClothUnit {
         Ok(())
     }
 
-    /// Layout: tag, then `time, steps, has_history, last_dt, next_dt`,
+    /// Layout: tag, then `time, steps, has_history, last_dt, next_dt,
+    /// newton_engaged`,
     /// `x, v, x_prev, v_prev` (3 values per particle each), the stitches'
     /// states (1 closed, 0 open), values, rates.
     fn serialize_state(&self, state: &UnitState) -> Result<Vec<u8>, UnitError> {
         let saved: &Saved = state.downcast(&self.name, "cloth unit")?;
         let c = &saved.cloth;
-        let head = [c.time_s, c.steps as f64, f64::from(u8::from(c.has_history)), c.last_dt_s, c.next_dt_s];
+        let flag = |b: bool| f64::from(u8::from(b));
+        let head = [c.time_s, c.steps as f64, flag(c.has_history), c.last_dt_s, c.next_dt_s, flag(c.newton_engaged)];
         let vectors =
             [&c.x, &c.v, &c.x_prev, &c.v_prev].into_iter().flat_map(|a| a.iter().flat_map(|p| [p.x, p.y, p.z]));
         let stitches = c.stitches_closed.iter().map(|&closed| f64::from(u8::from(closed)));
@@ -509,7 +514,7 @@ impl Unit for ClothUnit {
         let n = self.sim.model().particle_count();
         let m = self.values.len();
         let stitches = self.sim.model().stitches().len();
-        let expected = 5 + 12 * n + stitches + 2 * m;
+        let expected = HEAD + 12 * n + stitches + 2 * m;
         let values = bytes::unpack(TAG, data)
             .and_then(|v| {
                 if v.len() == expected { Ok(v) } else { Err(format!("{} values where it holds {expected}", v.len())) }
@@ -521,7 +526,8 @@ impl Unit for ClothUnit {
         let vec3s = |k: usize| -> Vec<Vec3> {
             (0..n)
                 .map(|i| {
-                    Vec3::new(values[5 + 3 * (k * n + i)], values[6 + 3 * (k * n + i)], values[7 + 3 * (k * n + i)])
+                    let at = HEAD + 3 * (k * n + i);
+                    Vec3::new(values[at], values[at + 1], values[at + 2])
                 })
                 .collect()
         };
@@ -531,13 +537,14 @@ impl Unit for ClothUnit {
             has_history: values[2] != 0.0,
             last_dt_s: values[3],
             next_dt_s: values[4],
+            newton_engaged: values[5] != 0.0,
             x: vec3s(0),
             v: vec3s(1),
             x_prev: vec3s(2),
             v_prev: vec3s(3),
-            stitches_closed: values[5 + 12 * n..5 + 12 * n + stitches].iter().map(|&c| c != 0.0).collect(),
+            stitches_closed: values[HEAD + 12 * n..HEAD + 12 * n + stitches].iter().map(|&c| c != 0.0).collect(),
         };
-        let tail = &values[5 + 12 * n + stitches..];
+        let tail = &values[HEAD + 12 * n + stitches..];
         Ok(UnitState(Box::new(Saved { cloth, values: tail[..m].to_vec(), rates: tail[m..].to_vec() })))
     }
 }

@@ -258,7 +258,8 @@ pub const MAX_INPUT: f64 = 1e150;
 /// short or changed in any byte is refused, never read.
 pub mod bytes {
     /// The layout this build writes and reads.
-    pub const FORMAT_VERSION: u32 = 1;
+    /// 2: the cloth unit's state records `newton_engaged`.
+    pub const FORMAT_VERSION: u32 = 2;
 
     /// Writes `tag`, [`FORMAT_VERSION`], the values and the checksum.
     pub fn pack(tag: &[u8; 8], values: impl IntoIterator<Item = f64>) -> Vec<u8> {

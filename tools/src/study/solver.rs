@@ -317,6 +317,8 @@ pub fn large_steps(args: &StudyArgs) -> Result<()> {
                     format!("solver.newton.iterations={newton}"),
                     "solver.newton.tolerance_m=1e-5".into(),
                     "solver.rel_tol=1e-6".into(),
+                    // One solve is the single linearised step: not engaged on its own.
+                    "solver.newton.auto_trigger=0".into(),
                 ]);
                 let (run, sim) = run_until(&scene, &o, &pool, f64::INFINITY, |_, _| false)?;
                 let x = &sim.state().x;

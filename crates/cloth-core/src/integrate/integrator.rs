@@ -300,6 +300,7 @@ fn linearised_step<S: Linearised>(
 ) -> Result<StepReport, StepError> {
     let report = uncommitted_step(scheme, model, state, control, h, ws, solver)?;
     commit(state, ws, h)?;
+    state.newton_engaged |= report.newton.is_some_and(|n| n.automatic);
     Ok(report)
 }
 
@@ -354,9 +355,22 @@ fn uncommitted_step<S: Linearised>(
     // 5. Newton iterations with a line search on the nonlinear step
     // equation (see `newton`): solids then act as penalties,
     // self-collision as at the start of the step.
-    let escalate = solver.newton.iterations > 1
-        && (solver.newton.trigger <= 0.0
-            || crate::newton::worst_tension_error(scheme, model, state, h, ws) > solver.newton.trigger);
+    let newton = &solver.newton;
+    let misjudged = |ws: &mut Workspace| crate::newton::worst_tension_error(scheme, model, state, h, ws);
+    let (escalate, automatic) = if newton.iterations > 1 {
+        (newton.trigger <= 0.0 || misjudged(ws) > newton.trigger, false)
+    } else {
+        // Checked only on steps large for the material by `k h^2 / m`: a
+        // pass over the links on every step cost 5-10% of a light scene's.
+        let large = h * h * model.stiffest_per_mass() > crate::AUTO_NEWTON_MIN_K_H2_M;
+        let engaged =
+            state.newton_engaged || (newton.auto_trigger > 0.0 && large && misjudged(ws) > newton.auto_trigger);
+        (engaged, engaged)
+    };
+    // Engaged automatically: the run's Newton settings.
+    let auto_solver =
+        SolverParams { newton: NewtonParams { iterations: newton.auto_iterations, ..*newton }, ..*solver };
+    let step = if automatic { StepInputs { solver: &auto_solver, ..step } } else { step };
     if escalate {
         if rules.friction_in_solve {
             // Newton smooths friction into its potential from scratch.
@@ -374,6 +388,7 @@ fn uncommitted_step<S: Linearised>(
             energy_evaluations: out.energy_evaluations,
             residual_m: out.residual_m,
             converged: out.converged,
+            automatic,
         });
         forces_s += out.forces_s;
         assembly_s += out.assembly_s;

@@ -251,8 +251,12 @@ fn iterate_with<S: Linearised>(
     Ok(out)
 }
 
+/// Links per parallel task of [`worst_tension_error`].
+const LINK_CHUNK: usize = 1024;
+
 /// The worst error of the single linearised step's tension over its
-/// result `ws.unknown`, as a share of `k_s L`
+/// result `ws.unknown` (its end positions left in `ws.new_x`), as a share
+/// of `k_s L`
 /// ([`tension_linearisation_error`] of every stretch link). Used by
 /// [`crate::NewtonParams::trigger`].
 pub(crate) fn worst_tension_error<S: Linearised>(
@@ -260,17 +264,29 @@ pub(crate) fn worst_tension_error<S: Linearised>(
     model: &ClothModel,
     state: &ClothState,
     h: f64,
-    ws: &Workspace,
+    ws: &mut Workspace,
 ) -> f64 {
-    let (x, new_x) = (&state.x, |i: usize| scheme.advance(state, &ws.aux, h, i, ws.unknown[i]).0);
+    use rayon::prelude::*;
+    for i in 0..state.len() {
+        ws.new_x[i] = scheme.advance(state, &ws.aux, h, i, ws.unknown[i]).0;
+    }
+    let (x, new_x) = (&state.x, &ws.new_x);
+    // Checked on every step when the run may engage Newton on its own
+    // (`NewtonParams::auto_trigger`): in parallel, and the maximum does not
+    // depend on the order.
     model
         .stretch_links()
-        .iter()
-        .map(|l| {
-            let (i, j) = (l.i as usize, l.j as usize);
-            tension_linearisation_error(l, (x[i], x[j]), (new_x(i), new_x(j)))
+        .par_chunks(LINK_CHUNK)
+        .map(|links| {
+            links
+                .iter()
+                .map(|l| {
+                    let (i, j) = (l.i as usize, l.j as usize);
+                    tension_linearisation_error(l, (x[i], x[j]), (new_x[i], new_x[j]))
+                })
+                .fold(0.0, f64::max)
         })
-        .fold(0.0, f64::max)
+        .reduce(|| 0.0, f64::max)
 }
 
 /// How wrong a linear step's tension of link `l` is after its ends moved

@@ -30,6 +30,10 @@ pub struct ClothState {
     /// stitch pulls with its gentle sewing pull, a closed one holds with
     /// the seam's strength ([`crate::seams`]). Updated after each step.
     pub stitches_closed: Vec<bool>,
+    /// Whether a step of this run was large for its material, so that
+    /// every step takes Newton iterations from it on
+    /// ([`crate::NewtonParams::auto_trigger`]).
+    pub newton_engaged: bool,
 }
 
 impl ClothState {
@@ -47,6 +51,7 @@ impl ClothState {
             last_dt_s: 0.0,
             next_dt_s: 0.0,
             stitches_closed: Self::stitches_closed_at(model, model.rest_positions()),
+            newton_engaged: false,
         }
     }
 

@@ -192,6 +192,14 @@ impl Default for SolverParams {
     }
 }
 
+/// The `k_s h^2 / m` (the stiffest link's natural frequency times the
+/// step, squared) above which a step may be large for the material and
+/// [`NewtonParams::auto_trigger`] checks it: the fixtures at their steps
+/// reach 1.2e4 (the stiff trampoline at 1/90 s), the large steps that
+/// overstretch with the single linearised step 1.3e5 (a drape at 0.2 s)
+/// to 6e7 (a stiff cloth at 0.2 s).
+pub const AUTO_NEWTON_MIN_K_H2_M: f64 = 3e4;
+
 /// Newton iterations of `backward-euler` and `bdf2` (`[solver.newton]`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -214,11 +222,23 @@ pub struct NewtonParams {
     /// single linearised step, bit for bit. 0 (default): Newton on every
     /// step. The fixtures' worst steps at 1/90 s: `docs/solvers.md`.
     pub trigger: f64,
+    /// With `iterations = 1`: a step large for the material by its
+    /// `k_s h^2 / m` ([`AUTO_NEWTON_MIN_K_H2_M`]) whose single linearised
+    /// step misjudged some link's tension by more than this share of
+    /// `k_s L` (measured at 1/90 s the fixtures' worst step is 0.45; a
+    /// hanging cloth at h = 1 s reaches 86) engages Newton: from it on the
+    /// run takes Newton iterations ([`NewtonParams::auto_iterations`] of
+    /// them) on every step ([`crate::ClothState::newton_engaged`]). 0: never.
+    /// Default 0.5.
+    pub auto_trigger: f64,
+    /// The Newton iterations a run takes once [`NewtonParams::auto_trigger`]
+    /// engaged them. Default 10.
+    pub auto_iterations: usize,
 }
 
 impl Default for NewtonParams {
     fn default() -> Self {
-        Self { iterations: 1, tolerance_m: 1e-6, trigger: 0.0 }
+        Self { iterations: 1, tolerance_m: 1e-6, trigger: 0.0, auto_trigger: 0.5, auto_iterations: 10 }
     }
 }
 
@@ -233,6 +253,12 @@ impl NewtonParams {
         }
         if !(self.trigger.is_finite() && self.trigger >= 0.0) {
             return Err(("trigger", format!("must be finite and >= 0, got {}", self.trigger)));
+        }
+        if !(self.auto_trigger.is_finite() && self.auto_trigger >= 0.0) {
+            return Err(("auto_trigger", format!("must be finite and >= 0, got {}", self.auto_trigger)));
+        }
+        if self.auto_iterations < 2 {
+            return Err(("auto_iterations", format!("must be >= 2, got {}", self.auto_iterations)));
         }
         Ok(())
     }
@@ -382,6 +408,9 @@ pub struct NewtonReport {
     pub residual_m: f64,
     /// Whether the residual met [`NewtonParams::tolerance_m`].
     pub converged: bool,
+    /// Whether the iterations ran because the run's steps are large for
+    /// its material ([`NewtonParams::auto_trigger`]), not because asked.
+    pub automatic: bool,
 }
 
 /// Why a step failed. The state is left as it was before the step.

@@ -137,6 +137,8 @@ pub struct ClothModel {
     contact_thickness: f64,
     self_collision: Option<SelfCollision>,
     mass: Vec<f64>,
+    /// The largest `k_s / m` of a stretch link (its lighter end), 1/s^2.
+    stiffest_per_mass: f64,
     rest_positions: Vec<Vec3>,
     stretch: Vec<StretchLink>,
     bend: Vec<BendLink>,
@@ -398,10 +400,16 @@ impl ClothModel {
             .collision
             .build_self_collision(spec.material.tensile_stiffness_n_m, mean_link)
             .map_err(collision_error)?;
+        let stiffest_per_mass = stretch
+            .iter()
+            .map(|l| l.k_s / mass[l.i as usize].min(mass[l.j as usize]))
+            .filter(|r| r.is_finite())
+            .fold(0.0, f64::max);
         Ok(Self {
             colliders,
             contact_thickness: spec.collision.thickness(),
             self_collision,
+            stiffest_per_mass,
             mass,
             rest_positions,
             stretch,
@@ -473,6 +481,13 @@ impl ClothModel {
     /// Number of particles.
     pub fn particle_count(&self) -> usize {
         self.mass.len()
+    }
+    /// The largest stiffness per mass of a stretch link, `k_s / m` with
+    /// `m` its lighter end's mass, 1/s^2: `h^2` times it is how large a
+    /// step `h` is for the material (the square of the stiffest link's
+    /// natural frequency times the step).
+    pub fn stiffest_per_mass(&self) -> f64 {
+        self.stiffest_per_mass
     }
     /// Particle masses, kg.
     pub fn masses(&self) -> &[f64] {
