@@ -145,11 +145,10 @@ fn simulate(mut runner: Runner, h: f64, external_wind: bool, shared: &Mutex<Shar
         was_paused = s.paused;
         if std::mem::take(&mut s.reset_requested) {
             if let Err(e) = runner.restore(&initial) {
-                s.error = Some(format!("reset: {e}"));
-                return;
+                return stop(&mut s, runner.sim().time(), format!("reset: {e}"));
             }
             s.holds_requested.clear();
-            publish(&mut s, &runner, external_wind, &[], 0.0);
+            publish(&mut s, &runner, &[], 0.0);
             start = Instant::now();
             continue;
         }
@@ -164,9 +163,8 @@ fn simulate(mut runner: Runner, h: f64, external_wind: bool, shared: &Mutex<Shar
         let (paused, wind, holds) = (s.paused, s.wind_requested, s.holds_requested.clone());
         drop(s);
         if let Err(e) = apply_inputs(runner.sim_mut(), external_wind.then_some(wind), &holds) {
-            eprintln!("the run stopped: {e}; the page shows its last state");
             if let Ok(mut s) = shared.lock() {
-                s.error = Some(e.to_string());
+                stop(&mut s, runner.sim().time(), e);
             }
             return;
         }
@@ -175,14 +173,10 @@ fn simulate(mut runner: Runner, h: f64, external_wind: bool, shared: &Mutex<Shar
         let wall = start.elapsed().as_secs_f64();
         let Ok(mut s) = shared.lock() else { return };
         if let Err(e) = result {
-            let message = format!("t = {:.4} s: {e}", sim.time());
-            eprintln!("the run stopped at {message}; the page shows its last state");
-            s.error = Some(message);
-            return;
+            return stop(&mut s, sim.time(), e);
         }
-        let wind = if external_wind { wind } else { [0.0; 3] };
-        publish(&mut s, &runner, external_wind, &holds, sim.time() / wall.max(1e-9));
-        s.wind_applied = wind;
+        publish(&mut s, &runner, &holds, sim.time() / wall.max(1e-9));
+        s.wind_applied = if external_wind { wind } else { [0.0; 3] };
         drop(s);
         // Real time at most: wait until the wall clock reaches the cloth.
         let ahead = sim.time() - start.elapsed().as_secs_f64();
@@ -192,14 +186,20 @@ fn simulate(mut runner: Runner, h: f64, external_wind: bool, shared: &Mutex<Shar
     }
 }
 
-/// Publishes the run's state (positions, time, solids, holds) for the page.
-fn publish(s: &mut Shared, runner: &Runner, external_wind: bool, holds: &[(usize, [f64; 3])], rate: f64) {
+/// Ends the run at simulated time `t_s` for `why`: said on stderr, and
+/// published for the page (which shows its last state) and its inputs.
+fn stop(s: &mut Shared, t_s: f64, why: impl std::fmt::Display) {
+    let message = format!("t = {t_s:.4} s: {why}");
+    eprintln!("the run stopped at {message}; the page shows its last state");
+    s.error = Some(message);
+}
+
+/// Publishes the run's state (positions, time, solids, holds) for the page;
+/// the wind it stepped with is the caller's to set.
+fn publish(s: &mut Shared, runner: &Runner, holds: &[(usize, [f64; 3])], rate: f64) {
     let sim = runner.sim();
     s.positions = flat(sim);
     (s.time_s, s.steps, s.rate) = (sim.time(), sim.state().steps, rate);
-    if !external_wind {
-        s.wind_applied = [0.0; 3];
-    }
     s.poses = solid_poses(sim);
     s.holds_applied =
         holds.iter().map(|&(i, target)| (i, target, sim.hold_reaction(i).unwrap_or_default().into())).collect();

@@ -182,7 +182,8 @@ pub(crate) struct Solved {
     /// solves left them (6 per body), which rapier's step reproduces
     /// unless its own contacts or joints act on them; else the guess.
     pub(crate) assumed: Vec<f64>,
-    /// Where each coupled body is held or pressed.
+    /// Where each coupled body is held or pressed (with the bodies in the
+    /// solves; the monolithic master measures its disagreement there).
     pub(crate) holds: Vec<Vec<Hold>>,
     /// Cloth-body contacts.
     pub(crate) contacts: usize,
@@ -485,18 +486,22 @@ impl ClothSet {
                 got_here[k].linear += got.linear;
                 got_here[k].angular += got.angular;
                 contacts += got.contacts;
-                let touching = cloth.sim.contacts().iter().filter(|c| c.collider as usize == s.solid);
-                holds[k].extend(
-                    touching
-                        .filter(|c| c.impulse_n_s != Vec3::zeros())
-                        .map(|c| Hold { lever: c.point - about[k], normal: Some(c.normal) }),
-                );
+                if in_solve {
+                    let touching = cloth.sim.contacts().iter().filter(|c| c.collider as usize == s.solid);
+                    holds[k].extend(
+                        touching
+                            .filter(|c| c.impulse_n_s != Vec3::zeros())
+                            .map(|c| Hold { lever: c.point - about[k], normal: Some(c.normal) }),
+                    );
+                }
             }
             for (k, pin, at) in targets {
                 let j = cloth.sim.pin_reaction(pin) * h;
                 got_here[k].linear += j;
                 got_here[k].angular += (at - about[k]).cross(&j);
-                holds[k].push(Hold { lever: at - about[k], normal: None });
+                if in_solve {
+                    holds[k].push(Hold { lever: at - about[k], normal: None });
+                }
             }
             for (k, j) in got_here.iter().enumerate() {
                 impulses[k].linear += j.linear;

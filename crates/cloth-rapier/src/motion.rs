@@ -173,10 +173,8 @@ impl Clip {
                     (field(&format!("joints.{name}")), crate::names::unknown("rig joint", name, names))
                 })
                 .collect();
-            match unknown.as_slice() {
-                [] => {}
-                [(f, m)] => return Err(invalid(f.clone(), m.clone())),
-                _ => return Err(invalid(field("joints"), crate::names::all(&unknown))),
+            if let Some((f, m)) = crate::names::combined(unknown, field("joints")) {
+                return Err(invalid(f, m));
             }
             for (name, value) in &key.joints {
                 let field = field(&format!("joints.{name}"));
@@ -224,10 +222,8 @@ impl Clip {
             }
             pairs[j] = Some(b);
         }
-        match (root, problems.as_slice()) {
-            (_, [(field, message)]) => return Err(invalid(field.clone(), message.clone())),
-            (Some(_), []) => {}
-            _ => return Err(invalid("joints".into(), crate::names::all(&problems))),
+        if let Some((f, m)) = crate::names::combined(problems, "joints") {
+            return Err(invalid(f, m));
         }
         let root = root.expect("an unknown root is a problem above");
         let up = map.up_axis.turn();

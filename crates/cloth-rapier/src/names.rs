@@ -28,9 +28,17 @@ pub(crate) fn unknown<'a>(what: &str, name: &str, known: impl IntoIterator<Item 
     format!("no {what} {name:?} (nearest: {})", list.join(", "))
 }
 
-/// Several problems as one message: `field: problem; field: problem`.
-pub(crate) fn all(problems: &[(String, String)]) -> String {
-    problems.iter().map(|(field, message)| format!("{field}: {message}")).collect::<Vec<_>>().join("; ")
+/// `(field, message)` problems as one error: none, the one as it is, or
+/// several under `group` as `field: problem; field: problem`.
+pub(crate) fn combined(problems: Vec<(String, String)>, group: impl Into<String>) -> Option<(String, String)> {
+    match problems.len() {
+        0 => None,
+        1 => problems.into_iter().next(),
+        _ => {
+            let all: Vec<String> = problems.iter().map(|(field, message)| format!("{field}: {message}")).collect();
+            Some((group.into(), all.join("; ")))
+        }
+    }
 }
 
 #[cfg(test)]

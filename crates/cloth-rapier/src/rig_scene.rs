@@ -331,12 +331,8 @@ impl RigSection {
             SettlePose::Named(SettlePoseName::Rest) => None,
             SettlePose::Named(SettlePoseName::FirstFrame) => Some(clip.poses[0].joints.clone()),
             SettlePose::Joints { joints } => Some(joints_from_values(&rig, joints).map_err(|problems| {
-                let problems: Vec<(String, String)> =
-                    problems.into_iter().map(|(f, m)| (format!("rig.settle_pose.{f}"), m)).collect();
-                match problems.as_slice() {
-                    [(f, m)] => (f.clone(), m.clone()),
-                    _ => (field("settle_pose.joints"), crate::names::all(&problems)),
-                }
+                let problems = problems.into_iter().map(|(f, m)| (format!("rig.settle_pose.{f}"), m)).collect();
+                crate::names::combined(problems, field("settle_pose.joints")).expect("refused for a problem")
             })?),
         };
         let mut motion = RigMotion::new(clip, &rig, playback, &file).map_err(|e| (field("motion"), e.to_string()))?;

@@ -363,10 +363,8 @@ impl CoupledScene {
                 (format!("attachments[{k}].body"), crate::names::unknown("body or rig link", &a.body, known.clone()))
             })
             .collect();
-        match unknown.as_slice() {
-            [] => {}
-            [(f, m)] => return Err(invalid(f.clone(), m.clone())),
-            _ => return Err(invalid("attachments".into(), crate::names::all(&unknown))),
+        if let Some((f, m)) = crate::names::combined(unknown, "attachments") {
+            return Err(invalid(f, m));
         }
         for (k, a) in self.attachments.iter().enumerate() {
             let field = |name: &str| format!("attachments[{k}].{name}");
