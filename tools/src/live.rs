@@ -55,8 +55,22 @@ struct Shared {
     reset_requested: bool,
 }
 
-/// Runs `scene` live and serves it on 127.0.0.1:`port`.
-pub fn live(scene: &Path, overrides: &[String], port: u16, seconds: Option<f64>, threads: usize) -> Result<()> {
+/// How `cloth live` runs.
+#[derive(Clone, Copy, Debug)]
+pub struct LiveArgs {
+    /// Port on 127.0.0.1 (0: any free one).
+    pub port: u16,
+    /// Stop after this many wall-clock seconds (`None`: until stopped).
+    pub seconds: Option<f64>,
+    /// Worker threads of the simulation.
+    pub threads: usize,
+    /// Start paused at the scene's first state.
+    pub paused: bool,
+}
+
+/// Runs `scene` live and serves it on 127.0.0.1:`args.port`.
+pub fn live(scene: &Path, overrides: &[String], args: &LiveArgs) -> Result<()> {
+    let LiveArgs { port, seconds, threads, paused } = *args;
     let (_, cfg, runner) = Runner::load(scene, overrides)?;
     let sim = runner.sim();
     let external_wind = sim.model().wind().is_some_and(|w| w.profile == WindProfile::External);
@@ -80,7 +94,7 @@ pub fn live(scene: &Path, overrides: &[String], port: u16, seconds: Option<f64>,
         holds_requested: Vec::new(),
         holds_applied: Vec::new(),
         error: None,
-        paused: false,
+        paused,
         steps_requested: 0,
         reset_requested: false,
     }));

@@ -147,6 +147,10 @@ enum Command {
         /// Worker threads of the simulation (default: the machine's cores).
         #[arg(long, default_value_t = cloth_tools::machine_threads())]
         threads: usize,
+        /// Start paused at the scene's first state (the page's play button
+        /// or `/resume` starts it).
+        #[arg(long)]
+        paused: bool,
     },
     /// Run every fixture scene and the Table-1 garments, shortened, and
     /// compare each summary and final frame with its golden under
@@ -254,8 +258,8 @@ fn main() -> ExitCode {
         Command::Export { out, to } => export::export(&out, to.as_deref()).map(|path| {
             println!("wrote {}", path.display());
         }),
-        Command::Live { scene, overrides, port, seconds, threads } => {
-            live::live(&scene, &overrides, port, seconds, threads)
+        Command::Live { scene, overrides, port, seconds, threads, paused } => {
+            live::live(&scene, &overrides, &live::LiveArgs { port, seconds, threads, paused })
         }
         Command::Regress { fixtures, goldens, update, only, threads, rel_tol } => {
             let fixtures = cloth_tools::in_checkout(fixtures);

@@ -391,18 +391,22 @@ fn chromium_grabs_the_flag_and_lets_it_go() {
     assert_eq!(live_state_after(&server, 0.0)["holds"], serde_json::json!([]));
 }
 
-/// Live pause, step and reset: paused, the run stays where it is; a step
+/// Live pause, step and reset: started paused, the run is at the scene's
+/// first state; paused, the run stays where it is; a step
 /// takes exactly one step of the scene's size; a reset puts the cloth
 /// back at its start; resumed, it runs on in real time.
 #[test]
 fn a_live_run_pauses_steps_and_resets() {
-    let server = live("flag.toml", &FLAG_LIVE);
+    let server = live("flag.toml", &[&FLAG_LIVE[..], &["--paused"]].concat());
     let json = |path: &str| {
         let (status, body) = server.request("GET", path);
         assert_eq!(status, 200, "{path}: {}", String::from_utf8_lossy(&body));
         serde_json::from_slice::<serde_json::Value>(&body).unwrap()
     };
+    // Started paused: the scene's first state, and it stays there.
     let start = json("/live.json");
+    assert_eq!((start["paused"].as_bool(), start["steps"].as_u64()), (Some(true), Some(0)));
+    assert_eq!(json("/resume")["paused"], false);
     assert_eq!(server.request("GET", "/step").0, 409, "stepping a running run");
     live_state_after(&server, 0.2);
     assert_eq!(json("/pause")["paused"], true);
