@@ -26,13 +26,12 @@ fn drum(growth: f64) -> ClothModel {
         let rest = Vec3::new(0.1 * i as f64 / (n - 1) as f64, 0.1 * j as f64 / (n - 1) as f64, 0.0);
         let offset = (rest - center) * (STRETCH - 1.0);
         PinSpec {
-            panel: 0,
             nodes: vec![[i, j]],
-            edge: None,
             motion: PinMotion::Keyframes {
                 times_s: vec![0.0, T],
                 offsets_m: vec![[offset.x, offset.y, offset.z], (offset * (1.0 + growth)).into()],
             },
+            ..PinSpec::default()
         }
     };
     ClothModel::build(&ModelSpec {

@@ -4,7 +4,7 @@
 
 use cloth_core::{
     BendingLaw, ClothModel, Edge, Effects, GridPanel, IntegratorKind, Material, ModelKind, ModelSpec, NewtonParams,
-    PinMotion, PinSpec, PreconditionerKind, Simulation, SolverParams, Vec3, forces,
+    PinSpec, PreconditionerKind, Simulation, SolverParams, Vec3, forces,
 };
 use cloth_tests::least_squares_slope;
 
@@ -23,11 +23,7 @@ fn strip(
     effects: Effects,
     pinned: bool,
 ) -> ClothModel {
-    let pins = if pinned {
-        vec![PinSpec { panel: 0, nodes: vec![], edge: Some(Edge::JMin), motion: PinMotion::Fixed }]
-    } else {
-        vec![]
-    };
+    let pins = if pinned { vec![PinSpec { edge: Some(Edge::JMin), ..PinSpec::default() }] } else { vec![] };
     ClothModel::build(&ModelSpec {
         kind,
         bending_law: law,
@@ -350,7 +346,7 @@ fn a_hanging_cylinder_sags_as_the_strip_and_stays_round() {
                 wrap_u: true,
             }],
             material: cotton(1.0),
-            pins: vec![PinSpec { panel: 0, nodes: vec![], edge: Some(Edge::JMin), motion: PinMotion::Fixed }],
+            pins: vec![PinSpec { edge: Some(Edge::JMin), ..PinSpec::default() }],
             effects: Effects { gravity: Some(Vec3::new(0.0, 0.0, -9.81)), bending: true, ..Effects::default() },
             ..ModelSpec::default()
         })

@@ -422,10 +422,13 @@ fn restore_then_step_reproduces_the_same_bits() {
 #[test]
 fn results_are_bit_identical_with_one_and_two_threads() {
     // Large enough for several parallel chunks; the fold has solid
-    // contacts (released and added), friction and self-collision.
-    let scenes: [(&str, &[&str], usize); 2] = [
+    // contacts (released and added), friction and self-collision; the
+    // round tablecloth is a pattern's irregular mesh (hinges, graph
+    // aggregates) on a ball.
+    let scenes: [(&str, &[&str], usize); 3] = [
         ("hang.toml", &["panels.0.particles=[33, 33]", "pins.0.nodes=[[0, 32], [32, 32]]"], 10),
         ("fold.toml", &[], 120),
+        ("round-tablecloth.toml", &["meshes.0.pattern.edge_length_m=0.04"], 40),
     ];
     for (scene, overrides, steps) in scenes {
         let run = |threads: usize| {

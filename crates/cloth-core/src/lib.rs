@@ -29,7 +29,7 @@ pub use integrate::vbd::{self, Vbd, VbdParams};
 pub use integrate::{bodies, control};
 use integrate::{energy, explicit, integrator, matrix_free, newton, sim, state};
 pub use model::seams::{self, SeamSide, SeamSpec, Stitch};
-pub use model::{colouring, element_laws, elements, forces, laws, terms, wind};
+pub use model::{cloth_mesh, colouring, element_laws, elements, forces, laws, terms, wind};
 use model::{constraints, keyframes, material, pins, topology};
 
 pub use cloth_collide::{BodyPose, ShapeSpec, VoxelHash};
@@ -45,8 +45,8 @@ pub use integrator::{
 };
 pub use material::{BendConstants, Compressive, Lattice, Material, Membrane};
 pub use model::{
-    BendLaw, BendLink, BendingLaw, ClothModel, Compression, Edge, Effects, Incidence, ModelBuilder, ModelError,
-    ModelKind, ModelSpec, PanelRange, PinSpec, StrainLimit, StretchLink,
+    BendLaw, BendLink, BendingLaw, ClothMesh, ClothModel, Compression, Edge, Effects, Incidence, MeshPanel, MeshRange,
+    ModelBuilder, ModelError, ModelKind, ModelSpec, PanelRange, PatternPiece, PinSpec, StrainLimit, StretchLink,
 };
 pub use pins::{Pin, PinMotion};
 pub use sim::{Simulation, SimulationBuilder};

@@ -130,8 +130,13 @@ pub struct Scene {
     pub solver: SolverParams,
     /// The fabric.
     pub material: Material,
-    /// Cloth panels.
+    /// Cloth grid panels (`[[panels]]`).
+    #[serde(default)]
     pub panels: Vec<GridPanel>,
+    /// Cloth mesh panels (`[[meshes]]`): an OBJ file or triangles listed
+    /// in place; their particles follow the grid panels'.
+    #[serde(default)]
+    pub meshes: Vec<crate::MeshPanel>,
     /// Pinned nodes.
     #[serde(default)]
     pub pins: Vec<PinSpec>,
@@ -472,6 +477,7 @@ impl Scene {
     pub fn model_spec(&self) -> ModelSpec {
         ModelSpec {
             panels: self.panels.clone(),
+            meshes: self.meshes.clone(),
             material: self.material,
             pins: self.pins.clone(),
             seams: self.seams.clone(),

@@ -30,10 +30,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .bending()
         .damping()
         .pin(PinSpec {
-            panel: 0,
             nodes: vec![[0, 0], [0, 12], [20, 0], [20, 12]],
-            edge: None,
             motion: PinMotion::External,
+            ..PinSpec::default()
         })
         .build()?;
 

@@ -385,7 +385,7 @@ mod tests {
             .kind(ModelKind::Provot)
             .damping()
             .gravity([0.0, 0.0, -9.81])
-            .pin(PinSpec { panel: 0, nodes: vec![], edge: Some(Edge::JMax), motion: PinMotion::External })
+            .pin(PinSpec { edge: Some(Edge::JMax), motion: PinMotion::External, ..PinSpec::default() })
             .build()
             .unwrap();
         let solver = SolverParams { rel_tol: 1e-13, max_iter: 10_000, ..SolverParams::default() };

@@ -28,16 +28,59 @@ pub(super) fn compressive_response(spec: &ModelSpec, path: bool) -> Compressive 
 pub(super) fn build_pins(
     spec: &ModelSpec,
     panels: &[PanelRange],
+    meshes: &[MeshRange],
     rest: &[Vec3],
 ) -> Result<(Vec<Pin>, Vec<bool>), ModelError> {
     let mut pins = Vec::new();
     let mut pinned = vec![false; rest.len()];
     for (k, ps) in spec.pins.iter().enumerate() {
         let err = |field: &'static str, message: String| ModelError::Pin { pin: k, field, message };
+        ps.motion.validate().map_err(|(_, m)| err("motion", m))?;
+        if let Some(m) = ps.mesh {
+            let mesh =
+                meshes.get(m).ok_or_else(|| err("mesh", format!("no mesh {m} (the scene has {})", meshes.len())))?;
+            if ps.panel != 0 || !ps.nodes.is_empty() || ps.edge.is_some() {
+                return Err(err("mesh", "pins a mesh's `vertices`: `panel`, `nodes` and `edge` are a grid's".into()));
+            }
+            let mut vertices = ps.vertices.clone();
+            for &e in &ps.outline_edges {
+                let edge = mesh.outline_edges.get(e).ok_or_else(|| {
+                    let n = mesh.outline_edges.len();
+                    err(
+                        "outline_edges",
+                        format!("no outline edge {e} (mesh {m} has {n}: only pattern pieces have them)"),
+                    )
+                })?;
+                // Neighbouring edges share their corner: pinned once.
+                for v in edge.iter().map(|&v| v as usize) {
+                    if !vertices.contains(&v) {
+                        vertices.push(v);
+                    }
+                }
+            }
+            if vertices.is_empty() {
+                return Err(err("vertices", "pins nothing: list the mesh's vertices or outline edges".into()));
+            }
+            for &v in &vertices {
+                if v >= mesh.len {
+                    return Err(err("vertices", format!("vertex {v} is outside the mesh's {}", mesh.len)));
+                }
+                let particle = mesh.offset + v;
+                if pinned[particle] {
+                    return Err(err("vertices", format!("vertex {v} is pinned twice")));
+                }
+                pinned[particle] = true;
+                pins.push(Pin { particle, anchor: rest[particle], motion: ps.motion.clone(), spec: k });
+            }
+            continue;
+        }
+        if !ps.vertices.is_empty() || !ps.outline_edges.is_empty() {
+            let field = if ps.vertices.is_empty() { "outline_edges" } else { "vertices" };
+            return Err(err(field, "are a mesh's: give `mesh` too".into()));
+        }
         let panel = *panels
             .get(ps.panel)
             .ok_or_else(|| err("panel", format!("no panel {} (the scene has {})", ps.panel, panels.len())))?;
-        ps.motion.validate().map_err(|(_, m)| err("motion", m))?;
         let mut nodes = ps.nodes.clone();
         if let Some(edge) = ps.edge {
             let (nx, ny) = (panel.nx, panel.ny);
@@ -64,6 +107,29 @@ pub(super) fn build_pins(
         }
     }
     Ok((pins, pinned))
+}
+
+/// Mesh panels with a lattice model: Choi & Ko's arc-chord law needs the
+/// grid's middle particles and family areas, and a spring lattice on
+/// triangles has the shear modulus `3E/8` only ([`crate::cloth_mesh`]), so
+/// a different one given is refused rather than ignored.
+pub(super) fn check_lattice_on_meshes(spec: &ModelSpec, path: bool) -> Result<(), ModelError> {
+    if spec.kind == ModelKind::ChoiKo && !path {
+        return Err(ModelError::MeshBendingLaw);
+    }
+    let m = &spec.material;
+    let lattice = super::build_mesh::triangle_lattice_shear_modulus(m.tensile_stiffness_n_m);
+    if let Some(g) = m.shear_modulus_n_m
+        && spec.kind != ModelKind::Volino
+        && (g - lattice).abs() > 1e-3 * lattice
+    {
+        let message = format!(
+            "{g} N/m: {}'s springs on a triangle mesh have G = 3E/8 = {lattice} N/m; the volino model takes any",
+            spec.kind.name()
+        );
+        return Err(ModelError::Material { field: "shear_modulus_n_m", message });
+    }
+    Ok(())
 }
 
 /// Whether a type-2 interaction across `(i, m, j)` spans a clamped edge: its
@@ -139,14 +205,16 @@ pub(super) fn curvature_elements(
     Ok(out)
 }
 
-/// Volino's elements for one panel mesh (local indices shifted by `offset`):
+/// Volino's elements for one panel's triangles over rest positions `p`
+/// (local indices shifted by `offset`):
 /// a membrane per triangle, with rest (u, v) coordinates in the triangle's
 /// plane along the panel's weft axis `v_axis` (so warp and weft keep their
 /// directions on curved rest shapes), and each triangle with its
 /// neighbours for bending ([`curvature_elements`]).
 /// None if a triangle is degenerate.
 pub(super) fn volino_elements(
-    mesh: &crate::PanelMesh,
+    p: &[Vec3],
+    mesh_triangles: &[[u32; 3]],
     material: &Material,
     v_axis: Vec3,
     panel: usize,
@@ -154,9 +222,8 @@ pub(super) fn volino_elements(
 ) -> Option<(Vec<MembraneElement>, Vec<BendingTriangle>)> {
     use nalgebra::Vector2;
     let c = material.membrane_stiffness();
-    let p = &mesh.positions;
-    let mut membranes = Vec::with_capacity(mesh.triangles.len());
-    for t in &mesh.triangles {
+    let mut membranes = Vec::with_capacity(mesh_triangles.len());
+    for t in mesh_triangles {
         let x = t.map(|k| p[k as usize]);
         let normal = (x[1] - x[0]).cross(&(x[2] - x[0]));
         let e2 = (v_axis - normal * (normal.dot(&v_axis) / normal.norm_squared())).try_normalize(1e-12)?;
@@ -166,9 +233,8 @@ pub(super) fn volino_elements(
     }
     // Each interior edge appears as (a, b) in one triangle and (b, a) in its neighbour.
     let opposite: std::collections::HashMap<(u32, u32), u32> =
-        mesh.triangles.iter().flat_map(|t| (0..3).map(move |k| ((t[k], t[(k + 1) % 3]), t[(k + 2) % 3]))).collect();
-    let bending = mesh
-        .triangles
+        mesh_triangles.iter().flat_map(|t| (0..3).map(move |k| ((t[k], t[(k + 1) % 3]), t[(k + 2) % 3]))).collect();
+    let bending = mesh_triangles
         .iter()
         .map(|t| BendingTriangle {
             panel,

@@ -15,13 +15,25 @@
 //!     .build()?;
 //! assert_eq!(model.particle_count(), 21 * 21);
 //! assert_eq!(model.pins().len(), 21);
+//!
+//! // A pattern piece: a trapezoid meshed to 5 cm edges, its top edge pinned.
+//! use cloth_core::{MeshPanel, PatternPiece};
+//! let piece = PatternPiece {
+//!     outline_m: vec![[0.0, 0.0], [0.6, 0.0], [0.5, 0.5], [0.1, 0.5]],
+//!     edge_length_m: 0.05,
+//!     lines_m: vec![],
+//!     u_axis: [1.0, 0.0, 0.0],
+//!     v_axis: [0.0, 0.0, -1.0],
+//! };
+//! let skirt = ClothModel::builder().mesh(MeshPanel::from_pattern(piece)).pin_vertices(0, [], [0]).build()?;
+//! assert!(skirt.particle_count() > 100 && skirt.pins().len() == 13);
 //! # Ok::<(), cloth_core::ModelError>(())
 //! ```
 
 use crate::colliders::{ColliderSpec, SelfCollisionSpec};
 use crate::terms::ForceTerm;
 use crate::{
-    BendingLaw, ClothModel, Edge, GridPanel, Material, ModelError, ModelKind, ModelSpec, PinMotion, PinSpec, SeamSpec,
+    BendingLaw, ClothModel, Edge, GridPanel, Material, MeshPanel, ModelError, ModelKind, ModelSpec, PinSpec, SeamSpec,
     StrainLimit, Vec3, Wind,
 };
 use std::path::PathBuf;
@@ -157,12 +169,35 @@ impl ModelBuilder {
 
     /// Pins grid nodes `[i, j]` of panel `panel` where they start.
     pub fn pin_nodes(self, panel: usize, nodes: impl IntoIterator<Item = [usize; 2]>) -> Self {
-        self.pin(PinSpec { panel, nodes: nodes.into_iter().collect(), edge: None, motion: PinMotion::Fixed })
+        self.pin(PinSpec { panel, nodes: nodes.into_iter().collect(), ..PinSpec::default() })
+    }
+
+    /// Adds a mesh panel: an OBJ file, listed triangles or a pattern piece
+    /// (particles follow every grid panel's).
+    pub fn mesh(mut self, mesh: MeshPanel) -> Self {
+        self.spec.meshes.push(mesh);
+        self
+    }
+
+    /// Pins vertices of mesh panel `mesh` where they start, and every vertex
+    /// on the pattern's `outline_edges`.
+    pub fn pin_vertices(
+        self,
+        mesh: usize,
+        vertices: impl IntoIterator<Item = usize>,
+        outline_edges: impl IntoIterator<Item = usize>,
+    ) -> Self {
+        self.pin(PinSpec {
+            mesh: Some(mesh),
+            vertices: vertices.into_iter().collect(),
+            outline_edges: outline_edges.into_iter().collect(),
+            ..PinSpec::default()
+        })
     }
 
     /// Pins a whole edge of panel `panel` where it starts.
     pub fn pin_edge(self, panel: usize, edge: Edge) -> Self {
-        self.pin(PinSpec { panel, nodes: Vec::new(), edge: Some(edge), motion: PinMotion::Fixed })
+        self.pin(PinSpec { panel, edge: Some(edge), ..PinSpec::default() })
     }
 
     /// Adds a set of pins with its own path.

@@ -1,6 +1,7 @@
 //! The immutable cloth model: particles, links grouped by law, pins, the
 //! effects a scene asked for, and the system matrix's sparsity pattern.
 
+use super::build_mesh::*;
 use super::build_parts::*;
 use super::spec::*;
 use crate::colliders::{Collider, SelfCollision};
@@ -130,6 +131,20 @@ pub struct PanelRange {
     pub ny: usize,
 }
 
+/// Where a mesh panel's particles live in the model.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct MeshRange {
+    /// Index of the mesh's vertex 0.
+    pub offset: usize,
+    /// Number of vertices.
+    pub len: usize,
+    /// The mesh's edges (local indices): the graph its multigrid
+    /// aggregates follow.
+    pub edges: Vec<[u32; 2]>,
+    /// A pattern piece's vertices along each outline edge (local indices).
+    pub outline_edges: Vec<Vec<u32>>,
+}
+
 /// An immutable cloth model. Build one with [`ClothModel::build`].
 #[derive(Debug, Clone)]
 pub struct ClothModel {
@@ -151,6 +166,7 @@ pub struct ClothModel {
     strain_limit: Option<StrainLimit>,
     wind: Option<Wind>,
     panels: Vec<PanelRange>,
+    meshes: Vec<MeshRange>,
     triangles: Vec<[u32; 3]>,
     /// The triangles of each particle, in triangle order: `tri_of[tri_ptr[i]..tri_ptr[i + 1]]`.
     tri_ptr: Vec<usize>,
@@ -171,7 +187,7 @@ impl ClothModel {
     /// and [`Material::bend_constants`],
     /// rest lengths from the initial shape, pins, and the sparsity pattern.
     pub fn build(spec: &ModelSpec) -> Result<Self, ModelError> {
-        if spec.panels.is_empty() {
+        if spec.panels.is_empty() && spec.meshes.is_empty() {
             return Err(ModelError::NoPanels);
         }
         spec.material.validate().map_err(|(field, message)| ModelError::Material { field, message })?;
@@ -283,7 +299,8 @@ impl ClothModel {
                 let (_, v_axis, _) =
                     panel.frame().map_err(|(field, message)| ModelError::Panel { panel: p, field, message })?;
                 let (membranes, triangles) =
-                    volino_elements(&mesh, &spec.material, v_axis, p, offset as u32).ok_or_else(degenerate_err)?;
+                    volino_elements(&mesh.positions, &mesh.triangles, &spec.material, v_axis, p, offset as u32)
+                        .ok_or_else(degenerate_err)?;
                 elements.membranes.extend(membranes);
                 if spec.effects.bending {
                     bending_triangles.extend(triangles);
@@ -322,6 +339,33 @@ impl ClothModel {
             rest_positions.extend_from_slice(&mesh.positions);
             panels.push(PanelRange { offset, nx: panel.particles[0], ny: panel.particles[1] });
         }
+        let mut meshes = Vec::new();
+        if !spec.meshes.is_empty() {
+            check_lattice_on_meshes(spec, path)?;
+        }
+        for (k, panel) in spec.meshes.iter().enumerate() {
+            let err = |(field, message)| ModelError::Mesh { mesh: k, field, message };
+            let mesh = panel.resolve(&spec.collision.base_dir).map_err(err)?;
+            let offset = mass.len();
+            let index = spec.panels.len() + k;
+            let parts = mesh_parts(spec, &mesh, index, offset as u32, compressive).map_err(err)?;
+            stretch.extend(parts.stretch);
+            bend.extend_from_slice(&parts.flexion);
+            bend_middle.extend(parts.flexion.iter().map(|_| None));
+            elements.hinges.extend(parts.hinges);
+            elements.membranes.extend(parts.membranes);
+            bending_triangles.extend(parts.bending);
+            triangles.extend(mesh.triangles.iter().map(|t| t.map(|q| q + offset as u32)));
+            let area_share = &parts.topology.area_share;
+            mass.extend(area_share.iter().map(|a| a * spec.material.areal_density_kg_m2));
+            if spec.effects.drag {
+                drag.extend(area_share.iter().map(|a| a * spec.material.drag_n_s_m3));
+            }
+            rest_positions.extend_from_slice(&mesh.positions);
+            let edges = parts.topology.edges.iter().map(|e| e.ends).collect();
+            let (len, outline_edges) = (mesh.positions.len(), mesh.outline_edges);
+            meshes.push(MeshRange { offset, len, edges, outline_edges });
+        }
         let n = mass.len();
         let offsets: Vec<usize> = panels.iter().map(|p| p.offset).collect();
         let mut stitches = Vec::new();
@@ -335,15 +379,21 @@ impl ClothModel {
                 })?,
             );
         }
-        let (pins, pinned) = build_pins(spec, &panels, &rest_positions)?;
+        let (pins, pinned) = build_pins(spec, &panels, &meshes, &rest_positions)?;
         clamp_bend_links(&mut bend, &bend_middle, &pinned);
         clamp_triples(&mut elements.triples, &pinned);
+        clamp_hinges(&mut elements.hinges, &pinned);
         elements.curvatures =
             curvature_elements(&bending_triangles, &rest_positions, &pinned, spec.material.flexural_rigidity_n_m)
-                .map_err(|panel| ModelError::Panel {
-                    panel,
-                    field: "size_m",
-                    message: "a bending triangle is degenerate".into(),
+                .map_err(|panel| match panel.checked_sub(spec.panels.len()) {
+                    Some(mesh) => ModelError::Mesh {
+                        mesh,
+                        field: "triangles",
+                        message: "a bending triangle is degenerate".into(),
+                    },
+                    None => {
+                        ModelError::Panel { panel, field: "size_m", message: "a bending triangle is degenerate".into() }
+                    }
                 })?;
         if spec.effects.wind || spec.effects.aerodynamics {
             let wind = spec.wind.as_ref().ok_or(ModelError::Wind {
@@ -423,6 +473,7 @@ impl ClothModel {
             strain_limit: spec.strain_limit,
             wind: spec.wind.clone(),
             panels,
+            meshes,
             triangles,
             tri_ptr,
             tri_of,
@@ -655,6 +706,11 @@ impl ClothModel {
     pub fn pattern(&self) -> &BlockPattern {
         &self.pattern
     }
+    /// Where each mesh panel's particles are.
+    pub fn meshes(&self) -> &[MeshRange] {
+        &self.meshes
+    }
+
     /// The multigrid preconditioner's hierarchy for this model's system
     /// matrix: 2 x 2 grid nodes per aggregate and level (fewer CG
     /// iterations than 3 x 3 for the same work on the 75 x 75 hanging
@@ -680,19 +736,27 @@ impl ClothModel {
         hierarchy.expect("grid aggregates fit the model").for_element_size(nodes).with_pairs(&stitched)
     }
 
-    /// A multigrid hierarchy of grid aggregates: each level groups
-    /// `factor x factor` nodes of every panel (of the previous level's
-    /// grid), until at most `max_coarse` nodes remain or a level stops
-    /// shrinking. Aggregates never span two panels.
+    /// A multigrid hierarchy of aggregates: each level groups `factor x
+    /// factor` nodes of every grid panel (of the previous level's grid) and
+    /// up to `factor^2` neighbours of every mesh panel's graph
+    /// ([`cloth_linalg::graph_aggregation`]), until at most `max_coarse`
+    /// nodes remain or a level stops shrinking. Aggregates never span two
+    /// panels.
     pub fn grid_aggregations(&self, factor: usize, max_coarse: usize) -> Vec<Aggregation> {
         let factor = factor.max(2);
         let mut dims: Vec<(usize, usize)> = self.panels.iter().map(|p| (p.nx, p.ny)).collect();
+        let mut graphs: Vec<(usize, Vec<[u32; 2]>)> = self.meshes.iter().map(|m| (m.len, m.edges.clone())).collect();
         let mut levels = Vec::new();
         loop {
-            let n: usize = dims.iter().map(|(a, b)| a * b).sum();
+            let n: usize = dims.iter().map(|(a, b)| a * b).sum::<usize>() + graphs.iter().map(|g| g.0).sum::<usize>();
             let coarse_dims: Vec<(usize, usize)> =
                 dims.iter().map(|&(nx, ny)| (nx.div_ceil(factor), ny.div_ceil(factor))).collect();
-            let n_coarse: usize = coarse_dims.iter().map(|(a, b)| a * b).sum();
+            let coarse_graphs: Vec<_> = graphs
+                .iter()
+                .map(|(len, edges)| cloth_linalg::graph_aggregation(*len, edges, factor * factor))
+                .collect();
+            let n_coarse: usize = coarse_dims.iter().map(|(a, b)| a * b).sum::<usize>()
+                + coarse_graphs.iter().map(|g| g.n_coarse).sum::<usize>();
             if n <= max_coarse || n_coarse == n {
                 return levels;
             }
@@ -706,8 +770,13 @@ impl ClothModel {
                 }
                 offset += (cnx * cny) as u32;
             }
+            for g in &coarse_graphs {
+                coarse_of.extend(g.coarse_of.iter().map(|&a| offset + a));
+                offset += g.n_coarse as u32;
+            }
             levels.push(Aggregation { coarse_of, n_coarse });
             dims = coarse_dims;
+            graphs = coarse_graphs.into_iter().map(|g| (g.n_coarse, g.coarse_edges)).collect();
         }
     }
 

@@ -8,7 +8,8 @@
 //! its elements in a fixed order, as for links.
 
 use crate::element_laws::{
-    ElementForces, TriangleRest, bend_triple_forces, bend_triple_into, curvature_bending_into, membrane_triangle_into,
+    ElementForces, TriangleRest, bend_hinge_into, bend_triple_forces, bend_triple_into, curvature_bending_into,
+    membrane_triangle_into,
 };
 use crate::{Mat3, Vec3};
 use cloth_linalg::{BlockPattern, ROW_CHUNK};
@@ -48,12 +49,28 @@ pub struct BendTriple {
     pub k_b: f64,
 }
 
+/// A type-2 interaction of Choi & Ko's model across two triangles of a
+/// mesh ([`crate::element_laws::bend_hinge_into`]): corners `[c, a, b, d]`,
+/// the path through `(1 - w) x_a + w x_b`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BendHinge {
+    /// Far corner, edge start, edge end, far corner.
+    pub nodes: [u32; 4],
+    /// Where the rest path crosses the edge, as the weight of its end.
+    pub w: f64,
+    /// Rest length of the path (the pair unfolded flat), m.
+    pub rest: f64,
+    /// Flexural rigidity of the interaction `k_b`, N m^2.
+    pub k_b: f64,
+}
+
 /// The element kinds, in the order a particle adds them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Kind {
     Membrane,
     Curvature,
     Triple,
+    Hinge,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -73,23 +90,28 @@ pub struct ElementSet {
     pub curvatures: Vec<CurvatureElement>,
     /// Type-2 bending triples (Choi & Ko).
     pub triples: Vec<BendTriple>,
+    /// Type-2 interactions across mesh triangle pairs (Choi & Ko).
+    pub hinges: Vec<BendHinge>,
     inc_ptr: Vec<usize>,
     inc: Vec<Corner>,
     membrane_slots: Vec<[[u32; 3]; 3]>,
     curvature_slots: Vec<[[u32; 6]; 6]>,
     triple_slots: Vec<[[u32; 3]; 3]>,
+    hinge_slots: Vec<[[u32; 4]; 4]>,
 }
 
 impl ElementSet {
     /// Whether there is no element (Provot's model).
     pub fn is_empty(&self) -> bool {
-        self.membranes.is_empty() && self.curvatures.is_empty() && self.triples.is_empty()
+        self.membranes.is_empty() && self.curvatures.is_empty() && self.triples.is_empty() && self.hinges.is_empty()
     }
 
     /// Most corners of any element present (0 when empty).
     pub fn largest_element(&self) -> usize {
         if !self.curvatures.is_empty() {
             6
+        } else if !self.hinges.is_empty() {
+            4
         } else if self.membranes.is_empty() && self.triples.is_empty() {
             0
         } else {
@@ -101,7 +123,8 @@ impl ElementSet {
         let m = self.membranes.iter().enumerate().map(|(e, m)| (Kind::Membrane, e, &m.nodes[..]));
         let c = self.curvatures.iter().enumerate().map(|(e, c)| (Kind::Curvature, e, &c.nodes[..]));
         let t = self.triples.iter().enumerate().map(|(e, t)| (Kind::Triple, e, &t.nodes[..]));
-        m.chain(c).chain(t)
+        let h = self.hinges.iter().enumerate().map(|(e, h)| (Kind::Hinge, e, &h.nodes[..]));
+        m.chain(c).chain(t).chain(h)
     }
 
     /// Every coupled pair of particles, for the sparsity pattern.
@@ -142,6 +165,7 @@ impl ElementSet {
         self.membrane_slots = self.membranes.iter().map(|m| slots(&m.nodes, pattern)).collect();
         self.curvature_slots = self.curvatures.iter().map(|c| slots(&c.nodes, pattern)).collect();
         self.triple_slots = self.triples.iter().map(|t| slots(&t.nodes, pattern)).collect();
+        self.hinge_slots = self.hinges.iter().map(|h| slots(&h.nodes, pattern)).collect();
     }
 
     fn corners(&self, i: usize) -> &[Corner] {
@@ -224,6 +248,7 @@ pub struct ElementBuffers {
     membranes: KindBuffers<3>,
     curvatures: KindBuffers<6>,
     triples: KindBuffers<3>,
+    hinges: KindBuffers<4>,
 }
 
 impl ElementBuffers {
@@ -245,6 +270,7 @@ impl ElementBuffers {
             membranes: KindBuffers::new(set.membranes.len(), with_hessians),
             curvatures: KindBuffers::new(set.curvatures.len(), with_hessians),
             triples: KindBuffers::new(set.triples.len(), with_hessians),
+            hinges: KindBuffers::new(set.hinges.len(), with_hessians),
         }
     }
 }
@@ -309,6 +335,16 @@ pub fn evaluate(
         force,
         k_times,
     );
+    let at4 = |nodes: &[u32; 4]| nodes.map(|p| x[p as usize]);
+    bufs.hinges.evaluate(
+        &set.hinges,
+        |h| h.nodes,
+        |h, m| bend_hinge_into(at4(&h.nodes), h.w, h.rest, h.k_b, Some(m)),
+        |h| bend_hinge_into(at4(&h.nodes), h.w, h.rest, h.k_b, None),
+        c_x,
+        force,
+        k_times,
+    );
 }
 
 /// Sum of the element right-hand-side terms at particle `i`.
@@ -320,6 +356,7 @@ pub fn rhs_at(set: &ElementSet, bufs: &ElementBuffers, i: usize) -> Vec3 {
             Kind::Membrane => bufs.membranes.rhs[e].rhs[a],
             Kind::Curvature => bufs.curvatures.rhs[e].rhs[a],
             Kind::Triple => bufs.triples.rhs[e].rhs[a],
+            Kind::Hinge => bufs.hinges.rhs[e].rhs[a],
         };
     }
     acc
@@ -338,6 +375,7 @@ pub fn add_row(set: &ElementSet, bufs: &ElementBuffers, i: usize, row: &mut [Mat
             Kind::Membrane => add(&set.membrane_slots[e][a], &bufs.membranes.blocks[e][a], row),
             Kind::Curvature => add(&set.curvature_slots[e][a], &bufs.curvatures.blocks[e][a], row),
             Kind::Triple => add(&set.triple_slots[e][a], &bufs.triples.blocks[e][a], row),
+            Kind::Hinge => add(&set.hinge_slots[e][a], &bufs.hinges.blocks[e][a], row),
         }
     }
 }
@@ -355,6 +393,7 @@ pub fn apply_at(set: &ElementSet, bufs: &ElementBuffers, i: usize, w: &[Vec3], s
             Kind::Membrane => apply(&set.membranes[e].nodes, &bufs.membranes.blocks[e][a], w, s),
             Kind::Curvature => apply(&set.curvatures[e].nodes, &bufs.curvatures.blocks[e][a], w, s),
             Kind::Triple => apply(&set.triples[e].nodes, &bufs.triples.blocks[e][a], w, s),
+            Kind::Hinge => apply(&set.hinges[e].nodes, &bufs.hinges.blocks[e][a], w, s),
         };
     }
     acc
@@ -398,6 +437,11 @@ pub fn vertex_with_energy(set: &ElementSet, x: &[Vec3], i: usize) -> (Vec3, Mat3
                 let t = &set.triples[e];
                 (&t.nodes, crate::element_laws::bend_triple_corner(t.nodes.map(|p| x[p as usize]), t.rest, t.k_b, a))
             }
+            Kind::Hinge => {
+                let h = &set.hinges[e];
+                let law = |p, m: &mut _| bend_hinge_into(p, h.w, h.rest, h.k_b, Some(m));
+                (&h.nodes, corner(&h.nodes, a, x, law))
+            }
         };
         force += f;
         stiffness += h;
@@ -425,6 +469,7 @@ pub fn vertex_energy(set: &ElementSet, x: &[Vec3], i: usize, xi: Vec3) -> f64 {
             Kind::Membrane => first_slot(&set.membranes[e].nodes, i, a),
             Kind::Curvature => first_slot(&set.curvatures[e].nodes, i, a),
             Kind::Triple => first_slot(&set.triples[e].nodes, i, a),
+            Kind::Hinge => first_slot(&set.hinges[e].nodes, i, a),
         };
         if !counted {
             continue;
@@ -445,6 +490,11 @@ pub fn vertex_energy(set: &ElementSet, x: &[Vec3], i: usize, xi: Vec3) -> f64 {
                 let p = t.nodes.map(|p| if p as usize == i { xi } else { x[p as usize] });
                 bend_triple_into(p, t.rest, t.k_b, None).energy
             }
+            Kind::Hinge => {
+                let h = &set.hinges[e];
+                let p = h.nodes.map(|p| if p as usize == i { xi } else { x[p as usize] });
+                bend_hinge_into(p, h.w, h.rest, h.k_b, None).energy
+            }
         };
     }
     energy
@@ -452,5 +502,5 @@ pub fn vertex_energy(set: &ElementSet, x: &[Vec3], i: usize, xi: Vec3) -> f64 {
 
 /// Total element energy of the last [`evaluate`], J.
 pub fn energy(bufs: &ElementBuffers) -> f64 {
-    bufs.membranes.energy() + bufs.curvatures.energy() + bufs.triples.energy()
+    bufs.membranes.energy() + bufs.curvatures.energy() + bufs.triples.energy() + bufs.hinges.energy()
 }

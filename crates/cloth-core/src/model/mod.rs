@@ -3,8 +3,10 @@
 //! its topology and material, and the interaction laws with the loops that
 //! evaluate them. Nothing here changes during a run.
 
+mod build_mesh;
 mod build_parts;
 mod builder;
+pub mod cloth_mesh;
 mod cloth_model;
 pub mod colouring;
 pub(crate) mod constraints;
@@ -14,6 +16,7 @@ pub mod forces;
 pub(crate) mod keyframes;
 pub mod laws;
 pub(crate) mod material;
+pub mod pattern;
 pub(crate) mod pins;
 pub mod seams;
 mod spec;
@@ -22,5 +25,7 @@ pub(crate) mod topology;
 pub mod wind;
 
 pub use builder::ModelBuilder;
+pub use cloth_mesh::{ClothMesh, MeshPanel};
 pub use cloth_model::*;
+pub use pattern::{PatternMesh, PatternPiece};
 pub use spec::*;

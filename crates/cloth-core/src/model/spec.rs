@@ -3,7 +3,7 @@
 
 use crate::colliders::CollisionSpec;
 use crate::seams::SeamSpec;
-use crate::{GridPanel, Material, PinMotion, Vec3, Wind};
+use crate::{GridPanel, Material, MeshPanel, PinMotion, Vec3, Wind};
 use serde::{Deserialize, Serialize};
 
 /// Effects computed by a model. An effect that is off costs nothing: no
@@ -40,7 +40,7 @@ pub enum Edge {
     JMax,
 }
 
-/// A set of pinned grid nodes and the path they follow.
+/// A set of pinned grid nodes or mesh vertices and the path they follow.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PinSpec {
@@ -53,6 +53,17 @@ pub struct PinSpec {
     /// A whole edge to pin (in addition to `nodes`).
     #[serde(default)]
     pub edge: Option<Edge>,
+    /// A mesh panel index (`[[meshes]]`): pins its `vertices` instead of
+    /// a grid panel's nodes.
+    #[serde(default)]
+    pub mesh: Option<usize>,
+    /// The mesh's vertices to pin (0-based, in the mesh's order).
+    #[serde(default)]
+    pub vertices: Vec<usize>,
+    /// A pattern mesh's outline edges to pin whole (edge `k` from outline
+    /// corner `k` to the next), in addition to `vertices`.
+    #[serde(default)]
+    pub outline_edges: Vec<usize>,
     /// The path (default: fixed).
     #[serde(default = "fixed")]
     pub motion: PinMotion,
@@ -62,11 +73,30 @@ fn fixed() -> PinMotion {
     PinMotion::Fixed
 }
 
+impl Default for PinSpec {
+    /// Pins nothing yet, on panel 0, fixed.
+    fn default() -> Self {
+        Self {
+            panel: 0,
+            nodes: Vec::new(),
+            edge: None,
+            mesh: None,
+            vertices: Vec::new(),
+            outline_edges: Vec::new(),
+            motion: PinMotion::Fixed,
+        }
+    }
+}
+
 /// Everything needed to build a [`crate::ClothModel`].
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ModelSpec {
-    /// The cloth panels (particles are numbered panel after panel, `j * nx + i` within one).
+    /// The cloth's grid panels (particles are numbered panel after panel,
+    /// `j * nx + i` within one).
     pub panels: Vec<GridPanel>,
+    /// The cloth's mesh panels (their particles follow the grid panels',
+    /// in each mesh's vertex order).
+    pub meshes: Vec<MeshPanel>,
     /// The fabric, shared by all panels.
     pub material: Material,
     /// Pinned nodes.
@@ -92,8 +122,21 @@ pub struct ModelSpec {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ModelError {
     /// The model has no panel.
-    #[error("panels: at least one panel is required")]
+    #[error("panels: at least one panel or mesh is required")]
     NoPanels,
+    /// The paper's arc-chord law was asked of a model with mesh panels.
+    #[error("simulation.bending_law: arc-chord reads a grid's type-2 links; mesh panels take arc-path (the default)")]
+    MeshBendingLaw,
+    /// A mesh panel is invalid.
+    #[error("meshes[{mesh}].{field}: {message}")]
+    Mesh {
+        /// Mesh index.
+        mesh: usize,
+        /// Offending field.
+        field: &'static str,
+        /// What is wrong.
+        message: String,
+    },
     /// A panel is invalid.
     #[error("panels[{panel}].{field}: {message}")]
     Panel {

@@ -1,0 +1,350 @@
+//! Sewing-pattern pieces: a flat polygon in metres, meshed to a target edge
+//! length by constrained Delaunay refinement (Ruppert's and Chew's
+//! algorithms, as the `spade` crate implements them), then placed in 3D.
+
+use crate::Vec3;
+use serde::{Deserialize, Serialize};
+use spade::{AngleLimit, ConstrainedDelaunayTriangulation, Point2, RefinementParameters, Triangulation};
+
+/// One pattern piece as a designer draws it: its outline in the plane
+/// (m; curved edges as polylines), meshed with edges of about
+/// `edge_length_m`, placed with its x and y axes along `u_axis`, `v_axis`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PatternPiece {
+    /// The outline's corners in order (either way round), m. Outline edge
+    /// `k` runs from corner `k` to corner `k + 1` (the last back to the
+    /// first).
+    pub outline_m: Vec<[f64; 2]>,
+    /// Target edge length of the mesh, m: the outline is split into
+    /// pieces no longer than it and the inside refined to triangles of
+    /// about that size, none with an angle under 25 degrees.
+    pub edge_length_m: f64,
+    /// Lines inside the piece that the mesh follows (fold lines, darts, a
+    /// clamp's edge), each from one point to another, m.
+    #[serde(default)]
+    pub lines_m: Vec<[[f64; 2]; 2]>,
+    /// The 3D direction of the pattern's x axis. Default +x.
+    #[serde(default = "x_axis")]
+    pub u_axis: [f64; 3],
+    /// The 3D direction of the pattern's y axis (made orthogonal to
+    /// `u_axis`). Default +y.
+    #[serde(default = "y_axis")]
+    pub v_axis: [f64; 3],
+}
+
+fn x_axis() -> [f64; 3] {
+    [1.0, 0.0, 0.0]
+}
+fn y_axis() -> [f64; 3] {
+    [0.0, 1.0, 0.0]
+}
+
+/// Smallest angle the refinement keeps, degrees (30 can fail to end).
+pub const PATTERN_MIN_ANGLE_DEG: f64 = 25.0;
+
+/// Most triangles a pattern piece may mesh into.
+pub const PATTERN_MAX_TRIANGLES: f64 = 4e6;
+
+/// A meshed pattern piece.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PatternMesh {
+    /// Vertex positions in 3D (the pattern plane placed), m.
+    pub positions: Vec<Vec3>,
+    /// Triangles, counter-clockwise seen from `u_axis x v_axis`.
+    pub triangles: Vec<[u32; 3]>,
+    /// The vertices on each outline edge, from its first corner to its last.
+    pub outline_edges: Vec<Vec<u32>>,
+    /// The placed y axis: the grain when the pattern is drawn with it along y.
+    pub v_axis: Vec3,
+}
+
+impl PatternPiece {
+    /// Meshes the piece; errors name the field (`outline_m`,
+    /// `edge_length_m`, `lines_m`, `u_axis`, `v_axis`). A panic inside the
+    /// triangulator (which reports some degenerate inputs that way) is
+    /// caught and refused as an error on `outline_m`.
+    pub fn mesh(&self) -> Result<PatternMesh, (&'static str, String)> {
+        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| self.mesh_unguarded())).unwrap_or_else(|panic| {
+            let why = panic
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_default();
+            Err(("outline_m", format!("the triangulator failed on this outline ({why})")))
+        })
+    }
+
+    fn mesh_unguarded(&self) -> Result<PatternMesh, (&'static str, String)> {
+        let h = self.edge_length_m;
+        if !(h.is_finite() && h > 0.0) {
+            return Err(("edge_length_m", format!("must be finite and > 0, got {h}")));
+        }
+        let corners = &self.outline_m;
+        if corners.len() < 3 {
+            return Err(("outline_m", format!("needs at least 3 corners, got {}", corners.len())));
+        }
+        if let Some(k) = corners.iter().position(|c| c.iter().any(|v| !v.is_finite())) {
+            return Err(("outline_m", format!("corner {k} is not finite")));
+        }
+        let (u, v) = self.axes()?;
+        let n = corners.len();
+        let signed_area: f64 = (0..n)
+            .map(|k| corners[k][0] * corners[(k + 1) % n][1] - corners[(k + 1) % n][0] * corners[k][1])
+            .sum::<f64>()
+            / 2.0;
+        let expected = signed_area.abs() / (3f64.sqrt() / 4.0 * h * h);
+        if !expected.is_finite() || expected >= PATTERN_MAX_TRIANGLES {
+            return Err(("edge_length_m", format!("{h} m makes about {expected:.0} triangles; at most 4e6")));
+        }
+        if signed_area.abs() == 0.0 {
+            return Err(("outline_m", "the outline encloses no area".into()));
+        }
+        let mut cdt = ConstrainedDelaunayTriangulation::<Point2<f64>>::new();
+        let insert = |cdt: &mut ConstrainedDelaunayTriangulation<Point2<f64>>, p: [f64; 2]| {
+            cdt.insert(Point2::new(p[0], p[1])).map_err(|e| ("outline_m", format!("corner at {p:?}: {e:?}")))
+        };
+        // Corners first, so that a repeated corner is seen before the edges split.
+        let mut corner_handles = Vec::with_capacity(n);
+        for (k, &c) in corners.iter().enumerate() {
+            let handle = insert(&mut cdt, c)?;
+            if corner_handles.contains(&handle) {
+                return Err(("outline_m", format!("corner {k} {c:?} repeats an earlier corner")));
+            }
+            corner_handles.push(handle);
+        }
+        // A segment from `a` to `b` split into pieces no longer than `h`.
+        let split = |cdt: &mut ConstrainedDelaunayTriangulation<Point2<f64>>, a: [f64; 2], b: [f64; 2]| {
+            let len = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
+            let pieces = (len / h).ceil().max(1.0) as usize;
+            (1..pieces)
+                .map(|s| {
+                    let t = s as f64 / pieces as f64;
+                    insert(cdt, [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])])
+                })
+                .collect::<Result<Vec<_>, _>>()
+        };
+        // A line that ends on the outline ends at a vertex of it: the end
+        // is moved onto the edge, which is split there.
+        let extent = corners.iter().flatten().fold(0.0f64, |m, c| m.max(c.abs()));
+        let mut lines = self.lines_m.clone();
+        let mut breaks: Vec<Vec<f64>> = vec![Vec::new(); n];
+        for (k, line) in lines.iter_mut().enumerate() {
+            if line.iter().flatten().any(|c| !c.is_finite()) || line[0] == line[1] {
+                return Err(("lines_m", format!("line {k} must join two different finite points")));
+            }
+            for end in line.iter_mut() {
+                for (e, b) in breaks.iter_mut().enumerate() {
+                    let (p, q) = (corners[e], corners[(e + 1) % n]);
+                    let d = [q[0] - p[0], q[1] - p[1]];
+                    let t = ((end[0] - p[0]) * d[0] + (end[1] - p[1]) * d[1]) / (d[0] * d[0] + d[1] * d[1]);
+                    let on = [p[0] + t * d[0], p[1] + t * d[1]];
+                    let off = ((end[0] - on[0]).powi(2) + (end[1] - on[1]).powi(2)).sqrt();
+                    if (0.0..=1.0).contains(&t) && off <= 1e-9 * extent {
+                        *end = on;
+                        b.push(t);
+                        break;
+                    }
+                }
+            }
+        }
+        let mut edge_handles = Vec::with_capacity(n);
+        for (k, b) in breaks.iter_mut().enumerate() {
+            let (p, q) = (corners[k], corners[(k + 1) % n]);
+            b.extend([0.0, 1.0]);
+            b.sort_by(f64::total_cmp);
+            b.dedup();
+            let at = |t: f64| [p[0] + t * (q[0] - p[0]), p[1] + t * (q[1] - p[1])];
+            let mut handles = vec![corner_handles[k]];
+            for w in b.windows(2) {
+                handles.extend(split(&mut cdt, at(w[0]), at(w[1]))?);
+                handles.push(if w[1] == 1.0 { corner_handles[(k + 1) % n] } else { insert(&mut cdt, at(w[1]))? });
+            }
+            edge_handles.push(handles);
+        }
+        // A line starts and ends inside or on the outline, and does not
+        // leave it between (crossing the outline is caught as a constraint
+        // conflict; leaving through a corner by its midpoint).
+        let on_or_inside = |p: [f64; 2]| {
+            inside_polygon(corners, p)
+                || (0..n).any(|e| {
+                    let (a, b) = (corners[e], corners[(e + 1) % n]);
+                    let d = [b[0] - a[0], b[1] - a[1]];
+                    let t =
+                        (((p[0] - a[0]) * d[0] + (p[1] - a[1]) * d[1]) / (d[0] * d[0] + d[1] * d[1])).clamp(0.0, 1.0);
+                    (p[0] - a[0] - t * d[0]).hypot(p[1] - a[1] - t * d[1]) <= 1e-9 * extent
+                })
+        };
+        for (k, &[a, b]) in lines.iter().enumerate() {
+            let middle = [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0];
+            if !(on_or_inside(a) && on_or_inside(b) && on_or_inside(middle)) {
+                return Err(("lines_m", format!("line {k} reaches outside the outline")));
+            }
+        }
+        let mut line_handles = Vec::with_capacity(lines.len());
+        for &[a, b] in &lines {
+            let mut handles = vec![insert(&mut cdt, a)?];
+            handles.extend(split(&mut cdt, a, b)?);
+            handles.push(insert(&mut cdt, b)?);
+            line_handles.push(handles);
+        }
+        for (k, handles) in edge_handles.iter().enumerate() {
+            for pair in handles.windows(2) {
+                if pair[0] == pair[1] || cdt.try_add_constraint(pair[0], pair[1]).is_empty() {
+                    return Err(("outline_m", format!("outline edge {k} crosses or touches another edge")));
+                }
+            }
+        }
+        for (k, handles) in line_handles.iter().enumerate() {
+            for pair in handles.windows(2) {
+                if pair[0] == pair[1] || cdt.try_add_constraint(pair[0], pair[1]).is_empty() {
+                    return Err(("lines_m", format!("line {k} crosses the outline or another line")));
+                }
+            }
+        }
+        let expected_vertices = (expected as usize).max(16);
+        // The whole hull is refined: spade's own test of what is outside
+        // counts crossings of every constraint, and an inside line flips it.
+        let params = RefinementParameters::<f64>::new()
+            .keep_constraint_edges()
+            .with_angle_limit(AngleLimit::from_deg(PATTERN_MIN_ANGLE_DEG))
+            .with_max_allowed_area(3f64.sqrt() / 4.0 * h * h * 1.3)
+            .with_max_additional_vertices(8 * expected_vertices);
+        let result = cdt.refine(params);
+        if !result.refinement_complete {
+            return Err(("outline_m", "the refinement did not finish: a corner may be too sharp".into()));
+        }
+        let mut index = vec![u32::MAX; cdt.num_vertices()];
+        let mut positions = Vec::new();
+        let mut triangles = Vec::new();
+        let inside = |p: [f64; 2]| inside_polygon(corners, p);
+        // Slivers between outline points in a line (split pieces of one
+        // straight edge, off by rounding) lie outside with their centres on
+        // the outline: they have no area and are dropped.
+        for face in cdt.inner_faces().filter(|f| {
+            let c = f.center();
+            f.area() > 1e-9 * h * h && inside([c.x, c.y])
+        }) {
+            let t = face.vertices().map(|vertex| {
+                let slot = &mut index[vertex.fix().index()];
+                if *slot == u32::MAX {
+                    let p = vertex.position();
+                    *slot = positions.len() as u32;
+                    positions.push(u * p.x + v * p.y);
+                }
+                *slot
+            });
+            triangles.push(t);
+        }
+        let outline_edges = edge_handles.iter().map(|hs| hs.iter().map(|h| index[h.index()]).collect()).collect();
+        if line_handles.iter().flatten().any(|h| index[h.index()] == u32::MAX) {
+            return Err(("lines_m", "a line reaches outside the outline".into()));
+        }
+        Ok(PatternMesh { positions, triangles, outline_edges, v_axis: v })
+    }
+
+    /// The placed x and y axes, orthonormal.
+    fn axes(&self) -> Result<(Vec3, Vec3), (&'static str, String)> {
+        let u = Vec3::from(self.u_axis)
+            .try_normalize(1e-12)
+            .filter(|u| u.iter().all(|c| c.is_finite()))
+            .ok_or(("u_axis", format!("must be a finite non-zero direction, got {:?}", self.u_axis)))?;
+        let v = Vec3::from(self.v_axis);
+        let v = (v - u * u.dot(&v))
+            .try_normalize(1e-9 * v.norm())
+            .filter(|v| v.iter().all(|c| c.is_finite()))
+            .ok_or(("v_axis", format!("must be finite, non-zero and not along u_axis, got {:?}", self.v_axis)))?;
+        Ok((u, v))
+    }
+}
+
+/// Whether `p` is inside the polygon `corners` (crossing count of a ray
+/// along +x; a face's centre is never on the outline).
+fn inside_polygon(corners: &[[f64; 2]], p: [f64; 2]) -> bool {
+    let n = corners.len();
+    let mut inside = false;
+    for k in 0..n {
+        let (a, b) = (corners[k], corners[(k + 1) % n]);
+        if (a[1] > p[1]) != (b[1] > p[1]) {
+            let x = a[0] + (p[1] - a[1]) / (b[1] - a[1]) * (b[0] - a[0]);
+            if x > p[0] {
+                inside = !inside;
+            }
+        }
+    }
+    inside
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rectangle(w: f64, l: f64, h: f64) -> PatternPiece {
+        PatternPiece {
+            outline_m: vec![[0.0, 0.0], [w, 0.0], [w, l], [0.0, l]],
+            edge_length_m: h,
+            lines_m: Vec::new(),
+            u_axis: x_axis(),
+            v_axis: y_axis(),
+        }
+    }
+
+    #[test]
+    fn a_rectangle_meshes_to_its_area_with_edges_near_the_target() {
+        let m = rectangle(0.3, 0.2, 0.02).mesh().unwrap();
+        let p = &m.positions;
+        let area: f64 = m
+            .triangles
+            .iter()
+            .map(|t| 0.5 * (p[t[1] as usize] - p[t[0] as usize]).cross(&(p[t[2] as usize] - p[t[0] as usize])).z)
+            .sum();
+        assert!((area - 0.06).abs() < 1e-12, "area {area}: every triangle counter-clockwise, none missing");
+        let mut lengths: Vec<f64> = m
+            .triangles
+            .iter()
+            .flat_map(|t| (0..3).map(move |k| (p[t[k] as usize] - p[t[(k + 1) % 3] as usize]).norm()))
+            .collect();
+        lengths.sort_by(f64::total_cmp);
+        let median = lengths[lengths.len() / 2];
+        println!("{} vertices, {} triangles, median edge {median}", p.len(), m.triangles.len());
+        assert!(median > 0.017 && median <= 0.02, "median edge {median} m");
+        // The outline's vertices lie on its edges, in order.
+        assert_eq!(m.outline_edges.len(), 4);
+        assert_eq!(m.outline_edges[0].len(), 16);
+        for (k, w) in m.outline_edges[0].windows(2).enumerate() {
+            let (a, b) = (p[w[0] as usize], p[w[1] as usize]);
+            assert!(a.y.abs() < 1e-15 && b.x > a.x, "edge 0, piece {k}: {a} -> {b}");
+        }
+        assert_eq!(m.outline_edges[0].last(), m.outline_edges[1].first());
+    }
+
+    #[test]
+    fn bad_outlines_name_the_field() {
+        let mut r = rectangle(0.3, 0.2, 0.02);
+        r.outline_m[2] = [0.3, 0.0];
+        assert_eq!(r.mesh().unwrap_err().0, "outline_m", "a repeated corner");
+        let mut bow = rectangle(0.3, 0.2, 0.02);
+        bow.outline_m.swap(2, 3);
+        assert_eq!(bow.mesh().unwrap_err().0, "outline_m", "a bow tie crosses itself");
+        assert_eq!(rectangle(0.3, 0.2, 0.0).mesh().unwrap_err().0, "edge_length_m");
+        assert_eq!(rectangle(0.3, 0.2, 1e-6).mesh().unwrap_err().0, "edge_length_m", "too many triangles");
+        let mut flat = rectangle(0.3, 0.2, 0.02);
+        flat.v_axis = [2.0, 0.0, 0.0];
+        assert_eq!(flat.mesh().unwrap_err().0, "v_axis");
+        let mut outside = rectangle(0.3, 0.2, 0.02);
+        outside.lines_m = vec![[[0.1, 0.1], [0.5, 0.1]]];
+        assert_eq!(outside.mesh().unwrap_err().0, "lines_m");
+    }
+
+    #[test]
+    fn the_mesh_follows_an_inside_line() {
+        let mut r = rectangle(0.3, 0.2, 0.02);
+        r.lines_m = vec![[[0.1, 0.0], [0.1, 0.2]]];
+        let m = r.mesh().unwrap();
+        // No triangle straddles x = 0.1.
+        for t in &m.triangles {
+            let x = t.map(|v| m.positions[v as usize].x - 0.1);
+            assert!(x.iter().all(|&x| x <= 1e-12) || x.iter().all(|&x| x >= -1e-12), "{x:?}");
+        }
+    }
+}
