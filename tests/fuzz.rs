@@ -169,6 +169,7 @@ fn random_pattern_outlines_are_meshed_or_refused() {
             lines_m: lines,
             u_axis: [1.0, 0.0, 0.0],
             v_axis: [0.0, 1.0, 0.0],
+            cylinder_radius_m: None,
         };
         let result = catch_unwind(AssertUnwindSafe(|| MeshPanel::from_pattern(piece.clone()).resolve(Path::new("."))));
         match result {

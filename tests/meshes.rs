@@ -19,6 +19,7 @@ fn piece(width: f64, length: f64, h: f64, v_axis: [f64; 3], lines: Vec<[[f64; 2]
         lines_m: lines,
         u_axis: [1.0, 0.0, 0.0],
         v_axis,
+        cylinder_radius_m: None,
     }
 }
 
@@ -88,6 +89,7 @@ fn cantilever(kind: ModelKind, h: f64) -> (f64, f64) {
         lines_m: vec![[[0.0, -0.01], [0.0, 0.01]]],
         u_axis: [1.0, 0.0, 0.0],
         v_axis: [0.0, 1.0, 0.0],
+        cylinder_radius_m: None,
     };
     let mut mesh = MeshPanel::from_pattern(piece);
     mesh.offset_m = [0.0, 0.0, CantileverStrip::CLAMP_Z];
@@ -259,5 +261,129 @@ fn an_irregular_mesh_bent_onto_a_cylinder_stores_the_plate_energy() {
             ModelKind::Provot => (0.0, 0.05),
         };
         assert!(ratios.iter().all(|r| (lo..=hi).contains(r)), "{kind:?}: {ratios:?}");
+    }
+}
+
+/// Two half-tubes cut as pattern pieces (0.471 x 0.3 m, wrapped on a
+/// cylinder of radius 0.15 m, front and back), sewn along both sides:
+/// the sides are split alike, stitched vertex to vertex and closed from
+/// the start; hung by the top edges for 1 s the tube stays closed and
+/// round. Two tops of different widths sewn to each other are split into
+/// the more pieces of the two (the shorter edge gathers).
+#[test]
+fn pattern_pieces_sewn_side_to_side_make_a_tube() {
+    use cloth_core::{SeamSide, SeamSpec};
+    let (r, h) = (0.15, 0.025);
+    let half = |u_axis: [f64; 3]| {
+        let mut p = piece(std::f64::consts::PI * r, 0.3, h, [0.0, 0.0, -1.0], vec![]);
+        (p.u_axis, p.cylinder_radius_m) = (u_axis, Some(r));
+        MeshPanel::from_pattern(p)
+    };
+    let seam = |a: SeamSide, b: SeamSide| SeamSpec {
+        a,
+        b,
+        reverse: true,
+        stiffness_n_m: None,
+        pull_n: None,
+        sewing_pull_n: None,
+        closing_speed_m_s: None,
+    };
+    // Side edges: 1 (x = w, downwards) and 3 (x = 0, upwards): reversed to pair top with top.
+    let spec = ModelSpec {
+        kind: ModelKind::ChoiKo,
+        meshes: vec![half([1.0, 0.0, 0.0]), half([-1.0, 0.0, 0.0])],
+        seams: vec![
+            seam(SeamSide::outline(0, 1), SeamSide::outline(1, 3)),
+            seam(SeamSide::outline(1, 1), SeamSide::outline(0, 3)),
+        ],
+        pins: vec![
+            PinSpec { mesh: Some(0), outline_edges: vec![0], ..PinSpec::default() },
+            PinSpec { mesh: Some(1), outline_edges: vec![0], ..PinSpec::default() },
+        ],
+        material: cotton(),
+        effects: Effects {
+            gravity: Some(Vec3::new(0.0, 0.0, -9.81)),
+            bending: true,
+            damping: true,
+            ..Effects::default()
+        },
+        ..ModelSpec::default()
+    };
+    let model = ClothModel::build(&spec).unwrap();
+    assert_eq!(model.stitches().len(), 2 * 13, "0.3 m sides at 2.5 cm: 12 pieces, 13 vertices each");
+    let x0 = model.rest_positions().to_vec();
+    assert!(model.max_seam_gap(&x0) < 1e-12, "sewn where they meet: {}", model.max_seam_gap(&x0));
+    let solver = SolverParams::default();
+    let mut sim = Simulation::new(model, IntegratorKind::Bdf2, solver);
+    for _ in 0..90 {
+        sim.step(1.0 / 90.0).unwrap();
+    }
+    let x = &sim.state().x;
+    let gap = sim.model().max_seam_gap(x);
+    let bottom: Vec<f64> =
+        (0..x.len()).filter(|&i| x0[i].z < -0.3 + 1e-9).map(|i| (x[i].x.powi(2) + x[i].y.powi(2)).sqrt()).collect();
+    let (lo, hi) = bottom.iter().fold((f64::INFINITY, 0.0_f64), |(lo, hi), &r| (lo.min(r), hi.max(r)));
+    println!("after 1 s: seam gap {gap:.2e} m, hem radius {lo:.4} to {hi:.4} m");
+    assert!(gap < 1e-3, "the seams opened: {gap} m");
+    assert!(lo > 0.9 * r && hi < 1.1 * r, "the hem is no longer round: {lo} to {hi} m");
+    // Tops of 0.5 and 0.3 m sewn together: 20 pieces each (0.5 m at 2.5 cm).
+    let (wide, narrow) = (piece(0.5, 0.2, h, [0.0, 1.0, 0.0], vec![]), piece(0.3, 0.2, h, [0.0, 1.0, 0.0], vec![]));
+    let gathered = ClothModel::build(&ModelSpec {
+        meshes: vec![MeshPanel::from_pattern(wide), MeshPanel::from_pattern(narrow)],
+        seams: vec![seam(SeamSide::outline(0, 2), SeamSide::outline(1, 2))],
+        ..ModelSpec::default()
+    })
+    .unwrap();
+    assert_eq!(gathered.stitches().len(), 21);
+}
+
+/// Seams and pins that name what a mesh does not have are errors naming
+/// the field.
+#[test]
+fn bad_mesh_seams_and_pins_name_the_field() {
+    use cloth_core::{SeamSide, SeamSpec};
+    let square = || MeshPanel::from_pattern(piece(0.2, 0.2, 0.05, [0.0, 1.0, 0.0], vec![]));
+    let seam = |a: SeamSide, b: SeamSide| SeamSpec {
+        a,
+        b,
+        reverse: false,
+        stiffness_n_m: None,
+        pull_n: None,
+        sewing_pull_n: None,
+        closing_speed_m_s: None,
+    };
+    let error = |seams: Vec<SeamSpec>, pins: Vec<PinSpec>| {
+        let spec = ModelSpec { meshes: vec![square(), square()], seams, pins, ..ModelSpec::default() };
+        ClothModel::build(&spec).unwrap_err().to_string()
+    };
+    let cases = [
+        (vec![seam(SeamSide::outline(0, 1), SeamSide::outline(1, 7))], vec![], "seams[0].b.outline_edge"),
+        (vec![seam(SeamSide::outline(2, 1), SeamSide::outline(1, 3))], vec![], "seams[0].a.mesh"),
+        (
+            vec![seam(SeamSide { outline_edge: None, ..SeamSide::outline(0, 1) }, SeamSide::outline(1, 3))],
+            vec![],
+            "seams[0].a.outline_edge",
+        ),
+        (
+            vec![seam(
+                SeamSide { edge: Some(cloth_core::Edge::IMin), ..SeamSide::outline(0, 1) },
+                SeamSide::outline(1, 3),
+            )],
+            vec![],
+            "seams[0].a.mesh",
+        ),
+        (
+            vec![],
+            vec![PinSpec { mesh: Some(0), outline_edges: vec![4], ..PinSpec::default() }],
+            "pins[0].outline_edges",
+        ),
+        (vec![], vec![PinSpec { mesh: Some(3), vertices: vec![0], ..PinSpec::default() }], "pins[0].mesh"),
+        (vec![], vec![PinSpec { mesh: Some(0), vertices: vec![10_000], ..PinSpec::default() }], "pins[0].vertices"),
+        (vec![], vec![PinSpec { vertices: vec![0], ..PinSpec::default() }], "pins[0].vertices"),
+        (vec![], vec![PinSpec { mesh: Some(0), ..PinSpec::default() }], "pins[0].vertices"),
+    ];
+    for (seams, pins, field) in cases {
+        let e = error(seams, pins);
+        assert!(e.starts_with(&format!("{field}:")), "{e}");
     }
 }

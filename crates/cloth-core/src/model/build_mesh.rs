@@ -78,7 +78,8 @@ pub(super) fn mesh_parts(
                     let Some(w) = h.crossing else { continue };
                     // Halves a L and (1 - a) L read 1 - r = kappa^2 a (1 - a) L^2 / 2,
                     // 4 a (1 - a) times what equal halves read.
-                    let halves = 4.0 * h.first_half * (1.0 - h.first_half);
+                    // (At most 4 times: a middle within 7% of an end reads too little to scale up.)
+                    let halves = (4.0 * h.first_half * (1.0 - h.first_half)).max(0.25);
                     let k_b = PATH_CURVATURE_FACTOR * b * h.area / (h.unfolded * halves);
                     hinges.push(BendHinge { nodes: h.nodes.map(at), w, rest: h.unfolded, k_b });
                 }

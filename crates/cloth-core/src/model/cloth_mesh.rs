@@ -112,6 +112,8 @@ pub struct ClothMesh {
     pub weft: Vec3,
     /// A pattern piece's vertices along each outline edge (none for other meshes).
     pub outline_edges: Vec<Vec<u32>>,
+    /// Each outline edge's length, m.
+    pub outline_lengths: Vec<f64>,
 }
 
 impl MeshPanel {
@@ -140,6 +142,12 @@ impl MeshPanel {
     /// Reads the mesh (an OBJ path relative to `base_dir`), scales and
     /// moves it, and checks it ([`ClothMesh::check`]).
     pub fn resolve(&self, base_dir: &Path) -> Result<ClothMesh, MeshError> {
+        self.resolve_with(base_dir, &[])
+    }
+
+    /// [`MeshPanel::resolve`] with a pattern's outline edges split into
+    /// `pieces` where given ([`PatternPiece::mesh_with`]).
+    pub fn resolve_with(&self, base_dir: &Path, pieces: &[Option<usize>]) -> Result<ClothMesh, MeshError> {
         if !(self.scale.is_finite() && self.scale > 0.0) {
             return Err(("scale", format!("must be finite and > 0, got {}", self.scale)));
         }
@@ -151,11 +159,11 @@ impl MeshPanel {
         if sources.iter().filter(|&&s| s).count() != 1 {
             return Err(("obj", "give one of `obj`, `vertices` with `triangles`, or `pattern`".into()));
         }
-        let mut outline_edges = Vec::new();
+        let (mut outline_edges, mut outline_lengths) = (Vec::new(), Vec::new());
         let mut weft = Vec3::y();
         let (vertices, triangles) = match (&self.obj, &self.pattern) {
             (_, Some(piece)) => {
-                let m = piece.mesh().map_err(|(field, message)| {
+                let m = piece.mesh_with(pieces).map_err(|(field, message)| {
                     let field = match field {
                         "outline_m" => "pattern.outline_m",
                         "edge_length_m" => "pattern.edge_length_m",
@@ -165,6 +173,7 @@ impl MeshPanel {
                     (field, message)
                 })?;
                 outline_edges = m.outline_edges;
+                outline_lengths = m.outline_lengths.iter().map(|l| l * self.scale).collect();
                 weft = m.v_axis;
                 (m.positions, m.triangles)
             }
@@ -185,7 +194,7 @@ impl MeshPanel {
         }
         let offset = Vec3::from(self.offset_m);
         let positions = vertices.iter().map(|v| v * self.scale + offset).collect();
-        let mesh = ClothMesh { positions, triangles, weft, outline_edges };
+        let mesh = ClothMesh { positions, triangles, weft, outline_edges, outline_lengths };
         mesh.check()?;
         Ok(mesh)
     }

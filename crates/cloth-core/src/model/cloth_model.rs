@@ -343,9 +343,12 @@ impl ClothModel {
         if !spec.meshes.is_empty() {
             check_lattice_on_meshes(spec, path)?;
         }
+        let grid_offsets: Vec<usize> = panels.iter().map(|p| p.offset).collect();
+        let pieces = seams::outline_pieces(&spec.seams, &spec.panels, &grid_offsets, &spec.meshes);
+        let mut outlines = Vec::with_capacity(spec.meshes.len());
         for (k, panel) in spec.meshes.iter().enumerate() {
             let err = |(field, message)| ModelError::Mesh { mesh: k, field, message };
-            let mesh = panel.resolve(&spec.collision.base_dir).map_err(err)?;
+            let mesh = panel.resolve_with(&spec.collision.base_dir, &pieces[k]).map_err(err)?;
             let offset = mass.len();
             let index = spec.panels.len() + k;
             let parts = mesh_parts(spec, &mesh, index, offset as u32, compressive).map_err(err)?;
@@ -363,21 +366,21 @@ impl ClothModel {
             }
             rest_positions.extend_from_slice(&mesh.positions);
             let edges = parts.topology.edges.iter().map(|e| e.ends).collect();
+            let global = |run: &Vec<u32>| run.iter().map(|&v| v + offset as u32).collect::<Vec<u32>>();
+            outlines.push(mesh.outline_edges.iter().map(global).zip(mesh.outline_lengths.iter().copied()).collect());
             let (len, outline_edges) = (mesh.positions.len(), mesh.outline_edges);
             meshes.push(MeshRange { offset, len, edges, outline_edges });
         }
         let n = mass.len();
-        let offsets: Vec<usize> = panels.iter().map(|p| p.offset).collect();
+        let targets = seams::SeamTargets { panels: &spec.panels, offsets: &grid_offsets, outlines: &outlines };
         let mut stitches = Vec::new();
         let tensile = spec.material.tensile_stiffness_n_m;
         for (seam, s) in spec.seams.iter().enumerate() {
-            stitches.extend(
-                seams::stitches(s, &spec.panels, &offsets, tensile).map_err(|(field, message)| ModelError::Seam {
-                    seam,
-                    field,
-                    message,
-                })?,
-            );
+            stitches.extend(seams::stitches(s, &targets, tensile).map_err(|(field, message)| ModelError::Seam {
+                seam,
+                field,
+                message,
+            })?);
         }
         let (pins, pinned) = build_pins(spec, &panels, &meshes, &rest_positions)?;
         clamp_bend_links(&mut bend, &bend_middle, &pinned);

@@ -99,7 +99,7 @@ mod tests {
 
     #[test]
     fn sewn_panels_are_coloured_across_their_seam() {
-        let seam = |panel| SeamSide { panel, edge: Edge::IMax, range: [0.0, 1.0] };
+        let seam = |panel| SeamSide::grid(panel, Edge::IMax);
         let model = ClothModel::builder()
             .grid([5, 5], [0.2, 0.2])
             .panel(GridPanel::flat([5, 5], [0.2, 0.2]).origin([0.0, 0.0, 0.01]))

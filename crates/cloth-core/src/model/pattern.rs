@@ -31,6 +31,14 @@ pub struct PatternPiece {
     /// `u_axis`). Default +y.
     #[serde(default = "y_axis")]
     pub v_axis: [f64; 3],
+    /// Wraps the piece around a cylinder of this radius (m) instead of
+    /// laying it flat: the cylinder's axis runs along `v_axis` through the
+    /// origin, pattern x goes around it (x = 0 towards `u_axis`, turning
+    /// towards `v_axis x u_axis`) and y along it, lengths kept. The
+    /// pattern's front (counter-clockwise side) faces out. A skirt's or a
+    /// sleeve's panels start around the body this way.
+    #[serde(default)]
+    pub cylinder_radius_m: Option<f64>,
 }
 
 fn x_axis() -> [f64; 3] {
@@ -57,15 +65,38 @@ pub struct PatternMesh {
     pub outline_edges: Vec<Vec<u32>>,
     /// The placed y axis: the grain when the pattern is drawn with it along y.
     pub v_axis: Vec3,
+    /// Each outline edge's length, m.
+    pub outline_lengths: Vec<f64>,
 }
 
 impl PatternPiece {
+    /// A flat piece with outline `outline_m` (m) meshed at `edge_length_m`,
+    /// its x and y along +x and +y, no lines inside.
+    pub fn new(outline_m: Vec<[f64; 2]>, edge_length_m: f64) -> Self {
+        Self {
+            outline_m,
+            edge_length_m,
+            lines_m: Vec::new(),
+            u_axis: x_axis(),
+            v_axis: y_axis(),
+            cylinder_radius_m: None,
+        }
+    }
+
     /// Meshes the piece; errors name the field (`outline_m`,
     /// `edge_length_m`, `lines_m`, `u_axis`, `v_axis`). A panic inside the
     /// triangulator (which reports some degenerate inputs that way) is
     /// caught and refused as an error on `outline_m`.
     pub fn mesh(&self) -> Result<PatternMesh, (&'static str, String)> {
-        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| self.mesh_unguarded())).unwrap_or_else(|panic| {
+        self.mesh_with(&[])
+    }
+
+    /// [`PatternPiece::mesh`] with outline edge `k` split into `pieces[k]`
+    /// equal pieces where given (a seam sews node to node, so two edges
+    /// sewn together need as many), else into pieces no longer than
+    /// `edge_length_m`.
+    pub fn mesh_with(&self, pieces: &[Option<usize>]) -> Result<PatternMesh, (&'static str, String)> {
+        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| self.mesh_unguarded(pieces))).unwrap_or_else(|panic| {
             let why = panic
                 .downcast_ref::<&str>()
                 .map(|s| s.to_string())
@@ -75,7 +106,16 @@ impl PatternPiece {
         })
     }
 
-    fn mesh_unguarded(&self) -> Result<PatternMesh, (&'static str, String)> {
+    /// The pieces outline edge `k` is split into by default (`None` for no
+    /// such edge, or an outline that cannot be meshed).
+    pub fn natural_pieces(&self, k: usize) -> Option<usize> {
+        let n = self.outline_m.len();
+        let (a, b) = (self.outline_m.get(k)?, self.outline_m.get((k + 1) % n.max(1))?);
+        let pieces = ((b[0] - a[0]).hypot(b[1] - a[1]) / self.edge_length_m).ceil();
+        (1.0..PATTERN_MAX_TRIANGLES).contains(&pieces).then_some(pieces as usize)
+    }
+
+    fn mesh_unguarded(&self, forced: &[Option<usize>]) -> Result<PatternMesh, (&'static str, String)> {
         let h = self.edge_length_m;
         if !(h.is_finite() && h > 0.0) {
             return Err(("edge_length_m", format!("must be finite and > 0, got {h}")));
@@ -88,6 +128,16 @@ impl PatternPiece {
             return Err(("outline_m", format!("corner {k} is not finite")));
         }
         let (u, v) = self.axes()?;
+        let around = v.cross(&u);
+        let place = |x: f64, y: f64| match self.cylinder_radius_m {
+            Some(r) => (u * (x / r).cos() + around * (x / r).sin()) * r + v * y,
+            None => u * x + v * y,
+        };
+        if let Some(r) = self.cylinder_radius_m
+            && !(r.is_finite() && r > 0.0)
+        {
+            return Err(("cylinder_radius_m", format!("must be finite and > 0, got {r}")));
+        }
         let n = corners.len();
         let signed_area: f64 = (0..n)
             .map(|k| corners[k][0] * corners[(k + 1) % n][1] - corners[(k + 1) % n][0] * corners[k][1])
@@ -113,10 +163,13 @@ impl PatternPiece {
             }
             corner_handles.push(handle);
         }
-        // A segment from `a` to `b` split into pieces no longer than `h`.
-        let split = |cdt: &mut ConstrainedDelaunayTriangulation<Point2<f64>>, a: [f64; 2], b: [f64; 2]| {
+        // A segment from `a` to `b` split into `pieces`, or into pieces no longer than `h`.
+        let split = |cdt: &mut ConstrainedDelaunayTriangulation<Point2<f64>>,
+                     a: [f64; 2],
+                     b: [f64; 2],
+                     pieces: Option<usize>| {
             let len = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
-            let pieces = (len / h).ceil().max(1.0) as usize;
+            let pieces = pieces.unwrap_or((len / h).ceil().max(1.0) as usize);
             (1..pieces)
                 .map(|s| {
                     let t = s as f64 / pieces as f64;
@@ -155,9 +208,16 @@ impl PatternPiece {
             b.sort_by(f64::total_cmp);
             b.dedup();
             let at = |t: f64| [p[0] + t * (q[0] - p[0]), p[1] + t * (q[1] - p[1])];
+            let pieces = forced.get(k).copied().flatten();
+            if pieces.is_some() && b.len() > 2 {
+                return Err(("lines_m", format!("a line ends on outline edge {k}, which a seam splits evenly")));
+            }
+            if pieces.is_some_and(|p| p == 0 || p as f64 >= PATTERN_MAX_TRIANGLES) {
+                return Err(("outline_m", format!("outline edge {k} cannot be split into {pieces:?} pieces")));
+            }
             let mut handles = vec![corner_handles[k]];
             for w in b.windows(2) {
-                handles.extend(split(&mut cdt, at(w[0]), at(w[1]))?);
+                handles.extend(split(&mut cdt, at(w[0]), at(w[1]), pieces)?);
                 handles.push(if w[1] == 1.0 { corner_handles[(k + 1) % n] } else { insert(&mut cdt, at(w[1]))? });
             }
             edge_handles.push(handles);
@@ -184,7 +244,7 @@ impl PatternPiece {
         let mut line_handles = Vec::with_capacity(lines.len());
         for &[a, b] in &lines {
             let mut handles = vec![insert(&mut cdt, a)?];
-            handles.extend(split(&mut cdt, a, b)?);
+            handles.extend(split(&mut cdt, a, b, None)?);
             handles.push(insert(&mut cdt, b)?);
             line_handles.push(handles);
         }
@@ -209,6 +269,10 @@ impl PatternPiece {
             .keep_constraint_edges()
             .with_angle_limit(AngleLimit::from_deg(PATTERN_MIN_ANGLE_DEG))
             .with_max_allowed_area(3f64.sqrt() / 4.0 * h * h * 1.3)
+            // Without a floor, a slanted outline edge that may not be split
+            // drew circumcentres ever closer to it: three vertices within
+            // 1e-5 m, 1e-9 kg each, and the skirt blew up on its 5th step.
+            .with_min_required_area(3f64.sqrt() / 4.0 * h * h * 0.05)
             .with_max_additional_vertices(8 * expected_vertices);
         let result = cdt.refine(params);
         if !result.refinement_complete {
@@ -230,7 +294,7 @@ impl PatternPiece {
                 if *slot == u32::MAX {
                     let p = vertex.position();
                     *slot = positions.len() as u32;
-                    positions.push(u * p.x + v * p.y);
+                    positions.push(place(p.x, p.y));
                 }
                 *slot
             });
@@ -240,7 +304,10 @@ impl PatternPiece {
         if line_handles.iter().flatten().any(|h| index[h.index()] == u32::MAX) {
             return Err(("lines_m", "a line reaches outside the outline".into()));
         }
-        Ok(PatternMesh { positions, triangles, outline_edges, v_axis: v })
+        let outline_lengths = (0..n)
+            .map(|k| (corners[(k + 1) % n][0] - corners[k][0]).hypot(corners[(k + 1) % n][1] - corners[k][1]))
+            .collect();
+        Ok(PatternMesh { positions, triangles, outline_edges, v_axis: v, outline_lengths })
     }
 
     /// The placed x and y axes, orthonormal.
@@ -286,6 +353,7 @@ mod tests {
             lines_m: Vec::new(),
             u_axis: x_axis(),
             v_axis: y_axis(),
+            cylinder_radius_m: None,
         }
     }
 
@@ -334,6 +402,37 @@ mod tests {
         let mut outside = rectangle(0.3, 0.2, 0.02);
         outside.lines_m = vec![[[0.1, 0.1], [0.5, 0.1]]];
         assert_eq!(outside.mesh().unwrap_err().0, "lines_m");
+    }
+
+    /// Wrapped around a cylinder, every edge keeps its length (chords of
+    /// arcs: within `L^3 / (24 R^2)`), every vertex sits on the cylinder,
+    /// and the front faces out.
+    #[test]
+    fn a_piece_wrapped_on_a_cylinder_keeps_its_lengths_and_faces_out() {
+        let mut r = rectangle(0.6, 0.3, 0.03);
+        r.v_axis = [0.0, 0.0, -1.0];
+        let flat = r.mesh().unwrap();
+        r.cylinder_radius_m = Some(0.2);
+        let m = r.mesh().unwrap();
+        for p in &m.positions {
+            assert!(((p.x * p.x + p.y * p.y).sqrt() - 0.2).abs() < 1e-12, "{p}");
+        }
+        for t in &m.triangles {
+            let (a, b, c) = (m.positions[t[0] as usize], m.positions[t[1] as usize], m.positions[t[2] as usize]);
+            let normal = (b - a).cross(&(c - a));
+            let radial = Vec3::new(a.x + b.x + c.x, a.y + b.y + c.y, 0.0);
+            assert!(normal.dot(&radial) > 0.0, "triangle {t:?} faces in");
+            for (k, &q) in t.iter().enumerate() {
+                let o = t[(k + 1) % 3];
+                let (wrapped, plane) = (
+                    (m.positions[q as usize] - m.positions[o as usize]).norm(),
+                    (flat.positions[q as usize] - flat.positions[o as usize]).norm(),
+                );
+                assert!(wrapped <= plane + 1e-15 && plane - wrapped <= plane.powi(3) / (24.0 * 0.04) + 1e-15);
+            }
+        }
+        r.cylinder_radius_m = Some(-1.0);
+        assert_eq!(r.mesh().unwrap_err().0, "cylinder_radius_m");
     }
 
     #[test]

@@ -32,15 +32,27 @@ use crate::Edge;
 use crate::GridPanel;
 use serde::{Deserialize, Serialize};
 
-/// One side of a seam: the nodes along an edge of a panel between two
-/// fractions of the edge's length.
+/// One side of a seam: the nodes along an edge of a grid panel, or the
+/// vertices along an outline edge of a pattern mesh, between two fractions
+/// of the edge's length.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SeamSide {
-    /// Panel index.
+    /// Grid panel index (default 0).
+    #[serde(default)]
     pub panel: usize,
-    /// The edge the run lies on.
-    pub edge: Edge,
+    /// The grid panel's edge the run lies on.
+    #[serde(default)]
+    pub edge: Option<Edge>,
+    /// A pattern mesh (`[[meshes]]` index) instead of a grid panel.
+    #[serde(default)]
+    pub mesh: Option<usize>,
+    /// The pattern's outline edge the run lies on (from outline corner `k`
+    /// to the next). Two whole outline edges sewn together are split
+    /// into as many pieces, the more of either's; an outline edge sewn
+    /// whole to a grid edge takes the grid run's count.
+    #[serde(default)]
+    pub outline_edge: Option<usize>,
     /// Part of the edge, `[from, to]` as fractions of its length (node `i`
     /// of an open edge of `n` nodes sits at `i / (n - 1)`, of a wrapped one
     /// at `i / n`); the run takes the nodes with `from <= f <= to` (to
@@ -124,17 +136,32 @@ impl Stitch {
 /// Why a seam is invalid: the field (below `seams[k]`) and the reason.
 pub(crate) type SeamError = (&'static str, String);
 
-/// Resolves `seam` over `panels` (with their first particles' global
-/// indices `offsets`) into stitches. `tensile` is the material's tensile
-/// stiffness, N/m.
-pub(crate) fn stitches(
-    seam: &SeamSpec,
-    panels: &[GridPanel],
-    offsets: &[usize],
-    tensile: f64,
-) -> Result<Vec<Stitch>, SeamError> {
-    let (a, spacing_a) = run(&seam.a, ["a.panel", "a.edge", "a.range"], panels, offsets)?;
-    let (mut b, spacing_b) = run(&seam.b, ["b.panel", "b.edge", "b.range"], panels, offsets)?;
+/// Where the particles of the panels and meshes a seam may name live:
+/// the grid panels with their first particles' global indices, and each
+/// mesh's outline-edge runs (global indices) with their lengths, m.
+pub(crate) struct SeamTargets<'a> {
+    pub panels: &'a [GridPanel],
+    pub offsets: &'a [usize],
+    pub outlines: &'a [Vec<(Vec<u32>, f64)>],
+}
+
+impl SeamSide {
+    /// A grid panel's edge, whole.
+    pub fn grid(panel: usize, edge: Edge) -> Self {
+        Self { panel, edge: Some(edge), mesh: None, outline_edge: None, range: whole_edge() }
+    }
+
+    /// A pattern mesh's outline edge, whole.
+    pub fn outline(mesh: usize, outline_edge: usize) -> Self {
+        Self { panel: 0, edge: None, mesh: Some(mesh), outline_edge: Some(outline_edge), range: whole_edge() }
+    }
+}
+
+/// Resolves `seam` over `targets` into stitches. `tensile` is the
+/// material's tensile stiffness, N/m.
+pub(crate) fn stitches(seam: &SeamSpec, targets: &SeamTargets<'_>, tensile: f64) -> Result<Vec<Stitch>, SeamError> {
+    let (a, spacing_a) = side_run(&seam.a, ["a.panel", "a.edge", "a.range", "a.mesh", "a.outline_edge"], targets)?;
+    let (mut b, spacing_b) = side_run(&seam.b, ["b.panel", "b.edge", "b.range", "b.mesh", "b.outline_edge"], targets)?;
     if a.len() != b.len() {
         return Err(("b.range", format!("runs {} nodes, a runs {}: a seam sews node to node", b.len(), a.len())));
     }
@@ -167,10 +194,102 @@ pub(crate) fn stitches(
     Ok(out)
 }
 
-/// The run's global particle indices and the spacing along it, m; errors
-/// name `fields` (the side's panel, edge and range keys).
+/// How many pieces each pattern mesh's outline edges must be split into
+/// for the seams to sew node to node (`None`: the piece's own split): an
+/// outline edge sewn whole to another takes the more pieces of the two,
+/// one sewn whole to a grid run (any part of its edge) the run's. Sides naming what does
+/// not exist are left to [`stitches`] to report.
+pub(crate) fn outline_pieces(
+    seams: &[SeamSpec],
+    panels: &[GridPanel],
+    offsets: &[usize],
+    meshes: &[crate::MeshPanel],
+) -> Vec<Vec<Option<usize>>> {
+    let mut forced: Vec<Vec<Option<usize>>> =
+        meshes.iter().map(|m| vec![None; m.pattern.as_ref().map_or(0, |p| p.outline_m.len())]).collect();
+    let whole = |side: &SeamSide| side.range == whole_edge();
+    // A side's mesh outline edge and its natural pieces, when it is one.
+    let outline = |side: &SeamSide| {
+        let (mesh, k) = (side.mesh?, side.outline_edge?);
+        let pieces = meshes.get(mesh)?.pattern.as_ref()?.natural_pieces(k)?;
+        Some((mesh, k, pieces))
+    };
+    let targets = SeamTargets { panels, offsets, outlines: &[] };
+    let grid_pieces = |side: &SeamSide| {
+        let fields = ["", "", "", "", ""];
+        side.mesh.is_none().then(|| side_run(side, fields, &targets).ok().map(|(run, _)| run.len() - 1)).flatten()
+    };
+    for seam in seams {
+        // Only whole outline edges are split to fit; a grid run may be any part of its edge.
+        let (a, b) = (outline(&seam.a).filter(|_| whole(&seam.a)), outline(&seam.b).filter(|_| whole(&seam.b)));
+        let pieces = match (a, b) {
+            (Some(a), Some(b)) => Some(a.2.max(b.2)),
+            (Some(_), None) => grid_pieces(&seam.b),
+            (None, Some(_)) => grid_pieces(&seam.a),
+            (None, None) => None,
+        };
+        for (mesh, k, _) in [a, b].into_iter().flatten() {
+            let slot = &mut forced[mesh][k];
+            *slot = (*slot).max(pieces);
+        }
+    }
+    forced
+}
+
+/// The run of a grid or mesh side: its global particle indices and the
+/// spacing along it, m; errors name `fields` (the side's panel, edge,
+/// range, mesh and outline-edge keys).
+fn side_run(
+    side: &SeamSide,
+    fields: [&'static str; 5],
+    targets: &SeamTargets<'_>,
+) -> Result<(Vec<u32>, f64), SeamError> {
+    let [panel_field, edge_field, range_field, mesh_field, outline_field] = fields;
+    let [from, to] = side.range;
+    if !(from.is_finite() && to.is_finite() && (0.0..=1.0).contains(&from) && (0.0..=1.0).contains(&to)) {
+        return Err((range_field, format!("must be two fractions in [0, 1], got {:?}", side.range)));
+    }
+    let Some(mesh) = side.mesh else {
+        if side.outline_edge.is_some() {
+            return Err((outline_field, "is a pattern mesh's: give `mesh` too".into()));
+        }
+        let edge = side.edge.ok_or((edge_field, "a grid panel's side needs its `edge`".to_string()))?;
+        return run(side, edge, [panel_field, edge_field, range_field], targets.panels, targets.offsets);
+    };
+    if side.edge.is_some() || side.panel != 0 {
+        return Err((mesh_field, "a mesh's side takes `outline_edge`, not a grid's `panel` and `edge`".into()));
+    }
+    let outlines = targets
+        .outlines
+        .get(mesh)
+        .ok_or_else(|| (mesh_field, format!("no mesh {mesh} (the scene has {})", targets.outlines.len())))?;
+    let k = side.outline_edge.ok_or((outline_field, "a mesh's side needs its `outline_edge`".to_string()))?;
+    let (vertices, length) = outlines.get(k).ok_or_else(|| {
+        (outline_field, format!("mesh {mesh} has {} outline edges (only pattern pieces have them)", outlines.len()))
+    })?;
+    if from > to {
+        return Err((range_field, format!("{:?}: from > to, which only a wrapped grid edge has", side.range)));
+    }
+    // Outline vertices are evenly spaced along the edge (unless a line ends on it).
+    let pieces = vertices.len() - 1;
+    const TOL: f64 = 1e-9;
+    let run: Vec<u32> = (0..=pieces)
+        .filter(|&j| {
+            let f = j as f64 / pieces as f64;
+            f >= from - TOL && f <= to + TOL
+        })
+        .map(|j| vertices[j])
+        .collect();
+    if run.is_empty() {
+        return Err((range_field, format!("{:?} holds no vertex of the edge ({} vertices)", side.range, pieces + 1)));
+    }
+    Ok((run, length / pieces as f64))
+}
+
+/// A grid side's run: its nodes' global indices and the spacing, m.
 fn run(
     side: &SeamSide,
+    edge: Edge,
     [panel_field, edge_field, range_field]: [&'static str; 3],
     panels: &[GridPanel],
     offsets: &[usize],
@@ -179,12 +298,9 @@ fn run(
         .get(side.panel)
         .ok_or_else(|| (panel_field, format!("no panel {} (the scene has {})", side.panel, panels.len())))?;
     let [from, to] = side.range;
-    if !(from.is_finite() && to.is_finite() && (0.0..=1.0).contains(&from) && (0.0..=1.0).contains(&to)) {
-        return Err((range_field, format!("must be two fractions in [0, 1], got {:?}", side.range)));
-    }
     let [nx, ny] = panel.particles;
     let (dx, dy) = panel.spacing();
-    let along_u = matches!(side.edge, Edge::JMin | Edge::JMax);
+    let along_u = matches!(edge, Edge::JMin | Edge::JMax);
     if panel.wrap_u && !along_u {
         return Err((edge_field, "a wrapped panel has no i edges: its columns close into a cylinder".into()));
     }
@@ -200,7 +316,7 @@ fn run(
     let (count, span) = if along_u { (nx, if wrapped { nx } else { nx - 1 }) } else { (ny, ny - 1) };
     let fraction = |k: usize| k as f64 / span as f64;
     let node = |k: usize| -> u32 {
-        let (i, j) = match side.edge {
+        let (i, j) = match edge {
             Edge::JMin => (k, 0),
             Edge::JMax => (k, ny - 1),
             Edge::IMin => (0, k),
@@ -228,7 +344,11 @@ mod tests {
     use crate::topology::tests::panel;
 
     fn side(panel: usize, edge: Edge, range: [f64; 2]) -> SeamSide {
-        SeamSide { panel, edge, range }
+        SeamSide { range, ..SeamSide::grid(panel, edge) }
+    }
+
+    fn stitches(s: &SeamSpec, panels: &[GridPanel], offsets: &[usize], tensile: f64) -> Result<Vec<Stitch>, SeamError> {
+        super::stitches(s, &SeamTargets { panels, offsets, outlines: &[] }, tensile)
     }
 
     fn seam(a: SeamSide, b: SeamSide) -> SeamSpec {
