@@ -167,8 +167,11 @@ impl MeshPanel {
                     let field = match field {
                         "outline_m" => "pattern.outline_m",
                         "edge_length_m" => "pattern.edge_length_m",
+                        "lines_m" => "pattern.lines_m",
                         "u_axis" => "pattern.u_axis",
-                        _ => "pattern.v_axis",
+                        "v_axis" => "pattern.v_axis",
+                        "cylinder_radius_m" => "pattern.cylinder_radius_m",
+                        _ => "pattern",
                     };
                     (field, message)
                 })?;
@@ -425,5 +428,18 @@ mod tests {
         missing.obj = Some("nowhere.obj".into());
         let (field, message) = missing.resolve(base).unwrap_err();
         assert!(field == "obj" && message.contains("nowhere.obj"), "{message}");
+        // A pattern's own fields, each under `pattern.`.
+        let square = || crate::PatternPiece::new(vec![[0.0, 0.0], [0.1, 0.0], [0.1, 0.1], [0.0, 0.1]], 0.02);
+        let mut outside = square();
+        outside.lines_m = vec![[[0.05, 0.05], [0.5, 0.05]]];
+        let mut flat = square();
+        flat.cylinder_radius_m = Some(0.0);
+        let mut along = square();
+        along.v_axis = [1.0, 0.0, 0.0];
+        for (piece, field) in
+            [(outside, "pattern.lines_m"), (flat, "pattern.cylinder_radius_m"), (along, "pattern.v_axis")]
+        {
+            assert_eq!(MeshPanel::from_pattern(piece).resolve(base).unwrap_err().0, field);
+        }
     }
 }
