@@ -132,7 +132,7 @@ pub struct PanelRange {
 }
 
 /// Where a mesh panel's particles live in the model.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct MeshRange {
     /// Index of the mesh's vertex 0.
     pub offset: usize,
@@ -143,6 +143,8 @@ pub struct MeshRange {
     pub edges: Vec<[u32; 2]>,
     /// A pattern piece's vertices along each outline edge (local indices).
     pub outline_edges: Vec<Vec<u32>>,
+    /// Each outline edge's length, m.
+    pub outline_lengths: Vec<f64>,
 }
 
 /// An immutable cloth model. Build one with [`ClothModel::build`].
@@ -345,7 +347,6 @@ impl ClothModel {
         }
         let grid_offsets: Vec<usize> = panels.iter().map(|p| p.offset).collect();
         let pieces = seams::outline_pieces(&spec.seams, &spec.panels, &grid_offsets, &spec.meshes);
-        let mut outlines = Vec::with_capacity(spec.meshes.len());
         for (k, panel) in spec.meshes.iter().enumerate() {
             let err = |(field, message)| ModelError::Mesh { mesh: k, field, message };
             let mesh = panel.resolve_with(&spec.collision.base_dir, &pieces[k]).map_err(err)?;
@@ -366,13 +367,12 @@ impl ClothModel {
             }
             rest_positions.extend_from_slice(&mesh.positions);
             let edges = parts.topology.edges.iter().map(|e| e.ends).collect();
-            let global = |run: &Vec<u32>| run.iter().map(|&v| v + offset as u32).collect::<Vec<u32>>();
-            outlines.push(mesh.outline_edges.iter().map(global).zip(mesh.outline_lengths.iter().copied()).collect());
-            let (len, outline_edges) = (mesh.positions.len(), mesh.outline_edges);
-            meshes.push(MeshRange { offset, len, edges, outline_edges });
+            let (len, outline_edges, outline_lengths) =
+                (mesh.positions.len(), mesh.outline_edges, mesh.outline_lengths);
+            meshes.push(MeshRange { offset, len, edges, outline_edges, outline_lengths });
         }
         let n = mass.len();
-        let targets = seams::SeamTargets { panels: &spec.panels, offsets: &grid_offsets, outlines: &outlines };
+        let targets = seams::SeamTargets { panels: &spec.panels, offsets: &grid_offsets, meshes: &meshes };
         let mut stitches = Vec::new();
         let tensile = spec.material.tensile_stiffness_n_m;
         for (seam, s) in spec.seams.iter().enumerate() {

@@ -137,12 +137,12 @@ impl Stitch {
 pub(crate) type SeamError = (&'static str, String);
 
 /// Where the particles of the panels and meshes a seam may name live:
-/// the grid panels with their first particles' global indices, and each
-/// mesh's outline-edge runs (global indices) with their lengths, m.
+/// the grid panels with their first particles' global indices, and the
+/// mesh panels (their outline edges).
 pub(crate) struct SeamTargets<'a> {
     pub panels: &'a [GridPanel],
     pub offsets: &'a [usize],
-    pub outlines: &'a [Vec<(Vec<u32>, f64)>],
+    pub meshes: &'a [crate::MeshRange],
 }
 
 impl SeamSide {
@@ -197,8 +197,8 @@ pub(crate) fn stitches(seam: &SeamSpec, targets: &SeamTargets<'_>, tensile: f64)
 /// How many pieces each pattern mesh's outline edges must be split into
 /// for the seams to sew node to node (`None`: the piece's own split): an
 /// outline edge sewn whole to another takes the more pieces of the two,
-/// one sewn whole to a grid run (any part of its edge) the run's. Sides naming what does
-/// not exist are left to [`stitches`] to report.
+/// one sewn whole to a grid run (any part of its edge) the run's. Sides
+/// naming what does not exist are left to [`stitches`] to report.
 pub(crate) fn outline_pieces(
     seams: &[SeamSpec],
     panels: &[GridPanel],
@@ -214,7 +214,7 @@ pub(crate) fn outline_pieces(
         let pieces = meshes.get(mesh)?.pattern.as_ref()?.natural_pieces(k)?;
         Some((mesh, k, pieces))
     };
-    let targets = SeamTargets { panels, offsets, outlines: &[] };
+    let targets = SeamTargets { panels, offsets, meshes: &[] };
     let grid_pieces = |side: &SeamSide| {
         let fields = ["", "", "", "", ""];
         side.mesh.is_none().then(|| side_run(side, fields, &targets).ok().map(|(run, _)| run.len() - 1)).flatten()
@@ -259,13 +259,14 @@ fn side_run(
     if side.edge.is_some() || side.panel != 0 {
         return Err((mesh_field, "a mesh's side takes `outline_edge`, not a grid's `panel` and `edge`".into()));
     }
-    let outlines = targets
-        .outlines
+    let range = targets
+        .meshes
         .get(mesh)
-        .ok_or_else(|| (mesh_field, format!("no mesh {mesh} (the scene has {})", targets.outlines.len())))?;
+        .ok_or_else(|| (mesh_field, format!("no mesh {mesh} (the scene has {})", targets.meshes.len())))?;
     let k = side.outline_edge.ok_or((outline_field, "a mesh's side needs its `outline_edge`".to_string()))?;
-    let (vertices, length) = outlines.get(k).ok_or_else(|| {
-        (outline_field, format!("mesh {mesh} has {} outline edges (only pattern pieces have them)", outlines.len()))
+    let edges = &range.outline_edges;
+    let (vertices, length) = edges.get(k).zip(range.outline_lengths.get(k)).ok_or_else(|| {
+        (outline_field, format!("mesh {mesh} has {} outline edges (only pattern pieces have them)", edges.len()))
     })?;
     if from > to {
         return Err((range_field, format!("{:?}: from > to, which only a wrapped grid edge has", side.range)));
@@ -278,7 +279,7 @@ fn side_run(
             let f = j as f64 / pieces as f64;
             f >= from - TOL && f <= to + TOL
         })
-        .map(|j| vertices[j])
+        .map(|j| vertices[j] + range.offset as u32)
         .collect();
     if run.is_empty() {
         return Err((range_field, format!("{:?} holds no vertex of the edge ({} vertices)", side.range, pieces + 1)));
@@ -348,7 +349,7 @@ mod tests {
     }
 
     fn stitches(s: &SeamSpec, panels: &[GridPanel], offsets: &[usize], tensile: f64) -> Result<Vec<Stitch>, SeamError> {
-        super::stitches(s, &SeamTargets { panels, offsets, outlines: &[] }, tensile)
+        super::stitches(s, &SeamTargets { panels, offsets, meshes: &[] }, tensile)
     }
 
     fn seam(a: SeamSide, b: SeamSide) -> SeamSpec {
