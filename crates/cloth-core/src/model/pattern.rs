@@ -111,7 +111,7 @@ impl PatternPiece {
     pub fn natural_pieces(&self, k: usize) -> Option<usize> {
         let n = self.outline_m.len();
         let (a, b) = (self.outline_m.get(k)?, self.outline_m.get((k + 1) % n.max(1))?);
-        let pieces = ((b[0] - a[0]).hypot(b[1] - a[1]) / self.edge_length_m).ceil();
+        let pieces = pieces_no_longer_than(*a, *b, self.edge_length_m);
         (1.0..PATTERN_MAX_TRIANGLES).contains(&pieces).then_some(pieces as usize)
     }
 
@@ -168,8 +168,7 @@ impl PatternPiece {
                      a: [f64; 2],
                      b: [f64; 2],
                      pieces: Option<usize>| {
-            let len = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
-            let pieces = pieces.unwrap_or((len / h).ceil().max(1.0) as usize);
+            let pieces = pieces.unwrap_or(pieces_no_longer_than(a, b, h) as usize);
             (1..pieces)
                 .map(|s| {
                     let t = s as f64 / pieces as f64;
@@ -188,11 +187,7 @@ impl PatternPiece {
             }
             for end in line.iter_mut() {
                 for (e, b) in breaks.iter_mut().enumerate() {
-                    let (p, q) = (corners[e], corners[(e + 1) % n]);
-                    let d = [q[0] - p[0], q[1] - p[1]];
-                    let t = ((end[0] - p[0]) * d[0] + (end[1] - p[1]) * d[1]) / (d[0] * d[0] + d[1] * d[1]);
-                    let on = [p[0] + t * d[0], p[1] + t * d[1]];
-                    let off = ((end[0] - on[0]).powi(2) + (end[1] - on[1]).powi(2)).sqrt();
+                    let (t, on, off) = nearest_on_segment(*end, corners[e], corners[(e + 1) % n]);
                     if (0.0..=1.0).contains(&t) && off <= 1e-9 * extent {
                         *end = on;
                         b.push(t);
@@ -227,13 +222,7 @@ impl PatternPiece {
         // conflict; leaving through a corner by its midpoint).
         let on_or_inside = |p: [f64; 2]| {
             inside_polygon(corners, p)
-                || (0..n).any(|e| {
-                    let (a, b) = (corners[e], corners[(e + 1) % n]);
-                    let d = [b[0] - a[0], b[1] - a[1]];
-                    let t =
-                        (((p[0] - a[0]) * d[0] + (p[1] - a[1]) * d[1]) / (d[0] * d[0] + d[1] * d[1])).clamp(0.0, 1.0);
-                    (p[0] - a[0] - t * d[0]).hypot(p[1] - a[1] - t * d[1]) <= 1e-9 * extent
-                })
+                || (0..n).any(|e| nearest_on_segment(p, corners[e], corners[(e + 1) % n]).2 <= 1e-9 * extent)
         };
         for (k, &[a, b]) in lines.iter().enumerate() {
             let middle = [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0];
@@ -248,20 +237,20 @@ impl PatternPiece {
             handles.push(insert(&mut cdt, b)?);
             line_handles.push(handles);
         }
-        for (k, handles) in edge_handles.iter().enumerate() {
-            for pair in handles.windows(2) {
-                if pair[0] == pair[1] || cdt.try_add_constraint(pair[0], pair[1]).is_empty() {
-                    return Err(("outline_m", format!("outline edge {k} crosses or touches another edge")));
+        // Each run of vertices becomes constraint edges; a run that meets
+        // another (or itself) is refused with `why(k)`.
+        let mut constrain = |runs: &[Vec<_>], field: &'static str, why: &dyn Fn(usize) -> String| {
+            for (k, handles) in runs.iter().enumerate() {
+                for pair in handles.windows(2) {
+                    if pair[0] == pair[1] || cdt.try_add_constraint(pair[0], pair[1]).is_empty() {
+                        return Err((field, why(k)));
+                    }
                 }
             }
-        }
-        for (k, handles) in line_handles.iter().enumerate() {
-            for pair in handles.windows(2) {
-                if pair[0] == pair[1] || cdt.try_add_constraint(pair[0], pair[1]).is_empty() {
-                    return Err(("lines_m", format!("line {k} crosses the outline or another line")));
-                }
-            }
-        }
+            Ok(())
+        };
+        constrain(&edge_handles, "outline_m", &|k| format!("outline edge {k} crosses or touches another edge"))?;
+        constrain(&line_handles, "lines_m", &|k| format!("line {k} crosses the outline or another line"))?;
         let expected_vertices = (expected as usize).max(16);
         // The whole hull is refined: spade's own test of what is outside
         // counts crossings of every constraint, and an inside line flips it.
@@ -281,13 +270,12 @@ impl PatternPiece {
         let mut index = vec![u32::MAX; cdt.num_vertices()];
         let mut positions = Vec::new();
         let mut triangles = Vec::new();
-        let inside = |p: [f64; 2]| inside_polygon(corners, p);
         // Slivers between outline points in a line (split pieces of one
         // straight edge, off by rounding) lie outside with their centres on
         // the outline: they have no area and are dropped.
         for face in cdt.inner_faces().filter(|f| {
             let c = f.center();
-            f.area() > 1e-9 * h * h && inside([c.x, c.y])
+            f.area() > 1e-9 * h * h && inside_polygon(corners, [c.x, c.y])
         }) {
             let t = face.vertices().map(|vertex| {
                 let slot = &mut index[vertex.fix().index()];
@@ -323,6 +311,23 @@ impl PatternPiece {
             .ok_or(("v_axis", format!("must be finite, non-zero and not along u_axis, got {:?}", self.v_axis)))?;
         Ok((u, v))
     }
+}
+
+/// The pieces no longer than `h` that the segment from `a` to `b` splits
+/// into (at least one), as a float for range checks.
+fn pieces_no_longer_than(a: [f64; 2], b: [f64; 2], h: f64) -> f64 {
+    ((b[0] - a[0]).hypot(b[1] - a[1]) / h).ceil().max(1.0)
+}
+
+/// The point of the segment `a`-`b` nearest `p`: its parameter along the
+/// line (not clamped; 0 at `a`, 1 at `b`), the point at that parameter
+/// clamped to the segment, and `p`'s distance to it, m.
+fn nearest_on_segment(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> (f64, [f64; 2], f64) {
+    let d = [b[0] - a[0], b[1] - a[1]];
+    let t = ((p[0] - a[0]) * d[0] + (p[1] - a[1]) * d[1]) / (d[0] * d[0] + d[1] * d[1]);
+    let s = t.clamp(0.0, 1.0);
+    let on = [a[0] + s * d[0], a[1] + s * d[1]];
+    (t, on, (p[0] - on[0]).hypot(p[1] - on[1]))
 }
 
 /// Whether `p` is inside the polygon `corners` (crossing count of a ray
