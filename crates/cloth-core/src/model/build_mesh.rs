@@ -2,7 +2,7 @@
 //! mesh panel adds: links, type-2 interactions and Volino's elements with
 //! the constants of [`crate::cloth_mesh`]'s module docs.
 
-use super::build_parts::{BendingTriangle, volino_elements};
+use super::build_parts::{BendingTriangle, clamped, volino_elements};
 use super::*;
 use crate::cloth_mesh::{ClothMesh, MeshError, MeshTopology};
 use crate::elements::{BendHinge, MembraneElement};
@@ -104,7 +104,7 @@ pub(super) fn mesh_parts(
 pub(super) fn clamp_hinges(hinges: &mut [BendHinge], pinned: &[bool]) {
     for h in hinges.iter_mut() {
         let [c, a, b, d] = h.nodes.map(|q| pinned[q as usize]);
-        if a && b && c != d {
+        if clamped(a && b, [c, d]) {
             h.k_b *= 2.0;
         }
     }

@@ -138,7 +138,13 @@ pub(super) fn check_lattice_on_meshes(spec: &ModelSpec, path: bool) -> Result<()
 /// bend), so its constants double (see [`crate::material`]).
 pub(super) fn spans_clamp(pinned: &[bool], [i, m, j]: [u32; 3]) -> bool {
     let [i, m, j] = [i, m, j].map(|q| pinned[q as usize]);
-    m && i != j
+    clamped(m, [i, j])
+}
+
+/// The clamp rule of [`spans_clamp`] on pinned flags: the middle pinned
+/// and exactly one end.
+pub(super) fn clamped(middle: bool, [i, j]: [bool; 2]) -> bool {
+    middle && i != j
 }
 
 /// Doubles the constants of the paper's type-2 links that [`spans_clamp`].
