@@ -507,6 +507,13 @@ impl TripleParts {
 mod tests {
     use super::*;
 
+    /// `x` with coordinate `c` of corner `k` moved by `d` (m): one side of a
+    /// central difference.
+    fn moved<const K: usize>(mut x: [Vec3; K], k: usize, c: usize, d: f64) -> [Vec3; K] {
+        x[k][c] += d;
+        x
+    }
+
     fn rest() -> TriangleRest {
         let uv = [Vector2::new(0.0, 0.0), Vector2::new(0.02, 0.0), Vector2::new(0.0, 0.015)];
         TriangleRest::new(uv, Matrix3Voigt::orthotropic(50.0, 30.0, 8.0, 0.3)).unwrap()
@@ -539,9 +546,7 @@ mod tests {
         let h = 1e-8;
         for k in 0..3 {
             for c in 0..3 {
-                let (mut xp, mut xm) = (x, x);
-                xp[k][c] += h;
-                xm[k][c] -= h;
+                let (xp, xm) = (moved(x, k, c, h), moved(x, k, c, -h));
                 let (ep, em) = (membrane_triangle(xp, &r), membrane_triangle(xm, &r));
                 let grad = (ep.energy - em.energy) / (2.0 * h);
                 assert!((e.forces[k][c] + grad).abs() < 1e-6 * e.forces[k].norm().max(1e-9), "force {k},{c}");
@@ -574,9 +579,7 @@ mod tests {
             let h = 1e-9;
             for k in 0..3 {
                 for c in 0..3 {
-                    let (mut xp, mut xm) = (x, x);
-                    xp[k][c] += h;
-                    xm[k][c] -= h;
+                    let (xp, xm) = (moved(x, k, c, h), moved(x, k, c, -h));
                     let (ep, em) = (bend_triple_with(xp, rest, k_b, false), bend_triple_with(xm, rest, k_b, false));
                     let grad = (ep.energy - em.energy) / (2.0 * h);
                     let scale = e.forces.iter().map(|f| f.norm()).fold(0.0, f64::max);
@@ -621,9 +624,7 @@ mod tests {
         let h = 1e-9;
         for k in 0..4 {
             for c in 0..3 {
-                let (mut xp, mut xm) = (bent, bent);
-                xp[k][c] += h;
-                xm[k][c] -= h;
+                let (xp, xm) = (moved(bent, k, c, h), moved(bent, k, c, -h));
                 let grad = (energy(xp) - energy(xm)) / (2.0 * h);
                 assert!((r.forces[k][c] + grad).abs() < 1e-6 * scale, "force {k},{c}: {} vs {}", r.forces[k][c], -grad);
             }
@@ -634,9 +635,7 @@ mod tests {
         bend_hinge_into(flat, w, rest, k_b, Some(&mut m));
         let h = 1e-7;
         for k in 0..4 {
-            let (mut xp, mut xm) = (flat, flat);
-            xp[k].z += h;
-            xm[k].z -= h;
+            let (xp, xm) = (moved(flat, k, 2, h), moved(flat, k, 2, -h));
             let (fp, fm) = (bend_hinge_into(xp, w, rest, k_b, None), bend_hinge_into(xm, w, rest, k_b, None));
             for a in 0..4 {
                 let dfdx = (fp.forces[a].z - fm.forces[a].z) / (2.0 * h);
@@ -721,17 +720,11 @@ mod tests {
         ];
         let grad = dihedral_gradient(&x);
         let h = 1e-8;
-        for k in 0..4 {
+        for (k, g) in grad.iter().enumerate() {
             for c in 0..3 {
-                let (mut xp, mut xm) = (x, x);
-                xp[k][c] += h;
-                xm[k][c] -= h;
+                let (xp, xm) = (moved(x, k, c, h), moved(x, k, c, -h));
                 let fd = (dihedral_angle(&xp) - dihedral_angle(&xm)) / (2.0 * h);
-                assert!(
-                    (fd - grad[k][c]).abs() < 1e-6 * grad[k].norm().max(1.0),
-                    "corner {k} comp {c}: {fd} vs {}",
-                    grad[k][c]
-                );
+                assert!((fd - g[c]).abs() < 1e-6 * g.norm().max(1.0), "corner {k} comp {c}: {fd} vs {}", g[c]);
             }
         }
         let flat = [Vec3::zeros(), Vec3::new(0.0, 1.0, 0.0), Vec3::new(1.0, 0.5, 0.0), Vec3::new(-1.0, 0.5, 0.0)];
@@ -766,9 +759,7 @@ mod tests {
             let h = 1e-8;
             for a in 0..6 {
                 for c in 0..3 {
-                    let (mut xp, mut xm) = (x, x);
-                    xp[a][c] += h;
-                    xm[a][c] -= h;
+                    let (xp, xm) = (moved(x, a, c, h), moved(x, a, c, -h));
                     let energy = |x| curvature_bending_with(x, rest, &m, false).energy;
                     let grad = (energy(xp) - energy(xm)) / (2.0 * h);
                     assert!((e.forces[a][c] + grad).abs() < 1e-6 * scale, "{a},{c}: {} vs {}", e.forces[a][c], -grad);
@@ -782,9 +773,7 @@ mod tests {
         let scale = hess.iter().flatten().map(|b| b.norm()).fold(0.0, f64::max);
         let h = 1e-7;
         for b in 0..6 {
-            let (mut xp, mut xm) = (x, x);
-            xp[b].z += h;
-            xm[b].z -= h;
+            let (xp, xm) = (moved(x, b, 2, h), moved(x, b, 2, -h));
             let (fp, fm) = (curvature_bending_with(xp, rest, &m, false), curvature_bending_with(xm, rest, &m, false));
             for (a, row) in hess.iter().enumerate() {
                 let fd = -(fp.forces[a].z - fm.forces[a].z) / (2.0 * h);
