@@ -3,10 +3,10 @@
 //! against the continuum value and across models and resolutions.
 
 use cloth_core::{
-    BendingLaw, ClothModel, Edge, Effects, GridPanel, IntegratorKind, Material, ModelKind, ModelSpec, NewtonParams,
-    PinSpec, PreconditionerKind, Simulation, SolverParams, Vec3, forces,
+    BendingLaw, ClothModel, Edge, Effects, GridPanel, IntegratorKind, Material, ModelKind, ModelSpec, PinSpec,
+    PreconditionerKind, Simulation, SolverParams, Vec3, forces,
 };
-use cloth_tests::least_squares_slope;
+use cloth_tests::{least_squares_slope, settle};
 
 /// The three models, by name (Choi & Ko with the arc-path law, the
 /// default; the arc-chord law's limits are in `cloth_core::material`).
@@ -64,28 +64,12 @@ fn sag(model: (ModelKind, Option<BendingLaw>), particles: [usize; 2], material: 
 /// `particles`.
 fn static_sag(model: ClothModel, particles: [usize; 2]) -> f64 {
     let rest = model.rest_positions().to_vec();
-    bottom_sag(&rest, &settle(model), particles)
+    bottom_sag(&rest, &settle(model, PreconditionerKind::BlockJacobi), particles)
 }
 
 /// Mean drop of the bottom row of a grid of `particles` from `rest` to `x`, m.
 fn bottom_sag(rest: &[Vec3], x: &[Vec3], [nu, nv]: [usize; 2]) -> f64 {
     (0..nu).map(|i| rest[(nv - 1) * nu + i].z - x[(nv - 1) * nu + i].z).sum::<f64>() / nu as f64
-}
-
-/// The static shape of `model` under its loads: backward Euler steps of
-/// 1 s with Newton iterations to 1e-10 m converge to statics.
-fn settle(model: ClothModel) -> Vec<Vec3> {
-    let solver = SolverParams {
-        rel_tol: 1e-10,
-        preconditioner: PreconditionerKind::BlockJacobi,
-        newton: NewtonParams { iterations: 50, tolerance_m: 1e-10, ..Default::default() },
-        ..SolverParams::default()
-    };
-    let mut sim = Simulation::new(model, IntegratorKind::BackwardEuler, solver);
-    for _ in 0..20 {
-        sim.step(1.0).unwrap();
-    }
-    sim.state().x.clone()
 }
 
 /// The uniaxial strip (0.5% strain at the top): `rho g L^2 / (2 E)` at 1
@@ -352,7 +336,7 @@ fn a_hanging_cylinder_sags_as_the_strip_and_stays_round() {
         })
         .unwrap();
         let rest = model.rest_positions().to_vec();
-        let x = settle(model);
+        let x = settle(model, PreconditionerKind::BlockJacobi);
         let s = bottom_sag(&rest, &x, particles);
         let nu = particles[0];
         // Every ring: radii about the axis (x = y = 0) and the ring's centre.

@@ -4,9 +4,10 @@
 //! Irvine's catenary, the picture frame).
 
 use cloth_core::{
-    ClothModel, Effects, IntegratorKind, Material, MeshPanel, ModelKind, ModelSpec, NewtonParams, PatternPiece,
-    PinMotion, PinSpec, PreconditionerKind, Simulation, SolverParams, Vec3, forces,
+    ClothModel, Effects, IntegratorKind, Material, MeshPanel, ModelKind, ModelSpec, PatternPiece, PinMotion, PinSpec,
+    PreconditionerKind, Simulation, SolverParams, Vec3, forces,
 };
+use cloth_tests::settle;
 
 const MODELS: [ModelKind; 3] = [ModelKind::ChoiKo, ModelKind::Provot, ModelKind::Volino];
 
@@ -31,21 +32,6 @@ fn model(kind: ModelKind, mesh: MeshPanel, material: Material, effects: Effects,
     ClothModel::build(&ModelSpec { kind, meshes: vec![mesh], material, pins, effects, ..ModelSpec::default() }).unwrap()
 }
 
-/// Backward Euler with Newton iterations to 1e-10 m: steps of 1 s settle.
-fn settle(model: ClothModel, steps: usize) -> Vec<Vec3> {
-    let solver = SolverParams {
-        rel_tol: 1e-10,
-        preconditioner: PreconditionerKind::Multigrid,
-        newton: NewtonParams { iterations: 50, tolerance_m: 1e-10, ..Default::default() },
-        ..SolverParams::default()
-    };
-    let mut sim = Simulation::new(model, IntegratorKind::BackwardEuler, solver);
-    for _ in 0..steps {
-        sim.step(1.0).unwrap();
-    }
-    sim.state().x.clone()
-}
-
 fn cotton() -> Material {
     Material { tensile_stiffness_n_m: 200.0, buckling_stiffness_n_m: 200.0, ..Material::default() }
 }
@@ -63,7 +49,7 @@ fn a_hanging_pattern_strip_sags_as_the_continuum_in_every_model() {
             let bottom: Vec<usize> =
                 (0..m.particle_count()).filter(|&i| m.rest_positions()[i].z < -1.0 + 1e-9).collect();
             let rest = m.rest_positions().to_vec();
-            let x = settle(m, 20);
+            let x = settle(m, PreconditionerKind::Multigrid);
             let sag = bottom.iter().map(|&i| rest[i].z - x[i].z).sum::<f64>() / bottom.len() as f64;
             println!("{kind:?} at {h} m: sag {:.4} mm ({:+.2}%)", sag * 1e3, (sag / exact - 1.0) * 100.0);
             let tolerance = match kind {
@@ -180,7 +166,7 @@ fn a_pattern_strip_held_at_both_ends_sags_as_the_elastic_catenary() {
         let m = model(kind, MeshPanel::from_pattern(strip), material, effects, vec![pin_vertices(vec![], vec![1, 3])]);
         let middle: Vec<usize> =
             (0..m.particle_count()).filter(|&i| (m.rest_positions()[i].x - 0.5).abs() < 1e-12).collect();
-        let x = settle(m, 20);
+        let x = settle(m, PreconditionerKind::Multigrid);
         let sag = -middle.iter().map(|&i| x[i].z).sum::<f64>() / middle.len() as f64;
         println!(
             "{kind:?}: sag {:.4} mm, Irvine {:.4} mm ({:+.2}%)",
