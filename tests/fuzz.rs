@@ -99,11 +99,32 @@ fn panics(files: &[PathBuf], rounds: usize, read: impl Fn(&str, &Path)) -> Vec<(
     found
 }
 
-#[test]
-fn malformed_inputs_are_refused_never_panic() {
-    // Panics are caught and counted here; keep their messages short.
+/// Runs `f` with panics (caught and counted by the tests) printed as one
+/// short line each, then puts the default report back.
+fn with_short_panic_messages<T>(f: impl FnOnce() -> T) -> T {
     let default_hook = std::panic::take_hook();
     std::panic::set_hook(Box::new(|info| eprintln!("panic: {info}")));
+    let out = f();
+    std::panic::set_hook(default_hook);
+    out
+}
+
+#[test]
+fn malformed_inputs_are_refused_never_panic() {
+    let (scenes, objs, rigs, motions) = with_short_panic_messages(malformed_inputs);
+    for (what, found) in [("scenes", &scenes), ("OBJ", &objs), ("URDF", &rigs), ("BVH", &motions)] {
+        println!("{what}: {} panics", found.len());
+    }
+    assert!(
+        scenes.is_empty() && objs.is_empty() && rigs.is_empty() && motions.is_empty(),
+        "{scenes:?} {objs:?} {rigs:?} {motions:?}"
+    );
+}
+
+type Panics = Vec<(PathBuf, usize)>;
+
+/// Every fixture scene, OBJ, URDF and BVH mutated, read: the inputs that panicked.
+fn malformed_inputs() -> (Panics, Panics, Panics, Panics) {
     let scenes = panics(&fixtures("scenes", "toml"), 200, |text, _| {
         if let Ok(scene) = Scene::parse(text, &[]) {
             // Keep a mutated grid small: the readers are under test, not the builder's speed.
@@ -122,14 +143,7 @@ fn malformed_inputs_are_refused_never_panic() {
     let motions = panics(&fixtures("motions", "bvh"), 2000, |text, file| {
         let _ = cloth_rapier::bvh::Bvh::parse(text, file);
     });
-    std::panic::set_hook(default_hook);
-    for (what, found) in [("scenes", &scenes), ("OBJ", &objs), ("URDF", &rigs), ("BVH", &motions)] {
-        println!("{what}: {} panics", found.len());
-    }
-    assert!(
-        scenes.is_empty() && objs.is_empty() && rigs.is_empty() && motions.is_empty(),
-        "{scenes:?} {objs:?} {rigs:?} {motions:?}"
-    );
+    (scenes, objs, rigs, motions)
 }
 
 /// Random pattern outlines (3 to 12 corners anywhere in a square, so
@@ -142,49 +156,50 @@ fn random_pattern_outlines_are_meshed_or_refused() {
     use cloth_core::{MeshPanel, PatternPiece};
     let mut rng = Rng(0x5eed_0f9a_77e2);
     let unit = |rng: &mut Rng| (rng.next() >> 11) as f64 / (1u64 << 53) as f64;
-    let default_hook = std::panic::take_hook();
-    std::panic::set_hook(Box::new(|info| eprintln!("panic: {info}")));
     let (mut meshed, mut refused, mut triangulator) = (0, 0, 0);
-    for round in 0..400 {
-        let n = 3 + rng.below(10);
-        let mut outline: Vec<[f64; 2]> = (0..n).map(|_| [unit(&mut rng) - 0.5, unit(&mut rng) - 0.5]).collect();
-        // Sorted by angle about the middle: star-shaped, never self-crossing.
-        if rng.below(2) == 0 {
-            outline.sort_by(|a, b| a[1].atan2(a[0]).total_cmp(&b[1].atan2(b[0])));
-        }
-        match rng.below(5) {
-            0 => outline[n - 1] = outline[0],                         // repeated
-            1 => outline[1] = [outline[0][0] + 1e-13, outline[0][1]], // nearly coincident
-            2 => outline[1] = [(outline[0][0] + outline[2][0]) / 2.0, (outline[0][1] + outline[2][1]) / 2.0],
-            _ => {}
-        }
-        // Lines from a corner towards the middle (inside a star-shaped
-        // outline, often outside another).
-        let lines =
-            (0..rng.below(4).saturating_sub(2)).map(|_| [outline[rng.below(n)], [0.1 * unit(&mut rng), 0.0]]).collect();
-        let edge_length_m = [1e-4, 0.01, 0.05, 0.2, 2.0][rng.below(5)];
-        let piece = PatternPiece {
-            outline_m: outline,
-            edge_length_m,
-            lines_m: lines,
-            u_axis: [1.0, 0.0, 0.0],
-            v_axis: [0.0, 1.0, 0.0],
-            cylinder_radius_m: None,
-        };
-        let result = catch_unwind(AssertUnwindSafe(|| MeshPanel::from_pattern(piece.clone()).resolve(Path::new("."))));
-        match result {
-            Err(_) => panic!("round {round}: meshing panicked on {piece:?}"),
-            Ok(Ok(mesh)) => {
-                assert!(mesh.check().is_ok(), "round {round}");
-                meshed += 1;
+    with_short_panic_messages(|| {
+        for round in 0..400 {
+            let n = 3 + rng.below(10);
+            let mut outline: Vec<[f64; 2]> = (0..n).map(|_| [unit(&mut rng) - 0.5, unit(&mut rng) - 0.5]).collect();
+            // Sorted by angle about the middle: star-shaped, never self-crossing.
+            if rng.below(2) == 0 {
+                outline.sort_by(|a, b| a[1].atan2(a[0]).total_cmp(&b[1].atan2(b[0])));
             }
-            Ok(Err((_, why))) => {
-                refused += 1;
-                triangulator += usize::from(why.contains("triangulator"));
+            match rng.below(5) {
+                0 => outline[n - 1] = outline[0],                         // repeated
+                1 => outline[1] = [outline[0][0] + 1e-13, outline[0][1]], // nearly coincident
+                2 => outline[1] = [(outline[0][0] + outline[2][0]) / 2.0, (outline[0][1] + outline[2][1]) / 2.0],
+                _ => {}
+            }
+            // Lines from a corner towards the middle (inside a star-shaped
+            // outline, often outside another).
+            let lines = (0..rng.below(4).saturating_sub(2))
+                .map(|_| [outline[rng.below(n)], [0.1 * unit(&mut rng), 0.0]])
+                .collect();
+            let edge_length_m = [1e-4, 0.01, 0.05, 0.2, 2.0][rng.below(5)];
+            let piece = PatternPiece {
+                outline_m: outline,
+                edge_length_m,
+                lines_m: lines,
+                u_axis: [1.0, 0.0, 0.0],
+                v_axis: [0.0, 1.0, 0.0],
+                cylinder_radius_m: None,
+            };
+            let result =
+                catch_unwind(AssertUnwindSafe(|| MeshPanel::from_pattern(piece.clone()).resolve(Path::new("."))));
+            match result {
+                Err(_) => panic!("round {round}: meshing panicked on {piece:?}"),
+                Ok(Ok(mesh)) => {
+                    assert!(mesh.check().is_ok(), "round {round}");
+                    meshed += 1;
+                }
+                Ok(Err((_, why))) => {
+                    refused += 1;
+                    triangulator += usize::from(why.contains("triangulator"));
+                }
             }
         }
-    }
-    std::panic::set_hook(default_hook);
+    });
     println!("{meshed} meshed, {refused} refused ({triangulator} by the triangulator's own panic, caught)");
     assert!(meshed > 100 && refused > 100, "{meshed} meshed, {refused} refused: the cases miss one side");
 }
