@@ -5,8 +5,9 @@
 use super::build_parts::{BendingTriangle, clamped, volino_elements};
 use super::*;
 use crate::cloth_mesh::{ClothMesh, MeshError, MeshTopology};
+use crate::element_laws::TriangleRest;
 use crate::elements::{BendHinge, MembraneElement};
-use crate::material::{Compressive, PATH_CURVATURE_FACTOR};
+use crate::material::PATH_CURVATURE_FACTOR;
 
 /// The shear modulus of a spring lattice on triangles: `3E/8` (Poisson
 /// ratio 1/3), N/m for `E` in N/m.
@@ -31,7 +32,6 @@ pub(super) fn mesh_parts(
     mesh: &ClothMesh,
     index: usize,
     offset: u32,
-    compressive: Compressive,
 ) -> Result<MeshParts, MeshError> {
     let m = &spec.material;
     let (e, b, d) = (m.tensile_stiffness_n_m, m.flexural_rigidity_n_m, m.damping_n_s_m);
@@ -50,19 +50,13 @@ pub(super) fn mesh_parts(
         let [a, c] = edge.ends;
         let rest = (p[c as usize] - p[a as usize]).norm();
         let per_length = edge.area / (rest * rest);
-        let k_s = if spec.kind == ModelKind::Volino { 0.0 } else { (1.0 - flexion_share) * e * per_length };
+        // Choi & Ko's and Volino's membranes are triangles; their links damp and limit.
+        let k_s = if spec.kind == ModelKind::Provot { (1.0 - flexion_share) * e * per_length } else { 0.0 };
         let k_d = if spec.effects.damping { d * per_length } else { 0.0 };
         if !(rest > 0.0 && [k_s, k_d].iter().all(|v| v.is_finite())) {
             return Err(bad(format!("edge {a}-{c} has no length or finite constants")));
         }
-        let compression = match spec.kind {
-            // Linear: capped at its strip's buckling load, a triangle with one
-            // slack edge folds in its plane (module docs of `cloth_mesh`).
-            ModelKind::ChoiKo => Compression::Linear(compressive.ratio * k_s),
-            ModelKind::Provot => Compression::Linear(k_s),
-            ModelKind::Volino => Compression::Linear(0.0),
-        };
-        stretch.push(StretchLink { i: at(a), j: at(c), rest, k_s, compression, k_d });
+        stretch.push(StretchLink { i: at(a), j: at(c), rest, k_s, compression: Compression::Linear(k_s), k_d });
     }
     let (mut flexion, mut hinges) = (Vec::new(), Vec::new());
     if bending && spec.kind != ModelKind::Volino {
@@ -87,6 +81,11 @@ pub(super) fn mesh_parts(
         }
     }
     let (mut membranes, mut bending_triangles) = (Vec::new(), Vec::new());
+    if spec.kind == ModelKind::ChoiKo {
+        let nu = e / (2.0 * m.shear_modulus()) - 1.0;
+        membranes = tension_field_elements(p, &mesh.triangles, e, nu, b, offset)
+            .ok_or_else(|| bad("a triangle has no area".into()))?;
+    }
     if spec.kind == ModelKind::Volino {
         let (elements, triangles) = volino_elements(p, &mesh.triangles, m, mesh.weft, index, offset)
             .ok_or_else(|| bad("a triangle has no area in the weft's frame".into()))?;
@@ -96,6 +95,39 @@ pub(super) fn mesh_parts(
         }
     }
     Ok(MeshParts { stretch, flexion, hinges, membranes, bending: bending_triangles, topology })
+}
+
+/// Choi & Ko's membrane on a mesh: a tension-field triangle
+/// ([`TriangleRest::tension_field`]) of modulus `e` (N/m) and Poisson ratio
+/// `nu` on each triangle, wrinkling at the onset of their arc law for a
+/// strip of the triangle's size `l` and rigidity `b` (N m): `sigma_b = 12
+/// b / l^2`, `l^2 = 4 A / sqrt(3)` (the equilateral triangle of its area).
+/// None if a triangle is degenerate.
+fn tension_field_elements(
+    p: &[crate::Vec3],
+    triangles: &[[u32; 3]],
+    e: f64,
+    nu: f64,
+    b: f64,
+    offset: u32,
+) -> Option<Vec<MembraneElement>> {
+    use nalgebra::Vector2;
+    triangles
+        .iter()
+        .map(|t| {
+            let x = t.map(|k| p[k as usize]);
+            let (u, w) = (x[1] - x[0], x[2] - x[0]);
+            let e1 = u.try_normalize(1e-12)?;
+            let e2 = u.cross(&w).cross(&u).try_normalize(1e-12)?;
+            let uv = x.map(|q| Vector2::new((q - x[0]).dot(&e1), (q - x[0]).dot(&e2)));
+            let area = 0.5 * u.cross(&w).norm();
+            let sigma_b = 12.0 * b * 3f64.sqrt() / (4.0 * area);
+            Some(MembraneElement {
+                nodes: t.map(|k| k + offset),
+                rest: TriangleRest::tension_field(uv, e, nu, sigma_b)?,
+            })
+        })
+        .collect()
 }
 
 /// Clamped type-2 interactions across a mesh edge: the edge pinned and one

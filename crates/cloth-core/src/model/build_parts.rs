@@ -118,9 +118,14 @@ pub(super) fn check_lattice_on_meshes(spec: &ModelSpec, path: bool) -> Result<()
         return Err(ModelError::MeshBendingLaw);
     }
     let m = &spec.material;
+    let (e, g) = (m.tensile_stiffness_n_m, m.shear_modulus());
+    if spec.kind == ModelKind::ChoiKo && g <= e / 4.0 {
+        let message = format!("{g} N/m: an isotropic membrane of E = {e} N/m needs G > E/4 (Poisson ratio under 1)");
+        return Err(ModelError::Material { field: "shear_modulus_n_m", message });
+    }
     let lattice = super::build_mesh::triangle_lattice_shear_modulus(m.tensile_stiffness_n_m);
     if let Some(g) = m.shear_modulus_n_m
-        && spec.kind != ModelKind::Volino
+        && spec.kind == ModelKind::Provot
         && (g - lattice).abs() > 1e-3 * lattice
     {
         let message = format!(

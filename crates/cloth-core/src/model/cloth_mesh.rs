@@ -3,25 +3,32 @@
 //! another tool, a pattern piece meshed by a Delaunay triangulator).
 //!
 //! ## The three models on an irregular mesh
-//! - **Type-1 links** (Choi & Ko's sequential links, Provot's structural
-//!   and shear springs) lie on the mesh's edges. An edge of rest length `L`
-//!   bordering triangles of total area `A_e` gets `k = E A_e / L^2` (Van
-//!   Gelder 1998, "Approximate simulation of elastic membranes by
+//! - **Provot's springs** lie on the mesh's edges. An edge of rest length
+//!   `L` bordering triangles of total area `A_e` gets `k = E A_e / L^2`
+//!   (Van Gelder 1998, "Approximate simulation of elastic membranes by
 //!   triangulated spring meshes"): exact for equilateral triangles, where
 //!   the springs form an isotropic membrane of modulus `E` and Poisson
 //!   ratio 1/3, so shear modulus `G = 3E/8` (a spring lattice on triangles
-//!   has no other; the grid's two link families set `G` apart). Damping
-//!   takes `D A_e / L^2` the same way. On an irregular mesh the network
-//!   relaxes where an affine field would strain it: softer in tension,
-//!   stiffer under an affine shear (numbers in `docs/results/meshes.md`;
-//!   a least-squares fit of each triangle's three springs to the
-//!   membrane was softer still).
-//! - Choi & Ko's type-1 links resist **compression** linearly (`C_b / E`
-//!   times their tension stiffness), without the grid's cap at their
-//!   strip's buckling load: on triangles a link gone slack leaves its
-//!   triangle free to fold in its plane, and a strip under tension, whose
-//!   links across it shorten, stretched 7.4 times too far at `B = 1e-7 N
-//!   m`. Buckling is left to the bending interactions, as in a plate.
+//!   has no other; the grid's two link families set `G` apart). On an
+//!   irregular mesh the network relaxes where an affine field would strain
+//!   it: softer in tension, stiffer under an affine shear (numbers in
+//!   `docs/results/meshes.md`; a least-squares fit of each triangle's three
+//!   springs to the membrane was softer still).
+//! - **Choi & Ko's membrane** is a triangle each
+//!   ([`crate::element_laws::tension_field_response`]): linear and
+//!   isotropic (`E`, and `G` as on the grid) while both principal stresses
+//!   stay above the buckling stress `-sigma_b`, wrinkling beyond it. That
+//!   is their type-1 links' premise, fabric buckles rather than resists
+//!   compression, for a triangle. Links on the edges would be a mechanism:
+//!   a triangle with a slack edge folds in its plane, so a strip in tension,
+//!   whose links across it shorten, stretched 7.4 times too far at `B =
+//!   1e-7 N m` with the grid's cap on them, and without a cap (as stiff in
+//!   compression as in tension) the network was 7% soft, and a skirt
+//!   pressed by a knee crumpled at the mesh's scale. `sigma_b = 12 B / l^2`,
+//!   the onset of the arc law for a strip as long as the triangle (`l^2 = 4
+//!   A / sqrt(3)`); `buckling_stiffness_n_m`, the grid's ramp, has no part
+//!   here. The edges keep links without stiffness for damping (`D A_e /
+//!   L^2`) and strain limits, as in Volino's model.
 //! - **Type-2 interactions** join the two corners `c`, `d` opposite an
 //!   interior edge `ab`. Choi & Ko's arc-path law reads the path `c -> m ->
 //!   d` through the point `m = (1 - w) a + w b` where the segment `cd`
@@ -50,8 +57,8 @@
 //!   diagonals); on an irregular mesh they store 13% more than `B
 //!   kappa^2 / 2`.
 //!
-//! Type-1 links along the boundary border one triangle and stand for it
-//! alone, as the grid's boundary links stand for half a cell.
+//! Links along the boundary border one triangle and stand for it alone, as
+//! the grid's boundary links stand for half a cell.
 
 use crate::Vec3;
 pub use crate::model::pattern::PatternPiece;

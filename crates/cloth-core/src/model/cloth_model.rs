@@ -352,7 +352,7 @@ impl ClothModel {
             let mesh = panel.resolve_with(&spec.collision.base_dir, &pieces[k]).map_err(err)?;
             let offset = mass.len();
             let index = spec.panels.len() + k;
-            let parts = mesh_parts(spec, &mesh, index, offset as u32, compressive).map_err(err)?;
+            let parts = mesh_parts(spec, &mesh, index, offset as u32).map_err(err)?;
             stretch.extend(parts.stretch);
             bend.extend_from_slice(&parts.flexion);
             bend_middle.extend(parts.flexion.iter().map(|_| None));
