@@ -1,5 +1,5 @@
-//! The readers against malformed input: every fixture scene, OBJ mesh,
-//! URDF rig and BVH motion, mutated many ways (characters changed, cut
+//! The readers against malformed input: every fixture scene, OBJ and glTF
+//! mesh, URDF rig and BVH motion, mutated many ways (characters changed, cut
 //! short, lines dropped, doubled or swapped, numbers replaced by NaN,
 //! infinities, 1e308, negatives), must be read into a value or refused
 //! with an error. None may panic.
@@ -112,7 +112,7 @@ fn with_short_panic_messages<T>(f: impl FnOnce() -> T) -> T {
 #[test]
 fn malformed_inputs_are_refused_never_panic() {
     let (scenes, objs, rigs, motions) = with_short_panic_messages(malformed_inputs);
-    for (what, found) in [("scenes", &scenes), ("OBJ", &objs), ("URDF", &rigs), ("BVH", &motions)] {
+    for (what, found) in [("scenes", &scenes), ("OBJ and glTF", &objs), ("URDF", &rigs), ("BVH", &motions)] {
         println!("{what}: {} panics", found.len());
     }
     assert!(
@@ -137,13 +137,57 @@ fn malformed_inputs() -> (Panics, Panics, Panics, Panics) {
     let objs = panics(&fixtures("meshes", "obj"), 1000, |text, _| {
         let _ = cloth_collide::parse_obj(text);
     });
+    let gltfs = gltf_panics(&fixtures("meshes", "glb"), 1000);
     let rigs = panics(&fixtures("rigs", "urdf"), 500, |text, file| {
         let _ = cloth_rapier::rig::Rig::parse(text, file, Default::default());
     });
     let motions = panics(&fixtures("motions", "bvh"), 2000, |text, file| {
         let _ = cloth_rapier::bvh::Bvh::parse(text, file);
     });
-    (scenes, objs, rigs, motions)
+    (scenes, [objs, gltfs].concat(), rigs, motions)
+}
+
+/// Each `.glb` fixture mutated `rounds` times, read: its JSON chunk
+/// mutated as text (the chunk's length kept right), or bytes anywhere set
+/// to random values, or the file cut short. The inputs that panicked.
+fn gltf_panics(files: &[PathBuf], rounds: usize) -> Panics {
+    let mut found = Vec::new();
+    let mut rng = Rng(0x2545_F491_4F6C_DD1D);
+    for file in files {
+        let bytes = std::fs::read(file).unwrap();
+        let json_len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+        let json = std::str::from_utf8(&bytes[20..20 + json_len]).unwrap();
+        for round in 0..rounds {
+            let input = match rng.below(3) {
+                0 => {
+                    let mut text = mutate(json, &mut rng).into_bytes();
+                    text.resize(text.len().next_multiple_of(4), b' ');
+                    let rest = &bytes[20 + json_len..];
+                    let total = (20 + text.len() + rest.len()) as u32;
+                    let mut out = [&b"glTF"[..], &2u32.to_le_bytes(), &total.to_le_bytes()].concat();
+                    out.extend((text.len() as u32).to_le_bytes());
+                    out.extend(b"JSON");
+                    out.extend(text);
+                    out.extend(rest);
+                    out
+                }
+                1 => {
+                    let mut out = bytes.clone();
+                    for _ in 0..1 + rng.below(4) {
+                        let at = rng.below(out.len());
+                        out[at] = rng.next() as u8;
+                    }
+                    out
+                }
+                _ => bytes[..rng.below(bytes.len())].to_vec(),
+            };
+            let read = || cloth_collide::parse_gltf(&input, file, None);
+            if catch_unwind(AssertUnwindSafe(read)).is_err() {
+                found.push((file.clone(), round));
+            }
+        }
+    }
+    found
 }
 
 /// Random pattern outlines (3 to 12 corners anywhere in a square, so

@@ -178,12 +178,25 @@ pub fn validate(path: &Path, overrides: &[String]) -> Result<()> {
     for warning in runner.warnings() {
         println!("{}: warning: {warning}", path.display());
     }
+    let el = model.elements();
+    // Elements beside the links: membranes, bending triangles, type-2 triples and hinges.
+    let elements: Vec<String> = [
+        (el.membranes.len(), "membrane triangles"),
+        (el.curvatures.len(), "bending triangles"),
+        (el.triples.len(), "type-2 triples"),
+        (el.hinges.len(), "type-2 hinges"),
+    ]
+    .iter()
+    .filter(|(n, _)| *n > 0)
+    .map(|(n, what)| format!(", {n} {what}"))
+    .collect();
     println!(
-        "{}: ok ({} particles, {} type-1 and {} type-2 links, {} pins, {} steps of {} s with {})",
+        "{}: ok ({} particles, {} type-1 and {} type-2 links{}, {} pins, {} steps of {} s with {})",
         path.display(),
         model.particle_count(),
         model.stretch_links().len(),
         model.bend_links().len(),
+        elements.concat(),
         model.pins().len(),
         cfg.steps,
         cfg.dt_s,

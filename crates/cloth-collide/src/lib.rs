@@ -12,12 +12,14 @@
 //! Results are sorted, so they do not depend on hashing or scheduling.
 
 mod collider;
+mod gltf_mesh;
 mod obj;
 mod triangle;
 mod voxel_hash;
 
 pub use collider::{BodyPose, ShapeError, ShapeSpec, SolidShape, SurfacePoint};
-pub use obj::{ObjError, ObjMesh, parse_obj, parse_obj_points};
+pub use gltf_mesh::{parse_gltf, read_gltf};
+pub use obj::{ObjError, SurfaceMesh, parse_obj, parse_obj_points};
 pub use triangle::closest_point_on_triangle;
 pub use voxel_hash::{BroadPhaseError, VoxelHash};
 

@@ -1,16 +1,23 @@
-//! A minimal Wavefront OBJ reader: vertices (`v`) and polygonal faces
-//! (`f`, fan-triangulated). Everything else (normals, texture coordinates,
-//! groups, materials) is skipped, as a collider needs only the surface.
+//! A minimal Wavefront OBJ reader: vertices (`v`), texture coordinates
+//! (`vt`) and polygonal faces (`f`, fan-triangulated). Everything else
+//! (normals, groups, materials) is skipped: a collider needs only the
+//! surface, a cloth the surface and the grain its texture map gives.
 
 use crate::Vec3;
 
-/// A triangle mesh read from OBJ text.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ObjMesh {
+/// A triangle mesh read from a file (OBJ, or glTF: [`crate::read_gltf`]).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SurfaceMesh {
     /// Vertex positions, in the file's units.
     pub vertices: Vec<Vec3>,
     /// Triangles as vertex indices (0-based), counter-clockwise as in the file.
     pub triangles: Vec<[u32; 3]>,
+    /// Texture coordinates `(u, v)`.
+    pub uvs: Vec<[f64; 2]>,
+    /// Each triangle's corners' indices into `uvs`, `None` for a triangle
+    /// whose face gave none (one vertex can have several, across a seam of
+    /// the texture map).
+    pub triangle_uvs: Vec<Option<[u32; 3]>>,
 }
 
 /// Why OBJ text could not be read: the 1-based line and the reason.
@@ -27,7 +34,7 @@ pub struct ObjError {
 /// may carry `/vt/vn` suffixes; faces with more than three corners are
 /// split into a fan. A mesh without faces is an error (see
 /// [`parse_obj_points`]).
-pub fn parse_obj(text: &str) -> Result<ObjMesh, ObjError> {
+pub fn parse_obj(text: &str) -> Result<SurfaceMesh, ObjError> {
     let mesh = parse_obj_points(text)?;
     if mesh.triangles.is_empty() {
         return Err(ObjError { line: 0, message: "no faces".into() });
@@ -37,8 +44,8 @@ pub fn parse_obj(text: &str) -> Result<ObjMesh, ObjError> {
 
 /// Parses OBJ text as [`parse_obj`] does, but accepts vertices alone (a
 /// point cloud, as `cloth regress` keeps a final frame).
-pub fn parse_obj_points(text: &str) -> Result<ObjMesh, ObjError> {
-    let mut mesh = ObjMesh { vertices: Vec::new(), triangles: Vec::new() };
+pub fn parse_obj_points(text: &str) -> Result<SurfaceMesh, ObjError> {
+    let mut mesh = SurfaceMesh::default();
     for (k, raw) in text.lines().enumerate() {
         let line = k + 1;
         let err = |message: String| ObjError { line, message };
@@ -55,24 +62,50 @@ pub fn parse_obj_points(text: &str) -> Result<ObjMesh, ObjError> {
                 }
                 mesh.vertices.push(Vec3::from(c));
             }
+            Some("vt") => {
+                let mut c = [0.0; 2];
+                for slot in &mut c {
+                    let w = words.next().ok_or_else(|| err("texture coordinate needs u and v".into()))?;
+                    *slot = w.parse::<f64>().map_err(|_| err(format!("bad texture coordinate {w:?}")))?;
+                    if !slot.is_finite() {
+                        return Err(err(format!("non-finite texture coordinate {w:?}")));
+                    }
+                }
+                mesh.uvs.push(c);
+            }
             Some("f") => {
-                let n = mesh.vertices.len();
+                let (n, n_uv) = (mesh.vertices.len(), mesh.uvs.len());
+                // A 1-based (or negative, from the end) index among `count` read so far.
+                let index = |w: &str, text: &str, count: usize, what: &str| {
+                    let i: i64 = text.parse().map_err(|_| err(format!("bad face index {w:?}")))?;
+                    let index = if i > 0 { i - 1 } else { count as i64 + i };
+                    if i == 0 || index < 0 || index >= count as i64 {
+                        return Err(err(format!("face index {i} outside the {count} {what} read so far")));
+                    }
+                    Ok(index as u32)
+                };
                 let corners = words
                     .map(|w| {
-                        let first = w.split('/').next().unwrap_or("");
-                        let i: i64 = first.parse().map_err(|_| err(format!("bad face index {w:?}")))?;
-                        let index = if i > 0 { i - 1 } else { n as i64 + i };
-                        if i == 0 || index < 0 || index >= n as i64 {
-                            return Err(err(format!("face index {i} outside the {n} vertices read so far")));
-                        }
-                        Ok(index as u32)
+                        let mut parts = w.split('/');
+                        let vertex = index(w, parts.next().unwrap_or(""), n, "vertices")?;
+                        let uv = match parts.next() {
+                            Some(t) if !t.is_empty() => Some(index(w, t, n_uv, "texture coordinates")?),
+                            _ => None,
+                        };
+                        Ok((vertex, uv))
                     })
-                    .collect::<Result<Vec<u32>, ObjError>>()?;
+                    .collect::<Result<Vec<(u32, Option<u32>)>, ObjError>>()?;
                 if corners.len() < 3 {
                     return Err(err(format!("face has {} corners, needs at least 3", corners.len())));
                 }
+                let uv_at = |k: usize| corners[k].1;
                 for w in 1..corners.len() - 1 {
-                    mesh.triangles.push([corners[0], corners[w], corners[w + 1]]);
+                    mesh.triangles.push([corners[0].0, corners[w].0, corners[w + 1].0]);
+                    let uv = [uv_at(0), uv_at(w), uv_at(w + 1)];
+                    mesh.triangle_uvs.push(match uv {
+                        [Some(a), Some(b), Some(c)] => Some([a, b, c]),
+                        _ => None,
+                    });
                 }
             }
             _ => {}
@@ -93,6 +126,17 @@ mod tests {
         assert_eq!(mesh.triangles, vec![[0, 1, 2], [0, 2, 3]]);
         let relative = parse_obj("v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\n").unwrap();
         assert_eq!(relative.triangles, vec![[0, 1, 2]]);
+    }
+
+    #[test]
+    fn texture_coordinates_follow_the_faces() {
+        let text = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 2 0\nvt 2 2\nvt 0 2\n\
+                    f 1/1 2/2 3/3 4/4\nf 1 3 4\nf 1/-4/1 2/-3/1 3/-2/1\n";
+        let mesh = parse_obj(text).unwrap();
+        assert_eq!(mesh.uvs.len(), 4);
+        assert_eq!(mesh.triangle_uvs, vec![Some([0, 1, 2]), Some([0, 2, 3]), None, Some([0, 1, 2])]);
+        assert_eq!(parse_obj("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/2 3/1\n").unwrap_err().line, 5);
+        assert_eq!(parse_obj("vt 0 inf\n").unwrap_err().line, 1);
     }
 
     #[test]

@@ -87,8 +87,15 @@ pub(super) fn mesh_parts(
             .ok_or_else(|| bad("a triangle has no area".into()))?;
     }
     if spec.kind == ModelKind::Volino {
-        let (elements, triangles) = volino_elements(p, &mesh.triangles, m, mesh.weft, index, offset)
-            .ok_or_else(|| bad("a triangle has no area in the weft's frame".into()))?;
+        let (elements, triangles) = volino_elements(
+            p,
+            &mesh.triangles,
+            m,
+            &|k| *mesh.triangle_wefts.get(k).unwrap_or(&mesh.weft),
+            index,
+            offset,
+        )
+        .ok_or_else(|| bad("a triangle has no area in the weft's frame".into()))?;
         membranes = elements;
         if bending {
             bending_triangles = triangles;

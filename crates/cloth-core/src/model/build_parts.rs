@@ -219,22 +219,23 @@ pub(super) fn curvature_elements(
 /// Volino's elements for one panel's triangles over rest positions `p`
 /// (local indices shifted by `offset`):
 /// a membrane per triangle, with rest (u, v) coordinates in the triangle's
-/// plane along the panel's weft axis `v_axis` (so warp and weft keep their
-/// directions on curved rest shapes), and each triangle with its
+/// plane along triangle `k`'s weft axis `weft(k)` (so warp and weft keep
+/// their directions on curved rest shapes), and each triangle with its
 /// neighbours for bending ([`curvature_elements`]).
 /// None if a triangle is degenerate.
 pub(super) fn volino_elements(
     p: &[Vec3],
     mesh_triangles: &[[u32; 3]],
     material: &Material,
-    v_axis: Vec3,
+    weft: &dyn Fn(usize) -> Vec3,
     panel: usize,
     offset: u32,
 ) -> Option<(Vec<MembraneElement>, Vec<BendingTriangle>)> {
     use nalgebra::Vector2;
     let c = material.membrane_stiffness();
     let mut membranes = Vec::with_capacity(mesh_triangles.len());
-    for t in mesh_triangles {
+    for (k, t) in mesh_triangles.iter().enumerate() {
+        let v_axis = weft(k);
         let x = t.map(|k| p[k as usize]);
         let normal = (x[1] - x[0]).cross(&(x[2] - x[0]));
         let e2 = (v_axis - normal * (normal.dot(&v_axis) / normal.norm_squared())).try_normalize(1e-12)?;

@@ -77,6 +77,23 @@ pub struct MeshPanel {
     /// directory). Faces of more than three corners are split into fans.
     #[serde(default)]
     pub obj: Option<PathBuf>,
+    /// glTF 2.0 file (`.glb` or `.gltf`, relative to the scene's
+    /// directory) with the rest shape: its mesh `gltf_mesh` (or its only
+    /// one), placed by its node and turned from glTF's y-up to z-up;
+    /// vertices split by the exporter at one place are welded
+    /// ([`cloth_collide::read_gltf`]).
+    #[serde(default)]
+    pub gltf: Option<PathBuf>,
+    /// The mesh to read from `gltf`, by name.
+    #[serde(default)]
+    pub gltf_mesh: Option<String>,
+    /// Take the grain from the texture map (OBJ `vt`, glTF `TEXCOORD_0`):
+    /// on each triangle the weft runs along the map's v and the warp across
+    /// it, as a pattern tool lays the pieces out. Only Volino's orthotropic
+    /// membrane has a grain; the lattices and Choi & Ko's membrane are
+    /// isotropic. Not with `weft_axis`.
+    #[serde(default)]
+    pub grain_from_uv: bool,
     /// Rest positions listed in place (instead of `obj`), in the mesh's
     /// units (see `scale`).
     #[serde(default)]
@@ -105,6 +122,30 @@ fn unit_scale() -> f64 {
     1.0
 }
 
+/// Each triangle's weft: the direction in which the texture map's v grows
+/// (`dx/dv` of the map from the triangle's texture coordinates to its
+/// rest positions), unit. Errors name `grain_from_uv` and the triangle.
+fn uv_wefts(mesh: &ClothMesh, uvs: &[[f64; 2]], corners: &[Option<[u32; 3]>]) -> Result<Vec<Vec3>, MeshError> {
+    let err = |k: usize, what: &str| ("grain_from_uv", format!("triangle {k} {what}"));
+    mesh.triangles
+        .iter()
+        .enumerate()
+        .map(|(k, t)| {
+            let c = corners.get(k).copied().flatten().ok_or_else(|| err(k, "has no texture coordinates"))?;
+            let [t0, t1, t2] = c.map(|i| nalgebra::Vector2::from(uvs[i as usize]));
+            let [x0, x1, x2] = t.map(|i| mesh.positions[i as usize]);
+            let (du1, du2) = (t1 - t0, t2 - t0);
+            let det = du1.x * du2.y - du2.x * du1.y;
+            if det.abs() <= 1e-12 * du1.norm_squared().max(du2.norm_squared()) || !det.is_finite() {
+                return Err(err(k, "is degenerate in the texture map"));
+            }
+            // [x1 - x0, x2 - x0] = [dx/du, dx/dv] [du1, du2]: dx/dv from the inverse's second row.
+            let dv = ((x1 - x0) * -du2.x + (x2 - x0) * du1.x) / det;
+            dv.try_normalize(1e-300).ok_or_else(|| err(k, "maps v to no direction"))
+        })
+        .collect()
+}
+
 /// Why a mesh panel is invalid: the field and the reason.
 pub type MeshError = (&'static str, String);
 
@@ -117,6 +158,9 @@ pub struct ClothMesh {
     pub triangles: Vec<[u32; 3]>,
     /// Weft direction (unit).
     pub weft: Vec3,
+    /// Each triangle's weft direction (unit, in its plane) when the grain
+    /// comes from the texture map; empty otherwise (`weft` for all).
+    pub triangle_wefts: Vec<Vec3>,
     /// A pattern piece's vertices along each outline edge (none for other meshes).
     pub outline_edges: Vec<Vec<u32>>,
     /// Each outline edge's length, m.
@@ -137,6 +181,9 @@ impl MeshPanel {
     fn from_pattern_piece(pattern: Option<PatternPiece>) -> Self {
         Self {
             obj: None,
+            gltf: None,
+            gltf_mesh: None,
+            grain_from_uv: false,
             vertices: Vec::new(),
             triangles: Vec::new(),
             pattern,
@@ -161,13 +208,27 @@ impl MeshPanel {
         if self.offset_m.iter().any(|c| !c.is_finite()) {
             return Err(("offset_m", format!("must be finite, got {:?}", self.offset_m)));
         }
-        let sources =
-            [self.obj.is_some(), !self.vertices.is_empty() || !self.triangles.is_empty(), self.pattern.is_some()];
+        let sources = [
+            self.obj.is_some(),
+            self.gltf.is_some(),
+            !self.vertices.is_empty() || !self.triangles.is_empty(),
+            self.pattern.is_some(),
+        ];
         if sources.iter().filter(|&&s| s).count() != 1 {
-            return Err(("obj", "give one of `obj`, `vertices` with `triangles`, or `pattern`".into()));
+            return Err(("obj", "give one of `obj`, `gltf`, `vertices` with `triangles`, or `pattern`".into()));
+        }
+        if self.gltf_mesh.is_some() && self.gltf.is_none() {
+            return Err(("gltf_mesh", "names a mesh of a `gltf` file, and none is given".into()));
+        }
+        if self.grain_from_uv && self.weft_axis.is_some() {
+            return Err(("grain_from_uv", "give the grain by `weft_axis` or by the texture map, not both".into()));
+        }
+        if self.grain_from_uv && self.obj.is_none() && self.gltf.is_none() {
+            return Err(("grain_from_uv", "needs a texture map: an `obj` or `gltf` file".into()));
         }
         let (mut outline_edges, mut outline_lengths) = (Vec::new(), Vec::new());
         let mut weft = Vec3::y();
+        let mut file_uvs = None;
         let (vertices, triangles) = match (&self.obj, &self.pattern) {
             (_, Some(piece)) => {
                 let m = piece.mesh_with(pieces).map_err(|(field, message)| {
@@ -192,9 +253,18 @@ impl MeshPanel {
                 let text = std::fs::read_to_string(&full)
                     .map_err(|e| ("obj", format!("cannot read {}: {e}", full.display())))?;
                 let mesh = cloth_collide::parse_obj(&text).map_err(|e| ("obj", format!("{}: {e}", full.display())))?;
+                file_uvs = Some((mesh.uvs, mesh.triangle_uvs));
                 (mesh.vertices, mesh.triangles)
             }
-            (None, None) => (self.vertices.iter().map(|&v| Vec3::from(v)).collect(), self.triangles.clone()),
+            (None, None) => match &self.gltf {
+                Some(path) => {
+                    let mesh = cloth_collide::read_gltf(&base_dir.join(path), self.gltf_mesh.as_deref())
+                        .map_err(|e| (if e.contains("no mesh named") { "gltf_mesh" } else { "gltf" }, e))?;
+                    file_uvs = Some((mesh.uvs, mesh.triangle_uvs));
+                    (mesh.vertices, mesh.triangles)
+                }
+                None => (self.vertices.iter().map(|&v| Vec3::from(v)).collect(), self.triangles.clone()),
+            },
         };
         if let Some(w) = self.weft_axis {
             weft = Vec3::from(w)
@@ -203,9 +273,13 @@ impl MeshPanel {
                 .ok_or(("weft_axis", format!("must be a finite non-zero direction, got {w:?}")))?;
         }
         let offset = Vec3::from(self.offset_m);
-        let positions = vertices.iter().map(|v| v * self.scale + offset).collect();
-        let mesh = ClothMesh { positions, triangles, weft, outline_edges, outline_lengths };
+        let positions: Vec<Vec3> = vertices.iter().map(|v| v * self.scale + offset).collect();
+        let mut mesh =
+            ClothMesh { positions, triangles, weft, triangle_wefts: Vec::new(), outline_edges, outline_lengths };
         mesh.check()?;
+        if let (true, Some((uvs, corners))) = (self.grain_from_uv, file_uvs) {
+            mesh.triangle_wefts = uv_wefts(&mesh, &uvs, &corners)?;
+        }
         Ok(mesh)
     }
 }

@@ -301,7 +301,7 @@ impl ClothModel {
                 let (_, v_axis, _) =
                     panel.frame().map_err(|(field, message)| ModelError::Panel { panel: p, field, message })?;
                 let (membranes, triangles) =
-                    volino_elements(&mesh.positions, &mesh.triangles, &spec.material, v_axis, p, offset as u32)
+                    volino_elements(&mesh.positions, &mesh.triangles, &spec.material, &|_| v_axis, p, offset as u32)
                         .ok_or_else(degenerate_err)?;
                 elements.membranes.extend(membranes);
                 if spec.effects.bending {
