@@ -190,16 +190,17 @@ fn skirts_stay_on_other_characters_walking_keyframes() {
 /// Skirts that are not grids stay on as the grid's tube does and walk
 /// with the hips: cut from pattern pieces (`pattern-skirt-walk.toml`:
 /// front and back meshed irregularly, two side seams; measured: nothing
-/// inside a link, stretch 1.1544 at its worst step, one link at the front
-/// seam as the knee strikes it, typically 1.0134, closest 4.4 mm at a 6 mm
-/// thickness, radial 0.316 m, down to 0.371 m, seams within 1.2 mm) and
+/// inside a link, stretch 1.2216 at its worst step, a link by the front
+/// seam where the knee strikes the hem and lifts it (5 steps beyond 1.1,
+/// steps 108-113), typically 1.0164, closest 4.7 mm at a 6 mm thickness,
+/// radial 0.320 m, down to 0.372 m, seams within 1.8 mm) and
 /// read from an OBJ (`obj-skirt-walk.toml`, a closed irregular tube;
 /// measured: stretch 1.0723, typically 1.0092, closest 13.3 mm). The
 /// grid's tube: 1.0562.
 #[test]
 #[ignore = "slow tier: cargo test --release -- --ignored"]
 fn skirts_from_patterns_and_obj_files_stay_on_the_walking_mannequin() {
-    for (scene, stretch) in [("pattern-skirt-walk.toml", 1.16), ("obj-skirt-walk.toml", 1.1)] {
+    for (scene, stretch) in [("pattern-skirt-walk.toml", 1.23), ("obj-skirt-walk.toml", 1.1)] {
         let worn = wear(scene, "pelvis", &[]);
         worn.assert_stays_on(stretch, 0.35, [-0.40, 0.15]);
         assert!(worn.seam_gap < 0.01, "{scene}: a seam opened by {} m", worn.seam_gap);
@@ -350,4 +351,22 @@ fn the_sewn_top_stays_on_in_every_model() {
         worn.assert_stays_on(worn_stretch, 0.30, [-0.05, 0.55]);
         worn.assert_sewn(1e-3, sewing, typical);
     }
+}
+
+/// The dress cut from a sewing pattern (`pattern-dress-walk.toml`: bodice
+/// front and back, two straps, skirt front and back, ten seams, the skirt
+/// gathered 1.64 times onto the bodice) is sewn while the mannequin stands
+/// and stays on its straps through the walk (measured: nothing inside a
+/// link, stretch 1.348, typically 1.145, 1.332 while sewn, closest 5.4 mm,
+/// 0.402 m out, from 0.629 m below the waist joint, seams within 0.4 mm;
+/// the grid's one-piece 1.423, 1.262, 1.414). Before a stitched point
+/// counted as one for self-collision the four waist-corner stitches, where
+/// each waist seam meets two side seams, stayed 5 mm open: a skirt corner
+/// was repelled by the bodice corner it is sewn to through a side seam.
+#[test]
+#[ignore = "slow tier: cargo test --release -- --ignored"]
+fn the_pattern_dress_stays_on_the_walking_mannequin() {
+    let worn = wear("pattern-dress-walk.toml", "torso", &[]);
+    worn.assert_stays_on(1.37, 0.45, [-0.65, 0.55]);
+    worn.assert_sewn(1e-3, 1.35, 1.16);
 }

@@ -70,9 +70,52 @@ pub fn min_unlinked_distance(model: &ClothModel, x: &[Vec3]) -> f64 {
 }
 
 /// Closest particle to a triangle that neither contains it nor has a
-/// corner linked to it, m (brute force).
+/// corner linked to it, m: exact below `REACH` (a triangle is found
+/// through the cells of a 2 cm grid its box touches), `REACH` when nothing
+/// is nearer.
 pub fn min_unlinked_point_triangle(model: &ClothModel, x: &[Vec3]) -> f64 {
-    let linked = |a: usize, b: usize| a == b || model.incidence(a).iter().any(|inc| inc.other as usize == b);
+    const REACH: f64 = 0.02;
+    let cell = |p: Vec3| [p.x, p.y, p.z].map(|c| (c / REACH).floor() as i64);
+    let mut grid: std::collections::HashMap<[i64; 3], Vec<usize>> = std::collections::HashMap::new();
+    for (t, tri) in model.triangles().iter().enumerate() {
+        let corners = tri.map(|k| x[k as usize]);
+        let lo = cell(corners.iter().fold(corners[0], |m, p| m.inf(p)));
+        let hi = cell(corners.iter().fold(corners[0], |m, p| m.sup(p)));
+        for i in lo[0]..=hi[0] {
+            for j in lo[1]..=hi[1] {
+                for k in lo[2]..=hi[2] {
+                    grid.entry([i, j, k]).or_default().push(t);
+                }
+            }
+        }
+    }
+    let next_to = |a: usize, b: usize| a == b || model.incidence(a).iter().any(|inc| inc.other as usize == b);
+    let near = |a: usize, b: usize| model.sewn_with(a).iter().any(|&m| next_to(m as usize, b));
+    let linked = |a: usize, b: usize| next_to(a, b) || near(a, b) || near(b, a);
+    let mut best = REACH;
+    for (p, xp) in x.iter().enumerate() {
+        let c = cell(*xp);
+        for d in 0..27i64 {
+            let key = [c[0] + d % 3 - 1, c[1] + (d / 3) % 3 - 1, c[2] + d / 9 - 1];
+            for &t in grid.get(&key).into_iter().flatten() {
+                let tri = model.triangles()[t];
+                if tri.iter().any(|&q| linked(p, q as usize)) {
+                    continue;
+                }
+                let [a, b, c] = tri.map(|k| x[k as usize]);
+                best = best.min((closest_point_on_triangle(*xp, a, b, c).0 - xp).norm());
+            }
+        }
+    }
+    best
+}
+
+/// [`min_unlinked_point_triangle`] by brute force, for its test.
+pub fn min_unlinked_point_triangle_brute(model: &ClothModel, x: &[Vec3]) -> f64 {
+    // As self-collision excludes them: linked, or linked through a particle sewn to the other.
+    let next_to = |a: usize, b: usize| a == b || model.incidence(a).iter().any(|inc| inc.other as usize == b);
+    let near = |a: usize, b: usize| model.sewn_with(a).iter().any(|&m| next_to(m as usize, b));
+    let linked = |a: usize, b: usize| next_to(a, b) || near(a, b) || near(b, a);
     let mut best = f64::INFINITY;
     for (p, xp) in x.iter().enumerate() {
         for tri in model.triangles() {

@@ -9,9 +9,14 @@ use crate::{ClothModel, Mat3, Vec3};
 use cloth_collide::{VoxelHash, closest_point_on_triangle};
 use rayon::prelude::*;
 
-/// Whether particles `a` and `b` share a link (they never repel).
+/// Whether particles `a` and `b` never repel: they share a link, or are
+/// sewn together, or one is linked to a particle sewn to the other
+/// ([`ClothModel::sewn_with`]: a stitched point of the garment stands for
+/// all its particles).
 pub(crate) fn linked(model: &ClothModel, a: usize, b: usize) -> bool {
-    model.incidence(a).iter().any(|inc| inc.other as usize == b)
+    let next_to = |p: usize, q: usize| model.incidence(p).iter().any(|inc| inc.other as usize == q);
+    let near = |p: usize, q: usize| model.sewn_with(p).iter().any(|&m| m as usize == q || next_to(m as usize, q));
+    next_to(a, b) || near(a, b) || near(b, a)
 }
 
 /// Finds self-collision pairs at positions `x` into `bufs.self_pairs` and
@@ -274,16 +279,22 @@ pub(crate) fn point_triangle_contacts(
 }
 
 /// For each triangle, the sorted particles it never repels: its corners
-/// and the particles linked to a corner.
+/// and the particles linked to a corner, a corner standing for every
+/// particle sewn to it ([`ClothModel::sewn_with`]; a skirt's corner
+/// repelled by the bodice triangle at the back piece's corner, to which
+/// it is not sewn directly, held a dress's waist seams 5 mm open).
 pub(crate) fn build_exclusions(model: &ClothModel, ptr: &mut Vec<u32>, list: &mut Vec<u32>) {
     ptr.clear();
     list.clear();
     ptr.push(0);
     for tri in model.triangles() {
         let start = list.len();
-        for &c in tri {
-            list.push(c);
-            list.extend(model.incidence(c as usize).iter().map(|inc| inc.other));
+        for &corner in tri {
+            let group = model.sewn_with(corner as usize);
+            for &c in if group.is_empty() { std::slice::from_ref(&corner) } else { group } {
+                list.push(c);
+                list.extend(model.incidence(c as usize).iter().map(|inc| inc.other));
+            }
         }
         list[start..].sort_unstable();
         let mut unique = start;

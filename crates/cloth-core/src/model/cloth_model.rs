@@ -173,6 +173,11 @@ pub struct ClothModel {
     /// The triangles of each particle, in triangle order: `tri_of[tri_ptr[i]..tri_ptr[i + 1]]`.
     tri_ptr: Vec<usize>,
     tri_of: Vec<u32>,
+    /// Each sewn particle's group (the particles stitches join it to,
+    /// directly or through others, itself included; empty if unsewn):
+    /// `sewn[sewn_ptr[i]..sewn_ptr[i + 1]]`.
+    sewn_ptr: Vec<usize>,
+    sewn: Vec<u32>,
     elements: ElementSet,
     drag: Vec<f64>,
     inc_ptr: Vec<usize>,
@@ -446,6 +451,7 @@ impl ClothModel {
         }
         let diag_local = (0..n).map(|i| (pattern.diag_slot(i) - pattern.row_range(i).start) as u32).collect();
         let (tri_ptr, tri_of) = triangles_of_particles(n, &triangles);
+        let (sewn_ptr, sewn) = sewn_groups(n, &stitches);
         let collision_error = |(field, message)| ModelError::Collision { field, message };
         let colliders = spec.collision.build_colliders().map_err(collision_error)?;
         let mean_link = stretch.iter().map(|l| l.rest).sum::<f64>() / stretch.len().max(1) as f64;
@@ -480,6 +486,8 @@ impl ClothModel {
             triangles,
             tri_ptr,
             tri_of,
+            sewn_ptr,
+            sewn,
             elements,
             drag,
             inc_ptr,
@@ -701,6 +709,13 @@ impl ClothModel {
     pub fn particle_triangles(&self, i: usize) -> &[u32] {
         &self.tri_of[self.tri_ptr[i]..self.tri_ptr[i + 1]]
     }
+    /// The particles sewn to particle `i`, directly or through other
+    /// stitches, with `i` itself (sorted); empty if `i` is not sewn. The
+    /// corner where a waist seam meets two side seams is four particles
+    /// at one point of the garment.
+    pub fn sewn_with(&self, i: usize) -> &[u32] {
+        &self.sewn[self.sewn_ptr[i]..self.sewn_ptr[i + 1]]
+    }
     /// Links incident to particle `i`, in link order.
     pub fn incidence(&self, i: usize) -> &[Incidence] {
         &self.inc[self.inc_ptr[i]..self.inc_ptr[i + 1]]
@@ -823,6 +838,40 @@ impl ClothModel {
 
 /// Of `n` particles, the triangles each is a corner of, as a compressed
 /// row list `(ptr, list)`: particle `i`'s are `list[ptr[i]..ptr[i + 1]]`.
+/// [`ClothModel::sewn_with`]'s groups for `n` particles: the components
+/// of the graph of `stitches`, as CSR (union-find, each group sorted).
+fn sewn_groups(n: usize, stitches: &[Stitch]) -> (Vec<usize>, Vec<u32>) {
+    let mut parent: Vec<u32> = (0..n as u32).collect();
+    fn root(parent: &mut [u32], mut a: u32) -> u32 {
+        while parent[a as usize] != a {
+            parent[a as usize] = parent[parent[a as usize] as usize];
+            a = parent[a as usize];
+        }
+        a
+    }
+    let mut sewn = vec![false; n];
+    for s in stitches {
+        let (a, b) = (root(&mut parent, s.i), root(&mut parent, s.j));
+        parent[a.max(b) as usize] = a.min(b);
+        sewn[s.i as usize] = true;
+        sewn[s.j as usize] = true;
+    }
+    let roots: Vec<u32> = (0..n as u32).map(|i| root(&mut parent, i)).collect();
+    let mut members: std::collections::BTreeMap<u32, Vec<u32>> = std::collections::BTreeMap::new();
+    for i in (0..n).filter(|&i| sewn[i]) {
+        members.entry(roots[i]).or_default().push(i as u32);
+    }
+    let mut ptr = vec![0usize; n + 1];
+    let mut list = Vec::new();
+    for i in 0..n {
+        if sewn[i] {
+            list.extend_from_slice(&members[&roots[i]]);
+        }
+        ptr[i + 1] = list.len();
+    }
+    (ptr, list)
+}
+
 fn triangles_of_particles(n: usize, triangles: &[[u32; 3]]) -> (Vec<usize>, Vec<u32>) {
     let mut ptr = vec![0usize; n + 1];
     for &k in triangles.iter().flatten() {
