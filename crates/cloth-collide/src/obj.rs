@@ -52,26 +52,13 @@ pub fn parse_obj_points(text: &str) -> Result<SurfaceMesh, ObjError> {
         let mut words = raw.split('#').next().unwrap_or("").split_whitespace();
         match words.next() {
             Some("v") => {
-                let mut c = [0.0; 3];
-                for slot in &mut c {
-                    let w = words.next().ok_or_else(|| err("vertex needs three coordinates".into()))?;
-                    *slot = w.parse::<f64>().map_err(|_| err(format!("bad coordinate {w:?}")))?;
-                    if !slot.is_finite() {
-                        return Err(err(format!("non-finite coordinate {w:?}")));
-                    }
-                }
+                let c = numbers::<3>(&mut words, "vertex needs three coordinates", "coordinate").map_err(err)?;
                 mesh.vertices.push(Vec3::from(c));
             }
             Some("vt") => {
-                let mut c = [0.0; 2];
-                for slot in &mut c {
-                    let w = words.next().ok_or_else(|| err("texture coordinate needs u and v".into()))?;
-                    *slot = w.parse::<f64>().map_err(|_| err(format!("bad texture coordinate {w:?}")))?;
-                    if !slot.is_finite() {
-                        return Err(err(format!("non-finite texture coordinate {w:?}")));
-                    }
-                }
-                mesh.uvs.push(c);
+                mesh.uvs.push(
+                    numbers::<2>(&mut words, "texture coordinate needs u and v", "texture coordinate").map_err(err)?,
+                );
             }
             Some("f") => {
                 let (n, n_uv) = (mesh.vertices.len(), mesh.uvs.len());
@@ -112,6 +99,24 @@ pub fn parse_obj_points(text: &str) -> Result<SurfaceMesh, ObjError> {
         }
     }
     Ok(mesh)
+}
+
+/// The next `N` finite numbers of a line; `missing` when there are fewer,
+/// and a bad or non-finite `what` named with the word.
+fn numbers<'a, const N: usize>(
+    words: &mut impl Iterator<Item = &'a str>,
+    missing: &str,
+    what: &str,
+) -> Result<[f64; N], String> {
+    let mut c = [0.0; N];
+    for slot in &mut c {
+        let w = words.next().ok_or_else(|| missing.to_string())?;
+        *slot = w.parse::<f64>().map_err(|_| format!("bad {what} {w:?}"))?;
+        if !slot.is_finite() {
+            return Err(format!("non-finite {what} {w:?}"));
+        }
+    }
+    Ok(c)
 }
 
 #[cfg(test)]

@@ -638,18 +638,23 @@ mod tests {
 
     #[test]
     fn membrane_forces_and_hessian_match_finite_differences() {
-        let r = rest();
-        let x = deformed();
-        let e = membrane_triangle(x, &r);
+        // Stretched in both directions here, so the stress is tensile and
+        // the PSD Hessian is the exact one.
+        membrane_matches_finite_differences(deformed(), &rest());
+    }
+
+    /// The membrane's forces against central differences of its energy,
+    /// and its matrix against central differences of its forces (exact
+    /// where its stress is not compressive).
+    fn membrane_matches_finite_differences(x: [Vec3; 3], r: &TriangleRest) {
+        let e = membrane_triangle(x, r);
         let h = 1e-8;
         for k in 0..3 {
             for c in 0..3 {
                 let (xp, xm) = (moved(x, k, c, h), moved(x, k, c, -h));
-                let (ep, em) = (membrane_triangle(xp, &r), membrane_triangle(xm, &r));
+                let (ep, em) = (membrane_triangle(xp, r), membrane_triangle(xm, r));
                 let grad = (ep.energy - em.energy) / (2.0 * h);
                 assert!((e.forces[k][c] + grad).abs() < 1e-6 * e.forces[k].norm().max(1e-9), "force {k},{c}");
-                // Stretched in both directions here, so the stress is tensile
-                // and the PSD Hessian is the exact one.
                 for a in 0..3 {
                     let col = -(ep.forces[a] - em.forces[a]) / (2.0 * h);
                     let analytic = e.hessian[a][k].column(c);
@@ -729,21 +734,7 @@ mod tests {
         let r = TriangleRest::tension_field(uv, 200.0, 0.3, 0.0).unwrap();
         // Stretched along u, squeezed along v: wrinkled.
         let x = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.0206, 0.001, 0.0005), Vec3::new(0.0005, 0.0142, -0.0003)];
-        let e = membrane_triangle(x, &r);
-        let h = 1e-8;
-        for k in 0..3 {
-            for c in 0..3 {
-                let (xp, xm) = (moved(x, k, c, h), moved(x, k, c, -h));
-                let (ep, em) = (membrane_triangle(xp, &r), membrane_triangle(xm, &r));
-                let grad = (ep.energy - em.energy) / (2.0 * h);
-                assert!((e.forces[k][c] + grad).abs() < 1e-6 * e.forces[k].norm().max(1e-9), "force {k},{c}");
-                for a in 0..3 {
-                    let col = -(ep.forces[a] - em.forces[a]) / (2.0 * h);
-                    let analytic = e.hessian[a][k].column(c);
-                    assert!((col - analytic).norm() < 1e-5 * e.hessian[a][a].norm(), "H[{a}][{k}] col {c}");
-                }
-            }
-        }
+        membrane_matches_finite_differences(x, &r);
         let s =
             tension_field_response(Vector3::new(0.5 * (0.0206f64.powi(2) / 4e-4 - 1.0), -0.05, 0.0), 200.0, 0.3, 0.0);
         assert!(s.stress.y.abs() < 1e-12, "wrinkled across v: {s:?}");
