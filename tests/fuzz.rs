@@ -127,8 +127,17 @@ type Panics = Vec<(PathBuf, usize)>;
 fn malformed_inputs() -> (Panics, Panics, Panics, Panics) {
     let scenes = panics(&fixtures("scenes", "toml"), 200, |text, _| {
         if let Ok(scene) = Scene::parse(text, &[]) {
-            // Keep a mutated grid small: the readers are under test, not the builder's speed.
-            let small = scene.panels.iter().all(|p| p.particles[0] * p.particles[1] <= 20_000);
+            // Keep a mutated grid or pattern small: the readers are under
+            // test, not the builder's speed (a pattern's bound is 4e6
+            // triangles; six of them near it took the machine's memory).
+            let pattern_triangles = |piece: &cloth_core::PatternPiece| {
+                let (lo, hi) = piece.outline_m.iter().fold(([f64::MAX; 2], [f64::MIN; 2]), |(lo, hi), p| {
+                    ([lo[0].min(p[0]), lo[1].min(p[1])], [hi[0].max(p[0]), hi[1].max(p[1])])
+                });
+                (hi[0] - lo[0]) * (hi[1] - lo[1]) / (0.4 * piece.edge_length_m * piece.edge_length_m)
+            };
+            let small = scene.panels.iter().all(|p| p.particles[0] * p.particles[1] <= 20_000)
+                && scene.meshes.iter().filter_map(|m| m.pattern.as_ref()).all(|p| pattern_triangles(p) <= 20_000.0);
             if small {
                 let _ = scene.build();
             }
