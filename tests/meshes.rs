@@ -163,18 +163,20 @@ fn cantilever(kind: ModelKind, h: f64) -> (f64, f64) {
     (measure.chord_angle_deg(), exact)
 }
 
-/// Peirce's cantilever on an irregular mesh at 1 cm: Choi & Ko's hinges
-/// (the arc-path law across triangle pairs) and Volino's bending triangles
-/// meet the elastica's 41.49 degrees as the grids do; Provot's flexion
-/// springs carry no flexural rigidity (second order in the deflection),
-/// so his strip hangs nearly straight down.
+/// Peirce's cantilever on an irregular mesh: Choi & Ko's hinges (the
+/// arc-path law across triangle pairs, at 1 and 0.5 cm) and Volino's
+/// bending triangles (at 1 cm) meet the elastica's 41.49 degrees as the
+/// grids do (measured 41.42, 41.35 and 40.73); Provot's flexion springs
+/// carry no flexural rigidity (second order in the deflection), so his
+/// strip hangs nearly straight down.
 #[test]
 fn a_pattern_cantilever_meets_the_elastica() {
-    for kind in MODELS {
-        let (chord, exact) = cantilever(kind, 0.01);
-        println!("{kind:?}: chord {chord:.2} deg, elastica {exact:.2} deg");
+    let runs = MODELS.iter().map(|&k| (k, 0.01)).chain([(ModelKind::ChoiKo, 0.005)]);
+    for (kind, h) in runs {
+        let (chord, exact) = cantilever(kind, h);
+        println!("{kind:?} at {h} m: chord {chord:.2} deg, elastica {exact:.2} deg");
         let tolerance = match kind {
-            ModelKind::ChoiKo => 3.0,
+            ModelKind::ChoiKo => 0.5,
             ModelKind::Volino => 1.0,
             // No flexural rigidity: the strip hangs steeply, and more so when finer.
             ModelKind::Provot => {
@@ -276,10 +278,11 @@ fn cylinder_energy_ratio(kind: ModelKind, angle: f64) -> f64 {
 }
 
 /// Bent onto a cylinder in any direction, the irregular mesh stores the
-/// plate's energy: Choi & Ko's hinges 1.000 to 1.040 of it (the piece's
-/// free edges included; without the hinge's constant for three directions
-/// it was 0.89), Volino's bending triangles 1.080 to 1.107 (exact only on
-/// parallelogram pairs). Provot's flexion springs are a share of the
+/// plate's energy: Choi & Ko's hinges 1.125 to 1.170 of it, the 9/8 of a
+/// plate whose free strip bends with `B` at their bending Poisson ratio
+/// of -1/3 (1.000 to 1.040 before that factor; 0.89 without the hinge's
+/// constant for three directions), Volino's bending triangles 1.080 to
+/// 1.107 (exact only on parallelogram pairs). Provot's flexion springs are a share of the
 /// membrane (vanishing here), not a flexural rigidity.
 #[test]
 fn an_irregular_mesh_bent_onto_a_cylinder_stores_the_plate_energy() {
@@ -287,7 +290,7 @@ fn an_irregular_mesh_bent_onto_a_cylinder_stores_the_plate_energy() {
         let ratios: Vec<f64> = [0.0, 0.4, 0.8, 1.2].iter().map(|&a| cylinder_energy_ratio(kind, a)).collect();
         println!("{kind:?}: energy / (B kappa^2 / 2) = {ratios:.3?}");
         let (lo, hi) = match kind {
-            ModelKind::ChoiKo => (0.99, 1.05),
+            ModelKind::ChoiKo => (1.12, 1.18),
             ModelKind::Volino => (1.07, 1.12),
             ModelKind::Provot => (0.0, 0.05),
         };

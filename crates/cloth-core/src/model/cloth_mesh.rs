@@ -34,7 +34,7 @@
 //!   d` through the point `m = (1 - w) a + w b` where the segment `cd`
 //!   crosses `ab` once the pair of triangles is unfolded flat (so the rest
 //!   path of the flat fabric is straight, as on the grid), with `k_b =
-//!   (4/3) B A_p / (L_p 4 a (1 - a))`: `A_p` the area it stands for (its
+//!   (9/8) (4/3) B A_p / (L_p 4 a (1 - a))`: `A_p` the area it stands for (its
 //!   triangles', a boundary triangle's shared among its interior edges),
 //!   `L_p` the unfolded length, `a` the part of it before `m` (unequal
 //!   halves read `4 a (1 - a)` of the curvature equal ones do), `4/3` the
@@ -45,7 +45,10 @@
 //!   square to `kappa^2` for a cylinder in any direction (the grid's
 //!   lattice sums `cos^4` to 9/8 instead, hence no factor here), and to a
 //!   plate's bending energy with Poisson ratio -1/3 for doubly curved
-//!   shapes. A pair that is not convex has no crossing and no type-2
+//!   shapes. A strip free to curve across itself then bends with 8/9 of a
+//!   cylinder's rigidity; `B` is the strip's (Peirce's), so `k_b` takes
+//!   `9/8` of it (`FREE_STRIP_FACTOR` in `build_mesh.rs`) and a cylinder
+//!   stores 9/8 of `B kappa^2 / 2`. A pair that is not convex has no crossing and no type-2
 //!   interaction (2% of a refined pattern's pairs). Provot's flexion
 //!   springs join the same corners, with the share `C_b / (E + C_b)` of
 //!   the membrane as on the grid (`k = s E A_p / d^2`), the edges keeping
