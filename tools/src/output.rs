@@ -73,6 +73,38 @@ impl StageWall {
     }
 }
 
+/// The cloth's hem and top along the character's up axis, in the frame of
+/// its root link (the pelvis or hips: origin at its joint), m, negative
+/// below: a skirt that slides down or a hem that rides up shows here.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct GarmentHeights {
+    /// The lowest particle at the end.
+    pub hem_m: f64,
+    /// The highest particle at the end.
+    pub top_m: f64,
+    /// The lowest the hem was after the first step.
+    pub hem_lowest_m: f64,
+    /// The highest the hem rose after the first step.
+    pub hem_highest_m: f64,
+    /// The lowest the top sank after the first step.
+    pub top_lowest_m: f64,
+}
+
+impl GarmentHeights {
+    /// Heights `(hem, top)` at the end of a step, folded into the extremes.
+    pub fn add(this: Option<Self>, (hem, top): (f64, f64)) -> Option<Self> {
+        let seen =
+            this.unwrap_or(Self { hem_m: hem, top_m: top, hem_lowest_m: hem, hem_highest_m: hem, top_lowest_m: top });
+        Some(Self {
+            hem_m: hem,
+            top_m: top,
+            hem_lowest_m: seen.hem_lowest_m.min(hem),
+            hem_highest_m: seen.hem_highest_m.max(hem),
+            top_lowest_m: seen.top_lowest_m.min(top),
+        })
+    }
+}
+
 /// `summary.json`.
 #[derive(Debug, Serialize)]
 pub struct Summary {
@@ -149,6 +181,9 @@ pub struct Summary {
     #[serde(skip_serializing_if = "Vec::is_empty", default)]
     pub warnings: Vec<String>,
     pub stage_wall_s: StageWall,
+    /// Where the cloth hangs on a rigged character (scenes with `[rig]`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub garment: Option<GarmentHeights>,
     /// Rigid bodies at the end (scenes with `[[bodies]]`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub bodies: Option<Vec<BodySummary>>,

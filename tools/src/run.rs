@@ -1,7 +1,8 @@
 //! `cloth run`, `cloth validate` and `cloth time`.
 
 use crate::output::{
-    BodySummary, CouplingSummary, EnergySummary, NewtonSummary, SeamSummary, StageWall, Summary, write_obj,
+    BodySummary, CouplingSummary, EnergySummary, GarmentHeights, NewtonSummary, SeamSummary, StageWall, Summary,
+    write_obj,
 };
 use anyhow::{Context, Result, bail};
 use cloth_core::scene::{EffectName, RunConfig, Scene, SceneError};
@@ -263,6 +264,7 @@ pub(crate) fn simulate_steps(
     let mut newton = NewtonTotals::default();
     let mut energy = EnergyTotals::default();
     let mut peak_stretch = runner.sim().model().max_stretch_ratio(&runner.sim().state().x);
+    let mut garment: Option<GarmentHeights> = None;
     let mut error = None;
     let wall = Instant::now();
     let cpu_start = process_cpu_s();
@@ -309,6 +311,11 @@ pub(crate) fn simulate_steps(
                 newton.add(r.newton.as_ref(), runner.sim().time());
                 energy.add(&r);
                 peak_stretch = peak_stretch.max(runner.sim().model().max_stretch_ratio(&runner.sim().state().x));
+                if let Runner::Coupled(run) = &runner
+                    && let Some(heights) = garment_heights(run)
+                {
+                    garment = GarmentHeights::add(garment, heights);
+                }
                 if pins > 0 {
                     pin_loads.push_back((0..pins).map(|k| runner.sim().pin_reaction(k)).sum::<Vec3>());
                     if pin_loads.len() > pin_window {
@@ -384,6 +391,7 @@ pub(crate) fn simulate_steps(
         error,
         warnings,
         stage_wall_s: stages,
+        garment,
         bodies: None,
         coupling: None,
     };
@@ -393,6 +401,17 @@ pub(crate) fn simulate_steps(
         _ => summary,
     };
     Ok(Simulated { summary, final_x })
+}
+
+/// The cloth's lowest and highest particle along the rig's up axis in its
+/// root link's frame, m (`None` without a rig).
+fn garment_heights(run: &CoupledRun) -> Option<(f64, f64)> {
+    let rig = run.rig.as_ref()?;
+    let root = &run.world.bodies[rig.bodies.handles[rig.rig.root]];
+    let frame = cloth_rapier::convert::pose_from_rapier(root.position());
+    let x = &run.cloths[run.cloth].simulation().state().x;
+    let height = |p: &Vec3| (rig.rig.up * (frame.rotation.inverse() * (p - frame.position))).z;
+    Some(x.iter().map(height).fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), z| (lo.min(z), hi.max(z))))
 }
 
 /// Adds the bodies and the coupling counters to a coupled run's summary.

@@ -437,6 +437,22 @@ fn rigs_are_described_warned_about_and_their_solids_named() {
         serde_json::from_str(&std::fs::read_to_string(out.join("frames/solids.json")).unwrap()).unwrap();
     let names: Vec<&str> = solids["solids"].as_array().unwrap().iter().map(|s| s["name"].as_str().unwrap()).collect();
     assert!(names.contains(&"pelvis") && names.contains(&"foot_r"), "{names:?}");
+    // The skirt's waist is pinned 8 cm above the hip joints and its 0.45 m
+    // hang below: summary.json says where it is in the pelvis's frame.
+    let out = out_dir("garment-heights");
+    let skirt = scene("pattern-skirt-walk.toml");
+    let run = cloth()
+        .args(["run", skirt.to_str().unwrap(), "--quiet", "--set", "simulation.duration_s=0.3", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let g = &s["garment"];
+    let (hem, top) = (g["hem_m"].as_f64().unwrap(), g["top_m"].as_f64().unwrap());
+    assert!((top - 0.08).abs() < 1e-3 && (hem - (0.08 - 0.45)).abs() < 0.01, "{g}");
+    assert!(g["hem_lowest_m"].as_f64().unwrap() <= hem && g["top_lowest_m"].as_f64().unwrap() <= top, "{g}");
 }
 
 /// Cloth that starts inside one of the scene's own solids stops `cloth
