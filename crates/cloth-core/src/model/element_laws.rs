@@ -705,6 +705,34 @@ mod tests {
         }
     }
 
+    /// Near the point where all three regimes meet (equal principal
+    /// strains at the slack limit) the wrinkled shear tangent divides two
+    /// vanishing quantities: it stays finite, non-negative and, for
+    /// strains along the axes (no rotation to the principal frame), at most
+    /// the taut shear modulus `G` (wrinkled, `(sigma_1 + sigma_b) / (2 (e1 -
+    /// e2)) <= G`, equal where the wrinkles start).
+    #[test]
+    fn tension_field_is_finite_near_equal_principal_strains() {
+        let (e, nu, sigma_b) = (200.0, 0.3, 0.05);
+        let corner = -sigma_b * (1.0 - nu) / e;
+        for k in 0..2000 {
+            let t = k as f64 / 2000.0;
+            let d = 1e-12 * (1.0 + 1e9 * t * t);
+            for strain in [
+                Vector3::new(corner + d, corner - d, 0.0),
+                Vector3::new(corner + d, corner, d * t),
+                Vector3::new(corner * (1.0 + t), corner * (1.0 - t), 1e-15),
+            ] {
+                let r = tension_field_response(strain, e, nu, sigma_b);
+                let finite = r.energy.is_finite() && r.stress.iter().chain(r.tangent.iter()).all(|v| v.is_finite());
+                assert!(finite && r.tangent[(2, 2)] >= 0.0, "{strain:?}: {r:?}");
+                if strain.z.abs() < 1e-14 {
+                    assert!(r.tangent[(2, 2)] <= e / (2.0 * (1.0 + nu)) * (1.0 + 1e-9), "{strain:?}: {r:?}");
+                }
+            }
+        }
+    }
+
     #[test]
     fn tension_field_energy_is_continuous_across_its_regimes() {
         let (e, nu, sigma_b) = (200.0, 0.3, 0.05);
