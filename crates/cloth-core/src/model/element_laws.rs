@@ -47,6 +47,12 @@ impl Matrix3Voigt {
         Self { c11: e_u / d, c12: nu_uv * e_v / d, c22: e_v / d, g }
     }
 
+    /// Isotropic plane stress of modulus `e` (N/m) and Poisson ratio `nu`
+    /// (shear modulus `e / (2 (1 + nu))`).
+    pub fn isotropic(e: f64, nu: f64) -> Self {
+        Self::orthotropic(e, e, e / (2.0 * (1.0 + nu)), nu)
+    }
+
     fn mul(&self, e: &Vector3<f64>) -> Vector3<f64> {
         Vector3::new(self.c11 * e.x + self.c12 * e.y, self.c12 * e.x + self.c22 * e.y, self.g * e.z)
     }
@@ -71,8 +77,7 @@ impl TriangleRest {
     /// (-1, 1)) that wrinkles beyond the compressive stress `sigma_b` (N/m)
     /// ([`tension_field_response`]); None if the triangle is degenerate.
     pub fn tension_field(uv: [Vector2<f64>; 3], e: f64, nu: f64, sigma_b: f64) -> Option<Self> {
-        let c = Matrix3Voigt::orthotropic(e, e, e / (2.0 * (1.0 + nu)), nu);
-        Some(Self { buckling_stress: Some(sigma_b), ..Self::new(uv, c)? })
+        Some(Self { buckling_stress: Some(sigma_b), ..Self::new(uv, Matrix3Voigt::isotropic(e, nu))? })
     }
 }
 
@@ -111,15 +116,18 @@ pub fn linear_response(e: Vector3<f64>, c: &Matrix3Voigt) -> StressResponse {
 /// along `n_1` and `(sigma_1 - sigma_2) / (2 (e1 - e2))` in shear. It is
 /// Choi & Ko's (2002) premise, that fabric buckles rather than resists
 /// compression, for a triangle: a triangle network of links that go slack
-/// in compression is a mechanism. `e` in N/m; `sigma_b` in N/m.
-pub fn tension_field_response(strain: Vector3<f64>, e: f64, nu: f64, sigma_b: f64) -> StressResponse {
-    let c = e / (1.0 - nu * nu);
+/// in compression is a mechanism. `iso` the isotropic law
+/// ([`Matrix3Voigt::isotropic`]: `C = c11`, `nu = c12 / c11`), N/m;
+/// `sigma_b` in N/m.
+pub fn tension_field_response(strain: Vector3<f64>, iso: &Matrix3Voigt, sigma_b: f64) -> StressResponse {
+    let (c, nu) = (iso.c11, iso.c12 / iso.c11);
+    let e = c * (1.0 - nu * nu);
     let (exx, eyy, exy) = (strain.x, strain.y, 0.5 * strain.z);
     let mean = 0.5 * (exx + eyy);
     let radius = (0.25 * (exx - eyy).powi(2) + exy * exy).sqrt();
     let (e1, e2) = (mean + radius, mean - radius);
     if c * (e2 + nu * e1) >= -sigma_b {
-        return linear_response(strain, &Matrix3Voigt::orthotropic(e, e, e / (2.0 * (1.0 + nu)), nu));
+        return linear_response(strain, iso);
     }
     let angle = 0.5 * (2.0 * exy).atan2(exx - eyy);
     let (co, si) = (angle.cos(), angle.sin());
@@ -209,10 +217,7 @@ pub fn membrane_triangle_into(
     let f1 = x[0] * g[0].y + x[1] * g[1].y + x[2] * g[2].y; // F column v
     let strain = Vector3::new(0.5 * (f0.dot(&f0) - 1.0), 0.5 * (f1.dot(&f1) - 1.0), f0.dot(&f1));
     let law = match rest.buckling_stress {
-        Some(sigma_b) => {
-            let c = &rest.c;
-            tension_field_response(strain, c.c11 - c.c12 * c.c12 / c.c11, c.c12 / c.c11, sigma_b)
-        }
+        Some(sigma_b) => tension_field_response(strain, &rest.c, sigma_b),
         None => linear_response(strain, &rest.c),
     };
     let stress = law.stress;
@@ -673,7 +678,8 @@ mod tests {
     #[test]
     fn tension_field_stress_and_tangent_match_finite_differences() {
         let (e, nu, sigma_b) = (200.0, 0.3, 0.05);
-        let law = |s: Vector3<f64>| tension_field_response(s, e, nu, sigma_b);
+        let iso = Matrix3Voigt::isotropic(e, nu);
+        let law = |s: Vector3<f64>| tension_field_response(s, &iso, sigma_b);
         let h = 1e-8;
         for strain in FIELD_STRAINS.map(Vector3::from) {
             let r = law(strain);
@@ -692,7 +698,7 @@ mod tests {
         }
         // Taut: the linear law. Uniaxial stress: no stress across, modulus E.
         let taut = Vector3::from(FIELD_STRAINS[0]);
-        let linear = linear_response(taut, &Matrix3Voigt::orthotropic(e, e, e / (2.0 * (1.0 + nu)), nu));
+        let linear = linear_response(taut, &iso);
         assert!((law(taut).stress - linear.stress).norm() < 1e-12);
         let uniaxial = law(Vector3::new(0.01, -nu * 0.01, 0.0));
         assert!((uniaxial.stress.x - e * 0.01).abs() < 1e-9 && uniaxial.stress.y.abs() < 1e-9);
@@ -723,7 +729,7 @@ mod tests {
                 Vector3::new(corner + d, corner, d * t),
                 Vector3::new(corner * (1.0 + t), corner * (1.0 - t), 1e-15),
             ] {
-                let r = tension_field_response(strain, e, nu, sigma_b);
+                let r = tension_field_response(strain, &Matrix3Voigt::isotropic(e, nu), sigma_b);
                 let finite = r.energy.is_finite() && r.stress.iter().chain(r.tangent.iter()).all(|v| v.is_finite());
                 assert!(finite && r.tangent[(2, 2)] >= 0.0, "{strain:?}: {r:?}");
                 if strain.z.abs() < 1e-14 {
@@ -743,7 +749,8 @@ mod tests {
         let mut regimes = std::collections::BTreeSet::new();
         for k in 0..n {
             let (a, b) = (path(k as f64 / n as f64), path((k + 1) as f64 / n as f64));
-            let (ra, rb) = (tension_field_response(a, e, nu, sigma_b), tension_field_response(b, e, nu, sigma_b));
+            let iso = Matrix3Voigt::isotropic(e, nu);
+            let (ra, rb) = (tension_field_response(a, &iso, sigma_b), tension_field_response(b, &iso, sigma_b));
             // The trapezoid of the stress along the step meets the energy's change.
             let work = 0.5 * (ra.stress + rb.stress).dot(&(b - a));
             worst = worst.max((rb.energy - ra.energy - work).abs());
@@ -763,8 +770,8 @@ mod tests {
         // Stretched along u, squeezed along v: wrinkled.
         let x = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.0206, 0.001, 0.0005), Vec3::new(0.0005, 0.0142, -0.0003)];
         membrane_matches_finite_differences(x, &r);
-        let s =
-            tension_field_response(Vector3::new(0.5 * (0.0206f64.powi(2) / 4e-4 - 1.0), -0.05, 0.0), 200.0, 0.3, 0.0);
+        let strain = Vector3::new(0.5 * (0.0206f64.powi(2) / 4e-4 - 1.0), -0.05, 0.0);
+        let s = tension_field_response(strain, &r.c, 0.0);
         assert!(s.stress.y.abs() < 1e-12, "wrinkled across v: {s:?}");
     }
 
