@@ -34,16 +34,8 @@ pub fn read_gltf(path: &Path, name: Option<&str>) -> Result<SurfaceMesh, String>
 /// naming an accessor that does not exist panics in gltf-json 1.4.1), so
 /// a panic while reading is caught and refused as a malformed file.
 pub fn parse_gltf(bytes: &[u8], path: &Path, name: Option<&str>) -> Result<SurfaceMesh, String> {
-    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| parse_unguarded(bytes, path, name))).unwrap_or_else(
-        |panic| {
-            let why = panic
-                .downcast_ref::<&str>()
-                .map(|s| s.to_string())
-                .or_else(|| panic.downcast_ref::<String>().cloned())
-                .unwrap_or_default();
-            Err(format!("{}: malformed glTF (the reader failed: {why})", path.display()))
-        },
-    )
+    crate::catch_panic(|| parse_unguarded(bytes, path, name))
+        .unwrap_or_else(|why| Err(format!("{}: malformed glTF (the reader failed: {why})", path.display())))
 }
 
 fn parse_unguarded(bytes: &[u8], path: &Path, name: Option<&str>) -> Result<SurfaceMesh, String> {

@@ -9,6 +9,8 @@
 //!   cylinder, convex hull, OBJ triangle mesh, half-space) gives the signed
 //!   distance, closest point and outward normal through parry (f64).
 //!
+//! - Readers of the surfaces cloth and solids come from: OBJ and glTF.
+//!
 //! Results are sorted, so they do not depend on hashing or scheduling.
 
 mod collider;
@@ -25,3 +27,17 @@ pub use voxel_hash::{BroadPhaseError, VoxelHash};
 
 /// A 3-vector of `f64`.
 pub type Vec3 = nalgebra::Vector3<f64>;
+
+/// Runs `f`, turning a panic into its message: for third-party code that
+/// panics on some inputs it should refuse (spade's refinement on a few
+/// outlines, gltf-json's validation on a dangling accessor), so the
+/// caller can refuse them as errors instead.
+pub fn catch_panic<T>(f: impl FnOnce() -> T) -> Result<T, String> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).map_err(|panic| {
+        panic
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| panic.downcast_ref::<String>().cloned())
+            .unwrap_or_default()
+    })
+}

@@ -96,14 +96,8 @@ impl PatternPiece {
     /// sewn together need as many), else into pieces no longer than
     /// `edge_length_m`.
     pub fn mesh_with(&self, pieces: &[Option<usize>]) -> Result<PatternMesh, (&'static str, String)> {
-        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| self.mesh_unguarded(pieces))).unwrap_or_else(|panic| {
-            let why = panic
-                .downcast_ref::<&str>()
-                .map(|s| s.to_string())
-                .or_else(|| panic.downcast_ref::<String>().cloned())
-                .unwrap_or_default();
-            Err(("outline_m", format!("the triangulator failed on this outline ({why})")))
-        })
+        cloth_collide::catch_panic(|| self.mesh_unguarded(pieces))
+            .unwrap_or_else(|why| Err(("outline_m", format!("the triangulator failed on this outline ({why})"))))
     }
 
     /// The pieces outline edge `k` is split into by default (`None` for no
