@@ -89,9 +89,7 @@ pub fn min_unlinked_point_triangle(model: &ClothModel, x: &[Vec3]) -> f64 {
             }
         }
     }
-    let next_to = |a: usize, b: usize| a == b || model.incidence(a).iter().any(|inc| inc.other as usize == b);
-    let near = |a: usize, b: usize| model.sewn_with(a).iter().any(|&m| next_to(m as usize, b));
-    let linked = |a: usize, b: usize| next_to(a, b) || near(a, b) || near(b, a);
+    let linked = |a: usize, b: usize| a == b || model.never_repel(a, b);
     let mut best = REACH;
     for (p, xp) in x.iter().enumerate() {
         let c = cell(*xp);
@@ -112,10 +110,7 @@ pub fn min_unlinked_point_triangle(model: &ClothModel, x: &[Vec3]) -> f64 {
 
 /// [`min_unlinked_point_triangle`] by brute force, for its test.
 pub fn min_unlinked_point_triangle_brute(model: &ClothModel, x: &[Vec3]) -> f64 {
-    // As self-collision excludes them: linked, or linked through a particle sewn to the other.
-    let next_to = |a: usize, b: usize| a == b || model.incidence(a).iter().any(|inc| inc.other as usize == b);
-    let near = |a: usize, b: usize| model.sewn_with(a).iter().any(|&m| next_to(m as usize, b));
-    let linked = |a: usize, b: usize| next_to(a, b) || near(a, b) || near(b, a);
+    let linked = |a: usize, b: usize| a == b || model.never_repel(a, b);
     let mut best = f64::INFINITY;
     for (p, xp) in x.iter().enumerate() {
         for tri in model.triangles() {

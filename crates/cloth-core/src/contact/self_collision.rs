@@ -9,16 +9,6 @@ use crate::{ClothModel, Mat3, Vec3};
 use cloth_collide::{VoxelHash, closest_point_on_triangle};
 use rayon::prelude::*;
 
-/// Whether particles `a` and `b` never repel: they share a link, or are
-/// sewn together, or one is linked to a particle sewn to the other
-/// ([`ClothModel::sewn_with`]: a stitched point of the garment stands for
-/// all its particles).
-pub(crate) fn linked(model: &ClothModel, a: usize, b: usize) -> bool {
-    let next_to = |p: usize, q: usize| model.incidence(p).iter().any(|inc| inc.other as usize == q);
-    let near = |p: usize, q: usize| model.sewn_with(p).iter().any(|&m| m as usize == q || next_to(m as usize, q));
-    next_to(a, b) || near(a, b) || near(b, a)
-}
-
 /// Finds self-collision pairs at positions `x` into `bufs.self_pairs` and
 /// the repulsion forces and diagonal stiffness into `bufs.self_force` and
 /// `bufs.self_stiffness`. Returns the particle at fault if a position is
@@ -67,7 +57,7 @@ pub(crate) fn detect_self_contacts(
     bufs.pair_chunks.par_iter_mut().enumerate().for_each(|(k, pairs)| {
         pairs.clear();
         let slots = k * SLOT_CHUNK..((k + 1) * SLOT_CHUNK).min(hash.table_slots());
-        hash.pairs_from_slots(slots, radius, |a, b| linked(model, a as usize, b as usize), pairs);
+        hash.pairs_from_slots(slots, radius, |a, b| model.never_repel(a as usize, b as usize), pairs);
     });
     bufs.candidate_pairs.clear();
     bufs.candidate_pairs.extend(bufs.pair_chunks.iter().flatten());

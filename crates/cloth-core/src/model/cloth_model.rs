@@ -716,6 +716,15 @@ impl ClothModel {
     pub fn sewn_with(&self, i: usize) -> &[u32] {
         &self.sewn[self.sewn_ptr[i]..self.sewn_ptr[i + 1]]
     }
+    /// Whether particles `a` and `b` never repel each other in
+    /// self-collision: they share a link, or are sewn together, or one is
+    /// linked to a particle sewn to the other (a stitched point of the
+    /// garment stands for all its particles: [`ClothModel::sewn_with`]).
+    pub fn never_repel(&self, a: usize, b: usize) -> bool {
+        let next_to = |p: usize, q: usize| self.incidence(p).iter().any(|inc| inc.other as usize == q);
+        let near = |p: usize, q: usize| self.sewn_with(p).iter().any(|&m| m as usize == q || next_to(m as usize, q));
+        next_to(a, b) || near(a, b) || near(b, a)
+    }
     /// Links incident to particle `i`, in link order.
     pub fn incidence(&self, i: usize) -> &[Incidence] {
         &self.inc[self.inc_ptr[i]..self.inc_ptr[i + 1]]
