@@ -2,7 +2,7 @@
 //! mesh panel adds: links, type-2 interactions and Volino's elements with
 //! the constants of [`crate::cloth_mesh`]'s module docs.
 
-use super::build_parts::{BendingTriangle, clamped, volino_elements};
+use super::build_parts::{BendingTriangle, clamped, plane_coordinates, volino_elements};
 use super::*;
 use crate::cloth_mesh::{ClothMesh, MeshError, MeshTopology};
 use crate::element_laws::TriangleRest;
@@ -127,16 +127,13 @@ fn tension_field_elements(
     b: f64,
     offset: u32,
 ) -> Option<Vec<MembraneElement>> {
-    use nalgebra::Vector2;
     triangles
         .iter()
         .map(|t| {
             let x = t.map(|k| p[k as usize]);
-            let (u, w) = (x[1] - x[0], x[2] - x[0]);
-            let e1 = u.try_normalize(1e-12)?;
-            let e2 = u.cross(&w).cross(&u).try_normalize(1e-12)?;
-            let uv = x.map(|q| Vector2::new((q - x[0]).dot(&e1), (q - x[0]).dot(&e2)));
-            let area = 0.5 * u.cross(&w).norm();
+            // Isotropic: any axis in the plane will do.
+            let uv = plane_coordinates(x, x[2] - x[0])?;
+            let area = 0.5 * (x[1] - x[0]).cross(&(x[2] - x[0])).norm();
             let sigma_b = 12.0 * b * 3f64.sqrt() / (4.0 * area);
             Some(MembraneElement {
                 nodes: t.map(|k| k + offset),

@@ -216,6 +216,17 @@ pub(super) fn curvature_elements(
     Ok(out)
 }
 
+/// A triangle's corners `x` in its own plane, from its first corner, with
+/// the second coordinate along `v_axis` projected on the plane: the rest
+/// (u, v) coordinates of a membrane whose weft is `v_axis`. None if the
+/// triangle is degenerate or `v_axis` is normal to it.
+pub(super) fn plane_coordinates(x: [Vec3; 3], v_axis: Vec3) -> Option<[nalgebra::Vector2<f64>; 3]> {
+    let normal = (x[1] - x[0]).cross(&(x[2] - x[0]));
+    let e2 = (v_axis - normal * (normal.dot(&v_axis) / normal.norm_squared())).try_normalize(1e-12)?;
+    let e1 = e2.cross(&normal).try_normalize(1e-12)?;
+    Some(x.map(|q| nalgebra::Vector2::new((q - x[0]).dot(&e1), (q - x[0]).dot(&e2))))
+}
+
 /// Volino's elements for one panel's triangles over rest positions `p`
 /// (local indices shifted by `offset`):
 /// a membrane per triangle, with rest (u, v) coordinates in the triangle's
@@ -231,16 +242,10 @@ pub(super) fn volino_elements(
     panel: usize,
     offset: u32,
 ) -> Option<(Vec<MembraneElement>, Vec<BendingTriangle>)> {
-    use nalgebra::Vector2;
     let c = material.membrane_stiffness();
     let mut membranes = Vec::with_capacity(mesh_triangles.len());
     for (k, t) in mesh_triangles.iter().enumerate() {
-        let v_axis = weft(k);
-        let x = t.map(|k| p[k as usize]);
-        let normal = (x[1] - x[0]).cross(&(x[2] - x[0]));
-        let e2 = (v_axis - normal * (normal.dot(&v_axis) / normal.norm_squared())).try_normalize(1e-12)?;
-        let e1 = e2.cross(&normal).try_normalize(1e-12)?;
-        let uv = x.map(|q| Vector2::new((q - x[0]).dot(&e1), (q - x[0]).dot(&e2)));
+        let uv = plane_coordinates(t.map(|k| p[k as usize]), weft(k))?;
         membranes.push(MembraneElement { nodes: t.map(|k| k + offset), rest: TriangleRest::new(uv, c)? });
     }
     // Each interior edge appears as (a, b) in one triangle and (b, a) in its neighbour.
