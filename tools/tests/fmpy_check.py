@@ -7,9 +7,11 @@ with its pins as inputs, the flag with its wind as an input, the drape on
 an OBJ pillow) and checks,
 with FMPy as the independent importer:
 - validate_fmu reports no problem;
-- simulate_fmu with an input signal matches `cloth run` of the same scene
-  with the same motion as keyframes (lowest point and worst stretch, to
-  1e-9 relative: the same computation, the host's rounded steps aside);
+- simulate_fmu with an unshifted input signal matches `cloth run` of the
+  same scene with the same motion as keyframes (lowest point and worst
+  stretch, to 1e-9 relative: the same computation, the host's rounded
+  steps aside); with the pins' rates in the signal from the first step,
+  with values only from the second (the first is held);
 - stepped at output intervals of 1/30, 0.1 and 1 s the drape is where
   the 1/90 s run is at their common times (substeps inside the FMU);
 - a state got, stepped, restored and stepped again gives identical
@@ -98,19 +100,38 @@ for name, path in [("hang", hang), ("flag", flag), ("mesh", mesh)]:
     problems = validate_fmu(path)
     check(f"{name}: validate_fmu", problems == [], repr(problems))
 
-# The hang: the pin's target at the end of each step is the input at its
-# start (FMPy applies inputs before fmi3DoStep), so the signal leads the
-# keyframed motion by one step.
+# The hang: a pin input is the pin's place at the communication point
+# (FMPy applies the signal's value at t before fmi3DoStep from t), so the
+# signal is the keyframed motion itself, unshifted. With the target's rate
+# in the signal too (the input declared `derivative` of the target), every
+# step is exact.
 md = read_model_description(hang)
 start = {v.name: float(v.start) for v in md.modelVariables if v.causality == "input"}
 names = [f"pin{k}.target.{a}" for k in (0, 1) for a in "xyz"]
+rates = [f"pin{k}.target_rate.{a}" for k in (0, 1) for a in "xyz"]
+columns = [("time", np.float64)] + [(n, np.float64) for n in names + rates]
 signal = np.array(
-    [(t, *(start[n] + (SPEED * (t + H) if n.endswith(".x") else 0.0) for n in names)) for t in (0.0, T)],
+    [
+        (t, *(start[n] + (SPEED * t if n.endswith(".x") else 0.0) for n in names), *(SPEED if r.endswith(".x") else 0.0 for r in rates))
+        for t in (0.0, T)
+    ],
+    dtype=columns,
+)
+result = simulate_fmu(hang, stop_time=T, output_interval=H, input=signal)
+keyframed = f'pins.0.motion={{ kind = "keyframes", times_s = [0.0, {T!r}], offsets_m = [[0.0, 0.0, 0.0], [{SPEED * T!r}, 0.0, 0.0]] }}'
+compare("hang", result, run_summary("hang.toml", [*HANG, keyframed], "hang"))
+
+# With values only, the FMU continues each pin from the previous
+# communication point: it holds the first step (there is none before) and
+# follows a constant velocity exactly from the second on: the pin is at its
+# start at H and on the signal from 2 H, as these keyframes say.
+signal = np.array(
+    [(t, *(start[n] + (SPEED * t if n.endswith(".x") else 0.0) for n in names)) for t in (0.0, T)],
     dtype=[("time", np.float64)] + [(n, np.float64) for n in names],
 )
 result = simulate_fmu(hang, stop_time=T, output_interval=H, input=signal)
-keyframed = f'pins.0.motion={{ kind = "keyframes", times_s = [0.0, {T + H!r}], offsets_m = [[0.0, 0.0, 0.0], [{SPEED * (T + H)!r}, 0.0, 0.0]] }}'
-compare("hang", result, run_summary("hang.toml", [*HANG, keyframed], "hang"))
+held = f'pins.0.motion={{ kind = "keyframes", times_s = [0.0, {H!r}, {2 * H!r}, {T!r}], offsets_m = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [{SPEED * 2 * H!r}, 0.0, 0.0], [{SPEED * T!r}, 0.0, 0.0]] }}'
+compare("hang, values only", result, run_summary("hang.toml", [*HANG, held], "hang-values"))
 
 # The flag: the wind input holds over the step, as the keyframed wind
 # evaluated at the step's start.

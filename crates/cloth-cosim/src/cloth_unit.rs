@@ -2,8 +2,16 @@
 //!
 //! Variables (all `Float64`, SI):
 //! - inputs, per externally driven pin `k`: `pin{k}.target.{x,y,z}`, where
-//!   the pin is at the end of the step (m), with optional derivatives (the
-//!   target then moves on to `value + du h`);
+//!   the pin is at the communication point (m), and
+//!   `pin{k}.target_rate.{x,y,z}` (m/s, the target's derivative, also set
+//!   by [`Unit::set_input_derivative`]). Over a step of `h` the pin moves
+//!   linearly to `target + rate h`, where `rate` is the one set since the
+//!   last step; when none was, it is the target's slope from the previous
+//!   communication point, `(target - previous) / h_previous` (0 at the
+//!   first step). So a master that knows only the values at the
+//!   communication points (FMI 3.0's) drives a pin moving at constant
+//!   velocity exactly from the second step on, and one that gives rates
+//!   drives any piecewise-linear motion exactly;
 //! - inputs, per externally driven solid `k`: `solid{k}.position.{x,y,z}`
 //!   (m) and `solid{k}.rotation.{x,y,z}` (rotation vector, rad) at the
 //!   end of the step, `solid{k}.velocity.{x,y,z}` (m/s) and
@@ -46,6 +54,7 @@ use nalgebra::UnitQuaternion;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Quantity {
     PinTarget,
+    PinRate,
     WindVelocity,
     SolidPosition,
     SolidRotation,
@@ -77,8 +86,13 @@ pub struct ClothUnit {
     roles: Vec<Role>,
     /// Current value of every variable (inputs as set, outputs after the last step).
     values: Vec<f64>,
-    /// Input derivatives, per second.
-    rates: Vec<f64>,
+    /// Per variable: a rate input set since the last step.
+    given: Vec<bool>,
+    /// Per variable: its value at the previous communication point (NaN
+    /// before the first step), for the pins' slopes.
+    previous: Vec<f64>,
+    /// Length of the last step, s (NaN before the first).
+    previous_h: f64,
     /// Largest internal step, s ([`ClothUnit::with_max_step`]).
     max_step_s: f64,
 }
@@ -93,8 +107,16 @@ const HEAD: usize = 6;
 /// (`pin{k}.` or `solid{k}.`), causality, unit, description.
 type VectorKind = (Quantity, &'static str, Causality, &'static str, &'static str);
 
-const PIN_INPUTS: [VectorKind; 1] =
-    [(Quantity::PinTarget, "target", Causality::Input, "m", "pin position at the end of the step")];
+const PIN_INPUTS: [VectorKind; 2] = [
+    (Quantity::PinTarget, "target", Causality::Input, "m", "pin position at the communication point"),
+    (
+        Quantity::PinRate,
+        "target_rate",
+        Causality::Input,
+        "m/s",
+        "pin velocity over the next step; when not set, the target's slope since the previous communication point",
+    ),
+];
 const WIND_INPUT: VectorKind =
     (Quantity::WindVelocity, "velocity", Causality::Input, "m/s", "air velocity over the step (external wind)");
 const SOLID_INPUTS: [VectorKind; 4] = [
@@ -168,6 +190,7 @@ impl ClothUnit {
         let mut add = |prefix: &str, k: usize, kind: &VectorKind, start: Vec3| add_item(prefix, Some(k), kind, start);
         for (k, pin) in model.pins().iter().enumerate().filter(|(_, p)| p.is_external()) {
             add("pin", k, &PIN_INPUTS[0], pin.anchor);
+            add("pin", k, &PIN_INPUTS[1], Vec3::zeros());
         }
         for (k, c) in model.colliders().iter().enumerate().filter(|(_, c)| c.is_external()) {
             let starts = [c.anchor.position, c.anchor.rotation.scaled_axis(), Vec3::zeros(), Vec3::zeros()];
@@ -199,9 +222,27 @@ impl ClothUnit {
             vars.push(Variable::new(name, Causality::Output, unit, description).with_dependencies(vec![]));
             roles.push(Role { quantity, item: 0, axis: 0 });
         }
+        // Each pin's rates are its targets' derivatives.
+        for v in 0..vars.len() {
+            if roles[v].quantity == Quantity::PinRate {
+                let target = Role { quantity: Quantity::PinTarget, ..roles[v] };
+                let of = roles.iter().position(|r| *r == target).expect("a rate follows its target");
+                vars[v] = vars[v].clone().derivative_of(of);
+            }
+        }
         let values = vars.iter().map(|v| v.start).collect();
-        let rates = vec![0.0; vars.len()];
-        let mut unit = Self { name: name.into(), sim, vars, roles, values, rates, max_step_s: f64::INFINITY };
+        let (given, previous) = (vec![false; vars.len()], vec![f64::NAN; vars.len()]);
+        let mut unit = Self {
+            name: name.into(),
+            sim,
+            vars,
+            roles,
+            values,
+            given,
+            previous,
+            previous_h: f64::NAN,
+            max_step_s: f64::INFINITY,
+        };
         unit.update_shape_outputs();
         unit
     }
@@ -237,18 +278,14 @@ impl ClothUnit {
     fn substepped(&mut self, t: f64, h: f64, n: usize) -> Result<StepOutcome, UnitError> {
         let model = self.sim.model().clone();
         let saved = self.get_state();
-        let pins: Vec<(usize, Vec3)> = (0..model.pins().len())
-            .filter(|&k| model.pins()[k].is_external())
-            .map(|k| (k, self.sim.control().pin_target(k).unwrap_or(model.pins()[k].anchor)))
-            .collect();
+        let pins = self.pin_paths(h);
         self.apply_inputs(t, h)?;
         let origins = self.solid_origins(t);
-        let ends: Vec<Vec3> = pins.iter().map(|&(k, _)| self.sim.control().pin_target(k).unwrap_or_default()).collect();
         let hs = h / n as f64;
         let mut impulses = vec![(Vec3::zeros(), Vec3::zeros()); origins.len()];
         let mut reactions = vec![Vec3::zeros(); model.pins().len()];
         for i in 1..=n {
-            for (&(k, start), &end) in pins.iter().zip(&ends) {
+            for &(k, start, end) in &pins {
                 let target = if i == n { end } else { start + (end - start) * (i as f64 / n as f64) };
                 self.sim.set_pin_target(k, target).map_err(|e| UnitError::StepFailed {
                     unit: self.name.clone(),
@@ -271,7 +308,37 @@ impl ClothUnit {
         }
         let means: Vec<Vec3> = reactions.iter().map(|r| r / h).collect();
         self.set_step_outputs(&impulses, &means, h);
+        self.step_taken(h);
         Ok(StepOutcome::Completed)
+    }
+
+    /// Each external pin's path over a step of `h` s: the pin, its target
+    /// at the communication point and at the end of the step.
+    fn pin_paths(&self, h: f64) -> Vec<(usize, Vec3, Vec3)> {
+        let mut paths: Vec<(usize, Vec3, Vec3)> = Vec::new();
+        for (i, role) in self.roles.iter().enumerate().filter(|(_, r)| r.quantity == Quantity::PinRate) {
+            let target = self.vars[i].derivative_of.expect("a pin's rate has its target");
+            let (value, before) = (self.values[target], self.previous[target]);
+            let rate = match (self.given[i], before.is_nan()) {
+                (true, _) => self.values[i],
+                (false, true) => 0.0,
+                (false, false) => (value - before) / self.previous_h,
+            };
+            if paths.last().is_none_or(|p| p.0 != role.item) {
+                paths.push((role.item, Vec3::zeros(), Vec3::zeros()));
+            }
+            let path = paths.last_mut().expect("pushed");
+            (path.1[role.axis], path.2[role.axis]) = (value, value + rate * h);
+        }
+        paths
+    }
+
+    /// After a step of `h` s is taken: the inputs' values become the
+    /// previous communication point's, and rates given for it are spent.
+    fn step_taken(&mut self, h: f64) {
+        self.previous.clone_from(&self.values);
+        self.previous_h = h;
+        self.given.fill(false);
     }
 
     /// Each solid's frame origin at time `t`, m (about which torques are given).
@@ -300,15 +367,15 @@ impl ClothUnit {
         }
     }
 
-    /// The 3-vector input `quantity` of item `k`, and its derivative.
-    fn input(&self, quantity: Quantity, k: usize) -> (Vec3, Vec3) {
-        let (mut value, mut rate) = (Vec3::zeros(), Vec3::zeros());
+    /// The 3-vector input `quantity` of item `k`.
+    fn input(&self, quantity: Quantity, k: usize) -> Vec3 {
+        let mut value = Vec3::zeros();
         for (i, role) in self.roles.iter().enumerate() {
             if role.quantity == quantity && role.item == k {
-                (value[role.axis], rate[role.axis]) = (self.values[i], self.rates[i]);
+                value[role.axis] = self.values[i];
             }
         }
-        (value, rate)
+        value
     }
 
     /// Puts the inputs into the simulation's control for a step from `t` of `h`.
@@ -319,15 +386,14 @@ impl ClothUnit {
             time_s: t,
             message: e.to_string(),
         };
-        for k in (0..model.pins().len()).filter(|&k| model.pins()[k].is_external()) {
-            let (target, rate) = self.input(Quantity::PinTarget, k);
-            self.sim.set_pin_target(k, target + rate * h).map_err(refuse)?;
+        for (k, _, end) in self.pin_paths(h) {
+            self.sim.set_pin_target(k, end).map_err(refuse)?;
         }
         if self.roles.iter().any(|r| r.quantity == Quantity::WindVelocity) {
-            self.sim.set_wind(self.input(Quantity::WindVelocity, 0).0).map_err(refuse)?;
+            self.sim.set_wind(self.input(Quantity::WindVelocity, 0)).map_err(refuse)?;
         }
         for k in (0..model.colliders().len()).filter(|&k| model.colliders()[k].is_external()) {
-            let get = |quantity| self.input(quantity, k).0;
+            let get = |quantity| self.input(quantity, k);
             let rotation = UnitQuaternion::from_scaled_axis(get(Quantity::SolidRotation));
             let pose = BodyPose { position: get(Quantity::SolidPosition), rotation };
             let motion = SolidMotion {
@@ -395,12 +461,15 @@ impl ClothUnit {
     }
 }
 
-/// The unit's complete state: the cloth's and every variable's value and rate.
+/// The unit's complete state: the cloth's, every variable's value, which
+/// rates were given, and the previous communication point's values.
 #[derive(Debug, Clone, PartialEq)]
 struct Saved {
     cloth: ClothState,
     values: Vec<f64>,
-    rates: Vec<f64>,
+    given: Vec<bool>,
+    previous: Vec<f64>,
+    previous_h: f64,
 }
 
 impl Unit for ClothUnit {
@@ -412,22 +481,25 @@ impl Unit for ClothUnit {
         &self.vars
     }
 
+    /// A pin's rate, once set, holds for the next step only; a target set
+    /// after it leaves it standing.
     fn set(&mut self, vr: ValueRef, value: f64) -> Result<(), UnitError> {
         settable(&self.name, &self.vars, vr, value)?;
-        (self.values[vr], self.rates[vr]) = (value, 0.0);
+        self.values[vr] = value;
+        self.given[vr] = self.roles[vr].quantity == Quantity::PinRate;
         Ok(())
     }
 
+    /// Sets `pin{k}.target_rate` for `pin{k}.target`.
     fn set_input_derivative(&mut self, vr: ValueRef, du: f64) -> Result<(), UnitError> {
         settable(&self.name, &self.vars, vr, du)?;
-        if self.roles[vr].quantity != Quantity::PinTarget {
-            return Err(UnitError::Unsupported {
+        match self.vars.iter().position(|v| v.derivative_of == Some(vr)) {
+            Some(rate) => self.set(rate, du),
+            None => Err(UnitError::Unsupported {
                 unit: self.name.clone(),
                 what: "derivatives of inputs other than pin targets",
-            });
+            }),
         }
-        self.rates[vr] = du;
-        Ok(())
     }
 
     fn get(&self, vr: ValueRef) -> Result<f64, UnitError> {
@@ -463,6 +535,7 @@ impl Unit for ClothUnit {
         match self.sim.step(h) {
             Ok(_) => {
                 self.read_outputs(h);
+                self.step_taken(h);
                 Ok(StepOutcome::Completed)
             }
             Err(e) => Ok(StepOutcome::Discarded { last_time_s: now, reason: e.to_string() }),
@@ -473,7 +546,9 @@ impl Unit for ClothUnit {
         UnitState(Box::new(Saved {
             cloth: self.sim.snapshot(),
             values: self.values.clone(),
-            rates: self.rates.clone(),
+            given: self.given.clone(),
+            previous: self.previous.clone(),
+            previous_h: self.previous_h,
         }))
     }
 
@@ -485,14 +560,17 @@ impl Unit for ClothUnit {
         }
         self.sim.restore(&saved.cloth).map_err(|e| bad(e.to_string()))?;
         self.values.clone_from(&saved.values);
-        self.rates.clone_from(&saved.rates);
+        self.given.clone_from(&saved.given);
+        self.previous.clone_from(&saved.previous);
+        self.previous_h = saved.previous_h;
         Ok(())
     }
 
     /// Layout: tag, then `time, steps, has_history, last_dt, next_dt,
     /// newton_engaged`,
     /// `x, v, x_prev, v_prev` (3 values per particle each), the stitches'
-    /// states (1 closed, 0 open), values, rates.
+    /// states (1 closed, 0 open), the variables' values, their given flags
+    /// (1 given, 0 not) and previous values (NaN: none), the previous step.
     fn serialize_state(&self, state: &UnitState) -> Result<Vec<u8>, UnitError> {
         let saved: &Saved = state.downcast(&self.name, "cloth unit")?;
         let c = &saved.cloth;
@@ -506,7 +584,9 @@ impl Unit for ClothUnit {
             .chain(vectors)
             .chain(stitches)
             .chain(saved.values.iter().copied())
-            .chain(saved.rates.iter().copied());
+            .chain(saved.given.iter().map(|&g| flag(g)))
+            .chain(saved.previous.iter().copied())
+            .chain([saved.previous_h]);
         Ok(bytes::pack(TAG, values))
     }
 
@@ -514,7 +594,7 @@ impl Unit for ClothUnit {
         let n = self.sim.model().particle_count();
         let m = self.values.len();
         let stitches = self.sim.model().stitches().len();
-        let expected = HEAD + 12 * n + stitches + 2 * m;
+        let expected = HEAD + 12 * n + stitches + 3 * m + 1;
         let values = bytes::unpack(TAG, data)
             .and_then(|v| {
                 if v.len() == expected { Ok(v) } else { Err(format!("{} values where it holds {expected}", v.len())) }
@@ -545,6 +625,12 @@ impl Unit for ClothUnit {
             stitches_closed: values[HEAD + 12 * n..HEAD + 12 * n + stitches].iter().map(|&c| c != 0.0).collect(),
         };
         let tail = &values[HEAD + 12 * n + stitches..];
-        Ok(UnitState(Box::new(Saved { cloth, values: tail[..m].to_vec(), rates: tail[m..].to_vec() })))
+        Ok(UnitState(Box::new(Saved {
+            cloth,
+            values: tail[..m].to_vec(),
+            given: tail[m..2 * m].iter().map(|&g| g != 0.0).collect(),
+            previous: tail[2 * m..3 * m].to_vec(),
+            previous_h: tail[3 * m],
+        })))
     }
 }

@@ -43,7 +43,9 @@ pub struct Connection {
 /// How an input evolves over a macro step of an explicit master.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Extrapolation {
-    /// The last output value, held (first order in the macro step).
+    /// The last output value, given without a derivative: held by most
+    /// units, continued from the previous value by the cloth's pins (first
+    /// order in the macro step).
     #[default]
     ZeroOrderHold,
     /// A line through the last two output values, continued over the
@@ -57,7 +59,8 @@ pub enum InputOverStep {
     /// Linear from the start value to the guess (needs input derivatives; second order).
     #[default]
     Linear,
-    /// The guess held over the whole step (first order, like backward Euler).
+    /// The guess held over the whole step, a derivative of 0 (first order,
+    /// like backward Euler).
     EndValue,
 }
 
@@ -387,15 +390,18 @@ impl CoSimulation {
     }
 
     /// Sets connection `k`'s input to `value`, and its derivative to `rate`
-    /// when given (units that hold inputs constant refuse a derivative).
+    /// when given. `None` leaves the input's course over the step to the
+    /// unit; `Some(0.0)` holds it, which a unit refusing derivatives does
+    /// anyway, so only a non-zero rate needs a unit that takes one.
     fn feed(&mut self, k: usize, value: f64, rate: Option<f64>) -> Result<(), CosimError> {
         let to = self.connections[k].to;
         let unit = &mut self.units[to.unit];
         unit.set(to.var, value)?;
-        if let Some(rate) = rate {
-            unit.set_input_derivative(to.var, rate)?;
+        match rate.map(|rate| (rate, unit.set_input_derivative(to.var, rate))) {
+            None | Some((_, Ok(()))) => Ok(()),
+            Some((0.0, Err(UnitError::Unsupported { .. }))) => Ok(()),
+            Some((_, Err(e))) => Err(e.into()),
         }
-        Ok(())
     }
 
     fn step_unit(&mut self, u: usize, h: f64) -> Result<(), CosimError> {
@@ -462,8 +468,9 @@ impl CoSimulation {
                     }
                     if stepped[c.from.unit] {
                         let new = sim.get(c.from)?;
+                        // The new value held (zero-order) or reached linearly (first-order).
                         let (value, rate) = if first_order { (start[k], (new - start[k]) / h) } else { (new, 0.0) };
-                        sim.feed(k, value, first_order.then_some(rate))?;
+                        sim.feed(k, value, Some(rate))?;
                     } else {
                         sim.feed(k, start[k], first_order.then_some(slopes[k]))?;
                     }
@@ -492,7 +499,7 @@ impl CoSimulation {
                 for k in 0..guess.len() {
                     match p.inputs {
                         InputOverStep::Linear => sim.feed(k, start[k], Some((guess[k] - start[k]) / h))?,
-                        InputOverStep::EndValue => sim.feed(k, guess[k], None)?,
+                        InputOverStep::EndValue => sim.feed(k, guess[k], Some(0.0))?,
                     }
                 }
                 for u in 0..sim.units.len() {

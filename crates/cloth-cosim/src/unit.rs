@@ -44,6 +44,10 @@ pub struct Variable {
     /// `Some(vec![])` when it depends on none (it changes only in a step),
     /// `None` when unknown, taken as every input.
     pub dependencies: Option<Vec<ValueRef>>,
+    /// Of an input, the input it is the time derivative of (FMI's
+    /// `derivative` attribute): setting it is
+    /// [`Unit::set_input_derivative`] of that input.
+    pub derivative_of: Option<ValueRef>,
 }
 
 impl Variable {
@@ -62,6 +66,7 @@ impl Variable {
             description: description.into(),
             start: 0.0,
             dependencies: None,
+            derivative_of: None,
         }
     }
 
@@ -69,6 +74,12 @@ impl Variable {
     /// (none: it changes only in a step).
     pub fn with_dependencies(mut self, inputs: Vec<ValueRef>) -> Self {
         self.dependencies = Some(inputs);
+        self
+    }
+
+    /// The same input, the time derivative of input `of`.
+    pub fn derivative_of(mut self, of: ValueRef) -> Self {
+        self.derivative_of = Some(of);
         self
     }
 
@@ -181,9 +192,13 @@ pub enum UnitError {
     },
 }
 
-/// A co-simulation unit. Inputs hold their value (and, if the unit
-/// supports it, a time derivative for linear interpolation within the
-/// step) until set again.
+/// A co-simulation unit. An input is its value at the communication point
+/// where it is set (FMI's meaning). Over the step that follows, the unit
+/// sees it move at the derivative the master gave
+/// ([`Unit::set_input_derivative`]), or, without one, as the unit
+/// documents: held (most units), or continued from the previous
+/// communication point's value (the cloth's pins). A unit that refuses
+/// derivatives holds its inputs, so a derivative of 0 is what it does.
 pub trait Unit: Send {
     /// The unit's name, for messages.
     fn name(&self) -> &str;
@@ -197,6 +212,8 @@ pub trait Unit: Send {
     /// Sets the time derivative of an input over the next step, per
     /// second: the unit then sees `u(t) = u(t0) + du (t - t0)` (FMI 2's
     /// input derivatives). Units that hold inputs constant refuse it.
+    /// Whether a derivative outlives the step or a later [`Unit::set`] of
+    /// the value is the unit's to document.
     fn set_input_derivative(&mut self, vr: ValueRef, _du: f64) -> Result<(), UnitError> {
         let _ = vr;
         Err(UnitError::Unsupported { unit: self.name().to_string(), what: "input derivatives" })
@@ -259,7 +276,9 @@ pub const MAX_INPUT: f64 = 1e150;
 pub mod bytes {
     /// The layout this build writes and reads.
     /// 2: the cloth unit's state records `newton_engaged`.
-    pub const FORMAT_VERSION: u32 = 2;
+    /// 3: the cloth unit's state records its inputs at the previous
+    /// communication point and which rates were given.
+    pub const FORMAT_VERSION: u32 = 3;
 
     /// Writes `tag`, [`FORMAT_VERSION`], the values and the checksum.
     pub fn pack(tag: &[u8; 8], values: impl IntoIterator<Item = f64>) -> Vec<u8> {

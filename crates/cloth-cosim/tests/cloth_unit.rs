@@ -1,6 +1,7 @@
 //! The cloth as a co-simulation unit: variables, rollback and serialised
 //! state reproduce a run bit for bit.
 
+use cloth_core::Simulation;
 use cloth_core::scene::Scene;
 use cloth_cosim::{ClothUnit, StepOutcome, Unit, UnitError};
 use std::path::PathBuf;
@@ -29,12 +30,17 @@ fn outputs(unit: &ClothUnit) -> Vec<u64> {
 }
 
 /// Drives the ball through the curtain: `solid0.velocity.y` = 0.6 m/s
-/// (the position input is where the ball is at the end of the step).
+/// (the position input is where the ball is at the end of the step), and
+/// the first pin along x at 5 cm/s, given at the communication points only
+/// (the unit continues it from the previous one).
 fn run(unit: &mut ClothUnit, from_step: usize, steps: usize) {
     let (h, vy) = (1.0 / 90.0, 0.6);
     let (py, vel) = (unit.find("solid0.position.y").unwrap(), unit.find("solid0.velocity.y").unwrap());
+    let pin = unit.find("pin0.target.x").unwrap();
+    let pin_start = unit.variables()[pin].start;
     for k in from_step..from_step + steps {
         let t = k as f64 * h;
+        unit.set(pin, pin_start + 0.05 * t).unwrap();
         unit.set(py, -0.4 + vy * (t + h)).unwrap();
         unit.set(vel, vy).unwrap();
         assert_eq!(unit.do_step(t, h).unwrap(), StepOutcome::Completed);
@@ -208,7 +214,8 @@ b = { panel = 1, edge = "i_min" }
 }
 
 /// The hanging cloth (11 x 11) with one pin driven from outside at
-/// 0.3 m/s, as a unit with internal steps of at most 1/90 s: stepped by a
+/// 0.3 m/s (its target at each communication point and its rate), as a
+/// unit with internal steps of at most 1/90 s: stepped by a
 /// master at 1/90, 1/30, 0.1 and 1 s, it is at the same place at their
 /// common times (t = 1 s; measured 1.7e-14 m apart), its pin's mean
 /// reaction the same, and a step the solver cannot take (a PCG cap of 2
@@ -232,7 +239,8 @@ fn substeps_make_the_motion_independent_of_the_macro_step() {
         let mut mean_reaction = 0.0;
         for n in 0..steps {
             let t = n as f64 * h;
-            u.set(x, start + 0.3 * (t + h)).unwrap();
+            u.set(x, start + 0.3 * t).unwrap();
+            u.set_input_derivative(x, 0.3).unwrap();
             assert_eq!(u.do_step(t, h).unwrap(), StepOutcome::Completed, "h = {h}");
             mean_reaction += u.get(reaction).unwrap() * h;
         }
@@ -303,4 +311,80 @@ fn an_attachment_carries_the_weight_its_pins_carry() {
     let moment = cloth_core::Vec3::new(v("attachment0.moment.x"), v("attachment0.moment.y"), v("attachment0.moment.z"));
     println!("moment {moment:?} N m, expected {expected:?} N m");
     assert!((moment - expected).norm() <= 1e-12 * expected.norm().max(1e-9));
+}
+
+/// The hanging cloth (11 x 11) with one pin driven from outside, against
+/// the same simulation given each step's end target directly.
+fn hang_with_driven_pin() -> (ClothUnit, Simulation) {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/scenes/hang.toml");
+    let overrides: Vec<String> =
+        ["panels.0.particles=[11, 11]", "pins.0.nodes=[[0, 10]]", "pins.0.motion={ kind = \"external\" }"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+    let (model, cfg) = Scene::parse_file(&path, &overrides).unwrap().build().unwrap();
+    (ClothUnit::new("cloth", cfg.simulation(model.clone())), cfg.simulation(model))
+}
+
+/// A pin input is the pin's place at the communication point (FMI's
+/// meaning). With its rate given (`pin0.target_rate`, or an input
+/// derivative) a piecewise-linear motion with kinks at communication
+/// points is the end-of-step-target run's to 1e-12 m (measured 3e-15); with
+/// values only, a motion at constant velocity is held for the first step
+/// (nothing to continue from yet) and exact from the second on: the
+/// pinned particle is where the signal is at every later communication
+/// point, to 1e-12 m (read as an end-of-step target, it lagged by v h,
+/// 3.3 mm here).
+#[test]
+fn pins_take_their_input_at_the_communication_point() {
+    let h = 1.0 / 90.0;
+    // Rest for 9 steps, 0.3 m/s for 18, -0.2 m/s for 18.
+    let velocity = |n: usize| {
+        if n < 9 {
+            0.0
+        } else if n < 27 {
+            0.3
+        } else {
+            -0.2
+        }
+    };
+    let place = |n: usize| (0..n).map(|i| velocity(i) * h).sum::<f64>();
+    let (mut unit, mut reference) = hang_with_driven_pin();
+    let (x, rate) = (unit.find("pin0.target.x").unwrap(), unit.find("pin0.target_rate.x").unwrap());
+    assert_eq!(unit.variables()[rate].derivative_of, Some(x));
+    let anchor = reference.model().pins()[0].anchor;
+    let mut gap: f64 = 0.0;
+    for n in 0..45 {
+        let t = n as f64 * h;
+        unit.set(x, anchor.x + place(n)).unwrap();
+        // Half the steps through the rate input, half as an input derivative.
+        if n % 2 == 0 {
+            unit.set(rate, velocity(n)).unwrap()
+        } else {
+            unit.set_input_derivative(x, velocity(n)).unwrap()
+        }
+        assert_eq!(unit.do_step(t, h).unwrap(), StepOutcome::Completed);
+        reference.set_pin_target(0, anchor + cloth_core::Vec3::x() * place(n + 1)).unwrap();
+        reference.step(h).unwrap();
+        let apart = unit.simulation().state().x.iter().zip(&reference.state().x).map(|(a, b)| (a - b).norm());
+        gap = apart.fold(gap, f64::max);
+    }
+    println!("rates given: {gap:.1e} m from the end-target run over 45 steps");
+    assert!(gap < 1e-12, "{gap} m");
+
+    let (mut unit, _) = hang_with_driven_pin();
+    let particle = unit.simulation().model().pins()[0].particle;
+    let mut worst: f64 = 0.0;
+    for n in 0..45 {
+        unit.set(x, anchor.x + 0.3 * n as f64 * h).unwrap();
+        unit.do_step(n as f64 * h, h).unwrap();
+        let off = (unit.simulation().state().x[particle].x - (anchor.x + 0.3 * (n + 1) as f64 * h)).abs();
+        if n == 0 {
+            assert!((off - 0.3 * h).abs() < 1e-12, "the first step holds: {off} m behind");
+        } else {
+            worst = worst.max(off);
+        }
+    }
+    println!("values only: the pin {worst:.1e} m from the signal from the second step on");
+    assert!(worst < 1e-12, "{worst} m");
 }

@@ -118,9 +118,10 @@ pub fn model_description(variables: &[Variable], info: &FmuInfo) -> String {
         let unit = if known_unit(v.unit).is_some() { format!(r#" unit="{}""#, escape(v.unit)) } else { String::new() };
         let start =
             if v.causality == Causality::Output { String::new() } else { format!(r#" start="{}""#, number(v.start)) };
+        let derivative = v.derivative_of.map_or(String::new(), |of| format!(r#" derivative="{}""#, of + 1));
         let _ = writeln!(
             x,
-            r#"    <Float64 name="{}" valueReference="{}" causality="{causality}" variability="{variability}"{unit}{start} description="{}"/>"#,
+            r#"    <Float64 name="{}" valueReference="{}" causality="{causality}" variability="{variability}"{unit}{start}{derivative} description="{}"/>"#,
             escape(&v.name),
             k + 1,
             escape(&v.description)
@@ -151,6 +152,7 @@ mod tests {
             Variable::new("pin0.target.x", Causality::Input, "m", "pin <x> & \"y\"").with_start(0.25),
             Variable::new("solid0.torque.z", Causality::Output, "N.m", "torque"),
             Variable::new("max_stretch", Causality::Output, "1", "ratio"),
+            Variable::new("pin0.target_rate.x", Causality::Input, "m/s", "rate").derivative_of(0),
         ];
         let info = FmuInfo {
             model_name: "hang".into(),
@@ -165,6 +167,7 @@ mod tests {
         ));
         assert!(xml.contains(r#"<Float64 name="max_stretch" valueReference="3" causality="output" variability="continuous" description="ratio"/>"#));
         assert!(xml.contains(r#"<Unit name="N.m"><BaseUnit kg="1" m="2" s="-2"/></Unit>"#));
+        assert!(xml.contains(r#"valueReference="4" causality="input" variability="continuous" unit="m/s" start="0.0" derivative="1" description="rate"/>"#));
         assert!(xml.contains(r#"stepSize="0.011111111111111112""#));
         // Outputs are listed, and listed as initial unknowns, with no direct
         // feedthrough; inputs are not.

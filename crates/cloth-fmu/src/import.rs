@@ -118,8 +118,9 @@ impl Drop for Unpacked {
 struct Description {
     token: Option<String>,
     identifier: Option<String>,
-    /// `Float64` inputs, outputs and parameters, with their value references.
-    variables: Vec<(Variable, ValueReference)>,
+    /// `Float64` inputs, outputs and parameters, with their value
+    /// references and the value reference their `derivative` names.
+    variables: Vec<(Variable, ValueReference, Option<ValueReference>)>,
     /// `<Output>` value references and their `dependencies`, if given.
     outputs: Vec<(ValueReference, Option<Vec<ValueReference>>)>,
 }
@@ -172,7 +173,8 @@ fn parse_description(xml: &str) -> Result<Description, String> {
                 // Variables carry `'static` unit names: this crate's own units.
                 let unit = get("unit").and_then(|u| known_unit(&u)).map_or("", |(name, _)| name);
                 let description = get("description").unwrap_or_default();
-                d.variables.push((Variable::new(name, causality, unit, description).with_start(start), vr));
+                let derivative = get("derivative").and_then(|v| v.parse().ok());
+                d.variables.push((Variable::new(name, causality, unit, description).with_start(start), vr, derivative));
             }
             b"Output" => {
                 let Some(vr) = get("valueReference").and_then(|v| v.parse().ok()) else { continue };
@@ -205,7 +207,23 @@ impl FmuUnit {
         let identifier = d
             .identifier
             .ok_or_else(|| bad("modelDescription.xml: not a co-simulation FMU (no <CoSimulation>)".into()))?;
-        let (mut vars, vrs): (Vec<Variable>, Vec<ValueReference>) = d.variables.into_iter().unzip();
+        let mut vars = Vec::new();
+        let (mut vrs, mut derivatives) = (Vec::new(), Vec::new());
+        for (var, vr, derivative) in d.variables {
+            vars.push(var);
+            vrs.push(vr);
+            derivatives.push(derivative);
+        }
+        // An input that is another input's derivative takes its
+        // `set_input_derivative` (FMI 3.0 co-simulation has no call for it).
+        for (k, derivative) in derivatives.into_iter().enumerate() {
+            let of = derivative.and_then(|d| vrs.iter().position(|&r| r == d));
+            if let Some(of) =
+                of.filter(|&of| vars[of].causality == Causality::Input && vars[k].causality == Causality::Input)
+            {
+                vars[k] = vars[k].clone().derivative_of(of);
+            }
+        }
         // Outputs' direct dependencies on inputs (absent: every input), as
         // the unit's variable indices.
         for (vr, dependencies) in d.outputs {
@@ -355,6 +373,14 @@ impl Unit for FmuUnit {
         Ok(())
     }
 
+    /// Sets the input the model description declares as `vr`'s derivative.
+    fn set_input_derivative(&mut self, vr: ValueRef, du: f64) -> Result<(), UnitError> {
+        match self.vars.iter().position(|v| v.derivative_of == Some(vr)) {
+            Some(rate) => self.set(rate, du),
+            None => Err(UnitError::Unsupported { unit: self.name.clone(), what: "input derivatives" }),
+        }
+    }
+
     fn get(&self, vr: ValueRef) -> Result<f64, UnitError> {
         let reference = *self.vrs.get(vr).ok_or(UnitError::NoSuchVariable {
             unit: self.name.clone(),
@@ -454,7 +480,7 @@ mod tests {
         let d = parse_description(OTHER_TOOL).unwrap();
         assert_eq!(d.token.as_deref(), Some("{1234}"));
         assert_eq!(d.identifier.as_deref(), Some("model_x"));
-        let names: Vec<(&str, ValueReference)> = d.variables.iter().map(|(v, r)| (v.name.as_str(), *r)).collect();
+        let names: Vec<(&str, ValueReference)> = d.variables.iter().map(|(v, r, _)| (v.name.as_str(), *r)).collect();
         assert_eq!(names, [("u", 7), ("y", 8), ("z", 9)]);
         let u = &d.variables[0].0;
         assert_eq!((u.causality, u.start, u.description.as_str()), (Causality::Input, 1.5, "force & \"torque\""));

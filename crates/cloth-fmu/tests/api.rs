@@ -209,7 +209,8 @@ fn calls_out_of_sequence_and_bad_arguments_are_errors_that_say_why() {
     // A negative step, a step from the wrong time, setting an output, time, counts that disagree.
     assert_eq!(step(fmu, 0.0, -0.01), Status::Error);
     assert_eq!(step(fmu, 1.0, 0.01), Status::Error);
-    let output = 7u32; // pin0.reaction.x: after the 6 pin inputs (value references 1-6)
+    // pin0.reaction.x: after the 12 pin inputs (a target and a rate per pin, value references 1-12)
+    let output = 13u32;
     unsafe {
         assert_eq!(fmi3SetFloat64(fmu, &output, 1, &value, 1), Status::Error);
         assert_eq!(fmi3SetFloat64(fmu, &0, 1, &value, 1), Status::Error);

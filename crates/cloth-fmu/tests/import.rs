@@ -67,10 +67,13 @@ fn spring_and_cloth(cloth: Box<dyn Unit>, master: Master) -> CoSimulation {
 fn the_fmu_is_the_native_unit_under_every_master() {
     let path = fmu("masters");
     let h = 1.0 / 90.0;
-    // FMI 3.0 co-simulation has no input derivatives: the iterated master
-    // hands the FMU its guess of the end value (pin targets are end values).
-    let iterated = IteratedParams { inputs: InputOverStep::EndValue, ..IteratedParams::default() };
-    for master in [Master::GaussSeidel(Default::default()), Master::Iterated(iterated)] {
+    // FMI 3.0 co-simulation has no input derivatives; the cloth FMU takes
+    // a pin's as the input its model description declares `derivative` of
+    // the target, so the iterated master hands it the guess either as a
+    // rate from the start value (linear) or as a value held over the step.
+    let end_value = IteratedParams { inputs: InputOverStep::EndValue, ..IteratedParams::default() };
+    let linear = IteratedParams { inputs: InputOverStep::Linear, ..IteratedParams::default() };
+    for master in [Master::GaussSeidel(Default::default()), Master::Iterated(end_value), Master::Iterated(linear)] {
         let mut with_fmu = spring_and_cloth(Box::new(FmuUnit::load(&path, "cloth").unwrap()), master.clone());
         let mut with_native = spring_and_cloth(Box::new(native()), master.clone());
         let outputs = |c: &CoSimulation| -> Vec<u64> {
