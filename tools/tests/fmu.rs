@@ -57,6 +57,10 @@ fn fmu_build_packs_description_binary_and_scene() {
         assert!(entries[1].1.windows(symbol.len()).any(|w| w == symbol.as_bytes()), "{symbol}");
     }
     assert_eq!(entries[2].1, scene.as_bytes());
+    // Deflated, the library stripped of debug info: what an engineer downloads.
+    let size = std::fs::metadata(&out).unwrap().len();
+    println!("hang.fmu: {size} bytes");
+    assert!(size < 8_000_000, "{size} bytes");
 }
 
 #[test]

@@ -15,13 +15,51 @@ pub enum Causality {
     Output,
 }
 
-/// The value type of a variable. Only `Float64` is used so far; the type
-/// is carried so that an FMU's `modelDescription.xml` can be generated
-/// from it.
+/// The value type of a variable (FMI's numeric types). Every value
+/// travels as an `f64`: integers up to 2^53 and booleans (0 or 1) exactly;
+/// [`settable`] refuses a value the type cannot hold.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum VarType {
     /// A 64-bit float.
     Float64,
+    /// A 32-bit float.
+    Float32,
+    /// An integer of `bits` bits, signed or not (FMI 3.0's `Int8` ..
+    /// `UInt64`, FMI 2.0's `Integer` and `Enumeration` as 32-bit signed).
+    Integer {
+        /// 8, 16, 32 or 64.
+        bits: u8,
+        /// Signed (`Int*`) or unsigned (`UInt*`).
+        signed: bool,
+    },
+    /// A boolean: 0 is false, 1 is true.
+    Boolean,
+}
+
+impl VarType {
+    /// Why `value` is not a value of this type, if it is not.
+    pub fn refuses(self, value: f64) -> Option<String> {
+        match self {
+            Self::Float64 => None,
+            Self::Float32 => (value.abs() > f64::from(f32::MAX)).then(|| "beyond a 32-bit float's range".into()),
+            Self::Integer { bits, signed } => {
+                let (low, high) = if signed {
+                    (-(2f64.powi(i32::from(bits) - 1)), 2f64.powi(i32::from(bits) - 1) - 1.0)
+                } else {
+                    (0.0, 2f64.powi(i32::from(bits)) - 1.0)
+                };
+                let name = format!("{}Int{bits}", if signed { "" } else { "U" });
+                if value.fract() != 0.0 {
+                    Some(format!("not a whole number, as an {name} must be"))
+                } else if value < low || value > high {
+                    Some(format!("outside an {name}'s range [{low}, {high}]"))
+                } else {
+                    None
+                }
+            }
+            Self::Boolean => (value != 0.0 && value != 1.0).then(|| "a boolean is 0 or 1".into()),
+        }
+    }
 }
 
 /// One variable of a unit.
@@ -80,6 +118,12 @@ impl Variable {
     /// The same input, the time derivative of input `of`.
     pub fn derivative_of(mut self, of: ValueRef) -> Self {
         self.derivative_of = Some(of);
+        self
+    }
+
+    /// The same variable with value type `ty`.
+    pub fn with_type(mut self, ty: VarType) -> Self {
+        self.ty = ty;
         self
     }
 
@@ -262,6 +306,9 @@ pub fn settable<'a>(unit: &str, vars: &'a [Variable], vr: ValueRef, value: f64) 
             message: format!("must be finite and within +-{MAX_INPUT:e} (its square must not overflow)"),
         });
     }
+    if let Some(why) = var.ty.refuses(value) {
+        return Err(UnitError::InvalidValue { unit: unit.into(), name: var.name.clone(), value, message: why });
+    }
     Ok(var)
 }
 
@@ -320,6 +367,31 @@ pub mod bytes {
 #[cfg(test)]
 mod tests {
     use super::bytes::{FORMAT_VERSION, pack, unpack};
+    use super::{Causality, UnitError, VarType, Variable, settable};
+
+    #[test]
+    fn a_value_the_type_cannot_hold_is_refused_by_name() {
+        let int8 = VarType::Integer { bits: 8, signed: true };
+        let uint64 = VarType::Integer { bits: 64, signed: false };
+        for (ty, good, bad) in [
+            (int8, [-128.0, 127.0], [128.0, 1.5]),
+            (VarType::Integer { bits: 16, signed: false }, [0.0, 65535.0], [-1.0, 65536.0]),
+            (uint64, [0.0, 2f64.powi(53)], [-1.0, 0.5]),
+            (VarType::Boolean, [0.0, 1.0], [0.5, 2.0]),
+            (VarType::Float32, [3.4e38, -1e-40], [3.5e38, -1e39]),
+        ] {
+            let vars = [Variable::new("n", Causality::Input, "", "").with_type(ty)];
+            for v in good {
+                assert!(settable("u", &vars, 0, v).is_ok(), "{ty:?} {v}");
+            }
+            for v in bad {
+                match settable("u", &vars, 0, v) {
+                    Err(UnitError::InvalidValue { name, .. }) => assert_eq!(name, "n"),
+                    other => panic!("{ty:?} {v}: {other:?}"),
+                }
+            }
+        }
+    }
 
     const TAG: &[u8; 8] = b"testunit";
 

@@ -9,8 +9,9 @@
 //! - [`description`]: `modelDescription.xml` generated from the unit's
 //!   variables.
 //! - [`package`]: the `.fmu` archive (`cloth fmu build`).
-//! - [`import`]: an FMU loaded as a `cloth-cosim` unit ([`import::FmuUnit`]),
-//!   so a master co-simulates FMUs and native units together.
+//! - [`import`]: an FMI 3.0 or 2.0 FMU, this crate's or another tool's,
+//!   loaded as a `cloth-cosim` unit ([`import::FmuUnit`]), so a master
+//!   co-simulates FMUs and native units together.
 //!
 //! Value references: 0 is `time` (the independent variable); the unit's
 //! variable `k` is `k + 1`.
