@@ -108,7 +108,11 @@ fn flag_wind_force_grows_with_wind_speed() {
             sim.step(cfg.dt_s).unwrap();
             let s = sim.state();
             let mut f = vec![cloth_core::Vec3::zeros(); s.len()];
-            let at = At::new(&model, &s.x, &s.v, &s.stitches_closed).with_wind_at(s.time_s, sim.control().wind());
+            let at = At::new(&model, &s.x, &s.v, &s.stitches_closed).with_wind_at(
+                s.time_s,
+                sim.control().wind(),
+                sim.control().wind_scale(),
+            );
             cloth_core::terms::add_external_forces(&at, &mut scratch, &mut f);
             total += f.iter().sum::<cloth_core::Vec3>().norm();
         }
@@ -135,7 +139,7 @@ fn flat_flag_feels_plate_drag_and_lift() {
         let (sim, _) = simulation("flag.toml", &o);
         let s = sim.state();
         let mut f = vec![cloth_core::Vec3::zeros(); s.len()];
-        let at = At::new(sim.model(), &s.x, &s.v, &s.stitches_closed).with_wind_at(0.0, None);
+        let at = At::new(sim.model(), &s.x, &s.v, &s.stitches_closed).with_wind_at(0.0, None, 1.0);
         let mut scratch = cloth_core::forces::ForceBuffers::new(sim.model());
         cloth_core::terms::add_external_forces(&at, &mut scratch, &mut f);
         let total: cloth_core::Vec3 = f.iter().sum();

@@ -33,7 +33,13 @@
 //! - outputs, per `[[pins]]` entry `s` (an attachment: a clamp, a hanger):
 //!   `attachment{s}.force.{x,y,z}` (N), its pins' reactions summed, and
 //!   `attachment{s}.moment.{x,y,z}` (N m) about their centroid;
-//! - outputs: `lowest_z` (m), `max_stretch` (longest link over its rest length).
+//! - outputs: `lowest_z` (m), `max_stretch` (longest link over its rest length);
+//! - tunable parameters, which may change between steps: `gravity.{x,y,z}`
+//!   (m/s^2, from the scene's; a change acts as the force `m_i (g - g_scene)`
+//!   on every particle, a constant load the step takes like any other), and,
+//!   when the scene has wind, `wind_scale` (1: a factor on the air's
+//!   velocity, an outside field).
+//!   Damping is not tunable: it is part of every link's law and matrix.
 //!
 //! A step longer than the unit's largest internal step
 //! ([`ClothUnit::with_max_step`]; none by default) is taken as equal
@@ -67,6 +73,8 @@ enum Quantity {
     AttachmentMoment,
     LowestZ,
     MaxStretch,
+    Gravity,
+    WindScale,
 }
 
 /// A variable's quantity, for pin or solid `item`, component `axis` (0 for scalars).
@@ -93,6 +101,8 @@ pub struct ClothUnit {
     previous: Vec<f64>,
     /// Length of the last step, s (NaN before the first).
     previous_h: f64,
+    /// Per particle, the load of gravity beyond the scene's, N.
+    loads: Vec<Vec3>,
     /// Largest internal step, s ([`ClothUnit::with_max_step`]).
     max_step_s: f64,
 }
@@ -222,6 +232,18 @@ impl ClothUnit {
             vars.push(Variable::new(name, Causality::Output, unit, description).with_dependencies(vec![]));
             roles.push(Role { quantity, item: 0, axis: 0 });
         }
+        let g = model.effects().gravity.unwrap_or_else(Vec3::zeros);
+        for (axis, name) in AXES.iter().enumerate() {
+            let description = "acceleration of gravity from the next step on (the scene's to start)";
+            let var = Variable::new(format!("gravity.{name}"), Causality::Parameter, "m/s2", description);
+            vars.push(var.tunable().with_start(g[axis]));
+            roles.push(Role { quantity: Quantity::Gravity, item: 0, axis });
+        }
+        if model.wind().is_some() {
+            let description = "factor on the wind's air velocity from the next step on";
+            vars.push(Variable::new("wind_scale", Causality::Parameter, "1", description).tunable().with_start(1.0));
+            roles.push(Role { quantity: Quantity::WindScale, item: 0, axis: 0 });
+        }
         // Each pin's rates are its targets' derivatives.
         for v in 0..vars.len() {
             if roles[v].quantity == Quantity::PinRate {
@@ -241,6 +263,7 @@ impl ClothUnit {
             given,
             previous,
             previous_h: f64::NAN,
+            loads: Vec::new(),
             max_step_s: f64::INFINITY,
         };
         unit.update_shape_outputs();
@@ -391,6 +414,18 @@ impl ClothUnit {
         }
         if self.roles.iter().any(|r| r.quantity == Quantity::WindVelocity) {
             self.sim.set_wind(self.input(Quantity::WindVelocity, 0)).map_err(refuse)?;
+        }
+        if let Some(k) = self.roles.iter().position(|r| r.quantity == Quantity::WindScale) {
+            self.sim.set_wind_scale(self.values[k]).map_err(refuse)?;
+        }
+        // Gravity other than the scene's: the difference as a load m_i dg.
+        let dg = self.input(Quantity::Gravity, 0) - model.effects().gravity.unwrap_or_else(Vec3::zeros);
+        if dg == Vec3::zeros() {
+            self.sim.clear_external_forces();
+        } else {
+            self.loads.clear();
+            self.loads.extend(model.masses().iter().map(|&m| dg * m));
+            self.sim.set_external_forces(&self.loads).map_err(refuse)?;
         }
         for k in (0..model.colliders().len()).filter(|&k| model.colliders()[k].is_external()) {
             let get = |quantity| self.input(quantity, k);

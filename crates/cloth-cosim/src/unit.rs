@@ -82,6 +82,9 @@ pub struct Variable {
     /// `Some(vec![])` when it depends on none (it changes only in a step),
     /// `None` when unknown, taken as every input.
     pub dependencies: Option<Vec<ValueRef>>,
+    /// Of a parameter, whether it may change between steps (FMI's
+    /// `variability="tunable"`); otherwise it is fixed once stepping starts.
+    pub tunable: bool,
     /// Of an input, the input it is the time derivative of (FMI's
     /// `derivative` attribute): setting it is
     /// [`Unit::set_input_derivative`] of that input.
@@ -104,6 +107,7 @@ impl Variable {
             description: description.into(),
             start: 0.0,
             dependencies: None,
+            tunable: false,
             derivative_of: None,
         }
     }
@@ -112,6 +116,12 @@ impl Variable {
     /// (none: it changes only in a step).
     pub fn with_dependencies(mut self, inputs: Vec<ValueRef>) -> Self {
         self.dependencies = Some(inputs);
+        self
+    }
+
+    /// The same parameter, tunable between steps.
+    pub fn tunable(mut self) -> Self {
+        self.tunable = true;
         self
     }
 

@@ -388,3 +388,81 @@ fn pins_take_their_input_at_the_communication_point() {
     println!("values only: the pin {worst:.1e} m from the signal from the second step on");
     assert!(worst < 1e-12, "{worst} m");
 }
+
+/// Gravity is a tunable parameter: set to 5 m/s^2 from the start it moves
+/// the hanging cloth as a scene with that gravity does, to 1e-9 m over 30
+/// steps (measured 1e-15: the load and the scene's gravity sum in another
+/// order), and set back to the scene's the cloth steps bit for bit as a
+/// unit never tuned.
+#[test]
+fn gravity_is_tunable_between_steps() {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/scenes/hang.toml");
+    let unit = |extra: &[&str]| {
+        let base = ["panels.0.particles=[11, 11]", "pins.0.nodes=[[0, 10], [10, 10]]", "solver.rel_tol=1e-10"];
+        let mut overrides: Vec<String> = base.iter().map(|s| s.to_string()).collect();
+        overrides.extend(extra.iter().map(|s| s.to_string()));
+        let (model, cfg) = Scene::parse_file(&path, &overrides).unwrap().build().unwrap();
+        ClothUnit::new("cloth", cfg.simulation(model))
+    };
+    let h = 1.0 / 90.0;
+    let (mut tuned, mut scene) = (unit(&[]), unit(&["simulation.gravity_m_s2=[0.0, 0.0, -5.0]"]));
+    let gz = tuned.find("gravity.z").unwrap();
+    assert!(tuned.variables()[gz].tunable && tuned.find("wind_scale").is_none());
+    assert_eq!(tuned.get(gz).unwrap(), -9.81);
+    tuned.set(gz, -5.0).unwrap();
+    for n in 0..30 {
+        tuned.do_step(n as f64 * h, h).unwrap();
+        scene.do_step(n as f64 * h, h).unwrap();
+    }
+    let gap = tuned.simulation().state().x.iter().zip(&scene.simulation().state().x).map(|(a, b)| (a - b).norm());
+    let gap = gap.fold(0.0, f64::max);
+    println!("gravity 5 m/s^2 tuned against the scene's: {gap:.1e} m after 30 steps");
+    assert!(gap < 1e-9, "{gap} m");
+    let (mut back, mut plain) = (unit(&[]), unit(&[]));
+    back.set(gz, -20.0).unwrap();
+    back.do_step(0.0, h).unwrap();
+    plain.do_step(0.0, h).unwrap();
+    back.set(gz, -9.81).unwrap();
+    let before = back.simulation().state().x.clone();
+    assert!(!same_bits(&before, &plain.simulation().state().x), "20 m/s^2 for a step moved it");
+    // From the same state, the scene's gravity steps as an untuned unit.
+    plain.set_state(&back.get_state()).unwrap();
+    for n in 1..10 {
+        back.do_step(n as f64 * h, h).unwrap();
+        plain.do_step(n as f64 * h, h).unwrap();
+    }
+    assert!(same_bits(&back.simulation().state().x, &plain.simulation().state().x));
+}
+
+/// The wind's scale is a tunable parameter: the flag at half its gust is
+/// the flag whose scene's gust is half (to 1e-9 m over 30 steps; measured
+/// 0), and a
+/// negative scale is refused when the step would use it.
+#[test]
+fn the_wind_scale_is_tunable_between_steps() {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/scenes/flag.toml");
+    let unit = |extra: &[&str]| {
+        let mut overrides = vec!["panels.0.particles=[11, 8]".to_string(), "solver.rel_tol=1e-10".to_string()];
+        overrides.extend(extra.iter().map(|s| s.to_string()));
+        let (model, cfg) = Scene::parse_file(&path, &overrides).unwrap().build().unwrap();
+        ClothUnit::new("cloth", cfg.simulation(model))
+    };
+    let half = r#"wind.profile={ kind = "gust", mean_m_s = [3.0, 0.25, 0.0], amplitude_m_s = [1.0, 0.0, 0.0], frequency_hz = 0.5 }"#;
+    let (mut tuned, mut scene) = (unit(&[]), unit(&[half]));
+    let scale = tuned.find("wind_scale").unwrap();
+    tuned.set(scale, 0.5).unwrap();
+    let h = 1.0 / 90.0;
+    for n in 0..30 {
+        tuned.do_step(n as f64 * h, h).unwrap();
+        scene.do_step(n as f64 * h, h).unwrap();
+    }
+    let gap = tuned.simulation().state().x.iter().zip(&scene.simulation().state().x).map(|(a, b)| (a - b).norm());
+    let gap = gap.fold(0.0, f64::max);
+    println!("wind at half scale against the half gust: {gap:.1e} m after 30 steps");
+    assert!(gap < 1e-9, "{gap} m");
+    tuned.set(scale, -1.0).unwrap();
+    match tuned.do_step(30.0 * h, h) {
+        Err(UnitError::StepFailed { message, .. }) => assert!(message.contains("wind scale -1"), "{message}"),
+        other => panic!("{other:?}"),
+    }
+}

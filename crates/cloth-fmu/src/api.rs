@@ -103,12 +103,39 @@ unsafe fn string(s: *const c_char) -> Option<String> {
 }
 
 /// Checks that `n` values go with `n` value references (all variables are scalars).
-fn scalars(n_refs: usize, n_values: usize) -> Result<(), String> {
-    if n_refs == n_values {
-        Ok(())
-    } else {
-        Err(format!("{n_values} values for {n_refs} value references (every variable is a scalar)"))
+/// What a value reference of the FMU reads: time, a unit variable, or a
+/// row of an array output.
+enum Reference {
+    Time,
+    Variable(usize),
+    Array(crate::ArrayOutput, usize),
+}
+
+/// Resolves `vr` against `inst`'s unit and array outputs.
+fn reference(inst: &Instance, vr: ValueReference) -> Result<Reference, String> {
+    let m = inst.unit.variables().len();
+    let arrays = crate::array_outputs(inst.unit.simulation().model().particle_count());
+    match vr as usize {
+        0 => Ok(Reference::Time),
+        k if k <= m => Ok(Reference::Variable(k - 1)),
+        k => arrays
+            .get(k - m - 1)
+            .map(|a| Reference::Array(*a, k - m - 1))
+            .ok_or_else(|| format!("no variable with value reference {vr} (the last is {})", m + arrays.len())),
     }
+}
+
+/// How many values `refs` hold (an array output its every element), and
+/// that the host gave that many.
+fn values_for(inst: &Instance, refs: &[ValueReference], n_values: usize) -> Result<(), String> {
+    let mut count = 0;
+    for &vr in refs {
+        count += match reference(inst, vr)? {
+            Reference::Array(a, _) => a.len(),
+            _ => 1,
+        };
+    }
+    if count == n_values { Ok(()) } else { Err(format!("{n_values} values for value references that hold {count}")) }
 }
 
 /// `fmi3GetVersion`: "3.0".
@@ -334,15 +361,25 @@ pub unsafe extern "C" fn fmi3GetFloat64(
     n_values: usize,
 ) -> Status {
     call(instance, "fmi3GetFloat64", &READABLE, |inst| {
-        scalars(n_value_references, n_values)?;
         // SAFETY: the host's arrays, of the lengths it gave.
         let refs = unsafe { slice(value_references, n_value_references, "valueReferences")? };
+        values_for(inst, refs, n_values)?;
         let out = unsafe { slice_mut(values, n_values, "values")? };
-        for (vr, value) in refs.iter().zip(out.iter_mut()) {
-            *value = match *vr {
-                0 => inst.start_time_s + inst.unit.simulation().time(),
-                vr => inst.unit.get(vr as usize - 1).map_err(|e| e.to_string())?,
-            };
+        let mut at = 0;
+        for &vr in refs {
+            match reference(inst, vr)? {
+                Reference::Time => out[at] = inst.start_time_s + inst.unit.simulation().time(),
+                Reference::Variable(k) => out[at] = inst.unit.get(k).map_err(|e| e.to_string())?,
+                Reference::Array(a, which) => {
+                    let state = inst.unit.simulation().state();
+                    let rows = if which == 0 { &state.x } else { &state.v };
+                    for (slot, row) in out[at..at + a.len()].chunks_exact_mut(3).zip(rows) {
+                        slot.copy_from_slice(&[row.x, row.y, row.z]);
+                    }
+                    at += a.len() - 1;
+                }
+            }
+            at += 1;
         }
         Ok(Status::Ok)
     })
@@ -361,14 +398,17 @@ pub unsafe extern "C" fn fmi3SetFloat64(
     n_values: usize,
 ) -> Status {
     call(instance, "fmi3SetFloat64", &WRITABLE, |inst| {
-        scalars(n_value_references, n_values)?;
         // SAFETY: the host's arrays, of the lengths it gave.
         let refs = unsafe { slice(value_references, n_value_references, "valueReferences")? };
+        values_for(inst, refs, n_values)?;
         let given = unsafe { slice(values, n_values, "values")? };
         for (vr, value) in refs.iter().zip(given) {
-            match *vr {
-                0 => return Err("time (value reference 0) is the independent variable: it cannot be set".into()),
-                vr => inst.unit.set(vr as usize - 1, *value).map_err(|e| e.to_string())?,
+            match reference(inst, *vr)? {
+                Reference::Time => {
+                    return Err("time (value reference 0) is the independent variable: it cannot be set".into());
+                }
+                Reference::Variable(k) => inst.unit.set(k, *value).map_err(|e| e.to_string())?,
+                Reference::Array(a, _) => return Err(format!("{} is an output: it cannot be set", a.name)),
             }
         }
         Ok(Status::Ok)

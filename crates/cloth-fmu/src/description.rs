@@ -19,13 +19,60 @@ pub struct FmuInfo {
     pub stop_s: f64,
 }
 
+/// An array output of the FMU (FMI 3.0 `<Dimension>`): one row of
+/// `x, y, z` per particle, row-major, as `fmi3GetFloat64` hands it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ArrayOutput {
+    /// Variable name.
+    pub name: &'static str,
+    /// SI unit.
+    pub unit: &'static str,
+    /// What it is.
+    pub description: &'static str,
+    /// Rows (particles).
+    pub rows: usize,
+}
+
+impl ArrayOutput {
+    /// Values it holds: `3 rows`.
+    pub fn len(&self) -> usize {
+        3 * self.rows
+    }
+
+    /// Whether it holds none (a cloth without particles; never built).
+    pub fn is_empty(&self) -> bool {
+        self.rows == 0
+    }
+}
+
+/// The FMU's array outputs for a cloth of `particles` particles, after the
+/// unit's variables: every particle's position (m) and velocity (m/s) at
+/// the communication point.
+pub fn array_outputs(particles: usize) -> [ArrayOutput; 2] {
+    [
+        ArrayOutput {
+            name: "positions",
+            unit: "m",
+            description: "every particle's position, x y z per row",
+            rows: particles,
+        },
+        ArrayOutput {
+            name: "velocities",
+            unit: "m/s",
+            description: "every particle's velocity, x y z per row",
+            rows: particles,
+        },
+    ]
+}
+
 /// The SI units the cloth's variables use, with their base-unit exponents
 /// (`kg`, `m`, `s`, `rad`). The model description declares them; an
 /// imported FMU's unit names are mapped back to these.
-pub(crate) const UNITS: [(&str, [i32; 4]); 7] = [
+pub(crate) const UNITS: [(&str, [i32; 4]); 8] = [
     ("s", [0, 0, 1, 0]),
     ("m", [0, 1, 0, 0]),
     ("m/s", [0, 1, -1, 0]),
+    ("m/s2", [0, 1, -2, 0]),
     ("N", [1, 1, -2, 0]),
     ("N.m", [1, 2, -2, 0]),
     ("rad", [0, 0, 0, 1]),
@@ -54,11 +101,12 @@ fn number(x: f64) -> String {
 /// only in `fmi3DoStep`, from the step's result, so an input set at a
 /// communication point reaches them through the next step's state, never
 /// directly, and a master sees no algebraic loop through the cloth. Dimensionless
-/// variables (unit `"1"` or `""`) carry no unit.
-pub fn model_description(variables: &[Variable], info: &FmuInfo) -> String {
+/// variables (unit `"1"` or `""`) carry no unit. The `arrays` follow the
+/// variables (value references from `variables.len() + 1`), outputs too.
+pub fn model_description(variables: &[Variable], arrays: &[ArrayOutput], info: &FmuInfo) -> String {
     // `s` first (time's unit), then the variables' in order of appearance.
     let mut units: Vec<(&str, [i32; 4])> = vec![UNITS[0]];
-    for unit in variables.iter().filter_map(|v| known_unit(v.unit)) {
+    for unit in variables.iter().map(|v| v.unit).chain(arrays.iter().map(|a| a.unit)).filter_map(known_unit) {
         if !units.contains(&unit) {
             units.push(unit);
         }
@@ -114,7 +162,11 @@ pub fn model_description(variables: &[Variable], info: &FmuInfo) -> String {
             Causality::Input => "input",
             Causality::Output => "output",
         };
-        let variability = if v.causality == Causality::Parameter { "fixed" } else { "continuous" };
+        let variability = match v.causality {
+            Causality::Parameter if v.tunable => "tunable",
+            Causality::Parameter => "fixed",
+            _ => "continuous",
+        };
         let unit = if known_unit(v.unit).is_some() { format!(r#" unit="{}""#, escape(v.unit)) } else { String::new() };
         let start =
             if v.causality == Causality::Output { String::new() } else { format!(r#" start="{}""#, number(v.start)) };
@@ -127,10 +179,26 @@ pub fn model_description(variables: &[Variable], info: &FmuInfo) -> String {
             escape(&v.description)
         );
     }
+    for (k, a) in arrays.iter().enumerate() {
+        let _ = writeln!(
+            x,
+            r#"    <Float64 name="{}" valueReference="{}" causality="output" variability="continuous" unit="{}" description="{}"><Dimension start="{}"/><Dimension start="3"/></Float64>"#,
+            escape(a.name),
+            variables.len() + k + 1,
+            escape(a.unit),
+            escape(a.description),
+            a.rows
+        );
+    }
     let _ = writeln!(x, "  </ModelVariables>");
     let _ = writeln!(x, "  <ModelStructure>");
-    let outputs: Vec<usize> =
-        variables.iter().enumerate().filter(|(_, v)| v.causality == Causality::Output).map(|(k, _)| k + 1).collect();
+    let outputs: Vec<usize> = variables
+        .iter()
+        .enumerate()
+        .filter(|(_, v)| v.causality == Causality::Output)
+        .map(|(k, _)| k + 1)
+        .chain((0..arrays.len()).map(|k| variables.len() + k + 1))
+        .collect();
     for vr in &outputs {
         let _ = writeln!(x, r#"    <Output valueReference="{vr}" dependencies=""/>"#);
     }
@@ -161,7 +229,7 @@ mod tests {
             step_s: 1.0 / 90.0,
             stop_s: 2.0,
         };
-        let xml = model_description(&vars, &info);
+        let xml = model_description(&vars, &array_outputs(7), &info);
         assert!(xml.contains(
             r#"<Float64 name="pin0.target.x" valueReference="1" causality="input" variability="continuous" unit="m" start="0.25" description="pin &lt;x&gt; &amp; &quot;y&quot;"/>"#
         ));
@@ -176,5 +244,7 @@ mod tests {
             assert!(xml.contains(&format!(r#"<InitialUnknown valueReference="{vr}" dependencies=""/>"#)));
         }
         assert!(!xml.contains(r#"<Output valueReference="1""#));
+        assert!(xml.contains(r#"<Float64 name="velocities" valueReference="6" causality="output" variability="continuous" unit="m/s" description="every particle's velocity, x y z per row"><Dimension start="7"/><Dimension start="3"/></Float64>"#));
+        assert!(xml.contains(r#"<Output valueReference="6" dependencies=""/>"#));
     }
 }

@@ -28,7 +28,7 @@ pub mod import;
 mod instance;
 pub mod package;
 
-pub use description::{FmuInfo, model_description};
+pub use description::{ArrayOutput, FmuInfo, array_outputs, model_description};
 pub use package::{FmuError, build_fmu, instantiation_token};
 
 /// The FMU's model identifier: the name of its shared library

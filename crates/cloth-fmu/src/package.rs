@@ -140,7 +140,8 @@ pub fn build_fmu(scene: &Path, overrides: &[String], library: &Path, out: &Path)
         stop_s: parsed.simulation.duration_s,
     };
     let variables = unit.variables();
-    let xml = model_description(variables, &info);
+    let arrays = crate::description::array_outputs(unit.simulation().model().particle_count());
+    let xml = model_description(variables, &arrays, &info);
     let overrides_text: String = overrides.iter().map(|o| format!("{o}\n")).collect();
     let mut entries = vec![
         ("modelDescription.xml".to_string(), xml.clone().into_bytes()),

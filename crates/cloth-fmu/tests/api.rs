@@ -132,6 +132,24 @@ fn steps_are_the_cloth_units_bit_for_bit() {
     }
     // time is value reference 0.
     assert!((get(fmu, &[0])[0] - 10.0 * h).abs() < 1e-12);
+    // The array outputs after the variables: every particle's position and
+    // velocity, a row each, in one call with a scalar.
+    let (m, state) = (all.len() as u32, unit.simulation().state());
+    let n = state.x.len();
+    let refs = [m + 1, 0, m + 2];
+    let mut values = vec![0.0; 6 * n + 1];
+    assert_eq!(unsafe { fmi3GetFloat64(fmu, refs.as_ptr(), 3, values.as_mut_ptr(), values.len()) }, Status::Ok);
+    let rows =
+        |a: &[cloth_core::Vec3]| -> Vec<u64> { a.iter().flat_map(|p| [p.x, p.y, p.z]).map(f64::to_bits).collect() };
+    assert_eq!(values[..3 * n].iter().map(|x| x.to_bits()).collect::<Vec<_>>(), rows(&state.x));
+    assert_eq!(values[3 * n + 1..].iter().map(|x| x.to_bits()).collect::<Vec<_>>(), rows(&state.v));
+    // Too few values for them, or setting one, is refused and said why.
+    assert_eq!(unsafe { fmi3GetFloat64(fmu, refs.as_ptr(), 3, values.as_mut_ptr(), 3) }, Status::Error);
+    assert!(
+        logged(1).iter().any(|msg| msg.contains(&format!("3 values for value references that hold {}", 6 * n + 1)))
+    );
+    assert_eq!(unsafe { fmi3SetFloat64(fmu, &(m + 1), 1, values.as_ptr(), 3 * n) }, Status::Error);
+    assert!(logged(1).iter().any(|msg| msg.contains("positions is an output")));
     unsafe { fmi3FreeInstance(fmu) };
 }
 
@@ -230,8 +248,8 @@ fn calls_out_of_sequence_and_bad_arguments_are_errors_that_say_why() {
         "the cloth is at t = 0 s",
         "pin0.reaction.x",
         "time (value reference 0) is the independent variable",
-        "2 values for 1 value references",
-        "no variable 998",
+        "2 values for value references that hold 1",
+        "no variable with value reference 999",
         "valueReferences is null with 1 entries",
         "this FMU has no Int32 variables",
         "fmi3EnterEventMode: not supported",

@@ -139,6 +139,12 @@ pub enum ControlError {
     /// The model has no wind, or its wind follows a profile from the scene.
     #[error("wind: the model's air velocity is not external; declare [wind] profile = {{ kind = \"external\" }}")]
     WindNotExternal,
+    /// A wind scale for a model without wind.
+    #[error("wind scale: the model has no wind; declare [wind] and the wind effect")]
+    NoWind,
+    /// A wind scale that is negative or not finite.
+    #[error("wind scale {0}: must be finite and >= 0")]
+    WindScale(f64),
     /// A force array of the wrong length.
     #[error("external forces: {got} given for {expected} particles")]
     ForceCount {
@@ -171,6 +177,8 @@ pub struct Control {
     forces: Vec<Vec3>,
     has_forces: bool,
     wind: Option<Vec3>,
+    /// Factor on the wind's air velocity (`None`: 1).
+    wind_scale: Option<f64>,
     /// Rigid bodies that join the solve.
     bodies: Vec<BodyInSolve>,
 }
@@ -186,6 +194,7 @@ impl Control {
             forces: Vec::new(),
             has_forces: false,
             wind: None,
+            wind_scale: None,
             bodies: Vec::new(),
         }
     }
@@ -368,6 +377,26 @@ impl Control {
     /// The air velocity set for an external wind, m/s, if any.
     pub fn wind(&self) -> Option<Vec3> {
         self.wind
+    }
+
+    /// Scales the wind's air velocity (its profile's, or the external one
+    /// set) by `scale` from the next step on: a gust stronger or weaker
+    /// than the scene's. The air is an outside field, so changing it
+    /// between steps is sound.
+    pub fn set_wind_scale(&mut self, model: &ClothModel, scale: f64) -> Result<(), ControlError> {
+        if model.wind().is_none() {
+            return Err(ControlError::NoWind);
+        }
+        if !(scale.is_finite() && scale >= 0.0) {
+            return Err(ControlError::WindScale(scale));
+        }
+        self.wind_scale = Some(scale);
+        Ok(())
+    }
+
+    /// The factor on the wind's air velocity (1 unless set).
+    pub fn wind_scale(&self) -> f64 {
+        self.wind_scale.unwrap_or(1.0)
     }
 
     /// Removes the external forces.

@@ -165,7 +165,7 @@ fn add_external_forces(
         }
     }
     let external = external.filter(|_| present);
-    let at = At::new(model, x, v, stitches_closed).with_wind_at(t, control.wind());
+    let at = At::new(model, x, v, stitches_closed).with_wind_at(t, control.wind(), control.wind_scale());
     crate::terms::add_external_forces(&at, scratch, force);
     control.add_forces_to(force);
     if let Some(e) = external {

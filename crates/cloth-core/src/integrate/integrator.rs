@@ -668,8 +668,11 @@ pub(crate) fn external_forces(model: &ClothModel, state: &ClothState, control: &
         return false;
     }
     ws.external.iter_mut().for_each(|f| *f = Vec3::zeros());
-    let at = crate::terms::At::new(model, &state.x, &state.v, &state.stitches_closed)
-        .with_wind_at(state.time_s, control.wind());
+    let at = crate::terms::At::new(model, &state.x, &state.v, &state.stitches_closed).with_wind_at(
+        state.time_s,
+        control.wind(),
+        control.wind_scale(),
+    );
     crate::terms::add_external_forces(&at, &mut ws.external_scratch, &mut ws.external);
     control.add_forces_to(&mut ws.external);
     true

@@ -193,6 +193,11 @@ impl Simulation {
         self.control.set_wind(&self.model, velocity)
     }
 
+    /// Scales the wind's air velocity from the next step on ([`Control::set_wind_scale`]).
+    pub fn set_wind_scale(&mut self, scale: f64) -> Result<(), ControlError> {
+        self.control.set_wind_scale(&self.model, scale)
+    }
+
     /// Sets external forces on every particle, N, for the next steps.
     pub fn set_external_forces(&mut self, forces: &[Vec3]) -> Result<(), ControlError> {
         self.control.set_forces(&self.model, forces)

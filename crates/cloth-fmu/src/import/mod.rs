@@ -171,11 +171,9 @@ impl FmuUnit {
                     .ok_or_else(|| bad(format!("modelDescription.xml: {}: start {text:?} is not a number", v.name)))?,
                 None => 0.0,
             };
-            vars.push(
-                Variable::new(v.name.clone(), v.causality, v.unit, v.description.clone())
-                    .with_type(ty)
-                    .with_start(start),
-            );
+            let var = Variable::new(v.name.clone(), v.causality, v.unit, v.description.clone());
+            let var = var.with_type(ty).with_start(start);
+            vars.push(if v.tunable { var.tunable() } else { var });
             vrs.push(v.vr);
         }
         let index = |vr: u32| vrs.iter().position(|&r| r == vr);

@@ -36,6 +36,8 @@ pub(crate) struct Declared {
     pub description: String,
     /// The value reference of the variable this one is the derivative of.
     pub derivative_of: Option<u32>,
+    /// `variability="tunable"`.
+    pub tunable: bool,
 }
 
 /// The model description's parts the importer uses.
@@ -318,6 +320,7 @@ fn finish(
         unit,
         description: a.get("description").cloned().unwrap_or_default(),
         derivative_of,
+        tunable: a.get("variability").is_some_and(|v| v == "tunable"),
     });
     Ok(())
 }

@@ -67,9 +67,9 @@ impl<'a> At<'a> {
     }
 
     /// The same point with the air at the model's wind velocity at time
-    /// `t` (s), an external wind's from `set` (m/s).
-    pub fn with_wind_at(self, t: f64, set: Option<Vec3>) -> Self {
-        Self { air_m_s: self.model.wind().map(|w| w.profile.velocity(t, set)), ..self }
+    /// `t` (s), an external wind's from `set` (m/s), times `scale`.
+    pub fn with_wind_at(self, t: f64, set: Option<Vec3>, scale: f64) -> Self {
+        Self { air_m_s: self.model.wind().map(|w| w.profile.velocity(t, set) * scale), ..self }
     }
 }
 

@@ -292,7 +292,7 @@ fn the_winds_terms_are_external_and_apart_from_the_internal_ones() {
 fn wind_blocks_match_the_force_loop_and_finite_differences_in_velocity() {
     let (model, x, v) = windy();
     fn at<'a>(model: &'a ClothModel, x: &'a [Vec3], v: &'a [Vec3]) -> At<'a> {
-        At::new(model, x, v, &[]).with_wind_at(0.1, None)
+        At::new(model, x, v, &[]).with_wind_at(0.1, None, 1.0)
     }
     for term in external(&model) {
         let mut out = vec![Vec3::zeros(); x.len()];
