@@ -199,32 +199,38 @@ pub(crate) fn detect_solid_contacts(
                 here = Some(s);
             }
             let lipschitz = c.shape.distance_is_lipschitz();
-            if !next.near(&predicted, reach) {
-                if lipschitz {
-                    beyond = beyond.min(next.box_distance(&predicted));
-                }
-                continue;
-            }
-            let s = c.shape.closest(next.pose(), predicted);
-            probe.1 += 1;
+            let mut queries = 0;
+            let s = if next.near(&predicted, reach) {
+                probe.1 += 1;
+                c.shape.closest(next.pose(), predicted)
+            } else {
+                SurfacePoint { point: predicted, normal: Vec3::z(), distance_m: next.box_distance(&predicted) }
+            };
             if lipschitz {
                 beyond = beyond.min(s.distance_m);
             }
-            if s.distance_m < reach {
-                // The side the particle comes from: a prediction deep inside
-                // a thin solid is closest to its far face.
-                let surface = if c.is_moving() {
-                    let mut queries = 0;
-                    let side = side_of(c, (next, h), x[i], s, &mut queries);
-                    probe.1 += queries as u32;
-                    side
-                } else {
-                    here.filter(|f| f.distance_m > 0.0).unwrap_or(s)
-                };
-                let travel = normal_travel(surface.normal.dot(&(x[i] - surface.point)), thickness, reach);
-                let found = contact(i, k, c, &surface, s.distance_m, travel, next);
-                nearest.get_or_insert_with(Nearest::new).offer(s.distance_m, found);
+            if s.distance_m >= reach {
+                // Ending clear of the solid, it may still pass through it.
+                if let Some((past, entry)) = crossing(c, (next, h), x[i], predicted, reach, &mut queries) {
+                    let travel = normal_travel(entry.normal.dot(&(x[i] - entry.point)), thickness, reach);
+                    let found = contact(i, k, c, &entry, past.distance_m, travel, next);
+                    nearest.get_or_insert_with(Nearest::new).offer(past.distance_m, found);
+                }
+                probe.1 += queries as u32;
+                continue;
             }
+            // The side the particle comes from: a prediction deep inside
+            // a thin solid is closest to its far face.
+            let surface = if c.is_moving() {
+                let side = side_of(c, (next, h), x[i], s, &mut queries);
+                probe.1 += queries as u32;
+                side
+            } else {
+                here.filter(|f| f.distance_m > 0.0).unwrap_or(s)
+            };
+            let travel = normal_travel(surface.normal.dot(&(x[i] - surface.point)), thickness, reach);
+            let found = contact(i, k, c, &surface, s.distance_m, travel, next);
+            nearest.get_or_insert_with(Nearest::new).offer(s.distance_m, found);
         }
         *clearance = Clearance { from: predicted, distance_m: beyond };
         let Some(nearest) = nearest else { return };
@@ -307,15 +313,51 @@ pub(crate) fn reach_surface(
     limit: f64,
     queries: &mut usize,
 ) -> Reach {
-    if !next.near(&to, limit) {
-        return Reach::Beyond { distance_m: next.box_distance(&to) };
+    let distance_m = if next.near(&to, limit) {
+        let at = c.shape.closest(next.pose(), to);
+        *queries += 1;
+        if at.distance_m < limit {
+            return Reach::Within(at, side_of(c, (next, h), from, at, queries));
+        }
+        at.distance_m
+    } else {
+        next.box_distance(&to)
+    };
+    match crossing(c, (next, h), from, to, limit, queries) {
+        Some((past, entry)) => Reach::Within(past, entry),
+        None => Reach::Beyond { distance_m },
     }
-    let at = c.shape.closest(next.pose(), to);
+}
+
+/// Whether a particle going in a line from `from` (its place at the start
+/// of the step) to `to` passes through solid `c` (posed `next` at the end
+/// of a step of `h` s) although `to` is not within `limit` of it:
+/// continuous collision detection, for a step longer than the solid is
+/// thick, which the distance at `to` alone misses (tunnelling). The path
+/// is taken relative to the solid: `from` where it sat in the new pose (as
+/// [`side_of`] takes it). A path shorter than `limit` cannot cross
+/// without ending within it, and is not cast. Returns `to`'s depth past
+/// the entry face (a negative distance along the entry normal) and the
+/// entry point, the surface to go back to.
+pub(crate) fn crossing(
+    c: &crate::Collider,
+    (next, h): (&SolidPose, f64),
+    from: Vec3,
+    to: Vec3,
+    limit: f64,
+    queries: &mut usize,
+) -> Option<(SurfacePoint, SurfacePoint)> {
+    let start = if c.is_moving() { from + next.velocity_at(from) * h } else { from };
+    let half = (to - start) * 0.5;
+    let length = 2.0 * half.norm();
+    if length < limit || !next.near(&(start + half), limit + 0.5 * length) {
+        return None;
+    }
     *queries += 1;
-    if at.distance_m >= limit {
-        return Reach::Beyond { distance_m: at.distance_m };
-    }
-    Reach::Within(at, side_of(c, (next, h), from, at, queries))
+    let (share, normal) = c.shape.first_entry(next.pose(), start, to)?;
+    let point = start + (to - start) * share;
+    let depth = normal.dot(&(to - point)).min(0.0);
+    Some((SurfacePoint { point: to, normal, distance_m: depth }, SurfacePoint { point, normal, distance_m: 0.0 }))
 }
 
 /// The surface point of solid `c` (posed `next` at the end of a step of
@@ -325,7 +367,9 @@ pub(crate) fn reach_surface(
 /// `fallback` (the point nearest where it ends). When a moving solid swept
 /// over `from`, the face closest to where the particle sat relative to the
 /// solid at the start (`from + h v_solid(from)` in the new pose: the face
-/// that swept it) if that is the shorter way out: the fallback pushed a skirt particle of
+/// that swept it) if that is the shorter way out, and also when `from` is
+/// outside but the solid passed over it within the step (a slab rising
+/// faster than its thickness per step): the fallback pushed a skirt particle of
 /// the Table-1 dress, swept over by a striding thigh and carried deep
 /// into it by the solve, 5 cm out through the thigh's far end in one
 /// step. Only the solid's pose and velocity at the end of the step are
@@ -339,6 +383,16 @@ pub(crate) fn side_of(
 ) -> SurfacePoint {
     let side = c.shape.closest(next.pose(), from);
     *queries += 1;
+    if side.distance_m > 0.0 && c.is_moving() {
+        // A solid faster than its thickness per step may have passed the
+        // particle: then it comes from where it sat relative to the
+        // solid, on the far side of it now.
+        let moved = next.velocity_at(from) * h;
+        if moved.norm() > side.distance_m && c.shape.first_entry(next.pose(), from + moved, from).is_some() {
+            *queries += 2;
+            return c.shape.closest(next.pose(), from + moved);
+        }
+    }
     if side.distance_m > 0.0 {
         return side;
     }
