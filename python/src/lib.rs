@@ -1,0 +1,438 @@
+//! The Python module `cloth`: scenes from TOML files, the model builder,
+//! stepping with the GIL released, positions and velocities as NumPy
+//! arrays, contacts and pin reactions, per-step control and snapshots.
+//! Errors are Python exceptions that name the file and field.
+
+use cloth_core::scene::{Scene as SceneFile, SceneError as SceneFileError, SceneErrorKind};
+use cloth_core::{
+    BodyPose, ClothModel, ClothState, Edge, GridPanel, IntegratorKind, Material, ModelBuilder, ModelKind,
+    Simulation as CoreSimulation, SolidMotion, SolverParams, Vec3,
+};
+use numpy::ndarray::Array2;
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2};
+use pyo3::create_exception;
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+use std::path::PathBuf;
+
+create_exception!(cloth, SceneError, PyValueError, "A scene file or override is wrong: `.file`, `.field`, `.message`.");
+create_exception!(cloth, ModelError, PyValueError, "A model cannot be built as described.");
+create_exception!(cloth, ControlError, PyValueError, "A per-step input was refused.");
+create_exception!(cloth, StepError, PyRuntimeError, "A step failed: `.time_s` is where the cloth stayed.");
+
+/// A `SceneError` exception carrying `file`, `field` (None when the
+/// problem is not one field's) and `message`.
+fn scene_error(py: Python<'_>, file: &std::path::Path, kind: &SceneErrorKind) -> PyErr {
+    let field = match kind {
+        SceneErrorKind::Invalid { field, .. } => Some(field.clone()),
+        SceneErrorKind::Override { arg, .. } => arg.split('=').next().map(str::to_string),
+        _ => None,
+    };
+    let message = SceneFileError { file: file.to_path_buf(), kind: kind.clone() }.to_string();
+    let err = SceneError::new_err(message.clone());
+    let value = err.value(py);
+    // Attributes on a fresh exception object cannot fail but for memory.
+    let _ = value.setattr("file", file.display().to_string());
+    let _ = value.setattr("field", field);
+    let _ = value.setattr("message", kind.to_string());
+    err
+}
+
+/// One override as `--set` takes it: a string is TOML text (`"[21, 21]"`,
+/// `'"bdf2"'`), a number, boolean or list of them is written as TOML.
+fn toml_value(value: &Bound<'_, PyAny>) -> PyResult<String> {
+    if let Ok(text) = value.extract::<String>() {
+        return Ok(text);
+    }
+    if let Ok(b) = value.extract::<bool>() {
+        return Ok(b.to_string());
+    }
+    if let Ok(i) = value.extract::<i64>() {
+        return Ok(i.to_string());
+    }
+    if let Ok(x) = value.extract::<f64>() {
+        return Ok(format!("{x:?}"));
+    }
+    if let Ok(list) = value.cast::<PyList>() {
+        let items: PyResult<Vec<String>> = list.iter().map(|item| toml_value(&item)).collect();
+        return Ok(format!("[{}]", items?.join(", ")));
+    }
+    Err(PyValueError::new_err(format!("override value {value}: a str (TOML text), number, bool or list of them")))
+}
+
+/// A scene file read with its overrides: what `cloth run` reads.
+#[pyclass(module = "cloth", frozen)]
+struct Scene {
+    scene: SceneFile,
+    file: PathBuf,
+}
+
+#[pymethods]
+impl Scene {
+    /// Reads the scene at `path` with `overrides`, a dict of dotted keys
+    /// to values (`{"panels.0.particles": [21, 21]}`) or a list of
+    /// `"key=value"` strings, as `cloth run --set` takes them.
+    #[staticmethod]
+    #[pyo3(signature = (path, overrides = None))]
+    fn from_toml(py: Python<'_>, path: PathBuf, overrides: Option<&Bound<'_, PyAny>>) -> PyResult<Self> {
+        let mut sets = Vec::new();
+        if let Some(o) = overrides {
+            if let Ok(dict) = o.cast::<PyDict>() {
+                for (key, value) in dict.iter() {
+                    sets.push(format!("{}={}", key.extract::<String>()?, toml_value(&value)?));
+                }
+            } else {
+                sets = o.extract::<Vec<String>>()?;
+            }
+        }
+        let scene = SceneFile::parse_file(&path, &sets).map_err(|e| scene_error(py, &e.file, &e.kind))?;
+        Ok(Self { scene, file: path })
+    }
+
+    /// The scene's time step, s.
+    #[getter]
+    fn dt_s(&self) -> f64 {
+        self.scene.simulation.dt_s
+    }
+
+    /// The scene's duration, s.
+    #[getter]
+    fn duration_s(&self) -> f64 {
+        self.scene.simulation.duration_s
+    }
+
+    /// The simulation the scene describes, at t = 0.
+    fn simulation(&self, py: Python<'_>) -> PyResult<Simulation> {
+        let (model, cfg) = self.scene.build().map_err(|e| scene_error(py, &self.file, &e))?;
+        Ok(Simulation { sim: cfg.simulation(model), dt_s: cfg.dt_s })
+    }
+}
+
+/// A grid-cloth model under construction (Rust's `ClothModel::builder`).
+#[pyclass(module = "cloth")]
+struct Builder {
+    inner: ModelBuilder,
+}
+
+/// Parses a kebab-case name of a serde enum (`"choi-ko"`, `"j-max"`, `"bdf2"`).
+fn named<T: serde::de::DeserializeOwned>(what: &str, name: &str) -> PyResult<T> {
+    let de = serde::de::value::StrDeserializer::<serde::de::value::Error>::new(name);
+    T::deserialize(de).map_err(|e| PyValueError::new_err(format!("{what} {name:?}: {e}")))
+}
+
+#[pymethods]
+impl Builder {
+    #[new]
+    fn new() -> Self {
+        Self { inner: ClothModel::builder() }
+    }
+
+    /// Adds a flat grid panel of `particles = (nx, ny)` spanning `size_m`
+    /// (m) along +x and +y, particle (0, 0) at `origin_m`.
+    #[pyo3(signature = (particles, size_m, origin_m = [0.0, 0.0, 0.0]))]
+    fn panel(
+        mut slf: PyRefMut<'_, Self>,
+        particles: [usize; 2],
+        size_m: [f64; 2],
+        origin_m: [f64; 3],
+    ) -> PyRefMut<'_, Self> {
+        let b = std::mem::take(&mut slf.inner);
+        slf.inner = b.panel(GridPanel::flat(particles, size_m).origin(origin_m));
+        slf
+    }
+
+    /// Sets the material from keyword arguments named as in a scene's
+    /// `[material]` (`tensile_stiffness_n_m=500.0`, ...); the rest keep
+    /// their defaults.
+    #[pyo3(signature = (**constants))]
+    fn material<'py>(
+        mut slf: PyRefMut<'py, Self>,
+        constants: Option<&Bound<'py, PyDict>>,
+    ) -> PyResult<PyRefMut<'py, Self>> {
+        // The default material as TOML, the given constants over it.
+        let mut table = toml::Table::try_from(Material::default()).map_err(|e| ModelError::new_err(e.to_string()))?;
+        for (key, value) in constants.into_iter().flat_map(|d| d.iter()) {
+            let key = key.extract::<String>()?;
+            let text = format!("v = {}", toml_value(&value)?);
+            let parsed: toml::Table =
+                toml::from_str(&text).map_err(|e| ModelError::new_err(format!("material.{key}: {}", e.message())))?;
+            table.insert(key, parsed["v"].clone());
+        }
+        let material: Material =
+            table.try_into().map_err(|e: toml::de::Error| ModelError::new_err(format!("material: {}", e.message())))?;
+        let b = std::mem::take(&mut slf.inner);
+        slf.inner = b.material(material);
+        Ok(slf)
+    }
+
+    /// The model: `"choi-ko"` (default), `"provot"` or `"volino"`.
+    fn kind(mut slf: PyRefMut<'_, Self>, kind: String) -> PyResult<PyRefMut<'_, Self>> {
+        let kind: ModelKind = named("model kind", &kind)?;
+        let b = std::mem::take(&mut slf.inner);
+        slf.inner = b.kind(kind);
+        Ok(slf)
+    }
+
+    /// Gravity, m/s^2.
+    fn gravity(mut slf: PyRefMut<'_, Self>, g_m_s2: [f64; 3]) -> PyRefMut<'_, Self> {
+        let b = std::mem::take(&mut slf.inner);
+        slf.inner = b.gravity(g_m_s2);
+        slf
+    }
+
+    /// Switches bending on.
+    fn bending(mut slf: PyRefMut<'_, Self>) -> PyRefMut<'_, Self> {
+        let b = std::mem::take(&mut slf.inner);
+        slf.inner = b.bending();
+        slf
+    }
+
+    /// Switches damping on.
+    fn damping(mut slf: PyRefMut<'_, Self>) -> PyRefMut<'_, Self> {
+        let b = std::mem::take(&mut slf.inner);
+        slf.inner = b.damping();
+        slf
+    }
+
+    /// Pins every node of panel `panel`'s `edge` (`"i-min"`, `"i-max"`,
+    /// `"j-min"`, `"j-max"`).
+    fn pin_edge(mut slf: PyRefMut<'_, Self>, panel: usize, edge: String) -> PyResult<PyRefMut<'_, Self>> {
+        let edge: Edge = named("edge", &edge)?;
+        let b = std::mem::take(&mut slf.inner);
+        slf.inner = b.pin_edge(panel, edge);
+        Ok(slf)
+    }
+
+    /// Pins nodes `(i, j)` of panel `panel`.
+    fn pin_nodes(mut slf: PyRefMut<'_, Self>, panel: usize, nodes: Vec<[usize; 2]>) -> PyRefMut<'_, Self> {
+        let b = std::mem::take(&mut slf.inner);
+        slf.inner = b.pin_nodes(panel, nodes);
+        slf
+    }
+
+    /// A simulation of the model built so far, stepping with `integrator`
+    /// (`"bdf2"` by default, Choi & Ko's; `"backward-euler"`, `"vbd"`, ...)
+    /// at `dt_s` (s) by default, its linear solves to `rel_tol` (the
+    /// solver's default when not given).
+    #[pyo3(signature = (dt_s = 1.0 / 90.0, integrator = "bdf2", rel_tol = None))]
+    fn simulation(&self, dt_s: f64, integrator: &str, rel_tol: Option<f64>) -> PyResult<Simulation> {
+        let model = self.inner.build().map_err(|e| ModelError::new_err(e.to_string()))?;
+        let kind: IntegratorKind = named("integrator", integrator)?;
+        if !(dt_s.is_finite() && dt_s > 0.0) {
+            return Err(PyValueError::new_err(format!("dt_s = {dt_s}: must be finite and > 0")));
+        }
+        let mut solver = SolverParams::default();
+        if let Some(tol) = rel_tol {
+            solver.rel_tol = tol;
+        }
+        solver.validate().map_err(|(field, message)| ModelError::new_err(format!("solver.{field}: {message}")))?;
+        Ok(Simulation { sim: CoreSimulation::new(model, kind, solver), dt_s })
+    }
+}
+
+/// A cloth state saved by [`Simulation::snapshot`].
+#[pyclass(module = "cloth", frozen)]
+struct Snapshot {
+    state: ClothState,
+}
+
+#[pymethods]
+impl Snapshot {
+    /// The time it was taken at, s.
+    #[getter]
+    fn time_s(&self) -> f64 {
+        self.state.time_s
+    }
+}
+
+/// A running simulation.
+#[pyclass(module = "cloth")]
+struct Simulation {
+    sim: CoreSimulation,
+    dt_s: f64,
+}
+
+/// `rows` 3-vectors as an `(n, 3)` NumPy array.
+fn rows<'py>(py: Python<'py>, rows: impl ExactSizeIterator<Item = Vec3>) -> Bound<'py, PyArray2<f64>> {
+    let n = rows.len();
+    let flat: Vec<f64> = rows.flat_map(|p| [p.x, p.y, p.z]).collect();
+    Array2::from_shape_vec((n, 3), flat).expect("3 values a row").into_pyarray(py)
+}
+
+fn control_error(e: impl std::fmt::Display) -> PyErr {
+    ControlError::new_err(e.to_string())
+}
+
+#[pymethods]
+impl Simulation {
+    /// Takes `n` steps of `dt_s` (s; the scene's by default), with the
+    /// GIL released. A step that fails raises `StepError`; the cloth stays
+    /// after the last step that succeeded.
+    #[pyo3(signature = (n = 1, dt_s = None))]
+    fn step(&mut self, py: Python<'_>, n: usize, dt_s: Option<f64>) -> PyResult<()> {
+        let h = dt_s.unwrap_or(self.dt_s);
+        if !(h.is_finite() && h > 0.0) {
+            return Err(PyValueError::new_err(format!("dt_s = {h}: must be finite and > 0")));
+        }
+        let sim = &mut self.sim;
+        let failed = py.detach(|| {
+            for k in 0..n {
+                if let Err(e) = sim.step(h) {
+                    return Some((k, sim.time(), e.to_string()));
+                }
+            }
+            None
+        });
+        match failed {
+            None => Ok(()),
+            Some((k, time_s, message)) => {
+                let err = StepError::new_err(format!("step {} of {n} from t = {time_s} s: {message}", k + 1));
+                let _ = err.value(py).setattr("time_s", time_s);
+                Err(err)
+            }
+        }
+    }
+
+    /// Simulated time, s.
+    #[getter]
+    fn time_s(&self) -> f64 {
+        self.sim.time()
+    }
+
+    /// The default step, s.
+    #[getter]
+    fn dt_s(&self) -> f64 {
+        self.dt_s
+    }
+
+    /// Number of particles.
+    #[getter]
+    fn particle_count(&self) -> usize {
+        self.sim.model().particle_count()
+    }
+
+    /// Every particle's position, m, as an `(n, 3)` array (a copy).
+    #[getter]
+    fn positions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        rows(py, self.sim.state().x.iter().copied())
+    }
+
+    /// Every particle's velocity, m/s, as an `(n, 3)` array (a copy).
+    #[getter]
+    fn velocities<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        rows(py, self.sim.state().v.iter().copied())
+    }
+
+    /// Every particle's mass, kg.
+    #[getter]
+    fn masses<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.sim.model().masses().to_vec().into_pyarray(py)
+    }
+
+    /// The longest link over its rest length.
+    fn max_stretch(&self) -> f64 {
+        self.sim.model().max_stretch_ratio(&self.sim.state().x)
+    }
+
+    /// The mean force the cloth exerted on each pin over the last step,
+    /// N, as a `(pins, 3)` array.
+    fn pin_reactions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        let pins = self.sim.model().pins().len();
+        rows(py, (0..pins).map(|k| self.sim.pin_reaction(k)))
+    }
+
+    /// The last step's cloth-solid contacts as a dict of arrays:
+    /// `particle`, `solid` (indices), `point` and `normal` (`(m, 3)`, m and
+    /// unit), `impulse` (`(m, 3)`, N s, on the cloth).
+    fn contacts<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let c = self.sim.contacts();
+        let out = PyDict::new(py);
+        out.set_item("particle", c.iter().map(|c| c.particle as i64).collect::<Vec<_>>().into_pyarray(py))?;
+        out.set_item("solid", c.iter().map(|c| c.collider as i64).collect::<Vec<_>>().into_pyarray(py))?;
+        out.set_item("point", rows(py, c.iter().map(|c| c.point)))?;
+        out.set_item("normal", rows(py, c.iter().map(|c| c.normal)))?;
+        out.set_item("impulse", rows(py, c.iter().map(|c| c.impulse_n_s)))?;
+        Ok(out)
+    }
+
+    /// Where external pin `index` is at the end of the next step, m.
+    fn set_pin_target(&mut self, index: usize, target: [f64; 3]) -> PyResult<()> {
+        self.sim.set_pin_target(index, Vec3::from(target)).map_err(control_error)
+    }
+
+    /// The air velocity of an external wind, m/s.
+    fn set_wind(&mut self, velocity: [f64; 3]) -> PyResult<()> {
+        self.sim.set_wind(Vec3::from(velocity)).map_err(control_error)
+    }
+
+    /// A factor on the wind's air velocity.
+    fn set_wind_scale(&mut self, scale: f64) -> PyResult<()> {
+        self.sim.set_wind_scale(scale).map_err(control_error)
+    }
+
+    /// Forces on every particle, N, an `(n, 3)` array, for the next steps.
+    fn set_external_forces(&mut self, forces: PyReadonlyArray2<'_, f64>) -> PyResult<()> {
+        let a = forces.as_array();
+        if a.ncols() != 3 {
+            return Err(ControlError::new_err(format!("external forces: {} columns, not 3 (x, y, z)", a.ncols())));
+        }
+        let f: Vec<Vec3> = a.rows().into_iter().map(|r| Vec3::new(r[0], r[1], r[2])).collect();
+        self.sim.set_external_forces(&f).map_err(control_error)
+    }
+
+    /// No external forces from the next step on.
+    fn clear_external_forces(&mut self) {
+        self.sim.clear_external_forces();
+    }
+
+    /// External solid `index`'s motion over the next step: where its frame
+    /// is at the end (m, rotation vector in rad) and its velocities (m/s,
+    /// rad/s).
+    #[pyo3(signature = (index, position, velocity, rotation = [0.0, 0.0, 0.0], angular_velocity = [0.0, 0.0, 0.0]))]
+    fn set_solid_motion(
+        &mut self,
+        index: usize,
+        position: [f64; 3],
+        velocity: [f64; 3],
+        rotation: [f64; 3],
+        angular_velocity: [f64; 3],
+    ) -> PyResult<()> {
+        let pose = BodyPose {
+            position: Vec3::from(position),
+            rotation: nalgebra::UnitQuaternion::from_scaled_axis(Vec3::from(rotation)),
+        };
+        let motion = SolidMotion {
+            time_s: self.sim.time() + self.dt_s,
+            pose,
+            linear_velocity: Vec3::from(velocity),
+            angular_velocity: Vec3::from(angular_velocity),
+        };
+        self.sim.set_solid_motion(index, motion).map_err(control_error)
+    }
+
+    /// The cloth's state now, to come back to with [`Simulation::restore`].
+    fn snapshot(&self) -> Snapshot {
+        Snapshot { state: self.sim.snapshot() }
+    }
+
+    /// Goes back to a snapshot of this simulation.
+    fn restore(&mut self, snapshot: &Snapshot) -> PyResult<()> {
+        self.sim.restore(&snapshot.state).map_err(|e| StepError::new_err(e.to_string()))
+    }
+}
+
+/// The module.
+#[pymodule]
+fn cloth(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Scene>()?;
+    m.add_class::<Builder>()?;
+    m.add_class::<Simulation>()?;
+    m.add_class::<Snapshot>()?;
+    let py = m.py();
+    m.add("SceneError", py.get_type::<SceneError>())?;
+    m.add("ModelError", py.get_type::<ModelError>())?;
+    m.add("ControlError", py.get_type::<ControlError>())?;
+    m.add("StepError", py.get_type::<StepError>())?;
+    Ok(())
+}
