@@ -422,9 +422,9 @@ impl Simulation {
     }
 }
 
-/// The module.
+/// The extension module, re-exported by the `cloth` package.
 #[pymodule]
-fn cloth(m: &Bound<'_, PyModule>) -> PyResult<()> {
+fn _cloth(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Scene>()?;
     m.add_class::<Builder>()?;
     m.add_class::<Simulation>()?;
