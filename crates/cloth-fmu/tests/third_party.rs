@@ -1,7 +1,8 @@
 //! FMUs written by other tools, deflated as they ship, co-simulated with
 //! the cloth: pythonfmu3 0.3.4 (FMI 3.0) and pythonfmu 0.7.0 (FMI 2.0),
 //! each holding the hanging cloth's pin on a mass on a spring
-//! (`fixtures/fmus/SpringMass{3,2}.py`), against the same mass as a native
+//! (`fixtures/fmus/SpringMass{3,2}.py`, stepped by `spring_mass.py`
+//! packed beside them), against the same mass as a native
 //! unit. Both tools are installed by `.ci/run` beside FMPy
 //! (`FMPY_PYTHON`); their binaries take Python's symbols from the host, so
 //! `libpython` is preloaded and the embedded interpreter pointed at the
@@ -107,7 +108,9 @@ fn fmus_from_pythonfmu3_and_pythonfmu_hold_the_cloth() {
     let h = 1.0 / 90.0;
     for (tool, model, version) in [("pythonfmu3", "SpringMass3", "3.0"), ("pythonfmu", "SpringMass2", "2.0")] {
         let script = root().join(format!("fixtures/fmus/{model}.py"));
-        let built = Command::new(bin.join(tool)).arg("build").arg("-f").arg(&script).arg("-d").arg(&work).status();
+        let step = root().join("fixtures/fmus/spring_mass.py");
+        let built =
+            Command::new(bin.join(tool)).arg("build").arg("-f").arg(&script).arg(&step).arg("-d").arg(&work).status();
         assert!(built.unwrap().success(), "{tool} build -f {}", script.display());
         let path = work.join(format!("{model}-deflated.fmu"));
         deflated(&work.join(format!("{model}.fmu")), &path);

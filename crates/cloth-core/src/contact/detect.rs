@@ -301,9 +301,10 @@ impl Reach {
 }
 
 /// Whether `to` (a particle's new position) is closer than `limit` to
-/// solid `c` (posed as `next` at the end of a step of `h` s): if so the
-/// closest point to `to` and the surface point to push back to
-/// ([`side_of`], with the closest point to `to` as the fallback), else how
+/// solid `c` (posed as `next` at the end of a step of `h` s), or got there
+/// through it ([`crossing`]): if so the closest point to `to` (the depth
+/// past the entry) and the surface point to push back to ([`side_of`],
+/// with the closest point to `to` as the fallback; the entry), else how
 /// far it is at least. Point queries made are added to `queries`.
 pub(crate) fn reach_surface(
     c: &crate::Collider,

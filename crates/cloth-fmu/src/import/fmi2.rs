@@ -1,6 +1,6 @@
 //! FMI 2.0 co-simulation calls on a loaded FMU binary.
 
-use super::{Api, Log, Opened, status};
+use super::{Api, Binary, ERROR, Log, Opened, StateCalls, status};
 use cloth_cosim::VarType;
 use libloading::Library;
 use std::ffi::{CStr, CString, c_char, c_void};
@@ -48,14 +48,7 @@ type Set<T> = unsafe extern "C" fn(*mut c_void, *const u32, usize, *const T) -> 
 type Derivatives = unsafe extern "C" fn(*mut c_void, *const u32, usize, *const i32, *const f64) -> i32;
 type DoStep = unsafe extern "C" fn(*mut c_void, f64, f64, i32) -> i32;
 type RealStatus = unsafe extern "C" fn(*mut c_void, i32, *mut f64) -> i32;
-type StateOut = unsafe extern "C" fn(*mut c_void, *mut *mut c_void) -> i32;
-type StateIn = unsafe extern "C" fn(*mut c_void, *mut c_void) -> i32;
-type StateSize = unsafe extern "C" fn(*mut c_void, *mut c_void, *mut usize) -> i32;
-type Serialize = unsafe extern "C" fn(*mut c_void, *mut c_void, *mut u8, usize) -> i32;
-type Deserialize = unsafe extern "C" fn(*mut c_void, *const u8, usize, *mut *mut c_void) -> i32;
 
-/// `fmi2Error`, for a function the binary does not export.
-const ERROR: i32 = 3;
 /// `fmi2CoSimulation`.
 const CO_SIMULATION: i32 = 1;
 /// `fmi2LastSuccessfulTime`.
@@ -63,10 +56,19 @@ const LAST_SUCCESSFUL_TIME: i32 = 2;
 
 /// A live FMI 2.0 instance, its callbacks (which it may keep pointing to)
 /// and the library it came from.
+/// FMI 2.0's state functions.
+const STATES: StateCalls = StateCalls {
+    get: b"fmi2GetFMUstate\0",
+    set: b"fmi2SetFMUstate\0",
+    free: b"fmi2FreeFMUstate\0",
+    size: b"fmi2SerializedFMUstateSize\0",
+    serialize: b"fmi2SerializeFMUstate\0",
+    deserialize: b"fmi2DeSerializeFMUstate\0",
+};
+
 pub(super) struct Fmi2 {
-    instance: *mut c_void,
+    b: Binary,
     _callbacks: Box<Callbacks>,
-    library: Library,
 }
 
 impl Fmi2 {
@@ -94,29 +96,19 @@ impl Fmi2 {
         if instance.is_null() {
             return Err("fmi2Instantiate returned no instance".into());
         }
-        Ok(Self { instance, _callbacks: callbacks, library })
-    }
-
-    /// Calls the `T`-typed function `symbol` (NUL-terminated); `fmi2Error`
-    /// when the binary lacks it.
-    fn call<T: Copy>(&self, symbol: &[u8], with: impl FnOnce(T) -> i32) -> i32 {
-        // SAFETY: FMI 2.0 gives each symbol named here the type `T` the caller asks for.
-        match unsafe { self.library.get::<T>(symbol) } {
-            Ok(f) => with(*f),
-            Err(_) => ERROR,
-        }
+        Ok(Self { b: Binary { instance, library }, _callbacks: callbacks })
     }
 
     fn get_one<T: Copy + Default>(&self, symbol: &[u8], vr: u32) -> Result<T, i32> {
         let mut value = T::default();
         // SAFETY: a live instance, one value reference and one value.
-        status(self.call(symbol, |f: Get<T>| unsafe { f(self.instance, &vr, 1, &mut value) }))?;
+        status(self.b.call(symbol, |f: Get<T>| unsafe { f(self.b.instance, &vr, 1, &mut value) }))?;
         Ok(value)
     }
 
     fn set_one<T: Copy>(&mut self, symbol: &[u8], vr: u32, value: T) -> i32 {
         // SAFETY: a live instance, one value reference and one value.
-        self.call(symbol, |f: Set<T>| unsafe { f(self.instance, &vr, 1, &value) })
+        self.b.call(symbol, |f: Set<T>| unsafe { f(self.b.instance, &vr, 1, &value) })
     }
 }
 
@@ -124,14 +116,14 @@ impl Api for Fmi2 {
     fn initialize(&mut self) -> i32 {
         // SAFETY: a live instance, in the order FMI 2.0 prescribes.
         let codes = [
-            self.call(b"fmi2SetupExperiment\0", |f: Setup| unsafe { f(self.instance, 0, 0.0, 0.0, 0, 0.0) }),
-            self.call(b"fmi2EnterInitializationMode\0", |f: Simple| unsafe { f(self.instance) }),
+            self.b.call(b"fmi2SetupExperiment\0", |f: Setup| unsafe { f(self.b.instance, 0, 0.0, 0.0, 0, 0.0) }),
+            self.b.call(b"fmi2EnterInitializationMode\0", |f: Simple| unsafe { f(self.b.instance) }),
         ];
         if let Some(&failed) = codes.iter().find(|&&c| status(c).is_err()) {
             return failed;
         }
         // SAFETY: a live instance.
-        self.call(b"fmi2ExitInitializationMode\0", |f: Simple| unsafe { f(self.instance) })
+        self.b.call(b"fmi2ExitInitializationMode\0", |f: Simple| unsafe { f(self.b.instance) })
     }
 
     fn get(&self, ty: VarType, vr: u32) -> Result<f64, i32> {
@@ -156,7 +148,9 @@ impl Api for Fmi2 {
     fn get_string(&self, vr: u32) -> Result<String, i32> {
         let mut text: *const c_char = std::ptr::null();
         // SAFETY: a live instance, one value reference and one value.
-        status(self.call(b"fmi2GetString\0", |f: Get<*const c_char>| unsafe { f(self.instance, &vr, 1, &mut text) }))?;
+        status(
+            self.b.call(b"fmi2GetString\0", |f: Get<*const c_char>| unsafe { f(self.b.instance, &vr, 1, &mut text) }),
+        )?;
         // SAFETY: the FMU hands a NUL-terminated string valid until its next call.
         Ok(if text.is_null() { String::new() } else { unsafe { CStr::from_ptr(text) }.to_string_lossy().into_owned() })
     }
@@ -167,56 +161,28 @@ impl Api for Fmi2 {
 
     fn set_derivative(&mut self, vr: u32, du: f64) -> i32 {
         // SAFETY: a live instance, one first-order derivative.
-        self.call(b"fmi2SetRealInputDerivatives\0", |f: Derivatives| unsafe { f(self.instance, &vr, 1, &1, &du) })
+        self.b.call(b"fmi2SetRealInputDerivatives\0", |f: Derivatives| unsafe { f(self.b.instance, &vr, 1, &1, &du) })
     }
 
     fn do_step(&mut self, t: f64, h: f64) -> (i32, f64) {
         // SAFETY: a live instance.
-        let code = self.call(b"fmi2DoStep\0", |f: DoStep| unsafe { f(self.instance, t, h, 0) });
+        let code = self.b.call(b"fmi2DoStep\0", |f: DoStep| unsafe { f(self.b.instance, t, h, 0) });
         let mut last = t;
         if code == 2 {
             // SAFETY: a live instance, one value.
-            self.call(b"fmi2GetRealStatus\0", |f: RealStatus| unsafe {
-                f(self.instance, LAST_SUCCESSFUL_TIME, &mut last)
+            self.b.call(b"fmi2GetRealStatus\0", |f: RealStatus| unsafe {
+                f(self.b.instance, LAST_SUCCESSFUL_TIME, &mut last)
             });
         }
         (code, last)
     }
 
     fn save(&self) -> Option<Vec<u8>> {
-        let mut state: *mut c_void = std::ptr::null_mut();
-        let mut size = 0usize;
-        // SAFETY: a live instance; the state is made, read and freed here.
-        unsafe {
-            let got = self.call(b"fmi2GetFMUstate\0", |f: StateOut| f(self.instance, &mut state)) <= 1;
-            let sized = got
-                && self.call(b"fmi2SerializedFMUstateSize\0", |f: StateSize| f(self.instance, state, &mut size)) <= 1;
-            let mut bytes = vec![0u8; if sized { size } else { 0 }];
-            let written = sized
-                && self
-                    .call(b"fmi2SerializeFMUstate\0", |f: Serialize| f(self.instance, state, bytes.as_mut_ptr(), size))
-                    <= 1;
-            if got {
-                self.call(b"fmi2FreeFMUstate\0", |f: StateOut| f(self.instance, &mut state));
-            }
-            written.then_some(bytes)
-        }
+        self.b.save(&STATES)
     }
 
     fn restore(&mut self, bytes: &[u8]) -> i32 {
-        let mut state: *mut c_void = std::ptr::null_mut();
-        // SAFETY: a live instance; the state is made, set and freed here.
-        unsafe {
-            let made = self.call(b"fmi2DeSerializeFMUstate\0", |f: Deserialize| {
-                f(self.instance, bytes.as_ptr(), bytes.len(), &mut state)
-            });
-            if status(made).is_err() {
-                return made;
-            }
-            let set = self.call(b"fmi2SetFMUstate\0", |f: StateIn| f(self.instance, state));
-            self.call(b"fmi2FreeFMUstate\0", |f: StateOut| f(self.instance, &mut state));
-            set
-        }
+        self.b.restore(bytes, &STATES)
     }
 }
 
@@ -224,9 +190,9 @@ impl Drop for Fmi2 {
     fn drop(&mut self) {
         // SAFETY: a live instance, terminated and freed once.
         unsafe {
-            self.call(b"fmi2Terminate\0", |f: Simple| f(self.instance));
-            self.call(b"fmi2FreeInstance\0", |f: Free| {
-                f(self.instance);
+            self.b.call(b"fmi2Terminate\0", |f: Simple| f(self.b.instance));
+            self.b.call(b"fmi2FreeInstance\0", |f: Free| {
+                f(self.b.instance);
                 0
             });
         }

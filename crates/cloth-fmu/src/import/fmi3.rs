@@ -1,6 +1,6 @@
 //! FMI 3.0 co-simulation calls on a loaded FMU binary.
 
-use super::{Api, Log, Opened, collect, status};
+use super::{Api, Binary, ERROR, Log, Opened, StateCalls, collect, status};
 use crate::api::LogMessage;
 use cloth_cosim::VarType;
 use libloading::Library;
@@ -26,20 +26,21 @@ type Free = unsafe extern "C" fn(*mut c_void);
 type Get<T> = unsafe extern "C" fn(*mut c_void, *const u32, usize, *mut T, usize) -> i32;
 type Set<T> = unsafe extern "C" fn(*mut c_void, *const u32, usize, *const T, usize) -> i32;
 type DoStep = unsafe extern "C" fn(*mut c_void, f64, f64, bool, *mut bool, *mut bool, *mut bool, *mut f64) -> i32;
-type StateOut = unsafe extern "C" fn(*mut c_void, *mut *mut c_void) -> i32;
-type StateIn = unsafe extern "C" fn(*mut c_void, *mut c_void) -> i32;
-type StateSize = unsafe extern "C" fn(*mut c_void, *mut c_void, *mut usize) -> i32;
-type Serialize = unsafe extern "C" fn(*mut c_void, *mut c_void, *mut u8, usize) -> i32;
-type Deserialize = unsafe extern "C" fn(*mut c_void, *const u8, usize, *mut *mut c_void) -> i32;
 
 /// A live FMI 3.0 instance and the library it came from.
-pub(super) struct Fmi3 {
-    instance: *mut c_void,
-    library: Library,
-}
+/// FMI 3.0's state functions.
+const STATES: StateCalls = StateCalls {
+    get: b"fmi3GetFMUState\0",
+    set: b"fmi3SetFMUState\0",
+    free: b"fmi3FreeFMUState\0",
+    size: b"fmi3SerializedFMUStateSize\0",
+    serialize: b"fmi3SerializeFMUState\0",
+    deserialize: b"fmi3DeserializeFMUState\0",
+};
 
-/// `fmi3Error`, for a function the binary does not export.
-const ERROR: i32 = 3;
+pub(super) struct Fmi3 {
+    b: Binary,
+}
 
 impl Fmi3 {
     /// Instantiates the co-simulation FMU in `library` as `name`, its
@@ -71,43 +72,33 @@ impl Fmi3 {
         if instance.is_null() {
             return Err("fmi3InstantiateCoSimulation returned no instance".into());
         }
-        Ok(Self { instance, library })
-    }
-
-    /// Calls the `T`-typed function `symbol` (NUL-terminated) with the
-    /// instance; `fmi3Error` when the binary lacks it.
-    fn call<T: Copy>(&self, symbol: &[u8], with: impl FnOnce(T) -> i32) -> i32 {
-        // SAFETY: FMI 3.0 gives each symbol named here the type `T` the caller asks for.
-        match unsafe { self.library.get::<T>(symbol) } {
-            Ok(f) => with(*f),
-            Err(_) => ERROR,
-        }
+        Ok(Self { b: Binary { instance, library } })
     }
 
     fn get_one<T: Copy + Default>(&self, symbol: &[u8], vr: u32) -> Result<T, i32> {
         let mut value = T::default();
         // SAFETY: a live instance, one value reference and one value.
-        let code = self.call(symbol, |f: Get<T>| unsafe { f(self.instance, &vr, 1, &mut value, 1) });
+        let code = self.b.call(symbol, |f: Get<T>| unsafe { f(self.b.instance, &vr, 1, &mut value, 1) });
         if code <= 1 { Ok(value) } else { Err(code) }
     }
 
     fn set_one<T: Copy>(&mut self, symbol: &[u8], vr: u32, value: T) -> i32 {
         // SAFETY: a live instance, one value reference and one value.
-        self.call(symbol, |f: Set<T>| unsafe { f(self.instance, &vr, 1, &value, 1) })
+        self.b.call(symbol, |f: Set<T>| unsafe { f(self.b.instance, &vr, 1, &value, 1) })
     }
 }
 
 impl Api for Fmi3 {
     fn initialize(&mut self) -> i32 {
         // SAFETY: a live instance.
-        let entered = self.call(b"fmi3EnterInitializationMode\0", |f: EnterInit| unsafe {
-            f(self.instance, false, 0.0, 0.0, false, 0.0)
+        let entered = self.b.call(b"fmi3EnterInitializationMode\0", |f: EnterInit| unsafe {
+            f(self.b.instance, false, 0.0, 0.0, false, 0.0)
         });
         if status(entered).is_err() {
             return entered;
         }
         // SAFETY: a live instance.
-        self.call(b"fmi3ExitInitializationMode\0", |f: Simple| unsafe { f(self.instance) })
+        self.b.call(b"fmi3ExitInitializationMode\0", |f: Simple| unsafe { f(self.b.instance) })
     }
 
     fn get(&self, ty: VarType, vr: u32) -> Result<f64, i32> {
@@ -150,8 +141,9 @@ impl Api for Fmi3 {
     fn get_string(&self, vr: u32) -> Result<String, i32> {
         let mut text: *const c_char = std::ptr::null();
         // SAFETY: a live instance, one value reference and one value.
-        let code =
-            self.call(b"fmi3GetString\0", |f: Get<*const c_char>| unsafe { f(self.instance, &vr, 1, &mut text, 1) });
+        let code = self
+            .b
+            .call(b"fmi3GetString\0", |f: Get<*const c_char>| unsafe { f(self.b.instance, &vr, 1, &mut text, 1) });
         status(code)?;
         // SAFETY: the FMU hands a NUL-terminated string valid until its next call.
         Ok(if text.is_null() { String::new() } else { unsafe { CStr::from_ptr(text) }.to_string_lossy().into_owned() })
@@ -168,46 +160,18 @@ impl Api for Fmi3 {
     fn do_step(&mut self, t: f64, h: f64) -> (i32, f64) {
         let (mut event, mut terminate, mut early, mut last) = (false, false, false, t);
         // SAFETY: a live instance, writable flags.
-        let code = self.call(b"fmi3DoStep\0", |f: DoStep| unsafe {
-            f(self.instance, t, h, false, &mut event, &mut terminate, &mut early, &mut last)
+        let code = self.b.call(b"fmi3DoStep\0", |f: DoStep| unsafe {
+            f(self.b.instance, t, h, false, &mut event, &mut terminate, &mut early, &mut last)
         });
         (code, last)
     }
 
     fn save(&self) -> Option<Vec<u8>> {
-        let mut state: *mut c_void = std::ptr::null_mut();
-        let mut size = 0usize;
-        // SAFETY: a live instance; the state is made, read and freed here.
-        unsafe {
-            let got = self.call(b"fmi3GetFMUState\0", |f: StateOut| f(self.instance, &mut state)) <= 1;
-            let sized = got
-                && self.call(b"fmi3SerializedFMUStateSize\0", |f: StateSize| f(self.instance, state, &mut size)) <= 1;
-            let mut bytes = vec![0u8; if sized { size } else { 0 }];
-            let written = sized
-                && self
-                    .call(b"fmi3SerializeFMUState\0", |f: Serialize| f(self.instance, state, bytes.as_mut_ptr(), size))
-                    <= 1;
-            if got {
-                self.call(b"fmi3FreeFMUState\0", |f: StateOut| f(self.instance, &mut state));
-            }
-            written.then_some(bytes)
-        }
+        self.b.save(&STATES)
     }
 
     fn restore(&mut self, bytes: &[u8]) -> i32 {
-        let mut state: *mut c_void = std::ptr::null_mut();
-        // SAFETY: a live instance; the state is made, set and freed here.
-        unsafe {
-            let made = self.call(b"fmi3DeserializeFMUState\0", |f: Deserialize| {
-                f(self.instance, bytes.as_ptr(), bytes.len(), &mut state)
-            });
-            if status(made).is_err() {
-                return made;
-            }
-            let set = self.call(b"fmi3SetFMUState\0", |f: StateIn| f(self.instance, state));
-            self.call(b"fmi3FreeFMUState\0", |f: StateOut| f(self.instance, &mut state));
-            set
-        }
+        self.b.restore(bytes, &STATES)
     }
 }
 
@@ -215,9 +179,9 @@ impl Drop for Fmi3 {
     fn drop(&mut self) {
         // SAFETY: a live instance, terminated and freed once.
         unsafe {
-            self.call(b"fmi3Terminate\0", |f: Simple| f(self.instance));
-            self.call(b"fmi3FreeInstance\0", |f: Free| {
-                f(self.instance);
+            self.b.call(b"fmi3Terminate\0", |f: Simple| f(self.b.instance));
+            self.b.call(b"fmi3FreeInstance\0", |f: Free| {
+                f(self.b.instance);
                 0
             });
         }

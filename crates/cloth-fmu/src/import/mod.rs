@@ -48,6 +48,82 @@ fn status(code: i32) -> Result<(), i32> {
     if code == 0 || code == 1 { Ok(()) } else { Err(code) }
 }
 
+type StateOut = unsafe extern "C" fn(*mut c_void, *mut *mut c_void) -> i32;
+type StateIn = unsafe extern "C" fn(*mut c_void, *mut c_void) -> i32;
+type StateSize = unsafe extern "C" fn(*mut c_void, *mut c_void, *mut usize) -> i32;
+type Serialize = unsafe extern "C" fn(*mut c_void, *mut c_void, *mut u8, usize) -> i32;
+type Deserialize = unsafe extern "C" fn(*mut c_void, *const u8, usize, *mut *mut c_void) -> i32;
+
+/// The six state functions of one FMI version, by symbol (NUL-terminated):
+/// FMI 3.0 and 2.0 give them the same types.
+struct StateCalls {
+    get: &'static [u8],
+    set: &'static [u8],
+    free: &'static [u8],
+    size: &'static [u8],
+    serialize: &'static [u8],
+    deserialize: &'static [u8],
+}
+
+/// A live instance and the library it came from: FMI functions called by
+/// symbol name.
+struct Binary {
+    instance: *mut c_void,
+    library: libloading::Library,
+}
+
+/// `fmi3Error` / `fmi2Error`, for a function the binary does not export.
+const ERROR: i32 = 3;
+
+impl Binary {
+    /// Calls the `T`-typed function `symbol` (NUL-terminated) through
+    /// `with`; an error status when the binary lacks it.
+    fn call<T: Copy>(&self, symbol: &[u8], with: impl FnOnce(T) -> i32) -> i32 {
+        // SAFETY: the FMI standard gives each symbol named in this module
+        // the type `T` its caller asks for.
+        match unsafe { self.library.get::<T>(symbol) } {
+            Ok(f) => with(*f),
+            Err(_) => ERROR,
+        }
+    }
+
+    /// The instance's state, got, serialised and freed (`None` when any
+    /// call fails).
+    fn save(&self, names: &StateCalls) -> Option<Vec<u8>> {
+        let mut state: *mut c_void = std::ptr::null_mut();
+        let mut size = 0usize;
+        // SAFETY: a live instance; the state is made, read and freed here.
+        unsafe {
+            let got = self.call(names.get, |f: StateOut| f(self.instance, &mut state)) <= 1;
+            let sized = got && self.call(names.size, |f: StateSize| f(self.instance, state, &mut size)) <= 1;
+            let mut bytes = vec![0u8; if sized { size } else { 0 }];
+            let written = sized
+                && self.call(names.serialize, |f: Serialize| f(self.instance, state, bytes.as_mut_ptr(), size)) <= 1;
+            if got {
+                self.call(names.free, |f: StateOut| f(self.instance, &mut state));
+            }
+            written.then_some(bytes)
+        }
+    }
+
+    /// Sets the state serialised as `bytes`; the status of the first call
+    /// that failed, or of the set.
+    fn restore(&mut self, bytes: &[u8], names: &StateCalls) -> i32 {
+        let mut state: *mut c_void = std::ptr::null_mut();
+        // SAFETY: a live instance; the state is made, set and freed here.
+        unsafe {
+            let made = self
+                .call(names.deserialize, |f: Deserialize| f(self.instance, bytes.as_ptr(), bytes.len(), &mut state));
+            if status(made).is_err() {
+                return made;
+            }
+            let set = self.call(names.set, |f: StateIn| f(self.instance, state));
+            self.call(names.free, |f: StateOut| f(self.instance, &mut state));
+            set
+        }
+    }
+}
+
 /// What instantiation needs, whatever the version.
 struct Opened {
     name: String,
