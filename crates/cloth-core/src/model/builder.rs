@@ -331,6 +331,31 @@ edge = "i_min"
         assert!(sag > 0.01, "lowest point only {sag} m below the pins");
     }
 
+    /// A wrapped panel's surface triangles face away from its axis, whatever
+    /// its axes, so a skirt's outside is drawn as its front; a flat panel's
+    /// face along `u x v`.
+    #[test]
+    fn a_wrapped_panels_triangles_face_out() {
+        for (u, v) in [([1.0, 0.0, 0.0], [0.0, 0.0, -1.0]), ([0.0, 1.0, 0.0], [0.0, 0.0, 1.0])] {
+            let panel = GridPanel::flat([12, 4], [1.0, 0.3]).axes(u, v).origin([0.2, -0.1, 1.0]).wrapped();
+            let model = ClothModel::builder().panel(panel).build().unwrap();
+            let (x, axis) = (model.rest_positions(), Vec3::from(v));
+            for t in model.triangles() {
+                let [a, b, c] = t.map(|k| x[k as usize]);
+                let centroid = (a + b + c) / 3.0;
+                let rel = centroid - Vec3::new(0.2, -0.1, 1.0);
+                let radial = rel - axis * axis.dot(&rel);
+                assert!((b - a).cross(&(c - a)).dot(&radial) > 0.0, "{t:?} faces the axis");
+            }
+        }
+        let flat = ClothModel::builder().grid([3, 3], [1.0, 1.0]).build().unwrap();
+        let x = flat.rest_positions();
+        for t in flat.triangles() {
+            let [a, b, c] = t.map(|k| x[k as usize]);
+            assert!((b - a).cross(&(c - a)).z > 0.0);
+        }
+    }
+
     #[test]
     fn a_bad_panel_built_in_code_names_its_field() {
         let err = ClothModel::builder().grid([1, 5], [1.0, 1.0]).build().unwrap_err();

@@ -338,7 +338,11 @@ impl ClothModel {
                     }
                 }
             }
-            triangles.extend(mesh.triangles.iter().map(|t| t.map(at)));
+            // A wrapped panel's cells wind inward (u x v points at the
+            // axis): its surface triangles are turned to face out, so the
+            // outside of a skirt is its front.
+            let outward = |t: &[u32; 3]| if panel.wrap_u { [t[0], t[2], t[1]] } else { *t };
+            triangles.extend(mesh.triangles.iter().map(|t| outward(t).map(at)));
             mass.extend(mesh.area_share.iter().map(|a| a * spec.material.areal_density_kg_m2));
             if spec.effects.drag {
                 drag.extend(mesh.area_share.iter().map(|a| a * spec.material.drag_n_s_m3));
