@@ -120,8 +120,10 @@ fn newton_drapes_a_sphere_at_large_steps() {
          {final_stretch:.4}, closest to the ball {clearance:.2e} m, top at {top:.5} m"
     );
     assert!(single_peak > 2.0, "the single step no longer overstretches ({single_peak}): update this test");
-    // Measured 1.083 (the cloth wrapping the ball), 1.029 at rest.
-    assert!(peak < 1.09 && final_stretch < 1.03, "stretch {peak} (peak), {final_stretch} (final)");
+    // Measured 1.112 (the cloth wrapping the ball), 1.027 at rest (before
+    // continuous collision detection held the particles whose 20 cm steps
+    // cross the ball on its near side: 1.083 and 1.029).
+    assert!(peak < 1.12 && final_stretch < 1.03, "stretch {peak} (peak), {final_stretch} (final)");
     // Measured 2.50 mm: nothing nearer than half the 5 mm thickness.
     assert!(clearance > 2.4e-3, "a particle {clearance} m from the ball");
     // On the offset surface (0.3 m + 5 mm), sunk g h^2 / 1000 = 0.4 mm into it.
@@ -535,7 +537,8 @@ fn a_restored_snapshot_starts_a_new_energy_window() {
 /// for the material (`k h^2 / m` above `AUTO_NEWTON_MIN_K_H2_M`, and the
 /// first step's tension misjudged by more than `auto_trigger`) and takes
 /// Newton iterations from then on; each ends where small steps do
-/// (measured: 1.1189, 1.0002, 1.0282 against 1.1191, 1.0003, 1.0186). At
+/// (measured: 1.1189, 1.0002, 1.0315 against 1.1191, 1.0003, 1.0186; the
+/// drape was 1.0282 before continuous collision detection). At
 /// h = 1/90 s the fixtures never check (`k h^2 / m` 395).
 #[test]
 #[ignore = "slow tier: cargo test --release -- --ignored"]
@@ -560,7 +563,7 @@ fn defaults_hold_at_large_steps() {
             "{scene} {extra:?} at h = {h} s: final stretch {stretch:.4} (h = 1/90 s: {small_step}), {automatic} steps with Newton"
         );
         assert!(sim.state().newton_engaged && automatic > 0, "{scene}: Newton not engaged");
-        assert!(stretch < small_step + 0.011, "{scene}: stretch {stretch} against {small_step} at small steps");
+        assert!(stretch < small_step + 0.014, "{scene}: stretch {stretch} against {small_step} at small steps");
         if extra.is_empty() {
             // The fixture's own material at its own step is not even checked.
             let at_small = cloth_core::AUTO_NEWTON_MIN_K_H2_M / sim.model().stiffest_per_mass();

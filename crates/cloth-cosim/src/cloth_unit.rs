@@ -14,14 +14,13 @@
 //!   drives any piecewise-linear motion exactly;
 //! - inputs, per externally driven solid `k`: `solid{k}.position.{x,y,z}`
 //!   (m) and `solid{k}.rotation.{x,y,z}` (rotation vector, rad) at the
-//!   end of the step, `solid{k}.velocity.{x,y,z}` (m/s) and
-//!   `solid{k}.angular_velocity.{x,y,z}` (rad/s) over it; the solid reaches
-//!   that pose moving at those velocities, so it starts the step at
-//!   `position - velocity h`, turned back by `angular_velocity h` (what a
-//!   rigid-body integrator's symplectic Euler step does). End values, like
-//!   the pins' targets, so an iterated master converges to a consistent
-//!   motion and a Gauss-Seidel master that steps the bodies first hands the
-//!   cloth exactly where they went;
+//!   communication point, and `solid{k}.velocity.{x,y,z}` (m/s) and
+//!   `solid{k}.angular_velocity.{x,y,z}` (rad/s) over the step: the solid
+//!   moves on from that pose at those velocities. A unit fed by a
+//!   rigid-body unit stepped before it (a Gauss-Seidel or iterated master
+//!   over rapier) takes the pose at the end of the step instead
+//!   ([`ClothUnit::with_solids_at_step_end`]): the solid reaches it moving
+//!   at the velocities, as a symplectic Euler step does;
 //! - inputs, when the scene's wind is external (`[wind] profile = { kind =
 //!   "external" }`): `wind.velocity.{x,y,z}`, the air velocity over the
 //!   step (m/s);
@@ -105,6 +104,8 @@ pub struct ClothUnit {
     loads: Vec<Vec3>,
     /// Largest internal step, s ([`ClothUnit::with_max_step`]).
     max_step_s: f64,
+    /// Solid poses are the step's end ([`ClothUnit::with_solids_at_step_end`]).
+    solids_at_step_end: bool,
 }
 
 const AXES: [&str; 3] = ["x", "y", "z"];
@@ -130,13 +131,19 @@ const PIN_INPUTS: [VectorKind; 2] = [
 const WIND_INPUT: VectorKind =
     (Quantity::WindVelocity, "velocity", Causality::Input, "m/s", "air velocity over the step (external wind)");
 const SOLID_INPUTS: [VectorKind; 4] = [
-    (Quantity::SolidPosition, "position", Causality::Input, "m", "solid frame origin at the end of the step"),
+    (
+        Quantity::SolidPosition,
+        "position",
+        Causality::Input,
+        "m",
+        "solid frame origin at the communication point (the step's end if so built)",
+    ),
     (
         Quantity::SolidRotation,
         "rotation",
         Causality::Input,
         "rad",
-        "solid orientation (rotation vector) at the end of the step",
+        "solid orientation (rotation vector) at the communication point (the step's end if so built)",
     ),
     (Quantity::SolidVelocity, "velocity", Causality::Input, "m/s", "velocity of the solid frame origin"),
     (Quantity::SolidAngularVelocity, "angular_velocity", Causality::Input, "rad/s", "angular velocity of the solid"),
@@ -265,6 +272,7 @@ impl ClothUnit {
             previous_h: f64::NAN,
             loads: Vec::new(),
             max_step_s: f64::INFINITY,
+            solids_at_step_end: false,
         };
         unit.update_shape_outputs();
         unit
@@ -276,6 +284,15 @@ impl ClothUnit {
     /// positive: no substeps.
     pub fn with_max_step(mut self, max_step_s: f64) -> Self {
         self.max_step_s = if max_step_s.is_finite() && max_step_s > 0.0 { max_step_s } else { f64::INFINITY };
+        self
+    }
+
+    /// The same unit taking each solid's pose inputs as where the solid is
+    /// at the end of the step, not at the communication point: for a unit
+    /// fed by a rigid-body unit that a master steps first (rapier under a
+    /// Gauss-Seidel or iterated master), whose outputs are its end poses.
+    pub fn with_solids_at_step_end(mut self) -> Self {
+        self.solids_at_step_end = true;
         self
     }
 
@@ -432,7 +449,7 @@ impl ClothUnit {
             let rotation = UnitQuaternion::from_scaled_axis(get(Quantity::SolidRotation));
             let pose = BodyPose { position: get(Quantity::SolidPosition), rotation };
             let motion = SolidMotion {
-                time_s: t + h,
+                time_s: if self.solids_at_step_end { t + h } else { t },
                 pose,
                 linear_velocity: get(Quantity::SolidVelocity),
                 angular_velocity: get(Quantity::SolidAngularVelocity),
