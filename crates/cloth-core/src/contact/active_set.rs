@@ -73,7 +73,7 @@ pub(crate) fn add_penetrating(
             if clear && lipschitz {
                 continue;
             }
-            let reach = reach_surface(c, (next, h), x[i], new_x[i], limit, &mut 0);
+            let reach = reach_surface(c, (next, h), x[i], new_x[i], (limit, true), &mut 0);
             if lipschitz {
                 beyond = beyond.min(reach.distance_at_least());
             }

@@ -267,14 +267,14 @@ fn a_particle_swept_over_by_a_moving_solid_leaves_by_the_face_that_swept_it() {
     };
     let (now, next) = (posed(0.0), posed(0.01));
     let (from, to) = (Vec3::new(0.06, 0.0, 0.035), Vec3::new(0.04, 0.0, 0.047));
-    let (at, side) = reach_surface(&collider, (&next, 0.01), from, to, 0.0025, &mut 0).within().unwrap();
+    let (at, side) = reach_surface(&collider, (&next, 0.01), from, to, (0.0025, true), &mut 0).within().unwrap();
     assert!((at.normal - Vec3::z()).norm() < 1e-12, "the top face is nearest the end: {at:?}");
     assert!((side.normal - Vec3::x()).norm() < 1e-12, "{side:?}");
     assert!((side.point - Vec3::new(0.07, 0.0, 0.035)).norm() < 1e-12, "{side:?}");
     // A solid at rest never sweeps: a particle inside it keeps the nearest face.
     let still = crate::Collider { motion: crate::PinMotion::Fixed, ..collider.clone() };
     let (at, side) =
-        reach_surface(&still, (&now, 0.01), Vec3::new(0.04, 0.0, 0.035), to, 0.0025, &mut 0).within().unwrap();
+        reach_surface(&still, (&now, 0.01), Vec3::new(0.04, 0.0, 0.035), to, (0.0025, true), &mut 0).within().unwrap();
     assert_eq!(at, side);
 }
 

@@ -34,7 +34,8 @@ pub(crate) fn penalty_contacts(
             // choosing the face a solid swept over the start position
             // stretched the ball-through-curtain's Newton steps to 1.153
             // (1.109 with the face nearest the iterate).
-            let Some((at, side)) = reach_surface(c, (next, 0.0), x[i], x_iter[i], thickness, &mut 0).within() else {
+            let Some((at, side)) = reach_surface(c, (next, 0.0), x[i], x_iter[i], (thickness, false), &mut 0).within()
+            else {
                 continue;
             };
             let plane = if at.distance_m >= 0.0 { at } else { side };
@@ -86,7 +87,8 @@ pub(crate) fn penalty_watch(
             if touching {
                 continue;
             }
-            let Some((_, side)) = reach_surface(c, (next, 0.0), x_iter[i], end, thickness, &mut 0).within() else {
+            let Some((_, side)) = reach_surface(c, (next, 0.0), x_iter[i], end, (thickness, false), &mut 0).within()
+            else {
                 continue;
             };
             let gap = side.normal.dot(&(x_iter[i] - side.point));

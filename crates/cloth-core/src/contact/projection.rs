@@ -31,7 +31,8 @@ pub(crate) fn project_out(
     let mut fix = |i: usize| {
         let mut changed = false;
         for (c, next) in model.colliders().iter().zip(solids_next) {
-            let Some((_, surface)) = reach_surface(c, (next, h), x[i], new_x[i], 0.5 * thickness, &mut 0).within()
+            let Some((_, surface)) =
+                reach_surface(c, (next, h), x[i], new_x[i], (0.5 * thickness, false), &mut 0).within()
             else {
                 continue;
             };
@@ -104,7 +105,8 @@ pub(crate) fn collide_after_step(
             let mut slot = 0;
             for (k, (c, (now, next))) in model.colliders().iter().zip(solids_now.iter().zip(solids_next)).enumerate() {
                 let Some((_, surface)) =
-                    reach_surface(c, (next, h), x[i], *xi, thickness, &mut stats.narrow_phase_queries).within()
+                    reach_surface(c, (next, h), x[i], *xi, (thickness, false), &mut stats.narrow_phase_queries)
+                        .within()
                 else {
                     continue;
                 };
