@@ -137,8 +137,7 @@ impl Builder {
         size_m: [f64; 2],
         origin_m: [f64; 3],
     ) -> PyRefMut<'_, Self> {
-        let b = std::mem::take(&mut slf.inner);
-        slf.inner = b.panel(GridPanel::flat(particles, size_m).origin(origin_m));
+        slf.inner = std::mem::take(&mut slf.inner).panel(GridPanel::flat(particles, size_m).origin(origin_m));
         slf
     }
 
@@ -161,37 +160,32 @@ impl Builder {
         }
         let material: Material =
             table.try_into().map_err(|e: toml::de::Error| ModelError::new_err(format!("material: {}", e.message())))?;
-        let b = std::mem::take(&mut slf.inner);
-        slf.inner = b.material(material);
+        slf.inner = std::mem::take(&mut slf.inner).material(material);
         Ok(slf)
     }
 
     /// The model: `"choi-ko"` (default), `"provot"` or `"volino"`.
     fn kind(mut slf: PyRefMut<'_, Self>, kind: String) -> PyResult<PyRefMut<'_, Self>> {
         let kind: ModelKind = named("model kind", &kind)?;
-        let b = std::mem::take(&mut slf.inner);
-        slf.inner = b.kind(kind);
+        slf.inner = std::mem::take(&mut slf.inner).kind(kind);
         Ok(slf)
     }
 
     /// Gravity, m/s^2.
     fn gravity(mut slf: PyRefMut<'_, Self>, g_m_s2: [f64; 3]) -> PyRefMut<'_, Self> {
-        let b = std::mem::take(&mut slf.inner);
-        slf.inner = b.gravity(g_m_s2);
+        slf.inner = std::mem::take(&mut slf.inner).gravity(g_m_s2);
         slf
     }
 
     /// Switches bending on.
     fn bending(mut slf: PyRefMut<'_, Self>) -> PyRefMut<'_, Self> {
-        let b = std::mem::take(&mut slf.inner);
-        slf.inner = b.bending();
+        slf.inner = std::mem::take(&mut slf.inner).bending();
         slf
     }
 
     /// Switches damping on.
     fn damping(mut slf: PyRefMut<'_, Self>) -> PyRefMut<'_, Self> {
-        let b = std::mem::take(&mut slf.inner);
-        slf.inner = b.damping();
+        slf.inner = std::mem::take(&mut slf.inner).damping();
         slf
     }
 
@@ -199,15 +193,13 @@ impl Builder {
     /// `"j-min"`, `"j-max"`).
     fn pin_edge(mut slf: PyRefMut<'_, Self>, panel: usize, edge: String) -> PyResult<PyRefMut<'_, Self>> {
         let edge: Edge = named("edge", &edge)?;
-        let b = std::mem::take(&mut slf.inner);
-        slf.inner = b.pin_edge(panel, edge);
+        slf.inner = std::mem::take(&mut slf.inner).pin_edge(panel, edge);
         Ok(slf)
     }
 
     /// Pins nodes `(i, j)` of panel `panel`.
     fn pin_nodes(mut slf: PyRefMut<'_, Self>, panel: usize, nodes: Vec<[usize; 2]>) -> PyRefMut<'_, Self> {
-        let b = std::mem::take(&mut slf.inner);
-        slf.inner = b.pin_nodes(panel, nodes);
+        slf.inner = std::mem::take(&mut slf.inner).pin_nodes(panel, nodes);
         slf
     }
 
