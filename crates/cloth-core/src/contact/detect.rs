@@ -328,7 +328,8 @@ pub(crate) fn reach_surface(
     } else {
         next.box_distance(&to)
     };
-    match crossing(c, (next, h), from, to, limit, queries).filter(|_| cast_path) {
+    let crossed = if cast_path { crossing(c, (next, h), from, to, limit, queries) } else { None };
+    match crossed {
         Some((past, entry)) => Reach::Within(past, entry),
         None => Reach::Beyond { distance_m },
     }
