@@ -1,9 +1,9 @@
 //! `cloth export OUT_DIR`: a recorded run (`cloth run --frames N`) as one
 //! binary glTF file (see [`crate::gltf`] for what it holds and why).
 
-use crate::gltf::{Recording, SolidTrack, glb};
 use crate::view::Recorded;
 use anyhow::{Context, Result, bail};
+use cloth_tools::gltf::{Recording, SolidTrack, glb};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 

@@ -49,6 +49,10 @@ pub struct Recording<'a> {
 /// simulation's z-up to glTF's y-up.
 const Z_UP_TO_Y_UP: [f64; 4] = [-std::f64::consts::FRAC_1_SQRT_2, 0.0, 0.0, std::f64::consts::FRAC_1_SQRT_2];
 
+/// Half of f32's largest value: coordinates within it, and the
+/// differences of two of them, are finite in f32.
+const F32_HALF_MAX: f64 = f32::MAX as f64 / 2.0;
+
 const ARRAY_BUFFER: u32 = 34962;
 const ELEMENT_ARRAY_BUFFER: u32 = 34963;
 const FLOAT: u32 = 5126;
@@ -111,7 +115,8 @@ fn flat(points: &[[f64; 3]]) -> Vec<f32> {
     points.iter().flatten().map(|c| *c as f32).collect()
 }
 
-/// Checks what glTF cannot hold: no frames, frames of different sizes,
+/// Checks what glTF cannot hold: no frames, no particles or triangles,
+/// frames of different sizes, values beyond f32,
 /// times that are not strictly increasing as f32, indices out of range.
 fn check(rec: &Recording<'_>) -> Result<()> {
     let Some(first) = rec.frames.first() else { bail!("no frames to export") };
@@ -129,6 +134,10 @@ fn check(rec: &Recording<'_>) -> Result<()> {
             rec.times[k + 1]
         );
     }
+    // glTF's accessors and buffer views hold at least one element.
+    if first.is_empty() || rec.triangles.is_empty() {
+        bail!("the cloth has {} particles and {} triangles: glTF needs one of each", first.len(), rec.triangles.len());
+    }
     if rec.triangles.iter().flatten().any(|&i| i as usize >= first.len()) {
         bail!("a cloth triangle names a particle beyond the {} of the frames", first.len());
     }
@@ -140,9 +149,20 @@ fn check(rec: &Recording<'_>) -> Result<()> {
             bail!("solid {s}: a triangle names a vertex beyond its {}", solid.vertices.len());
         }
     }
-    if rec.frames.iter().flatten().chain(rec.solids.iter().flat_map(|s| &s.vertices)).flatten().any(|c| !c.is_finite())
-    {
-        bail!("a position is not finite");
+    // glTF stores f32: positions, the morph targets' displacements between
+    // them, times and poses must all be finite there.
+    let fits = |c: &f64| c.abs() <= F32_HALF_MAX;
+    if let Some(k) = rec.frames.iter().position(|f| !f.iter().flatten().all(fits)) {
+        bail!("frame {k}: a position is not finite or beyond {F32_HALF_MAX:e} m (glTF stores f32)");
+    }
+    if let Some(s) = rec.solids.iter().position(|s| !s.vertices.iter().flatten().all(fits)) {
+        bail!("solid {s}: a vertex is not finite or beyond {F32_HALF_MAX:e} m (glTF stores f32)");
+    }
+    if let Some(s) = rec.solids.iter().position(|s| !s.poses.iter().flatten().all(fits)) {
+        bail!("solid {s}: a pose is not finite or beyond {F32_HALF_MAX:e} (glTF stores f32)");
+    }
+    if let Some(k) = rec.times.iter().position(|t| !fits(t)) {
+        bail!("frame {k}: time {} s is not finite or beyond {F32_HALF_MAX:e} s (glTF stores f32)", rec.times[k]);
     }
     Ok(())
 }
@@ -272,9 +292,22 @@ mod tests {
         };
         assert!(rec(&times, &triangles).is_ok());
         assert!(rec(&times, &[[0, 1, 4]]).unwrap_err().contains("beyond the 4"));
+        assert!(rec(&times, &[]).unwrap_err().contains("4 particles and 0 triangles"));
         times[2] = times[1] + 1e-12;
         assert!(rec(&times, &triangles).unwrap_err().contains("not distinct"));
         assert!(rec(&times[..2], &triangles).unwrap_err().contains("2 frame times for 3 frames"));
+        times[2] = f64::NAN;
+        assert!(rec(&times, &triangles).unwrap_err().contains("frame 2: time NaN s is not finite"));
+        // Found by `cloth-fuzz`: finite in f64, infinite as glTF's f32 min/max.
+        let (times, mut far) = square(2);
+        far[1][3][0] = 1e300;
+        let far = glb(&Recording { times: &times, triangles: &triangles, frames: &far, solids: &[] });
+        assert!(far.unwrap_err().to_string().contains("frame 1: a position is not finite or beyond"));
+        let solid =
+            SolidTrack { vertices: vec![[0.0; 3]; 3], triangles: vec![[0, 1, 2]], poses: vec![[f64::NAN; 7]; 2] };
+        let (times, frames) = square(2);
+        let posed = glb(&Recording { times: &times, triangles: &triangles, frames: &frames, solids: &[solid] });
+        assert!(posed.unwrap_err().to_string().contains("solid 0: a pose is not finite"));
     }
 
     #[test]

@@ -1,7 +1,8 @@
 //! The `cloth` tool's library part: the hard-case suite, shared by
-//! `cloth study stability` and this crate's `stability` test, and the
-//! studies' CSV tables.
+//! `cloth study stability` and this crate's `stability` test, the
+//! studies' CSV tables, and the glTF writer (fuzzed by `cloth-fuzz`).
 
+pub mod gltf;
 pub mod stability;
 pub mod table;
 

@@ -3,7 +3,6 @@
 mod bench;
 mod export;
 mod fmu;
-mod gltf;
 mod live;
 mod output;
 mod regress;
