@@ -148,6 +148,10 @@ compare("mesh", simulate_fmu(mesh, stop_time=T, output_interval=H), run_summary(
 result = simulate_fmu(mesh, stop_time=T, output_interval=H, start_values={"gravity.z": -5.0})
 compare("mesh, gravity 5 m/s^2", result, run_summary("drape-mesh.toml", [*MESH, "simulation.gravity_m_s2=[0.0, 0.0, -5.0]"], "mesh-g5"))
 
+# So is damping: as a start value it is the scene's material damping changed.
+result = simulate_fmu(mesh, stop_time=T, output_interval=H, start_values={"damping": 2.0})
+compare("mesh, damping 2 N s/m", result, run_summary("drape-mesh.toml", [*MESH, "material.damping_n_s_m=2.0"], "mesh-d2"))
+
 # Array outputs: every particle's position, recorded by FMPy as an
 # (particles, 3) array per communication point; its lowest z is the
 # lowest_z output, exactly.

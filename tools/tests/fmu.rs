@@ -96,5 +96,5 @@ fn fmpy_validates_simulates_and_restores_the_fmus() {
     let stdout = String::from_utf8_lossy(&output.stdout);
     println!("{stdout}");
     assert!(output.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&output.stderr));
-    assert!(stdout.contains("fmu: 18 passed, 0 failed"), "{stdout}");
+    assert!(stdout.contains("fmu: 19 passed, 0 failed"), "{stdout}");
 }

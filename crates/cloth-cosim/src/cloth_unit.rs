@@ -37,8 +37,11 @@
 //!   (m/s^2, from the scene's; a change acts as the force `m_i (g - g_scene)`
 //!   on every particle, a constant load the step takes like any other), and,
 //!   when the scene has wind, `wind_scale` (1: a factor on the air's
-//!   velocity, an outside field).
-//!   Damping is not tunable: it is part of every link's law and matrix.
+//!   velocity, an outside field), and, for a unit that can rebuild its
+//!   model ([`ClothUnit::with_tunable_damping`]), `damping` (N s/m, the
+//!   material's `damping_n_s_m`): a change puts the model rebuilt with it
+//!   in place before the next step ([`Simulation::replace_model`]), so
+//!   the run goes on as one built with that damping from there.
 //!
 //! A step longer than the unit's largest internal step
 //! ([`ClothUnit::with_max_step`]; none by default) is taken as equal
@@ -52,7 +55,7 @@
 //! (also when a later substep fails).
 
 use crate::unit::{Causality, StepOutcome, Unit, UnitError, UnitState, ValueRef, Variable, bytes, settable};
-use cloth_core::{BodyPose, ClothState, Simulation, SolidMotion, Vec3, wind::WindProfile};
+use cloth_core::{BodyPose, ClothModel, ClothState, Simulation, SolidMotion, Vec3, wind::WindProfile};
 use nalgebra::UnitQuaternion;
 
 /// What a variable of the cloth unit stands for.
@@ -74,6 +77,23 @@ enum Quantity {
     MaxStretch,
     Gravity,
     WindScale,
+    Damping,
+}
+
+/// Builds the unit's model again with another material damping (N s/m).
+pub type ModelWithDamping = Box<dyn Fn(f64) -> Result<ClothModel, String> + Send>;
+
+/// The tunable damping: how to rebuild, and the damping the simulation's
+/// model was built with.
+struct TunableDamping {
+    rebuild: ModelWithDamping,
+    built_n_s_m: f64,
+}
+
+impl std::fmt::Debug for TunableDamping {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("TunableDamping").field("built_n_s_m", &self.built_n_s_m).finish_non_exhaustive()
+    }
 }
 
 /// A variable's quantity, for pin or solid `item`, component `axis` (0 for scalars).
@@ -106,6 +126,8 @@ pub struct ClothUnit {
     max_step_s: f64,
     /// Solid poses are the step's end ([`ClothUnit::with_solids_at_step_end`]).
     solids_at_step_end: bool,
+    /// The `damping` parameter's model ([`ClothUnit::with_tunable_damping`]).
+    damping: Option<TunableDamping>,
 }
 
 const AXES: [&str; 3] = ["x", "y", "z"];
@@ -273,6 +295,7 @@ impl ClothUnit {
             loads: Vec::new(),
             max_step_s: f64::INFINITY,
             solids_at_step_end: false,
+            damping: None,
         };
         unit.update_shape_outputs();
         unit
@@ -284,6 +307,30 @@ impl ClothUnit {
     /// positive: no substeps.
     pub fn with_max_step(mut self, max_step_s: f64) -> Self {
         self.max_step_s = if max_step_s.is_finite() && max_step_s > 0.0 { max_step_s } else { f64::INFINITY };
+        self
+    }
+
+    /// The same unit with the tunable parameter `damping` (N s/m), starting
+    /// at `damping_n_s_m`, the damping its model was built with: `rebuild`
+    /// builds the model again with another (the scene with its material's
+    /// `damping_n_s_m` changed). A scene without the damping effect gets no
+    /// parameter: its links have no dashpots to tune.
+    pub fn with_tunable_damping(
+        mut self,
+        damping_n_s_m: f64,
+        rebuild: impl Fn(f64) -> Result<ClothModel, String> + Send + 'static,
+    ) -> Self {
+        if !self.sim.model().effects().damping {
+            return self;
+        }
+        let description = "the material's damping from the next step on (the scene's to start)";
+        let var = Variable::new("damping", Causality::Parameter, "N.s/m", description).tunable();
+        self.vars.push(var.with_start(damping_n_s_m));
+        self.roles.push(Role { quantity: Quantity::Damping, item: 0, axis: 0 });
+        self.values.push(damping_n_s_m);
+        self.given.push(false);
+        self.previous.push(f64::NAN);
+        self.damping = Some(TunableDamping { rebuild: Box::new(rebuild), built_n_s_m: damping_n_s_m });
         self
     }
 
@@ -435,6 +482,15 @@ impl ClothUnit {
         if let Some(k) = self.roles.iter().position(|r| r.quantity == Quantity::WindScale) {
             self.sim.set_wind_scale(self.values[k]).map_err(refuse)?;
         }
+        if let (Some(k), Some(tunable)) =
+            (self.roles.iter().position(|r| r.quantity == Quantity::Damping), self.damping.as_mut())
+            && self.values[k].to_bits() != tunable.built_n_s_m.to_bits()
+        {
+            let failed = |message: String| UnitError::StepFailed { unit: self.name.clone(), time_s: t, message };
+            let model = (tunable.rebuild)(self.values[k]).map_err(|e| failed(format!("damping: {e}")))?;
+            self.sim.replace_model(model).map_err(|e| failed(format!("damping: {e}")))?;
+            tunable.built_n_s_m = self.values[k];
+        }
         // Gravity other than the scene's: the difference as a load m_i dg.
         let dg = self.input(Quantity::Gravity, 0) - model.effects().gravity.unwrap_or_else(Vec3::zeros);
         if dg == Vec3::zeros() {
@@ -537,6 +593,10 @@ impl Unit for ClothUnit {
     /// after it leaves it standing.
     fn set(&mut self, vr: ValueRef, value: f64) -> Result<(), UnitError> {
         settable(&self.name, &self.vars, vr, value)?;
+        if self.roles[vr].quantity == Quantity::Damping && value < 0.0 {
+            let (unit, name) = (self.name.clone(), self.vars[vr].name.clone());
+            return Err(UnitError::InvalidValue { unit, name, value, message: "must be >= 0".into() });
+        }
         self.values[vr] = value;
         self.given[vr] = self.roles[vr].quantity == Quantity::PinRate;
         Ok(())

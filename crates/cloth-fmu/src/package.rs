@@ -90,17 +90,25 @@ fn meshes(scene_path: &Path, scene: &Scene) -> Result<(Vec<Entry>, Vec<String>),
     Ok((entries, overrides))
 }
 
-/// The cloth unit of the scene at `path` with `overrides`, named `name`.
-pub(crate) fn unit_from_scene(path: &Path, overrides: &[String], name: &str) -> Result<ClothUnit, FmuError> {
+/// The cloth unit of the scene at `path` with `overrides`, named `name`,
+/// as an FMU instance builds it: substeps of at most the scene's `dt_s`,
+/// damping tunable.
+pub fn unit_from_scene(path: &Path, overrides: &[String], name: &str) -> Result<ClothUnit, FmuError> {
     unit_of(&load_scene(path, overrides)?, path, name)
 }
 
 /// The cloth unit of `scene` (read from `path`), named `name`, taking a
 /// communication step longer than the scene's `dt_s` as substeps of at
-/// most `dt_s`.
+/// most `dt_s`, its damping tunable (the scene built again with it).
 fn unit_of(scene: &Scene, path: &Path, name: &str) -> Result<ClothUnit, FmuError> {
     let (model, cfg) = scene.build().map_err(|kind| SceneError { file: path.to_path_buf(), kind })?;
-    Ok(ClothUnit::new(name, cfg.simulation(model)).with_max_step(cfg.dt_s))
+    let (damping, base) = (scene.material.damping_n_s_m, scene.clone());
+    let rebuild = move |d: f64| {
+        let mut scene = base.clone();
+        scene.material.damping_n_s_m = d;
+        scene.build().map(|(model, _)| model).map_err(|e| e.to_string())
+    };
+    Ok(ClothUnit::new(name, cfg.simulation(model)).with_max_step(cfg.dt_s).with_tunable_damping(damping, rebuild))
 }
 
 /// What [`build_fmu`] wrote.

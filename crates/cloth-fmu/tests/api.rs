@@ -103,9 +103,7 @@ fn step(fmu: *mut c_void, t: f64, h: f64) -> Status {
 
 /// The cloth unit of the same scene, stepped directly.
 fn reference() -> ClothUnit {
-    let scene = cloth_core::scene::Scene::parse_file(&fixture(), &overrides()).unwrap();
-    let (model, cfg) = scene.build().unwrap();
-    ClothUnit::new("cloth", cfg.simulation(model))
+    cloth_fmu::package::unit_from_scene(&fixture(), &overrides(), "cloth").unwrap()
 }
 
 #[test]

@@ -42,9 +42,7 @@ fn fmu(name: &str) -> PathBuf {
 }
 
 fn native() -> ClothUnit {
-    let scene = cloth_core::scene::Scene::parse_file(&scene(), &overrides()).unwrap();
-    let (model, cfg) = scene.build().unwrap();
-    ClothUnit::new("cloth", cfg.simulation(model))
+    cloth_fmu::package::unit_from_scene(&scene(), &overrides(), "cloth").unwrap()
 }
 
 /// The cloth hanging from a 0.5 kg mass on a 50 N/m spring (unit A of the
@@ -142,10 +140,8 @@ fn a_mesh_solid_travels_in_the_fmu() {
     let pillow = std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/meshes/pillow.obj")).unwrap();
     assert!(entries.iter().any(|(name, data)| name == "resources/meshes/0-pillow.obj" && *data == pillow));
     let mut fmu = FmuUnit::load(&built.path, "cloth").unwrap();
-    let native = cloth_core::scene::Scene::parse_file(&scene, &overrides).unwrap();
-    let (model, cfg) = native.build().unwrap();
-    let mut native = ClothUnit::new("cloth", cfg.simulation(model));
-    let h = cfg.dt_s;
+    let mut native = cloth_fmu::package::unit_from_scene(&scene, &overrides, "cloth").unwrap();
+    let h = 1.0 / 90.0;
     for n in 0..30 {
         fmu.do_step(n as f64 * h, h).unwrap();
         native.do_step(n as f64 * h, h).unwrap();

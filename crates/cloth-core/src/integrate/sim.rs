@@ -102,6 +102,21 @@ impl Simulation {
         }
     }
 
+    /// Puts `model` in place of the simulation's between steps, keeping the
+    /// state, the controls and the solver's workspace: for constants that
+    /// change during a run (a material's damping, tuned from outside). A
+    /// model of another structure is refused
+    /// ([`ClothModel::structure_differs`]). Stepping on is then the run
+    /// that restores this state into a simulation built with `model`.
+    pub fn replace_model(&mut self, model: impl Into<Arc<ClothModel>>) -> Result<(), StepError> {
+        let model = model.into();
+        if let Some(what) = self.model.structure_differs(&model) {
+            return Err(StepError::ModelMismatch(what));
+        }
+        self.model = model;
+        Ok(())
+    }
+
     /// Advances by `h` seconds, then applies the model's deformation
     /// constraints if it has them and closes the stitches whose gaps have
     /// closed. On error the state is unchanged.

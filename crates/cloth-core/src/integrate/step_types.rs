@@ -522,6 +522,10 @@ pub enum StepError {
         /// Flags in the state.
         got: usize,
     },
+    /// A model put in place of the simulation's differs in more than its
+    /// constants ([`crate::Simulation::replace_model`]).
+    #[error("the new model differs in its {0}: only its constants may change between steps")]
+    ModelMismatch(&'static str),
 }
 
 /// Scratch space of the integrators, sized once per model.

@@ -544,6 +544,46 @@ impl ClothModel {
         &self.extra_terms
     }
 
+    /// What `other` differs in beyond its constants, if anything: the
+    /// particles (count, masses, rest shape), links and their rest lengths,
+    /// stitches, pins, solids, elements and effects must all be the same for
+    /// a running simulation to take it in place of this one between steps
+    /// (its state, contacts and solver's structure then still fit).
+    pub fn structure_differs(&self, other: &ClothModel) -> Option<&'static str> {
+        let bits = |a: &[f64], b: &[f64]| a.iter().map(|v| v.to_bits()).eq(b.iter().map(|v| v.to_bits()));
+        let points = |a: &[Vec3], b: &[Vec3]| {
+            a.iter()
+                .flat_map(|p| p.iter())
+                .map(|v| v.to_bits())
+                .eq(b.iter().flat_map(|p| p.iter()).map(|v| v.to_bits()))
+        };
+        let e = (&self.elements, &other.elements);
+        if !bits(&self.mass, &other.mass) {
+            Some("particles or masses")
+        } else if !points(&self.rest_positions, &other.rest_positions) {
+            Some("rest shape")
+        } else if self.link_count() != other.link_count()
+            || (0..self.link_count()).any(|k| self.link_ends(k) != other.link_ends(k))
+            || !self.stretch.iter().zip(&other.stretch).all(|(a, b)| a.rest.to_bits() == b.rest.to_bits())
+        {
+            Some("links")
+        } else if self.stitches().len() != other.stitches().len() {
+            Some("stitches")
+        } else if !self.pins.iter().map(|p| p.particle).eq(other.pins.iter().map(|p| p.particle)) {
+            Some("pins")
+        } else if self.colliders().len() != other.colliders().len() {
+            Some("solids")
+        } else if (e.0.membranes.len(), e.0.curvatures.len(), e.0.triples.len(), e.0.hinges.len())
+            != (e.1.membranes.len(), e.1.curvatures.len(), e.1.triples.len(), e.1.hinges.len())
+        {
+            Some("elements")
+        } else if self.effects() != other.effects() {
+            Some("effects")
+        } else {
+            None
+        }
+    }
+
     /// Number of particles.
     pub fn particle_count(&self) -> usize {
         self.mass.len()
