@@ -62,7 +62,7 @@ fn parse_unguarded(bytes: &[u8], path: &Path, name: Option<&str>) -> Result<Surf
             }
         }
     };
-    let transform = world_transform(&gltf, mesh.index());
+    let transform = world_transform(&gltf, mesh.index()).map_err(|e| format!("{}: {e}", path.display()))?;
     let mut out = SurfaceMesh::default();
     let mut welded: HashMap<[u32; 3], u32> = HashMap::new();
     for primitive in mesh.primitives() {
@@ -144,20 +144,41 @@ fn buffer_data(gltf: &gltf::Gltf, buffer: &gltf::Buffer<'_>, dir: &Path) -> Resu
 }
 
 /// The world transform of the first node showing mesh `mesh` (identity if
-/// no scene shows it).
-fn world_transform(gltf: &gltf::Gltf, mesh: usize) -> Matrix4<f64> {
-    fn search(node: gltf::Node<'_>, parent: Matrix4<f64>, mesh: usize) -> Option<Matrix4<f64>> {
+/// no scene shows it). glTF's nodes form trees: a node reached twice (its
+/// own ancestor, or the child of two parents) is refused, where following
+/// it would recurse for ever or take exponential time.
+fn world_transform(gltf: &gltf::Gltf, mesh: usize) -> Result<Matrix4<f64>, String> {
+    fn search(
+        node: gltf::Node<'_>,
+        parent: Matrix4<f64>,
+        mesh: usize,
+        seen: &mut [bool],
+    ) -> Result<Option<Matrix4<f64>>, String> {
+        let k = node.index();
+        if std::mem::replace(&mut seen[k], true) {
+            return Err(format!("node {k} is reached twice: glTF nodes form trees (no cycles, one parent each)"));
+        }
         let local = node.transform().matrix();
         let world = parent * Matrix4::from_fn(|r, c| f64::from(local[c][r]));
         if node.mesh().is_some_and(|m| m.index() == mesh) {
-            return Some(world);
+            return Ok(Some(world));
         }
-        node.children().find_map(|child| search(child, world, mesh))
+        for child in node.children() {
+            if let Some(found) = search(child, world, mesh, seen)? {
+                return Ok(Some(found));
+            }
+        }
+        Ok(None)
     }
-    gltf.scenes()
-        .flat_map(|scene| scene.nodes().collect::<Vec<_>>())
-        .find_map(|root| search(root, Matrix4::identity(), mesh))
-        .unwrap_or_else(Matrix4::identity)
+    for scene in gltf.scenes() {
+        let mut seen = vec![false; gltf.nodes().len()];
+        for root in scene.nodes() {
+            if let Some(found) = search(root, Matrix4::identity(), mesh, &mut seen)? {
+                return Ok(found);
+            }
+        }
+    }
+    Ok(Matrix4::identity())
 }
 
 #[cfg(test)]
@@ -229,5 +250,15 @@ mod tests {
         assert!(dangling.unwrap_err().contains("malformed glTF"));
         let garbage = read("{\"asset\":", None).unwrap_err();
         assert!(garbage.contains("not glTF 2.0"), "{garbage}");
+        // Found by libFuzzer: a node among its own children recursed until
+        // the stack overflowed, which aborts the host; two parents of one
+        // node are refused too (chains of them take exponential time).
+        let square = square_gltf(false, 4, [0.0; 3]);
+        let cycle = read(&square.replace("\"children\":[1]", "\"children\":[0,1]"), None).unwrap_err();
+        assert!(cycle.contains("node 0 is reached twice"), "{cycle}");
+        let shared =
+            square.replace("\"children\":[1]", "\"children\":[2,2,1]").replace("{\"mesh\":0}]", "{\"mesh\":0},{}]");
+        let shared = read(&shared, None).unwrap_err();
+        assert!(shared.contains("node 2 is reached twice"), "{shared}");
     }
 }
