@@ -181,6 +181,61 @@ fn chromium_draws_the_cloth_and_the_ball() {
     }
 }
 
+/// The longest triangle edge of `last` over its length in `first` (OBJ
+/// frames: vertices and faces), as the page's heat map reads the stretch.
+fn obj_max_stretch(first: &str, last: &str) -> f64 {
+    let vertices = |text: &str| -> Vec<Vec3> {
+        let v = text.lines().filter_map(|l| l.strip_prefix("v "));
+        v.map(|l| {
+            let c: Vec<f64> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
+            Vec3::new(c[0], c[1], c[2])
+        })
+        .collect()
+    };
+    let (rest, now) = (vertices(first), vertices(last));
+    let mut worst = 0.0f64;
+    for face in first.lines().filter_map(|l| l.strip_prefix("f ")) {
+        let corners: Vec<usize> =
+            face.split_whitespace().map(|c| c.split('/').next().unwrap().parse::<usize>().unwrap() - 1).collect();
+        for k in 0..corners.len() {
+            let (a, b) = (corners[k], corners[(k + 1) % corners.len()]);
+            worst = worst.max((now[b] - now[a]).norm() / (rest[b] - rest[a]).norm());
+        }
+    }
+    worst
+}
+
+/// The stretch heat map (`?heat`; the "stretch" button and the key s):
+/// the page's largest stretch in the last frame is the longest triangle
+/// edge over its length in the first, as computed here from the OBJ
+/// frames, and the cloth turns from orange to the map's green where it
+/// is barely stretched. Without `heat` the page reports no stretch and
+/// nothing green.
+#[test]
+fn chromium_colours_the_cloth_by_its_stretch() {
+    let Some(chromium) = common::outside_tool("CHROMIUM", "chromium-headless-shell") else { return };
+    let out = drape_run("heat");
+    let server = Server::start(&out);
+    let mut files: Vec<PathBuf> = std::fs::read_dir(out.join("frames"))
+        .unwrap()
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "obj"))
+        .collect();
+    files.sort();
+    let text = |p: &PathBuf| std::fs::read_to_string(p).unwrap();
+    let expected = obj_max_stretch(&text(&files[0]), &text(files.last().unwrap()));
+    let number =
+        |title: &str, key: &str| -> Option<f64> { title.split(key).nth(1)?.split(';').next()?.trim().parse().ok() };
+    let heat = server.title_in_chromium(&chromium, "check&frame=last&heat");
+    let plain = server.title_in_chromium(&chromium, "check&frame=last");
+    println!("{heat}\n{plain}\nexpected stretch {expected}");
+    let shown = number(&heat, "stretch max ").unwrap_or_else(|| panic!("{heat}"));
+    assert!((shown - expected).abs() < 1e-5 * expected, "page {shown}, OBJ frames {expected}");
+    let (cloth, green) = (number(&heat, "cloth ").unwrap(), number(&heat, "greenish ").unwrap());
+    assert!(green > 0.5 * cloth, "{heat}");
+    assert!(!plain.contains("stretch max") && number(&plain, "greenish ").unwrap() < 0.01 * cloth, "{plain}");
+}
+
 /// A running `cloth live`; stopped when dropped.
 fn live(scene: &str, extra: &[&str]) -> Server {
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenes").join(scene);
