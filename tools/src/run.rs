@@ -264,6 +264,7 @@ pub(crate) fn simulate_steps(
     let mut newton = NewtonTotals::default();
     let mut energy = EnergyTotals::default();
     let mut peak_stretch = runner.sim().model().max_stretch_ratio(&runner.sim().state().x);
+    let mut series = frames.as_ref().map(|_| Vec::with_capacity(cfg.steps as usize));
     let mut garment: Option<GarmentHeights> = None;
     let mut error = None;
     let wall = Instant::now();
@@ -310,7 +311,11 @@ pub(crate) fn simulate_steps(
                 contacts.add(&r.contacts);
                 newton.add(r.newton.as_ref(), runner.sim().time());
                 energy.add(&r);
-                peak_stretch = peak_stretch.max(runner.sim().model().max_stretch_ratio(&runner.sim().state().x));
+                let stretch = runner.sim().model().max_stretch_ratio(&runner.sim().state().x);
+                peak_stretch = peak_stretch.max(stretch);
+                if let Some(series) = series.as_mut() {
+                    series.push(StepRow::of(runner.sim(), &r, stretch));
+                }
                 if let Runner::Coupled(run) = &runner
                     && let Some(heights) = garment_heights(run)
                 {
@@ -337,6 +342,7 @@ pub(crate) fn simulate_steps(
         let path = dir.join(SOLIDS_FILE);
         std::fs::write(&path, solid_poses.to_json(runner.sim().model(), &runner.solid_names())?)
             .with_context(|| format!("writing {}", path.display()))?;
+        write_steps(&dir.join(STEPS_FILE), series.as_deref().unwrap_or_default())?;
     }
     let wall_s = wall.elapsed().as_secs_f64();
     let cpu_s = cpu_start.zip(process_cpu_s()).map(|(start, end)| end - start);
@@ -698,6 +704,47 @@ pub(crate) fn process_cpu_s() -> Option<f64> {
 /// their own frames, and where each was at every written frame (for
 /// `cloth view`).
 pub const SOLIDS_FILE: &str = "solids.json";
+
+/// The per-step series `cloth run --frames N` writes beside the frames
+/// (the viewer's time plot): one row a step.
+pub const STEPS_FILE: &str = "steps.csv";
+
+/// One step of the series: its energies (empty for steps the energy
+/// monitor did not judge), largest stretch, CG iterations and contacts.
+#[derive(serde::Serialize)]
+struct StepRow {
+    step: u64,
+    time_s: f64,
+    kinetic_j: Option<f64>,
+    elastic_j: Option<f64>,
+    gravitational_j: Option<f64>,
+    max_stretch: f64,
+    cg_iterations: usize,
+    contacts: usize,
+}
+
+impl StepRow {
+    fn of(sim: &Simulation, r: &StepReport, max_stretch: f64) -> Self {
+        Self {
+            step: sim.state().steps,
+            time_s: sim.time(),
+            kinetic_j: r.energy.map(|e| e.kinetic_j),
+            elastic_j: r.energy.map(|e| e.elastic_j),
+            gravitational_j: r.energy.map(|e| e.gravitational_j),
+            max_stretch,
+            cg_iterations: r.cg_iterations,
+            contacts: r.contacts.contacts,
+        }
+    }
+}
+
+fn write_steps(path: &Path, rows: &[StepRow]) -> Result<()> {
+    let mut out = csv::Writer::from_path(path).with_context(|| format!("writing {}", path.display()))?;
+    for row in rows {
+        out.serialize(row).with_context(|| format!("writing {}", path.display()))?;
+    }
+    out.flush().with_context(|| format!("writing {}", path.display()))
+}
 
 /// Solid poses at the written frames.
 #[derive(Default)]

@@ -74,6 +74,7 @@ fn run_json(out: &Path) -> Result<String> {
         "dt_s": run.dt_s,
         "frames": frames,
         "solids": run.solids_file().is_some(),
+        "steps": run.dir.join(crate::run::STEPS_FILE).is_file(),
     }))?)
 }
 

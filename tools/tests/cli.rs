@@ -62,11 +62,17 @@ fn run_writes_summary_and_frames() {
         assert!(s["stage_wall_s"][stage].as_f64().unwrap() >= 0.0, "{stage}");
     }
     // Frames 0 and 5 (steps 0..=9 every 5th), each a valid OBJ of 121
-    // vertices, and solids.json (no solids here, two frames of poses).
+    // vertices, solids.json (no solids here, two frames of poses) and
+    // steps.csv (a row a step, the last one the summary's stretch).
     let mut files: Vec<String> =
         std::fs::read_dir(out.join("frames")).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
     files.sort();
-    assert_eq!(files, ["frame_00000.obj", "frame_00005.obj", "solids.json"]);
+    assert_eq!(files, ["frame_00000.obj", "frame_00005.obj", "solids.json", "steps.csv"]);
+    let steps = std::fs::read_to_string(out.join("frames/steps.csv")).unwrap();
+    let rows: Vec<&str> = steps.lines().collect();
+    assert_eq!(rows.len(), 10, "{steps}");
+    let last: Vec<&str> = rows[9].split(',').collect();
+    assert_eq!((last[0], last[5].parse::<f64>().unwrap()), ("9", s["max_stretch_ratio"].as_f64().unwrap()));
     let solids: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("frames/solids.json")).unwrap()).unwrap();
     assert_eq!(solids["solids"].as_array().map(Vec::len), Some(0));

@@ -236,6 +236,31 @@ fn chromium_colours_the_cloth_by_its_stretch() {
     assert!(!plain.contains("stretch max") && number(&plain, "greenish ").unwrap() < 0.01 * cloth, "{plain}");
 }
 
+/// The time plot beside the view (`frames/steps.csv`, which `cloth run
+/// --frames N` writes): the page plots every step, and its largest
+/// stretch and CG count are the run's summary's, to the bit.
+#[test]
+fn chromium_plots_the_runs_steps() {
+    let Some(chromium) = common::outside_tool("CHROMIUM", "chromium-headless-shell") else { return };
+    let out = drape_run("plot");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let server = Server::start(&out);
+    let title = server.title_in_chromium(&chromium, "check&frame=last");
+    println!("{title}");
+    let number = |key: &str| -> f64 {
+        let text =
+            title.split(key).nth(1).and_then(|t| t.split([';', ',']).next()).unwrap_or_else(|| panic!("{title}"));
+        text.split_whitespace().next().and_then(|n| n.parse().ok()).unwrap_or_else(|| panic!("{key}: {title}"))
+    };
+    assert_eq!(number("; plot "), summary["steps"].as_f64().unwrap(), "{title}");
+    assert!(number(" steps, ") > 500.0, "the plot drew nothing: {title}");
+    assert_eq!(number("plotted stretch up to "), summary["peak_stretch_ratio"].as_f64().unwrap());
+    assert_eq!(number("plotted CG up to "), summary["cg_iterations_max"].as_f64().unwrap());
+    let steps = std::fs::read_to_string(out.join("frames/steps.csv")).unwrap();
+    assert!(steps.starts_with("step,time_s,kinetic_j,elastic_j,gravitational_j,max_stretch,cg_iterations,contacts"));
+}
+
 /// A running `cloth live`; stopped when dropped.
 fn live(scene: &str, extra: &[&str]) -> Server {
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenes").join(scene);
