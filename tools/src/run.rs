@@ -280,7 +280,7 @@ pub(crate) fn simulate_steps(
             let t = Instant::now();
             let path = dir.join(format!("frame_{:05}.obj", sim.state().steps));
             write_obj(&path, sim.model(), &sim.state().x).with_context(|| format!("writing {}", path.display()))?;
-            poses.add(sim);
+            poses.add(sim, cfg.dt_s);
             stages.output += t.elapsed().as_secs_f64();
         }
         Ok(())
@@ -749,19 +749,34 @@ fn write_steps(path: &Path, rows: &[StepRow]) -> Result<()> {
 /// Solid poses at the written frames.
 #[derive(Default)]
 struct SolidPoses {
-    /// Per frame: its step and each solid's position and orientation
-    /// (`[x, y, z, qw, qx, qy, qz]`, m).
-    frames: Vec<(u64, Vec<[f64; 7]>)>,
+    frames: Vec<FrameSolids>,
 }
 
+/// A frame's step, each solid's position and orientation (`[x, y, z, qw,
+/// qx, qy, qz]`, m) and each contact's `[particle, fx, fy, fz]` (N).
+type FrameSolids = (u64, Vec<[f64; 7]>, Vec<[f64; 4]>);
+
 impl SolidPoses {
-    fn add(&mut self, sim: &Simulation) {
-        self.frames.push((sim.state().steps, solid_poses(sim)));
+    /// The frame of `sim` after a step of `h` s: the poses, and each active
+    /// contact's particle and the mean force the solid exerted on it over
+    /// the step (its impulse over `h`, friction included), N.
+    fn add(&mut self, sim: &Simulation, h: f64) {
+        let forces = sim
+            .contacts()
+            .iter()
+            .filter(|c| c.active && sim.state().steps > 0)
+            .map(|c| {
+                let f = c.impulse_n_s / h;
+                [c.particle as f64, f.x, f.y, f.z]
+            })
+            .collect();
+        self.frames.push((sim.state().steps, solid_poses(sim), forces));
     }
 
     /// `{"solids": [{"name": "pelvis", "vertices": [x, y, z, ...], "triangles": [a, b, c, ...]}],
-    /// "frames": [{"step": n, "poses": [[x, y, z, qw, qx, qy, qz], ...]}]}`;
-    /// a solid's name is its body's, its rig link's, or `colliders[k]`.
+    /// "frames": [{"step": n, "poses": [[x, y, z, qw, qx, qy, qz], ...],
+    /// "contacts": [[particle, fx, fy, fz], ...]}]}`; a solid's name is its
+    /// body's, its rig link's, or `colliders[k]`.
     fn to_json(&self, model: &ClothModel, names: &[String]) -> Result<String> {
         let mut solids = solid_meshes_json(model);
         if let serde_json::Value::Array(list) = &mut solids {
@@ -769,8 +784,11 @@ impl SolidPoses {
                 solid["name"] = serde_json::Value::String(name.clone());
             }
         }
-        let frames: Vec<serde_json::Value> =
-            self.frames.iter().map(|(step, poses)| serde_json::json!({ "step": step, "poses": poses })).collect();
+        let frames: Vec<serde_json::Value> = self
+            .frames
+            .iter()
+            .map(|(step, poses, contacts)| serde_json::json!({ "step": step, "poses": poses, "contacts": contacts }))
+            .collect();
         Ok(serde_json::to_string(&serde_json::json!({ "solids": solids, "frames": frames }))?)
     }
 }

@@ -261,6 +261,47 @@ fn chromium_plots_the_runs_steps() {
     assert!(steps.starts_with("step,time_s,kinetic_j,elastic_j,gravitational_j,max_stretch,cg_iterations,contacts"));
 }
 
+/// The contacts' forces (`?forces`; the "forces" button and the key c):
+/// the page draws as many yellow lines as `solids.json` lists contacts in
+/// the last frame, and their sum is the file's; without them, nothing
+/// yellow is drawn.
+#[test]
+fn chromium_draws_the_contact_forces() {
+    let Some(chromium) = common::outside_tool("CHROMIUM", "chromium-headless-shell") else { return };
+    let out = drape_run("forces");
+    let solids: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("frames/solids.json")).unwrap()).unwrap();
+    let last = solids["frames"].as_array().unwrap().last().unwrap()["contacts"].as_array().unwrap().clone();
+    let sum: Vec<f64> = (1..4).map(|a| last.iter().map(|c| c[a].as_f64().unwrap()).sum()).collect();
+    let server = Server::start(&out);
+    let with = server.title_in_chromium(&chromium, "check&frame=last&forces");
+    let without = server.title_in_chromium(&chromium, "check&frame=last");
+    println!("{with}\n{without}\n{} contacts, sum {sum:?} N", last.len());
+    let field =
+        |key: &str| with.split(key).nth(1).and_then(|t| t.split([';', ',']).next()).unwrap_or("").trim().to_string();
+    assert!(last.len() > 50, "the drape has no contacts to draw");
+    assert_eq!(field("; forces "), last.len().to_string(), "{with}");
+    let shown: Vec<f64> = with
+        .split("sum ")
+        .nth(1)
+        .unwrap()
+        .split(';')
+        .next()
+        .unwrap()
+        .split(',')
+        .map(|v| v.trim().parse().unwrap())
+        .take(3)
+        .collect();
+    for a in 0..3 {
+        assert!(
+            (shown[a] - sum[a]).abs() <= 1e-9 * sum.iter().map(|v| v.abs()).fold(0.0, f64::max),
+            "{shown:?} {sum:?}"
+        );
+    }
+    assert!(field("yellow ").parse::<u64>().unwrap() > 50, "{with}");
+    assert!(!without.contains("forces") && !without.contains("yellow"), "{without}");
+}
+
 /// A running `cloth live`; stopped when dropped.
 fn live(scene: &str, extra: &[&str]) -> Server {
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenes").join(scene);
