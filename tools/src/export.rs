@@ -3,6 +3,7 @@
 
 use crate::view::Recorded;
 use anyhow::{Context, Result, bail};
+use cloth_tools::frames::{FRAMES_FILE, Frames};
 use cloth_tools::gltf::{Recording, SolidTrack, glb};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -77,12 +78,18 @@ pub fn export(out: &Path, to: Option<&Path>) -> Result<PathBuf> {
     let run = Recorded::read(out)?;
     let mut frames = Vec::with_capacity(run.frames.len());
     let mut triangles = Vec::new();
-    for (k, (_, name)) in run.frames.iter().enumerate() {
-        let (vertices, faces) = read_obj(&run.dir.join(name))?;
-        if k == 0 {
-            triangles = faces;
+    if run.binary {
+        let read = Frames::read(&run.dir.join(FRAMES_FILE))?;
+        triangles = read.triangles;
+        frames.extend(read.frames.into_iter().map(|(_, x)| x.iter().map(|p| p.map(f64::from)).collect()));
+    } else {
+        for (k, (_, name)) in run.frames.iter().enumerate() {
+            let (vertices, faces) = read_obj(&run.dir.join(name))?;
+            if k == 0 {
+                triangles = faces;
+            }
+            frames.push(vertices);
         }
-        frames.push(vertices);
     }
     let steps: Vec<u64> = run.frames.iter().map(|(step, _)| *step).collect();
     let times: Vec<f64> = steps.iter().map(|&s| s as f64 * run.dt_s).collect();

@@ -1,7 +1,9 @@
 //! The `cloth` tool's library part: the hard-case suite, shared by
 //! `cloth study stability` and this crate's `stability` test, the
-//! studies' CSV tables, and the glTF writer (fuzzed by `cloth-fuzz`).
+//! studies' CSV tables, the glTF writer (fuzzed by `cloth-fuzz`) and the
+//! compact frame file.
 
+pub mod frames;
 pub mod gltf;
 pub mod stability;
 pub mod table;

@@ -9,6 +9,7 @@ use cloth_core::scene::{EffectName, RunConfig, Scene, SceneError};
 use cloth_core::{ClothModel, ContactStats, Simulation, StepReport, Vec3};
 use cloth_rapier::scene::has_bodies;
 use cloth_rapier::{CoupledRun, CoupledScene, CouplingReport, Master, Momentum};
+use cloth_tools::frames::{FRAMES_FILE, FrameWriter};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -18,6 +19,8 @@ pub struct RunArgs {
     pub out: PathBuf,
     pub overrides: Vec<String>,
     pub frames: Option<u64>,
+    /// Frames as one `frames.bin` rather than OBJ files.
+    pub binary_frames: bool,
     pub threads: usize,
     pub quiet: bool,
 }
@@ -206,14 +209,24 @@ pub fn validate(path: &Path, overrides: &[String]) -> Result<()> {
     Ok(())
 }
 
-/// Runs a scene to its end (or its first error), writing OBJ frames every
-/// `frames.0` steps into `frames.1`; returns the summary (with `error` set
-/// when a step failed).
+/// Where and how `cloth run --frames N` writes frames.
+pub(crate) struct FrameOutput {
+    /// Every this many steps.
+    pub every: u64,
+    /// `frames/`.
+    pub dir: PathBuf,
+    /// One binary `frames.bin` ([`cloth_tools::frames`]) instead of OBJ files.
+    pub binary: bool,
+}
+
+/// Runs a scene to its end (or its first error), writing frames as
+/// `frames` says; returns the summary (with `error` set when a step
+/// failed).
 pub(crate) fn simulate(
     scene_path: &Path,
     overrides: &[String],
     threads: usize,
-    frames: Option<(u64, PathBuf)>,
+    frames: Option<FrameOutput>,
     progress: bool,
 ) -> Result<Summary> {
     simulate_steps(scene_path, overrides, threads, frames, progress, None).map(|run| run.summary)
@@ -232,7 +245,7 @@ pub(crate) fn simulate_steps(
     scene_path: &Path,
     overrides: &[String],
     threads: usize,
-    frames: Option<(u64, PathBuf)>,
+    frames: Option<FrameOutput>,
     progress: bool,
     max_steps: Option<u64>,
 ) -> Result<Simulated> {
@@ -247,9 +260,16 @@ pub(crate) fn simulate_steps(
     };
     let mut coupling = CouplingTotals::default();
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
-    if let Some((_, dir)) = &frames {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    if let Some(f) = &frames {
+        std::fs::create_dir_all(&f.dir).with_context(|| format!("creating {}", f.dir.display()))?;
     }
+    let mut binary = match &frames {
+        Some(f) if f.binary => {
+            let model = runner.sim().model();
+            Some(FrameWriter::create(&f.dir.join(FRAMES_FILE), model.particle_count(), model.triangles())?)
+        }
+        _ => None,
+    };
     let bar = if progress { ProgressBar::new(cfg.steps) } else { ProgressBar::hidden() };
     bar.set_style(
         ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} steps  {msg}")
@@ -273,13 +293,22 @@ pub(crate) fn simulate_steps(
     let pins = runner.sim().model().pins().len();
     let pin_window = ((0.5 / cfg.dt_s).ceil() as usize).max(1);
     let mut pin_loads = std::collections::VecDeque::with_capacity(pin_window + 1);
-    let write_frame = |sim: &Simulation, stages: &mut StageWall, poses: &mut SolidPoses| -> Result<()> {
-        if let Some((every, dir)) = &frames
-            && sim.state().steps.is_multiple_of(*every)
+    let write_frame = |sim: &Simulation,
+                       stages: &mut StageWall,
+                       poses: &mut SolidPoses,
+                       binary: &mut Option<FrameWriter>|
+     -> Result<()> {
+        if let Some(f) = &frames
+            && sim.state().steps.is_multiple_of(f.every)
         {
             let t = Instant::now();
-            let path = dir.join(format!("frame_{:05}.obj", sim.state().steps));
-            write_obj(&path, sim.model(), &sim.state().x).with_context(|| format!("writing {}", path.display()))?;
+            if let Some(out) = binary {
+                let path = f.dir.join(FRAMES_FILE);
+                out.append(sim.state().steps, &sim.state().x).with_context(|| format!("writing {}", path.display()))?;
+            } else {
+                let path = f.dir.join(format!("frame_{:05}.obj", sim.state().steps));
+                write_obj(&path, sim.model(), &sim.state().x).with_context(|| format!("writing {}", path.display()))?;
+            }
             poses.add(sim, cfg.dt_s);
             stages.output += t.elapsed().as_secs_f64();
         }
@@ -289,7 +318,7 @@ pub(crate) fn simulate_steps(
     for w in &warnings {
         eprintln!("{}: warning: {w}", scene_path.display());
     }
-    write_frame(runner.sim(), &mut stages, &mut solid_poses)?;
+    write_frame(runner.sim(), &mut stages, &mut solid_poses, &mut binary)?;
     for _ in 0..cfg.steps {
         let t = Instant::now();
         let result = pool.install(|| runner.step(cfg.dt_s, &mut coupling));
@@ -334,11 +363,15 @@ pub(crate) fn simulate_steps(
                 break;
             }
         }
-        write_frame(runner.sim(), &mut stages, &mut solid_poses)?;
+        write_frame(runner.sim(), &mut stages, &mut solid_poses, &mut binary)?;
         bar.inc(1);
     }
     bar.finish_and_clear();
-    if let Some((_, dir)) = &frames {
+    if let Some(out) = binary {
+        let path = frames.as_ref().map(|f| f.dir.join(FRAMES_FILE)).unwrap_or_default();
+        out.finish().with_context(|| format!("writing {}", path.display()))?;
+    }
+    if let Some(FrameOutput { dir, .. }) = &frames {
         let path = dir.join(SOLIDS_FILE);
         std::fs::write(&path, solid_poses.to_json(runner.sim().model(), &runner.solid_names())?)
             .with_context(|| format!("writing {}", path.display()))?;
@@ -576,7 +609,11 @@ pub fn run(args: &RunArgs) -> Result<()> {
         bail!("--frames must be at least 1");
     }
     std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
-    let frames = args.frames.map(|every| (every, args.out.join("frames")));
+    if args.binary_frames && args.frames.is_none() {
+        bail!("--frame-format bin needs --frames N");
+    }
+    let frames =
+        args.frames.map(|every| FrameOutput { every, dir: args.out.join("frames"), binary: args.binary_frames });
     let summary = simulate(&args.scene, &args.overrides, args.threads, frames, !args.quiet)?;
     let path = args.out.join("summary.json");
     std::fs::write(&path, serde_json::to_string_pretty(&summary)? + "\n")

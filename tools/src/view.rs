@@ -7,6 +7,7 @@
 
 use crate::run::SOLIDS_FILE;
 use anyhow::{Context, Result, bail};
+use cloth_tools::frames::{FRAMES_FILE, Frames};
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
@@ -24,14 +25,18 @@ pub(crate) struct Recorded {
     pub scene: serde_json::Value,
     /// The run's step, s.
     pub dt_s: f64,
-    /// The frames in order: step and file name under `frames/`.
+    /// The frames in order: step and file name under `frames/` (all
+    /// `frames.bin` when the run wrote one).
     pub frames: Vec<(u64, String)>,
     /// `frames/`.
     pub dir: PathBuf,
+    /// The frames are one `frames.bin` ([`cloth_tools::frames`]).
+    pub binary: bool,
 }
 
 impl Recorded {
-    /// Reads `out/summary.json` and lists `out/frames/frame_NNNNN.obj`.
+    /// Reads `out/summary.json` and lists the frames: those of
+    /// `out/frames/frames.bin`, else `out/frames/frame_NNNNN.obj`.
     pub(crate) fn read(out: &Path) -> Result<Self> {
         let summary_path = out.join("summary.json");
         let summary: serde_json::Value = serde_json::from_str(
@@ -40,6 +45,15 @@ impl Recorded {
         .with_context(|| format!("{} is not a summary", summary_path.display()))?;
         let dt_s = summary["dt_s"].as_f64().context("summary.json: no dt_s")?;
         let dir = out.join("frames");
+        let bin = dir.join(FRAMES_FILE);
+        if bin.is_file() {
+            let steps = Frames::read(&bin)?.frames.into_iter().map(|(step, _)| (step, FRAMES_FILE.to_string()));
+            let frames: Vec<(u64, String)> = steps.collect();
+            if frames.is_empty() {
+                bail!("no frames in {}", bin.display());
+            }
+            return Ok(Self { scene: summary["scene"].clone(), dt_s, frames, dir, binary: true });
+        }
         let mut frames: Vec<(u64, String)> = std::fs::read_dir(&dir)
             .with_context(|| format!("reading {} (run with --frames N)", dir.display()))?
             .filter_map(|e| e.ok()?.file_name().into_string().ok())
@@ -52,7 +66,7 @@ impl Recorded {
         if frames.is_empty() {
             bail!("no frames in {} (run with --frames N)", dir.display());
         }
-        Ok(Self { scene: summary["scene"].clone(), dt_s, frames, dir })
+        Ok(Self { scene: summary["scene"].clone(), dt_s, frames, dir, binary: false })
     }
 
     /// The solids file, when the run wrote one.
@@ -74,6 +88,7 @@ fn run_json(out: &Path) -> Result<String> {
         "dt_s": run.dt_s,
         "frames": frames,
         "solids": run.solids_file().is_some(),
+        "format": if run.binary { "bin" } else { "obj" },
         "steps": run.dir.join(crate::run::STEPS_FILE).is_file(),
     }))?)
 }

@@ -82,6 +82,52 @@ fn run_writes_summary_and_frames() {
     assert_eq!(obj.lines().filter(|l| l.starts_with("f ")).count(), 200);
 }
 
+/// `--frame-format bin`: the frames in one `frames.bin` of the size its
+/// format says, each position the OBJ frame's rounded to f32, the steps
+/// the same; `cloth export` takes it; without `--frames` it is refused.
+#[test]
+fn binary_frames_hold_the_obj_frames_in_f32() {
+    let run = |name: &str, format: &str| {
+        let out = out_dir(name);
+        let status = cloth()
+            .args(["run", scene("hang.toml").to_str().unwrap(), "--quiet", "--frames", "5", "--frame-format", format])
+            .args(["--set", "panels.0.particles=[11, 11]", "--set", "pins.0.nodes=[[0, 10], [10, 10]]"])
+            .args(["--set", "simulation.duration_s=0.1"])
+            .arg("--out")
+            .arg(&out)
+            .status()
+            .unwrap();
+        assert!(status.success());
+        out
+    };
+    let (obj, bin) = (run("frames-obj", "obj"), run("frames-bin", "bin"));
+    let read = cloth_tools::frames::Frames::read(&bin.join("frames/frames.bin")).unwrap();
+    let bytes = std::fs::metadata(bin.join("frames/frames.bin")).unwrap().len();
+    assert_eq!(bytes, 16 + 12 * 200 + 2 * (8 + 12 * 121));
+    assert_eq!(read.frames.iter().map(|f| f.0).collect::<Vec<_>>(), [0, 5]);
+    let text = std::fs::read_to_string(obj.join("frames/frame_00005.obj")).unwrap();
+    let obj_x: Vec<[f32; 3]> = text
+        .lines()
+        .filter_map(|l| l.strip_prefix("v "))
+        .map(|l| {
+            let c: Vec<f64> = l.split_whitespace().map(|v| v.parse().unwrap()).collect();
+            [c[0] as f32, c[1] as f32, c[2] as f32]
+        })
+        .collect();
+    assert_eq!(read.frames[1].1, obj_x);
+    let faces = text.lines().filter(|l| l.starts_with("f ")).count();
+    assert_eq!(read.triangles.len(), faces);
+    let export = cloth().arg("export").arg(&bin).output().unwrap();
+    assert!(export.status.success() && bin.join("run.glb").is_file(), "{}", String::from_utf8_lossy(&export.stderr));
+    let lone = cloth()
+        .args(["run", scene("hang.toml").to_str().unwrap(), "--quiet", "--frame-format", "bin", "--out"])
+        .arg(out_dir("frames-lone"))
+        .output()
+        .unwrap();
+    assert!(!lone.status.success());
+    assert!(String::from_utf8_lossy(&lone.stderr).contains("--frame-format bin needs --frames N"));
+}
+
 #[test]
 fn validate_accepts_fixtures_and_names_bad_fields() {
     let ok = cloth().args(["validate", scene("hang.toml").to_str().unwrap()]).output().unwrap();

@@ -302,6 +302,31 @@ fn chromium_draws_the_contact_forces() {
     assert!(!without.contains("forces") && !without.contains("yellow"), "{without}");
 }
 
+/// A run's frames as one `frames.bin` (`--frame-format bin`) show as its
+/// OBJ frames do: the page's report of the last frame, the stretch map's
+/// largest included, is the same to the character (both are f32 on the
+/// page), from a file a fifth of the OBJ frames' size.
+#[test]
+fn chromium_shows_binary_frames_as_the_obj_ones() {
+    let Some(chromium) = common::outside_tool("CHROMIUM", "chromium-headless-shell") else { return };
+    let overrides = ["panels.0.particles=[21, 21]", "simulation.duration_s=0.6"];
+    let obj = common::recorded_run("view", "obj", "drape-sphere.toml", &overrides);
+    let bin = common::recorded_run_as("view", "bin", "drape-sphere.toml", &overrides, "bin");
+    let size = |dir: &Path, ext: &str| -> u64 {
+        let files = std::fs::read_dir(dir.join("frames")).unwrap().filter_map(|e| e.ok());
+        files.filter(|e| e.path().extension().is_some_and(|x| x == ext)).map(|e| e.metadata().unwrap().len()).sum()
+    };
+    let (obj_bytes, bin_bytes) = (size(&obj, "obj"), size(&bin, "bin"));
+    let titles: Vec<String> = [&obj, &bin]
+        .iter()
+        .map(|out| Server::start(out).title_in_chromium(&chromium, "check&frame=last&heat&forces"))
+        .collect();
+    println!("OBJ frames {obj_bytes} bytes, frames.bin {bin_bytes} bytes\n{}\n{}", titles[0], titles[1]);
+    assert!(titles[0].starts_with("drawn ") && titles[0].contains("stretch max"), "{}", titles[0]);
+    assert_eq!(titles[0], titles[1]);
+    assert!(bin_bytes * 4 < obj_bytes, "{bin_bytes} against {obj_bytes}");
+}
+
 /// A running `cloth live`; stopped when dropped.
 fn live(scene: &str, extra: &[&str]) -> Server {
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenes").join(scene);

@@ -15,11 +15,16 @@ pub fn cloth() -> Command {
 /// `cloth run fixtures/scenes/SCENE --frames 9` with `overrides`, into a
 /// directory of its own named after the test file and `name`.
 pub fn recorded_run(test: &str, name: &str, scene: &str, overrides: &[&str]) -> PathBuf {
+    recorded_run_as(test, name, scene, overrides, "obj")
+}
+
+/// [`recorded_run`] with its frames in `format` (`obj` or `bin`).
+pub fn recorded_run_as(test: &str, name: &str, scene: &str, overrides: &[&str], format: &str) -> PathBuf {
     let out = std::env::temp_dir().join(format!("cloth-{test}-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&out);
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenes").join(scene);
     let mut command = cloth();
-    command.arg("run").arg(scene).args(["--quiet", "--frames", "9"]);
+    command.arg("run").arg(scene).args(["--quiet", "--frames", "9", "--frame-format", format]);
     for o in overrides {
         command.args(["--set", o]);
     }
