@@ -31,18 +31,26 @@ fn quick_study(name: &str) -> PathBuf {
     out
 }
 
-#[test]
-fn run_writes_summary_and_frames() {
-    let out = out_dir("run");
+/// `cloth run` on an 11 x 11 hang for 0.1 s (9 steps), frames every 5th
+/// step, into `out_dir(name)`, with `extra` arguments.
+fn run_small_hang(name: &str, extra: &[&str]) -> PathBuf {
+    let out = out_dir(name);
     let status = cloth()
         .args(["run", scene("hang.toml").to_str().unwrap(), "--quiet", "--frames", "5"])
         .args(["--set", "panels.0.particles=[11, 11]", "--set", "pins.0.nodes=[[0, 10], [10, 10]]"])
         .args(["--set", "simulation.duration_s=0.1"])
+        .args(extra)
         .arg("--out")
         .arg(&out)
         .status()
         .unwrap();
     assert!(status.success());
+    out
+}
+
+#[test]
+fn run_writes_summary_and_frames() {
+    let out = run_small_hang("run", &[]);
     let text = std::fs::read_to_string(out.join("summary.json")).unwrap();
     let s: serde_json::Value = serde_json::from_str(&text).unwrap();
     assert_eq!(s["particles"], 121);
@@ -87,20 +95,7 @@ fn run_writes_summary_and_frames() {
 /// the same; `cloth export` takes it; without `--frames` it is refused.
 #[test]
 fn binary_frames_hold_the_obj_frames_in_f32() {
-    let run = |name: &str, format: &str| {
-        let out = out_dir(name);
-        let status = cloth()
-            .args(["run", scene("hang.toml").to_str().unwrap(), "--quiet", "--frames", "5", "--frame-format", format])
-            .args(["--set", "panels.0.particles=[11, 11]", "--set", "pins.0.nodes=[[0, 10], [10, 10]]"])
-            .args(["--set", "simulation.duration_s=0.1"])
-            .arg("--out")
-            .arg(&out)
-            .status()
-            .unwrap();
-        assert!(status.success());
-        out
-    };
-    let (obj, bin) = (run("frames-obj", "obj"), run("frames-bin", "bin"));
+    let (obj, bin) = (run_small_hang("frames-obj", &[]), run_small_hang("frames-bin", &["--frame-format", "bin"]));
     let read = cloth_tools::frames::Frames::read(&bin.join("frames/frames.bin")).unwrap();
     let bytes = std::fs::metadata(bin.join("frames/frames.bin")).unwrap().len();
     assert_eq!(bytes, 16 + 12 * 200 + 2 * (8 + 12 * 121));
