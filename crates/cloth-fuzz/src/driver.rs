@@ -2,8 +2,8 @@
 //! the inputs whose outcome is new (a refusal not seen before), and
 //! records every input that panicked.
 
-use crate::Target;
 use crate::mutate::{Rng, mutate};
+use crate::{Corpus, Target};
 use std::collections::BTreeSet;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::time::{Duration, Instant};
@@ -43,10 +43,10 @@ fn run_one(target: Target, data: &[u8], report: &mut Report) -> Option<String> {
 
 /// Replays the corpus, then mutates it within `budget`. Seeded by
 /// `seed`, so a run of `Budget::Runs` replays exactly.
-pub fn fuzz(target: Target, budget: Budget, seed: u64) -> Report {
+pub fn fuzz(target: Target, corpus: Corpus, budget: Budget, seed: u64) -> Report {
     let mut report = Report::default();
     let mut pool: Vec<Vec<u8>> = Vec::new();
-    for (path, data) in target.corpus() {
+    for (path, data) in target.corpus(corpus) {
         match run_one(target, &data, &mut report) {
             Some(outcome) => {
                 report.outcomes.insert(outcome);

@@ -100,11 +100,17 @@ impl Target {
         repository().join("fuzz/corpus").join(self.name())
     }
 
-    /// The corpus's inputs, sorted by file name; the fixtures of this
-    /// target's kind when the directory is empty or missing.
-    pub fn corpus(self) -> Vec<(PathBuf, Vec<u8>)> {
+    /// The corpus's inputs, sorted by file name: all of them, or
+    /// (`Corpus::Kept`) only the seeds and the inputs that once crashed
+    /// (`fixture-*`, `seed-*`, `found-*`); the fixtures of this target's
+    /// kind when the directory holds none.
+    pub fn corpus(self, which: Corpus) -> Vec<(PathBuf, Vec<u8>)> {
+        let kept = |p: &PathBuf| {
+            let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("");
+            which == Corpus::All || ["fixture-", "seed-", "found-"].iter().any(|k| name.starts_with(k))
+        };
         let mut files: Vec<PathBuf> = std::fs::read_dir(self.corpus_dir())
-            .map(|dir| dir.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.is_file()).collect())
+            .map(|dir| dir.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.is_file() && kept(p)).collect())
             .unwrap_or_default();
         if files.is_empty() {
             files = self.seed_files();
@@ -133,6 +139,15 @@ impl Target {
             Target::Overrides | Target::GltfWriter | Target::FmiCalls => Vec::new(),
         }
     }
+}
+
+/// Which of a committed corpus to replay.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Corpus {
+    /// Every input (libFuzzer's merged corpus: thousands, tens of seconds).
+    All,
+    /// The seeds and every input that once crashed (the fast tier).
+    Kept,
 }
 
 /// The repository's root (fixtures are read from there).

@@ -7,8 +7,8 @@
 
 use anyhow::{Context, Result, bail};
 use clap::Parser;
-use cloth_fuzz::Target;
 use cloth_fuzz::driver::{Budget, fuzz};
+use cloth_fuzz::{Corpus, Target};
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -56,7 +56,7 @@ fn main() -> Result<()> {
     let mut failed = false;
     println!("| target | executions | outcomes | kept | panics | slowest input (s) |\n|---|---|---|---|---|---|");
     for target in targets {
-        let report = fuzz(target, budget, args.seed);
+        let report = fuzz(target, Corpus::All, budget, args.seed);
         println!(
             "| {} | {} | {} | {} | {} | {:.3} |",
             target.name(),
