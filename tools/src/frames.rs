@@ -72,6 +72,35 @@ impl Frames {
         Self::parse(&bytes).with_context(|| format!("{}: not a frame file", path.display()))
     }
 
+    /// The steps of `path`'s frames, from the header and each frame's
+    /// first 8 bytes (the positions are skipped, not read).
+    pub fn steps(path: &Path) -> Result<Vec<u64>> {
+        use std::io::{Read, Seek, SeekFrom};
+        let bad = || format!("{}: not a frame file", path.display());
+        let mut file = std::fs::File::open(path).with_context(|| format!("reading {}", path.display()))?;
+        let len = file.metadata().with_context(|| format!("reading {}", path.display()))?.len();
+        let mut head = [0u8; HEAD];
+        file.read_exact(&mut head).with_context(bad)?;
+        if &head[..8] != MAGIC {
+            return Err(anyhow::anyhow!("no CLOTHFR1 header")).with_context(bad);
+        }
+        let word = |at: usize| u32::from_le_bytes(head[at..at + 4].try_into().expect("four bytes")) as u64;
+        let (n, m) = (word(8), word(12));
+        let (start, frame_len) = (HEAD as u64 + 12 * m, 8 + 12 * n);
+        let body = len.checked_sub(start).context("cut short in the triangles").with_context(bad)?;
+        if body % frame_len != 0 {
+            bail!("{}: {body} bytes of frames are not a whole number of {frame_len}-byte frames", path.display());
+        }
+        (0..body / frame_len)
+            .map(|k| {
+                let mut step = [0u8; 8];
+                file.seek(SeekFrom::Start(start + k * frame_len)).and_then(|_| file.read_exact(&mut step))?;
+                Ok(u64::from_le_bytes(step))
+            })
+            .collect::<std::io::Result<_>>()
+            .with_context(|| format!("reading {}", path.display()))
+    }
+
     /// Parses a frame file's bytes.
     pub fn parse(bytes: &[u8]) -> Result<Self> {
         let word = |at: usize| -> Result<u32> {
@@ -122,6 +151,7 @@ mod tests {
         let back = Frames::read(&path).unwrap();
         assert_eq!(back.triangles, vec![[0, 1, 2], [1, 3, 2]]);
         assert_eq!(back.frames.iter().map(|f| f.0).collect::<Vec<_>>(), [0, 5]);
+        assert_eq!(Frames::steps(&path).unwrap(), [0, 5]);
         assert_eq!(back.frames[1].1[3], [6.0, 1.0, -0.5]);
         let bytes = std::fs::read(&path).unwrap();
         assert_eq!(bytes.len(), 16 + 24 + 2 * (8 + 48));
@@ -129,6 +159,10 @@ mod tests {
         assert!(err(&bytes[..bytes.len() - 4]).contains("not a whole number of 56-byte frames"));
         assert!(err(&bytes[..20]).contains("cut short"));
         assert!(err(b"CLOTHFR2").contains("no CLOTHFR1 header"));
+        let cut = path.with_extension("cut");
+        std::fs::write(&cut, &bytes[..bytes.len() - 4]).unwrap();
+        assert!(format!("{:#}", Frames::steps(&cut).unwrap_err()).contains("not a whole number of 56-byte frames"));
+        std::fs::remove_file(&cut).unwrap();
         let mut wrong = bytes.clone();
         wrong[16] = 9;
         assert!(err(&wrong).contains("a triangle names particle 9 of 4"));

@@ -47,8 +47,8 @@ impl Recorded {
         let dir = out.join("frames");
         let bin = dir.join(FRAMES_FILE);
         if bin.is_file() {
-            let steps = Frames::read(&bin)?.frames.into_iter().map(|(step, _)| (step, FRAMES_FILE.to_string()));
-            let frames: Vec<(u64, String)> = steps.collect();
+            let frames: Vec<(u64, String)> =
+                Frames::steps(&bin)?.into_iter().map(|step| (step, FRAMES_FILE.to_string())).collect();
             if frames.is_empty() {
                 bail!("no frames in {}", bin.display());
             }

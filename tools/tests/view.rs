@@ -181,6 +181,12 @@ fn chromium_draws_the_cloth_and_the_ball() {
     }
 }
 
+/// The first number after `key` in a check page's title (up to the next
+/// space, `;` or `,`), if there is one.
+fn title_number(title: &str, key: &str) -> Option<f64> {
+    title.split(key).nth(1)?.split([';', ',']).next()?.split_whitespace().next()?.parse().ok()
+}
+
 /// The longest triangle edge of `last` over its length in `first` (OBJ
 /// frames: vertices and faces), as the page's heat map reads the stretch.
 fn obj_max_stretch(first: &str, last: &str) -> f64 {
@@ -224,16 +230,14 @@ fn chromium_colours_the_cloth_by_its_stretch() {
     files.sort();
     let text = |p: &PathBuf| std::fs::read_to_string(p).unwrap();
     let expected = obj_max_stretch(&text(&files[0]), &text(files.last().unwrap()));
-    let number =
-        |title: &str, key: &str| -> Option<f64> { title.split(key).nth(1)?.split(';').next()?.trim().parse().ok() };
     let heat = server.title_in_chromium(&chromium, "check&frame=last&heat");
     let plain = server.title_in_chromium(&chromium, "check&frame=last");
     println!("{heat}\n{plain}\nexpected stretch {expected}");
-    let shown = number(&heat, "stretch max ").unwrap_or_else(|| panic!("{heat}"));
+    let shown = title_number(&heat, "stretch max ").unwrap_or_else(|| panic!("{heat}"));
     assert!((shown - expected).abs() < 1e-5 * expected, "page {shown}, OBJ frames {expected}");
-    let (cloth, green) = (number(&heat, "cloth ").unwrap(), number(&heat, "greenish ").unwrap());
+    let (cloth, green) = (title_number(&heat, "cloth ").unwrap(), title_number(&heat, "greenish ").unwrap());
     assert!(green > 0.5 * cloth, "{heat}");
-    assert!(!plain.contains("stretch max") && number(&plain, "greenish ").unwrap() < 0.01 * cloth, "{plain}");
+    assert!(!plain.contains("stretch max") && title_number(&plain, "greenish ").unwrap() < 0.01 * cloth, "{plain}");
 }
 
 /// The time plot beside the view (`frames/steps.csv`, which `cloth run
@@ -248,11 +252,7 @@ fn chromium_plots_the_runs_steps() {
     let server = Server::start(&out);
     let title = server.title_in_chromium(&chromium, "check&frame=last");
     println!("{title}");
-    let number = |key: &str| -> f64 {
-        let text =
-            title.split(key).nth(1).and_then(|t| t.split([';', ',']).next()).unwrap_or_else(|| panic!("{title}"));
-        text.split_whitespace().next().and_then(|n| n.parse().ok()).unwrap_or_else(|| panic!("{key}: {title}"))
-    };
+    let number = |key: &str| title_number(&title, key).unwrap_or_else(|| panic!("{key}: {title}"));
     assert_eq!(number("; plot "), summary["steps"].as_f64().unwrap(), "{title}");
     assert!(number(" steps, ") > 500.0, "the plot drew nothing: {title}");
     assert_eq!(number("plotted stretch up to "), summary["peak_stretch_ratio"].as_f64().unwrap());
@@ -277,10 +277,8 @@ fn chromium_draws_the_contact_forces() {
     let with = server.title_in_chromium(&chromium, "check&frame=last&forces");
     let without = server.title_in_chromium(&chromium, "check&frame=last");
     println!("{with}\n{without}\n{} contacts, sum {sum:?} N", last.len());
-    let field =
-        |key: &str| with.split(key).nth(1).and_then(|t| t.split([';', ',']).next()).unwrap_or("").trim().to_string();
     assert!(last.len() > 50, "the drape has no contacts to draw");
-    assert_eq!(field("; forces "), last.len().to_string(), "{with}");
+    assert_eq!(title_number(&with, "; forces "), Some(last.len() as f64), "{with}");
     let shown: Vec<f64> = with
         .split("sum ")
         .nth(1)
@@ -298,7 +296,7 @@ fn chromium_draws_the_contact_forces() {
             "{shown:?} {sum:?}"
         );
     }
-    assert!(field("yellow ").parse::<u64>().unwrap() > 50, "{with}");
+    assert!(title_number(&with, "yellow ").unwrap() > 50.0, "{with}");
     assert!(!without.contains("forces") && !without.contains("yellow"), "{without}");
 }
 
