@@ -8,8 +8,12 @@ use cloth_fuzz::driver::{Budget, Report, fuzz};
 use cloth_fuzz::{Corpus, Target};
 
 fn run(corpus: Corpus, runs: usize, seed: u64) -> Vec<(Target, Report)> {
+    Target::ALL.into_iter().flat_map(|t| run_target(t, corpus, runs, seed)).collect()
+}
+
+fn run_target(target: Target, corpus: Corpus, runs: usize, seed: u64) -> Vec<(Target, Report)> {
     cloth_fuzz::quiet_panics();
-    Target::ALL.into_iter().map(|t| (t, fuzz(t, corpus, Budget::Runs(runs), seed))).collect()
+    vec![(target, fuzz(target, corpus, Budget::Runs(runs), seed))]
 }
 
 fn check(reports: &[(Target, Report)]) {
@@ -45,9 +49,35 @@ fn the_corpus_and_its_mutations_are_read_or_refused() {
     }
 }
 
-/// The slow tier: the whole corpus, and 1,000 mutations on another sequence.
-#[test]
-#[ignore = "slow tier: the whole corpus and 1,000 mutated inputs per target"]
-fn the_whole_corpus_and_longer_mutation_runs() {
-    check(&run(Corpus::All, 1000, 2));
+/// The slow tier: the whole corpus, and 1,000 mutations on another
+/// sequence, one test per target so that the harness runs two at a time.
+macro_rules! whole_corpus {
+    ($($test:ident: $target:ident,)*) => {
+        $(
+            #[test]
+            #[ignore = "slow tier: the whole corpus and 1,000 mutated inputs per target"]
+            fn $test() {
+                check(&run_target(Target::$target, Corpus::All, 1000, 2));
+            }
+        )*
+
+        #[test]
+        fn every_target_replays_its_whole_corpus_in_the_slow_tier() {
+            let tested = [$(Target::$target),*];
+            for t in Target::ALL {
+                assert!(tested.contains(&t), "no slow test for {}", t.name());
+            }
+        }
+    };
+}
+
+whole_corpus! {
+    scene_toml_whole_corpus: SceneToml,
+    overrides_whole_corpus: Overrides,
+    obj_whole_corpus: Obj,
+    gltf_whole_corpus: Gltf,
+    urdf_whole_corpus: Urdf,
+    bvh_whole_corpus: Bvh,
+    gltf_writer_whole_corpus: GltfWriter,
+    fmi_calls_whole_corpus: FmiCalls,
 }
