@@ -1,53 +1,108 @@
 //! rapier's own cloth (`SoftBodyBuilder::cloth`) beside this library's, on
-//! the same hanging cloth: 1 m square, 41 x 41 particles, 0.1 kg, hung
-//! from two corners for 2 s at 1/90 s. Prints, for each, the wall time a
-//! step (median of the steps), the worst stretch of a structural edge at
-//! the end and over the run, and how far the cloth sagged.
+//! three scenes at h = 1/90 s:
+//!
+//! - **hang**: 1 m square, 41 x 41 particles, 0.1 kg, hung from two
+//!   corners for 2 s;
+//! - **drape**: the same square dropped from 0.1 m onto a fixed ball of
+//!   radius 0.3 m (friction 0.3) for 2 s, as `fixtures/scenes/drape-sphere.toml`;
+//! - **hammock**: 1.0 x 0.6 m, 21 x 13 particles, 0.12 kg, held at its four
+//!   corners, catching a 0.5 kg dynamic ball of radius 0.1 m for 4 s, as
+//!   `fixtures/scenes/hammock.toml`.
+//!
+//! Each row gives the wall time a step (median of the steps), the worst
+//! structural-edge stretch at the end and over the run, and what the scene
+//! asks of contact and coupling: how deep the cloth sank into the ball,
+//! how fast anything still moves at the end, where the ball came to rest.
 //!
 //!     cargo run --release -p cloth-rapier --example rapier_soft_cloth
 //!
 //! rapier's cloth takes its stiffness as a natural frequency and damping
 //! ratio per constraint family (its default: edges at 30 Hz), not as a
-//! fabric's tensile stiffness in N/m; its rows here are its default and a
-//! stiffer 200 Hz. This library's row is Choi & Ko's cloth at the hang
-//! fixture's E = 200 N/m with BDF2 (the accurate reference).
+//! fabric's tensile stiffness in N/m; its rows are its default and a
+//! stiffer 200 Hz. This library's rows are Choi & Ko's cloth with the
+//! fixtures' materials: BDF2 for hang and drape, backward Euler with the
+//! ball inside the cloth's solve (the monolithic master) for the hammock.
 
+use cloth_core::Simulation;
 use cloth_core::scene::Scene;
-use rapier3d_f64::prelude::{PhysicsWorld, SoftBodyBuilder, SoftBodyMaterial, SpringCoefficients, Vector};
-use std::path::Path;
+use cloth_rapier::CoupledScene;
+use rapier3d_f64::prelude::{
+    ColliderBuilder, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle, SoftBodyBuilder, SoftBodyHandle,
+    SoftBodyMaterial, SpringCoefficients, Vector,
+};
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-const N: usize = 41;
-const SIZE: f64 = 1.0;
-const MASS: f64 = 0.1;
 const H: f64 = 1.0 / 90.0;
-const STEPS: usize = 180;
 
-/// Worst structural-edge stretch of a grid of `N x N` positions, `at(i, j)`.
-fn grid_stretch(at: impl Fn(usize, usize) -> [f64; 3]) -> f64 {
-    let rest = SIZE / (N - 1) as f64;
-    let length =
-        |a: [f64; 3], b: [f64; 3]| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
-    let mut worst: f64 = 0.0;
-    for i in 0..N {
-        for j in 0..N {
-            if i + 1 < N {
-                worst = worst.max(length(at(i, j), at(i + 1, j)) / rest);
-            }
-            if j + 1 < N {
-                worst = worst.max(length(at(i, j), at(i, j + 1)) / rest);
-            }
-        }
-    }
-    worst
+/// A grid cloth: particles along x and y, size (m), mass (kg), where its
+/// first particle sits (m), and how long it runs (steps).
+#[derive(Clone, Copy)]
+struct Grid {
+    n: [usize; 2],
+    size: [f64; 2],
+    mass: f64,
+    origin: [f64; 3],
+    steps: usize,
 }
 
+const HANG: Grid = Grid { n: [41, 41], size: [1.0, 1.0], mass: 0.1, origin: [0.0, 0.0, 1.0], steps: 180 };
+const DRAPE: Grid = Grid { n: [41, 41], size: [1.0, 1.0], mass: 0.1, origin: [-0.5, -0.5, 0.4], steps: 180 };
+const HAMMOCK: Grid = Grid { n: [21, 13], size: [1.0, 0.6], mass: 0.12, origin: [-0.5, -0.3, 1.0], steps: 360 };
+
+/// The drape's fixed ball (radius, m, at the origin) and the hammock's
+/// dynamic one (radius m, mass kg, start m, friction, damping 1/s).
+const DRAPE_BALL_R: f64 = 0.3;
+const BALL_R: f64 = 0.1;
+const BALL_KG: f64 = 0.5;
+const BALL_START: [f64; 3] = [0.05, 0.02, 1.25];
+
+impl Grid {
+    fn spacing(&self) -> [f64; 2] {
+        [self.size[0] / (self.n[0] - 1) as f64, self.size[1] / (self.n[1] - 1) as f64]
+    }
+
+    /// Worst structural-edge stretch, `at(i, j)` the position of particle
+    /// (i along x, j along y).
+    fn stretch(&self, at: impl Fn(usize, usize) -> [f64; 3]) -> f64 {
+        let [dx, dy] = self.spacing();
+        let length =
+            |a: [f64; 3], b: [f64; 3]| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
+        let mut worst: f64 = 0.0;
+        for i in 0..self.n[0] {
+            for j in 0..self.n[1] {
+                if i + 1 < self.n[0] {
+                    worst = worst.max(length(at(i, j), at(i + 1, j)) / dx);
+                }
+                if j + 1 < self.n[1] {
+                    worst = worst.max(length(at(i, j), at(i, j + 1)) / dy);
+                }
+            }
+        }
+        worst
+    }
+}
+
+/// What a run measured.
+#[derive(Default)]
 struct Row {
-    name: String,
+    cloth: String,
     ms_per_step: f64,
     end_stretch: f64,
     peak_stretch: f64,
+    /// Lowest cloth point at the end, m.
     lowest_z: f64,
+    /// Deepest any particle went inside the ball over the run, m
+    /// (0 when none did).
+    ball_depth: f64,
+    /// Fastest particle at the end, m/s.
+    cloth_speed: f64,
+    /// The hammock's ball at the end: height (m) and speed (m/s).
+    ball: Option<(f64, f64)>,
+    /// When the hammock's ball fell below the whole cloth, s.
+    ball_out_s: Option<f64>,
+    /// Whether every position stayed finite.
+    finite: bool,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -55,101 +110,219 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
-fn rapier_cloth(edge_hz: f64) -> Row {
+fn norm(v: [f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+/// How deep `p` is inside a ball of radius `r` at `c`, m (0 outside).
+fn depth_in_ball(p: [f64; 3], c: [f64; 3], r: f64) -> f64 {
+    (r - norm([p[0] - c[0], p[1] - c[1], p[2] - c[2]])).max(0.0)
+}
+
+#[derive(Clone, Copy, PartialEq)]
+enum Case {
+    Hang,
+    Drape,
+    Hammock,
+}
+
+impl Case {
+    fn grid(self) -> Grid {
+        match self {
+            Case::Hang => HANG,
+            Case::Drape => DRAPE,
+            Case::Hammock => HAMMOCK,
+        }
+    }
+}
+
+/// One scene with rapier's cloth, its edges at `edge_hz`.
+fn rapier_cloth(case: Case, edge_hz: f64) -> Row {
+    let g = case.grid();
     let mut world = PhysicsWorld::new();
     world.gravity = Vector::new(0.0, 0.0, -9.81);
     world.integration_parameters.dt = H;
-    let spacing = SIZE / (N - 1) as f64;
-    // Particle (i, j) at origin + i du + j dv, index i N + j; pinned at (0, N-1) and (N-1, N-1).
-    let corners = [(N - 1) as u32, ((N - 1) * N + N - 1) as u32];
+    let [dx, dy] = g.spacing();
+    let [nx, ny] = g.n;
+    // rapier numbers particle (i, j) as i ny + j.
+    let index = |i: usize, j: usize| (i * ny + j) as u32;
+    let pins: Vec<u32> = match case {
+        Case::Hang => vec![index(0, ny - 1), index(nx - 1, ny - 1)],
+        Case::Drape => vec![],
+        Case::Hammock => vec![index(0, 0), index(0, ny - 1), index(nx - 1, 0), index(nx - 1, ny - 1)],
+    };
+    let friction = if case == Case::Hammock { 0.4 } else { 0.3 };
     let material =
         SoftBodyMaterial { edge_softness: SpringCoefficients::new(edge_hz, 1.0), ..SoftBodyMaterial::default() };
-    let cloth = SoftBodyBuilder::cloth(
-        Vector::new(0.0, 0.0, 1.0),
-        Vector::new(spacing, 0.0, 0.0),
-        Vector::new(0.0, spacing, 0.0),
-        N,
-        N,
-    )
-    .mass(MASS)
-    .material(material)
-    .pinned_particles(corners);
+    let cloth =
+        SoftBodyBuilder::cloth(Vector::from(g.origin), Vector::new(dx, 0.0, 0.0), Vector::new(0.0, dy, 0.0), nx, ny)
+            .mass(g.mass)
+            .material(material)
+            .surface_collider(ColliderBuilder::ball(0.05).density(0.0).friction(friction))
+            .pinned_particles(pins);
+    let ball: Option<RigidBodyHandle> = match case {
+        Case::Hang => None,
+        Case::Drape => {
+            world.colliders.insert(ColliderBuilder::ball(DRAPE_BALL_R).friction(0.3));
+            None
+        }
+        Case::Hammock => {
+            let b = world.bodies.insert(
+                RigidBodyBuilder::dynamic()
+                    .translation(Vector::from(BALL_START))
+                    .linear_damping(2.0)
+                    .angular_damping(2.0),
+            );
+            world.colliders.insert_with_parent(
+                ColliderBuilder::ball(BALL_R).mass(BALL_KG).friction(0.4),
+                b,
+                &mut world.bodies,
+            );
+            Some(b)
+        }
+    };
     let PhysicsWorld { soft_bodies, bodies, colliders, .. } = &mut world;
     let handle = soft_bodies.insert(cloth, bodies, colliders);
-    let mut times = Vec::with_capacity(STEPS);
-    let mut peak: f64 = 0.0;
-    let stretch = |world: &PhysicsWorld| {
-        let x: Vec<Vector> = world.soft_bodies.get(handle).expect("inserted").particle_positions().collect();
-        grid_stretch(|i, j| {
-            let p = x[i * N + j];
-            [p.x, p.y, p.z]
-        })
+    let positions = |world: &PhysicsWorld, handle: SoftBodyHandle| -> Vec<[f64; 3]> {
+        world.soft_bodies.get(handle).expect("inserted").particle_positions().map(|p| [p.x, p.y, p.z]).collect()
     };
-    for _ in 0..STEPS {
+    let mut row = Row { cloth: format!("rapier `SoftBodyBuilder::cloth`, edges at {edge_hz} Hz"), ..Row::default() };
+    let mut times = Vec::with_capacity(g.steps);
+    for _ in 0..g.steps {
         let t = Instant::now();
         world.step();
         times.push(t.elapsed().as_secs_f64());
-        peak = peak.max(stretch(&world));
+        let x = positions(&world, handle);
+        if let Some(b) = ball {
+            let lowest = x.iter().map(|p| p[2]).fold(f64::INFINITY, f64::min);
+            if row.ball_out_s.is_none() && world.bodies[b].translation().z < lowest {
+                row.ball_out_s = Some(times.len() as f64 * H);
+            }
+        }
+        row.peak_stretch = row.peak_stretch.max(g.stretch(|i, j| x[i * ny + j]));
+        let centre = match ball {
+            Some(b) => Some(world.bodies[b].translation().into()),
+            None if case == Case::Drape => Some([0.0; 3]),
+            None => None,
+        };
+        if let Some(c) = centre {
+            let r = if case == Case::Drape { DRAPE_BALL_R } else { BALL_R };
+            row.ball_depth = x.iter().fold(row.ball_depth, |d, &p| d.max(depth_in_ball(p, c, r)));
+        }
     }
-    let lowest = world
-        .soft_bodies
-        .get(handle)
-        .expect("inserted")
-        .particle_positions()
-        .map(|p| p.z)
-        .fold(f64::INFINITY, f64::min);
-    Row {
-        name: format!("rapier SoftBodyBuilder::cloth, edges at {edge_hz} Hz"),
-        ms_per_step: 1e3 * median(times),
-        end_stretch: stretch(&world),
-        peak_stretch: peak,
-        lowest_z: lowest,
-    }
+    let x = positions(&world, handle);
+    let soft = world.soft_bodies.get(handle).expect("inserted");
+    row.ms_per_step = 1e3 * median(times);
+    row.end_stretch = g.stretch(|i, j| x[i * ny + j]);
+    row.lowest_z = x.iter().map(|p| p[2]).fold(f64::INFINITY, f64::min);
+    row.cloth_speed = soft.particle_velocities().map(|v| v.length()).fold(0.0, f64::max);
+    row.finite = x.iter().flatten().all(|c| c.is_finite());
+    row.ball = ball.map(|b| (world.bodies[b].translation().z, world.bodies[b].linvel().length()));
+    row
 }
 
-fn this_library(integrator: &str) -> Row {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/scenes/hang.toml");
-    let overrides = vec![
-        format!("panels.0.particles=[{N}, {N}]"),
-        format!("panels.0.size_m=[{SIZE}, {SIZE}]"),
-        format!("pins.0.nodes=[[0, {}], [{}, {}]]", N - 1, N - 1, N - 1),
-        format!("simulation.integrator=\"{integrator}\""),
-        format!("material.areal_density_kg_m2={}", MASS / (SIZE * SIZE)),
-    ];
-    let scene = Scene::parse_file(&path, &overrides).expect("the hang fixture");
+fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/scenes").join(name)
+}
+
+/// Particle (i along x, j along y) of this library's grid panel.
+fn ours_at(sim: &Simulation, g: &Grid, i: usize, j: usize) -> [f64; 3] {
+    sim.state().x[j * g.n[0] + i].into()
+}
+
+/// Hang or drape with this library, from the fixture.
+fn this_library_cloth(case: Case) -> Row {
+    let g = case.grid();
+    let [nx, ny] = g.n;
+    let (file, extra) = match case {
+        Case::Hang => (
+            "hang.toml",
+            vec![
+                format!("panels.0.particles=[{nx}, {ny}]"),
+                format!("panels.0.size_m=[{}, {}]", g.size[0], g.size[1]),
+                format!("pins.0.nodes=[[0, {}], [{}, {}]]", ny - 1, nx - 1, ny - 1),
+                format!("material.areal_density_kg_m2={}", g.mass / (g.size[0] * g.size[1])),
+                "simulation.integrator=\"bdf2\"".to_string(),
+            ],
+        ),
+        _ => ("drape-sphere.toml", vec![]),
+    };
+    let scene = Scene::parse_file(&fixture(file), &extra).expect("the fixture");
     let (model, cfg) = scene.build().expect("builds");
     let mut sim = cfg.simulation(model);
-    let stretch = |sim: &cloth_core::Simulation| {
-        let x = &sim.state().x;
-        grid_stretch(|i, j| {
-            let p = x[j * N + i];
-            [p.x, p.y, p.z]
-        })
-    };
-    let (mut times, mut peak) = (Vec::with_capacity(STEPS), 0.0f64);
-    for _ in 0..STEPS {
+    let mut row = Row { cloth: "this library, Choi & Ko, BDF2".to_string(), ..Row::default() };
+    let mut times = Vec::with_capacity(g.steps);
+    for _ in 0..g.steps {
         let t = Instant::now();
         sim.step(H).expect("steps");
         times.push(t.elapsed().as_secs_f64());
-        peak = peak.max(stretch(&sim));
+        row.peak_stretch = row.peak_stretch.max(g.stretch(|i, j| ours_at(&sim, &g, i, j)));
+        if case == Case::Drape {
+            row.ball_depth = sim
+                .state()
+                .x
+                .iter()
+                .fold(row.ball_depth, |d, p| d.max(depth_in_ball((*p).into(), [0.0; 3], DRAPE_BALL_R)));
+        }
     }
-    Row {
-        name: format!("this library, Choi & Ko at E = 200 N/m, {integrator}"),
-        ms_per_step: 1e3 * median(times),
-        end_stretch: stretch(&sim),
-        peak_stretch: peak,
-        lowest_z: sim.state().x.iter().map(|p| p.z).fold(f64::INFINITY, f64::min),
+    finish(&mut row, &sim, &g, times);
+    row
+}
+
+/// The hammock with this library, its ball inside the cloth's solve.
+fn this_library_hammock() -> Row {
+    let g = HAMMOCK;
+    let mut run = CoupledScene::load(&fixture("hammock.toml"), &[]).expect("the fixture").build().expect("builds");
+    let ball = run.bodies.iter().find(|b| b.name == "ball").expect("the fixture's ball").handle;
+    let mut row =
+        Row { cloth: "this library, Choi & Ko, backward Euler, ball in the solve".to_string(), ..Row::default() };
+    let mut times = Vec::with_capacity(g.steps);
+    for _ in 0..g.steps {
+        let t = Instant::now();
+        run.step().expect("steps");
+        times.push(t.elapsed().as_secs_f64());
+        let sim = run.cloths[run.cloth].simulation();
+        row.peak_stretch = row.peak_stretch.max(g.stretch(|i, j| ours_at(sim, &g, i, j)));
+        let c: [f64; 3] = run.world.bodies[ball].translation().into();
+        row.ball_depth = sim.state().x.iter().fold(row.ball_depth, |d, p| d.max(depth_in_ball((*p).into(), c, BALL_R)));
     }
+    finish(&mut row, run.cloths[run.cloth].simulation(), &g, times);
+    let b = &run.world.bodies[ball];
+    row.ball = Some((b.translation().z, b.linvel().length()));
+    row
+}
+
+fn finish(row: &mut Row, sim: &Simulation, g: &Grid, times: Vec<f64>) {
+    let s = sim.state();
+    row.ms_per_step = 1e3 * median(times);
+    row.end_stretch = g.stretch(|i, j| ours_at(sim, g, i, j));
+    row.lowest_z = s.x.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
+    row.cloth_speed = s.v.iter().map(|v| v.norm()).fold(0.0, f64::max);
+    row.finite = s.x.iter().all(|p| p.iter().all(|c| c.is_finite()));
 }
 
 fn main() {
-    let rows = [rapier_cloth(30.0), rapier_cloth(200.0), this_library("bdf2")];
-    println!("| cloth | ms / step | edge stretch at 2 s | worst edge stretch | lowest point (m) |");
-    println!("|---|---|---|---|---|");
-    for r in rows {
+    for (title, case) in [("hang", Case::Hang), ("drape on a ball", Case::Drape), ("ball on a hammock", Case::Hammock)]
+    {
+        let ours = if case == Case::Hammock { this_library_hammock() } else { this_library_cloth(case) };
+        let rows = [rapier_cloth(case, 30.0), rapier_cloth(case, 200.0), ours];
+        println!("\n{title} ({} s)\n", case.grid().steps as f64 * H);
         println!(
-            "| {} | {:.2} | {:.4} | {:.4} | {:.3} |",
-            r.name, r.ms_per_step, r.end_stretch, r.peak_stretch, r.lowest_z
+            "| cloth | ms / step | edge stretch at the end | worst over the run | lowest point (m) | deepest in the ball (mm) | fastest particle at the end (m/s) | ball z (m), speed (m/s) at the end |"
         );
+        println!("|---|---|---|---|---|---|---|---|");
+        for r in rows {
+            let ball = match (r.ball, r.ball_out_s) {
+                (_, Some(t)) => format!("fell out at {t:.2} s"),
+                (Some((z, v)), None) => format!("{z:.3}, {v:.4}"),
+                (None, None) => "-".to_string(),
+            };
+            let depth = if case == Case::Hang { "-".to_string() } else { format!("{:.1}", 1e3 * r.ball_depth) };
+            let blew = if r.finite { "" } else { " (not finite)" };
+            println!(
+                "| {}{blew} | {:.2} | {:.3} | {:.3} | {:.3} | {depth} | {:.3} | {ball} |",
+                r.cloth, r.ms_per_step, r.end_stretch, r.peak_stretch, r.lowest_z, r.cloth_speed
+            );
+        }
     }
 }
