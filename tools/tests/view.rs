@@ -125,6 +125,22 @@ fn an_idle_connection_does_not_stall_the_server() {
     assert!(waited < std::time::Duration::from_secs(2), "three requests took {waited:?}");
 }
 
+/// The same in headless Chromium: with 20 silent connections held open
+/// (a server taking one connection at a time waits out each one's 5 s
+/// read timeout: 100 s, beyond the browser helper's 60 s patience), the
+/// page loads the run and every frame.
+#[test]
+fn chromium_loads_the_run_while_idle_connections_are_held() {
+    let Some(chromium) = common::outside_tool("CHROMIUM", "chromium-headless-shell") else { return };
+    let out = drape_run("idle-chromium");
+    let server = Server::start(&out);
+    let _idle: Vec<TcpStream> = (0..20).map(|_| TcpStream::connect(&server.address).unwrap()).collect();
+    let mut page = Browser::open(&chromium, &format!("http://{}/", server.address));
+    page.wait_for(
+        "typeof run === 'object' && run.frames.length === 7 && frames.length === 7 && frames.every((f) => f)",
+    );
+}
+
 #[test]
 fn view_names_what_is_missing() {
     let empty = std::env::temp_dir().join(format!("cloth-view-empty-{}", std::process::id()));
