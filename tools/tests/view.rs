@@ -356,20 +356,40 @@ fn live(scene: &str, extra: &[&str]) -> Server {
     Server::spawn(cloth().arg("live").arg(scene).args(extra))
 }
 
-/// `/live.json` once the simulation has passed `t` seconds.
-fn live_state_after(server: &Server, t: f64) -> serde_json::Value {
+/// `/live.json` once `done` holds for it (`what` names that in the
+/// failure).
+fn live_state_when(server: &Server, what: &str, done: impl Fn(&serde_json::Value) -> bool) -> serde_json::Value {
     let started = std::time::Instant::now();
     loop {
         let (status, body) = server.request("GET", "/live.json");
         assert_eq!(status, 200);
         let state: serde_json::Value = serde_json::from_slice(&body).unwrap();
-        assert!(state["error"].is_null(), "{}", state["error"]);
-        if state["time_s"].as_f64().unwrap() > t {
+        if done(&state) {
             return state;
         }
-        assert!(started.elapsed().as_secs() < 60, "the simulation did not reach {t} s");
+        assert!(started.elapsed().as_secs() < 60, "the server never had {what}: {}", state["error"]);
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
+}
+
+/// `/live.json` once the simulation has passed `t` seconds, without an
+/// error on the way.
+fn live_state_after(server: &Server, t: f64) -> serde_json::Value {
+    live_state_when(server, &format!("a time past {t} s"), |state| {
+        assert!(state["error"].is_null(), "{}", state["error"]);
+        state["time_s"].as_f64().unwrap() > t
+    })
+}
+
+/// A JSON array of three numbers.
+fn vec3(v: &serde_json::Value) -> Vec3 {
+    Vec3::new(v[0].as_f64().unwrap(), v[1].as_f64().unwrap(), v[2].as_f64().unwrap())
+}
+
+/// Particle `i` of a `/live.json` state.
+fn particle(state: &serde_json::Value, i: usize) -> Vec3 {
+    let p = &state["positions"];
+    Vec3::new(p[3 * i].as_f64().unwrap(), p[3 * i + 1].as_f64().unwrap(), p[3 * i + 2].as_f64().unwrap())
 }
 
 /// Mean y of the particles, m.
@@ -522,16 +542,16 @@ fn a_particle_held_live_goes_where_it_is_held() {
     let (status, _) = server.request("GET", "/hold?particle=15&x=1.2&y=0.3&z=1.1");
     assert_eq!(status, 200);
     let held = live_state_after(&server, start["time_s"].as_f64().unwrap() + 0.3);
-    let at: Vec<f64> = held["positions"].as_array().unwrap()[45..48].iter().map(|c| c.as_f64().unwrap()).collect();
+    let at = particle(&held, 15);
     let pull = &held["holds"][0]["pull_n"];
-    println!("held at {at:?}, pull {pull} N");
+    println!("held at {:?}, pull {pull} N", at.as_slice());
     assert_eq!(held["holds"][0]["particle"], 15);
-    assert!((Vec3::new(at[0], at[1], at[2]) - Vec3::new(1.2, 0.3, 1.1)).norm() < 1e-12, "{at:?}");
+    assert!((at - Vec3::new(1.2, 0.3, 1.1)).norm() < 1e-12, "{:?}", at.as_slice());
     assert!(pull.as_array().unwrap().iter().any(|f| f.as_f64().unwrap().abs() > 1e-3), "{pull}");
     let (status, body) = server.request("GET", "/release?particle=15");
     assert_eq!((status, String::from_utf8_lossy(&body).trim()), (200, r#"{"released":1}"#));
     let free = live_state_after(&server, held["time_s"].as_f64().unwrap() + 0.3);
-    let y = free["positions"][46].as_f64().unwrap();
+    let y = particle(&free, 15).y;
     println!("released: y {y:.4} m");
     assert_eq!(free["holds"], serde_json::json!([]));
     assert!((y - 0.3).abs() > 1e-3, "{y}");
@@ -543,27 +563,6 @@ fn live_page(chromium: &std::ffi::OsStr, server: &Server) -> Browser {
     let mut page = Browser::open(chromium, &format!("http://{}/", server.address));
     page.wait_for("typeof cloth === 'object' && cloth !== null && document.getElementById('step') !== null");
     page
-}
-
-/// `/live.json` once `done` holds for it.
-fn live_state_when(server: &Server, what: &str, done: impl Fn(&serde_json::Value) -> bool) -> serde_json::Value {
-    let started = std::time::Instant::now();
-    loop {
-        let (status, body) = server.request("GET", "/live.json");
-        assert_eq!(status, 200);
-        let state: serde_json::Value = serde_json::from_slice(&body).unwrap();
-        if done(&state) {
-            return state;
-        }
-        assert!(started.elapsed().as_secs() < 60, "the server never had {what}: {}", state["error"]);
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-}
-
-/// Particle `i` of a `/live.json` state.
-fn particle(state: &serde_json::Value, i: usize) -> Vec3 {
-    let p = &state["positions"];
-    Vec3::new(p[3 * i].as_f64().unwrap(), p[3 * i + 1].as_f64().unwrap(), p[3 * i + 2].as_f64().unwrap())
 }
 
 /// With a mouse in headless Chromium: a drag on the view, away from the
@@ -610,24 +609,19 @@ fn chromium_mouse_grabs_the_flag_and_lets_it_go() {
     page.move_pressed(centre, to, 10);
     let held = live_state_when(&server, "a held particle", |s| {
         s["holds"].as_array().is_some_and(|h| h.len() == 1) && {
-            let target = &s["holds"][0]["target_m"];
-            let t = Vec3::new(target[0].as_f64().unwrap(), target[1].as_f64().unwrap(), target[2].as_f64().unwrap());
             let i = s["holds"][0]["particle"].as_u64().unwrap() as usize;
-            (t - particle(&start, i)).norm() > 0.05
+            (vec3(&s["holds"][0]["target_m"]) - particle(&start, i)).norm() > 0.05
         }
     });
     let i = held["holds"][0]["particle"].as_u64().unwrap() as usize;
-    let target = &held["holds"][0]["target_m"];
-    let target = Vec3::new(target[0].as_f64().unwrap(), target[1].as_f64().unwrap(), target[2].as_f64().unwrap());
+    let target = vec3(&held["holds"][0]["target_m"]);
     assert!(!i.is_multiple_of(16), "{i}: a pole particle");
     // Dragged up on screen: the particle is held higher than it was.
     assert!(target.z > particle(&start, i).z, "{} -> {target}", particle(&start, i));
     let later = live_state_after(&server, held["time_s"].as_f64().unwrap() + 0.3);
     assert_eq!(later["holds"][0]["particle"].as_u64(), Some(i as u64), "the hold moved on: {}", later["holds"]);
     let at = particle(&later, i);
-    let target_now = &later["holds"][0]["target_m"];
-    let target_now =
-        Vec3::new(target_now[0].as_f64().unwrap(), target_now[1].as_f64().unwrap(), target_now[2].as_f64().unwrap());
+    let target_now = vec3(&later["holds"][0]["target_m"]);
     println!(
         "held {i} at {:?}, target {:?}, pull {}",
         at.as_slice(),
