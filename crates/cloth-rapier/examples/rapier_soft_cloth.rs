@@ -119,6 +119,54 @@ fn depth_in_ball(p: [f64; 3], c: [f64; 3], r: f64) -> f64 {
     (r - norm([p[0] - c[0], p[1] - c[1], p[2] - c[2]])).max(0.0)
 }
 
+/// A ball the cloth meets after a step: centre and radius, m; `moves`
+/// for the hammock's, whose fall below the whole cloth is watched.
+struct Ball {
+    centre: [f64; 3],
+    radius: f64,
+    moves: bool,
+}
+
+impl Row {
+    /// Takes in the state after step `k` (from 1): the cloth's positions
+    /// `x`, particle (i along x, j along y) at `x[index(i, j)]`, and the
+    /// ball, if the scene has one. Both libraries are measured by this.
+    fn observe(
+        &mut self,
+        g: &Grid,
+        k: usize,
+        x: &[[f64; 3]],
+        index: impl Fn(usize, usize) -> usize,
+        ball: Option<Ball>,
+    ) {
+        self.peak_stretch = self.peak_stretch.max(g.stretch(|i, j| x[index(i, j)]));
+        if let Some(b) = ball {
+            self.ball_depth = x.iter().fold(self.ball_depth, |d, &p| d.max(depth_in_ball(p, b.centre, b.radius)));
+            let lowest = x.iter().map(|p| p[2]).fold(f64::INFINITY, f64::min);
+            if b.moves && self.ball_out_s.is_none() && b.centre[2] < lowest {
+                self.ball_out_s = Some(k as f64 * H);
+            }
+        }
+    }
+
+    /// Takes in the end of the run: the steps' wall times (s), the
+    /// positions as for [`Row::observe`] and the fastest particle (m/s).
+    fn finish(
+        &mut self,
+        g: &Grid,
+        times: Vec<f64>,
+        x: &[[f64; 3]],
+        index: impl Fn(usize, usize) -> usize,
+        fastest: f64,
+    ) {
+        self.ms_per_step = 1e3 * median(times);
+        self.end_stretch = g.stretch(|i, j| x[index(i, j)]);
+        self.lowest_z = x.iter().map(|p| p[2]).fold(f64::INFINITY, f64::min);
+        self.cloth_speed = fastest;
+        self.finite = x.iter().flatten().all(|c| c.is_finite());
+    }
+}
+
 #[derive(Clone, Copy, PartialEq)]
 enum Case {
     Hang,
@@ -144,7 +192,6 @@ fn rapier_cloth(case: Case, edge_hz: f64) -> Row {
     world.integration_parameters.dt = H;
     let [dx, dy] = g.spacing();
     let [nx, ny] = g.n;
-    // rapier numbers particle (i, j) as i ny + j.
     let index = |i: usize, j: usize| (i * ny + j) as u32;
     let pins: Vec<u32> = match case {
         Case::Hang => vec![index(0, ny - 1), index(nx - 1, ny - 1)],
@@ -187,36 +234,23 @@ fn rapier_cloth(case: Case, edge_hz: f64) -> Row {
         world.soft_bodies.get(handle).expect("inserted").particle_positions().map(|p| [p.x, p.y, p.z]).collect()
     };
     let mut row = Row { cloth: format!("rapier `SoftBodyBuilder::cloth`, edges at {edge_hz} Hz"), ..Row::default() };
+    // rapier numbers particle (i, j) as i ny + j.
+    let at = |i: usize, j: usize| i * ny + j;
+    let the_ball = |world: &PhysicsWorld| match (case, ball) {
+        (Case::Drape, _) => Some(Ball { centre: [0.0; 3], radius: DRAPE_BALL_R, moves: false }),
+        (_, Some(b)) => Some(Ball { centre: world.bodies[b].translation().into(), radius: BALL_R, moves: true }),
+        _ => None,
+    };
     let mut times = Vec::with_capacity(g.steps);
-    for _ in 0..g.steps {
+    for k in 1..=g.steps {
         let t = Instant::now();
         world.step();
         times.push(t.elapsed().as_secs_f64());
-        let x = positions(&world, handle);
-        if let Some(b) = ball {
-            let lowest = x.iter().map(|p| p[2]).fold(f64::INFINITY, f64::min);
-            if row.ball_out_s.is_none() && world.bodies[b].translation().z < lowest {
-                row.ball_out_s = Some(times.len() as f64 * H);
-            }
-        }
-        row.peak_stretch = row.peak_stretch.max(g.stretch(|i, j| x[i * ny + j]));
-        let centre = match ball {
-            Some(b) => Some(world.bodies[b].translation().into()),
-            None if case == Case::Drape => Some([0.0; 3]),
-            None => None,
-        };
-        if let Some(c) = centre {
-            let r = if case == Case::Drape { DRAPE_BALL_R } else { BALL_R };
-            row.ball_depth = x.iter().fold(row.ball_depth, |d, &p| d.max(depth_in_ball(p, c, r)));
-        }
+        row.observe(&g, k, &positions(&world, handle), at, the_ball(&world));
     }
-    let x = positions(&world, handle);
     let soft = world.soft_bodies.get(handle).expect("inserted");
-    row.ms_per_step = 1e3 * median(times);
-    row.end_stretch = g.stretch(|i, j| x[i * ny + j]);
-    row.lowest_z = x.iter().map(|p| p[2]).fold(f64::INFINITY, f64::min);
-    row.cloth_speed = soft.particle_velocities().map(|v| v.length()).fold(0.0, f64::max);
-    row.finite = x.iter().flatten().all(|c| c.is_finite());
+    let fastest = soft.particle_velocities().map(|v| v.length()).fold(0.0, f64::max);
+    row.finish(&g, times, &positions(&world, handle), at, fastest);
     row.ball = ball.map(|b| (world.bodies[b].translation().z, world.bodies[b].linvel().length()));
     row
 }
@@ -225,9 +259,10 @@ fn fixture(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/scenes").join(name)
 }
 
-/// Particle (i along x, j along y) of this library's grid panel.
-fn ours_at(sim: &Simulation, g: &Grid, i: usize, j: usize) -> [f64; 3] {
-    sim.state().x[j * g.n[0] + i].into()
+/// This library's positions, and where its grid panel keeps particle (i
+/// along x, j along y).
+fn ours(sim: &Simulation) -> Vec<[f64; 3]> {
+    sim.state().x.iter().map(|p| (*p).into()).collect()
 }
 
 /// Hang or drape with this library, from the fixture.
@@ -250,22 +285,17 @@ fn this_library_cloth(case: Case) -> Row {
     let scene = Scene::parse_file(&fixture(file), &extra).expect("the fixture");
     let (model, cfg) = scene.build().expect("builds");
     let mut sim = cfg.simulation(model);
+    let at = |i: usize, j: usize| j * nx + i;
+    let ball = || (case == Case::Drape).then_some(Ball { centre: [0.0; 3], radius: DRAPE_BALL_R, moves: false });
     let mut row = Row { cloth: "this library, Choi & Ko, BDF2".to_string(), ..Row::default() };
     let mut times = Vec::with_capacity(g.steps);
-    for _ in 0..g.steps {
+    for k in 1..=g.steps {
         let t = Instant::now();
         sim.step(H).expect("steps");
         times.push(t.elapsed().as_secs_f64());
-        row.peak_stretch = row.peak_stretch.max(g.stretch(|i, j| ours_at(&sim, &g, i, j)));
-        if case == Case::Drape {
-            row.ball_depth = sim
-                .state()
-                .x
-                .iter()
-                .fold(row.ball_depth, |d, p| d.max(depth_in_ball((*p).into(), [0.0; 3], DRAPE_BALL_R)));
-        }
+        row.observe(&g, k, &ours(&sim), at, ball());
     }
-    finish(&mut row, &sim, &g, times);
+    row.finish(&g, times, &ours(&sim), at, fastest(&sim));
     row
 }
 
@@ -274,31 +304,28 @@ fn this_library_hammock() -> Row {
     let g = HAMMOCK;
     let mut run = CoupledScene::load(&fixture("hammock.toml"), &[]).expect("the fixture").build().expect("builds");
     let ball = run.bodies.iter().find(|b| b.name == "ball").expect("the fixture's ball").handle;
+    let at = |i: usize, j: usize| j * g.n[0] + i;
     let mut row =
         Row { cloth: "this library, Choi & Ko, backward Euler, ball in the solve".to_string(), ..Row::default() };
     let mut times = Vec::with_capacity(g.steps);
-    for _ in 0..g.steps {
+    for k in 1..=g.steps {
         let t = Instant::now();
         run.step().expect("steps");
         times.push(t.elapsed().as_secs_f64());
-        let sim = run.cloths[run.cloth].simulation();
-        row.peak_stretch = row.peak_stretch.max(g.stretch(|i, j| ours_at(sim, &g, i, j)));
-        let c: [f64; 3] = run.world.bodies[ball].translation().into();
-        row.ball_depth = sim.state().x.iter().fold(row.ball_depth, |d, p| d.max(depth_in_ball((*p).into(), c, BALL_R)));
+        let centre = run.world.bodies[ball].translation().into();
+        let x = ours(run.cloths[run.cloth].simulation());
+        row.observe(&g, k, &x, at, Some(Ball { centre, radius: BALL_R, moves: true }));
     }
-    finish(&mut row, run.cloths[run.cloth].simulation(), &g, times);
+    let sim = run.cloths[run.cloth].simulation();
+    row.finish(&g, times, &ours(sim), at, fastest(sim));
     let b = &run.world.bodies[ball];
     row.ball = Some((b.translation().z, b.linvel().length()));
     row
 }
 
-fn finish(row: &mut Row, sim: &Simulation, g: &Grid, times: Vec<f64>) {
-    let s = sim.state();
-    row.ms_per_step = 1e3 * median(times);
-    row.end_stretch = g.stretch(|i, j| ours_at(sim, g, i, j));
-    row.lowest_z = s.x.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
-    row.cloth_speed = s.v.iter().map(|v| v.norm()).fold(0.0, f64::max);
-    row.finite = s.x.iter().all(|p| p.iter().all(|c| c.is_finite()));
+/// This library's fastest particle, m/s.
+fn fastest(sim: &Simulation) -> f64 {
+    sim.state().v.iter().map(|v| v.norm()).fold(0.0, f64::max)
 }
 
 fn main() {
