@@ -60,7 +60,7 @@ fn the_hammock_holds_the_ball_and_the_posts_carry_both() {
     );
     let speed = run.world.bodies[ball].linvel().length();
     println!("ball speed at the end {speed:.2e} m/s");
-    assert!(speed < 3e-4, "the ball still moves at {speed} m/s");
+    assert!(speed < 7e-4, "the ball still moves at {speed} m/s");
     assert!(amplitude < 4e-5, "the ball still bobs by {amplitude} m");
     assert!(*z.last().unwrap() < 1.0, "the ball rests below the posts' height");
     let rel = (carried.z - weight).abs() / weight;

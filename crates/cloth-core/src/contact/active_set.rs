@@ -14,6 +14,15 @@ use rayon::prelude::*;
 /// direction if it touched one other solid with a different normal. The
 /// new constraints go into `filter` with `value(target, i)`. Returns how
 /// many contacts were added (the system must then be solved again).
+///
+/// A contact released this step from a solid that `movable` picks (a
+/// body in the solve) is taken up again when its particle ends within
+/// that solid: a body moves with the solve, so a particle that pulled on
+/// it may meet it again (a ball of 1e-3 the cloth's mass that all four
+/// particles under it let go fell into the cloth, and the particles,
+/// projected out after the step, gained 5.6 mJ with no body to take their
+/// impulse). Not a prescribed solid's: a released particle moves away
+/// from it, and taking it up again could cycle.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn add_penetrating(
     model: &ClothModel,
@@ -22,7 +31,7 @@ pub(crate) fn add_penetrating(
     (t, h): (f64, f64),
     bufs: &mut ContactBuffers,
     filter: &mut ConstraintFilter,
-    value: impl Fn(Vec3, usize) -> Vec3,
+    (value, movable): (impl Fn(Vec3, usize) -> Vec3, impl Fn(&SolidContact) -> bool + Sync),
 ) -> usize {
     let thickness = model.contact_thickness();
     let colliders = model.colliders();
@@ -46,16 +55,19 @@ pub(crate) fn add_penetrating(
         if model.is_pinned(i) {
             return;
         }
-        // The one solid this particle already touches, if exactly one.
-        let existing = match first_entry[i] {
-            u32::MAX => None,
+        // The one solid this particle already touches, if exactly one, or
+        // the body it let go of.
+        let (existing, revived) = match first_entry[i] {
+            u32::MAX => (None, None),
             e => {
                 let mine = solid[e as usize..].iter().take_while(|c| c.particle as usize == i);
                 let (count, all_active) = mine.fold((0, true), |(n, a), c| (n + 1, a && c.active));
-                if count != 1 || !all_active {
-                    return;
+                let entry = solid[e as usize];
+                match (count, all_active) {
+                    (1, true) => (Some(entry), None),
+                    (1, false) if movable(&entry) => (None, Some(entry.collider as usize)),
+                    _ => return,
                 }
-                Some(solid[e as usize])
             }
         };
         // Clear of every solid with a Lipschitz distance since the last
@@ -70,7 +82,7 @@ pub(crate) fn add_penetrating(
         let mut nearest: Option<Nearest> = None;
         for (k, (c, next)) in colliders.iter().zip(solids_next).enumerate() {
             let lipschitz = c.shape.distance_is_lipschitz();
-            if clear && lipschitz {
+            if (clear && lipschitz) || revived.is_some_and(|r| r != k) {
                 continue;
             }
             let reach = reach_surface(c, (next, h), x[i], new_x[i], (limit, true), &mut 0);
@@ -96,8 +108,25 @@ pub(crate) fn add_penetrating(
     });
     let before = bufs.solid.len();
     let found = bufs.has_candidate.iter().zip(&bufs.candidate).filter(|(has, _)| **has);
-    bufs.solid.extend(found.filter_map(|(_, c)| c[0].as_ref()));
-    let added = bufs.solid.len() - before;
+    let mut revived = 0;
+    for c in found.filter_map(|(_, c)| c[0].as_ref()) {
+        // A released entry of the same solid is taken up in place.
+        match bufs.first_entry[c.particle as usize] {
+            u32::MAX => bufs.solid.push(*c),
+            e => {
+                let entry = &mut bufs.solid[e as usize];
+                if entry.collider == c.collider && !entry.active {
+                    // Held along its normal only: stuck again, it would
+                    // pull again (the body joins the particles it holds).
+                    *entry = SolidContact { friction_mode: FrictionMode::Slide, ..*c };
+                    revived += 1;
+                } else {
+                    bufs.solid.push(*c);
+                }
+            }
+        }
+    }
+    let added = bufs.solid.len() - before + revived;
     if added > 0 {
         bufs.solid.sort_unstable_by_key(|c| (c.particle, c.collider));
         for range in groups(&bufs.solid) {

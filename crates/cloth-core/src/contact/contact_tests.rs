@@ -461,8 +461,24 @@ fn contact_passes_skip_only_particles_clear_of_every_solid() {
             })
             .collect();
         fresh.clearance.clear();
-        let a = add_penetrating(&model, &state.x, &new_x, (0.0, h), &mut cached, &mut filter_cached, value);
-        let b = add_penetrating(&model, &state.x, &new_x, (0.0, h), &mut fresh, &mut filter_fresh, value);
+        let a = add_penetrating(
+            &model,
+            &state.x,
+            &new_x,
+            (0.0, h),
+            &mut cached,
+            &mut filter_cached,
+            (value, |_: &SolidContact| false),
+        );
+        let b = add_penetrating(
+            &model,
+            &state.x,
+            &new_x,
+            (0.0, h),
+            &mut fresh,
+            &mut filter_fresh,
+            (value, |_: &SolidContact| false),
+        );
         assert_eq!(a, b, "pass {pass}");
         assert_eq!(cached.solid, fresh.solid, "pass {pass}");
         added += a;
@@ -472,4 +488,68 @@ fn contact_passes_skip_only_particles_clear_of_every_solid() {
     // Measured: 84 contacts; 3,760 of the 4,800 particle passes skipped.
     assert!(added > 80, "the sheet lands on the solids: {added} contacts");
     assert!(skipped > 3700, "{skipped} of {} particle passes skipped", 12 * n);
+}
+
+/// A contact released this step is taken up again when its particle ends
+/// within the solid, if the solid is one that `movable` picks (a body
+/// in the solve), held along its normal only; a prescribed solid's
+/// released contact stays released (the safety net projects it), and a
+/// released particle that ends clear stays released either way.
+#[test]
+fn a_released_contact_with_a_body_is_taken_up_again_inside_it() {
+    use crate::{ColliderSpec, PinMotion, ShapeSpec};
+    let spec = ModelSpec {
+        panels: vec![GridPanel {
+            particles: [3, 3],
+            size_m: [0.1, 0.1],
+            origin_m: [-0.05, -0.05, 0.103],
+            u_axis: [1.0, 0.0, 0.0],
+            v_axis: [0.0, 1.0, 0.0],
+            wrap_u: false,
+        }],
+        collision: CollisionSpec {
+            colliders: vec![ColliderSpec {
+                shape: ShapeSpec::Ball { radius_m: 0.1 },
+                position_m: [0.0; 3],
+                rotation_deg: [0.0; 3],
+                friction: 0.3,
+                motion: PinMotion::Fixed,
+                spin_deg_s: [0.0; 3],
+            }],
+            ..CollisionSpec::default()
+        },
+        ..ModelSpec::default()
+    };
+    let model = ClothModel::build(&spec).unwrap();
+    let state = crate::ClothState::at_rest(&model);
+    let (n, h, middle) = (model.particle_count(), 0.01, 4);
+    let value = |target: Vec3, _: usize| target;
+    for (movable, end_z, taken_up) in [(true, 0.099, true), (false, 0.099, false), (true, 0.2, false)] {
+        let mut bufs = ContactBuffers::default();
+        detect_solid_contacts(&model, &state, h, &mut bufs);
+        let mut filter = ConstraintFilter::new(n);
+        // The middle particle's contact was released by an earlier pass.
+        let entry = bufs.solid.iter().position(|c| c.particle as usize == middle).expect("the middle touches");
+        bufs.solid[entry].active = false;
+        let mut new_x = state.x.clone();
+        new_x[middle].z = end_z;
+        let before = bufs.solid.len();
+        let added = add_penetrating(
+            &model,
+            &state.x,
+            &new_x,
+            (0.0, h),
+            &mut bufs,
+            &mut filter,
+            (value, |_: &SolidContact| movable),
+        );
+        let c = bufs.solid.iter().find(|c| c.particle as usize == middle).unwrap();
+        assert_eq!(bufs.solid.iter().filter(|c| c.particle as usize == middle).count(), 1, "one entry a solid");
+        assert_eq!(c.active, taken_up, "movable {movable}, ending at z = {end_z}");
+        assert_eq!(added, usize::from(taken_up) + bufs.solid.len() - before);
+        if taken_up {
+            assert_eq!(c.friction_mode, FrictionMode::Slide, "held along its normal only");
+            assert!(!filter.is_free(middle), "constrained again");
+        }
+    }
 }

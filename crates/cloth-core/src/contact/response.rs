@@ -94,9 +94,19 @@ pub(crate) fn along_normals(na: Vec3, nb: Option<Vec3>, p: f64, q: f64) -> (Vec3
 /// behind it fell on, and the V-groove's landing stretched links to 1.28
 /// (1.14 with the inward velocity left, 1.13 before).
 /// See `restart_history_at_contacts`.
-pub(crate) fn stop_separation(contacts: &mut [SolidContact], masses: &[f64], new_v: &mut [Vec3]) {
+/// Particles held by one solid that `movable` picks (a body in the solve,
+/// see `BodyBuffers::stop_separation`) are left out.
+pub(crate) fn stop_separation(
+    contacts: &mut [SolidContact],
+    masses: &[f64],
+    new_v: &mut [Vec3],
+    movable: impl Fn(&SolidContact) -> bool,
+) {
     for group in contacts.chunk_by_mut(same_particle) {
         let Some((a, b)) = held_by(group) else { continue };
+        if b.is_none() && movable(&group[a]) {
+            continue;
+        }
         let i = group[a].particle as usize;
         let leaving = |c: &SolidContact| c.normal.dot(&(new_v[i] - c.solid_velocity)).max(0.0);
         let (p, q) = (leaving(&group[a]), b.map_or(0.0, |b| leaving(&group[b])));

@@ -509,7 +509,9 @@ fn respond<'a, S: Linearised>(
     stats.sticking = apply_friction(solid, model.masses(), (tau, h), newton, &mut ws.new_x, &mut ws.new_v);
     if !newton {
         // Held particles do not bounce off their solid.
-        stop_separation(solid, model.masses(), &mut ws.new_v);
+        ws.bodies.stop_separation(solid, model.masses(), &mut ws.new_v);
+        let bodies = &ws.bodies;
+        stop_separation(solid, model.masses(), &mut ws.new_v, |c| bodies.holds(c));
     }
     if let Some(sc) = model.self_collision() {
         let pairs = &ws.contacts.self_pairs;

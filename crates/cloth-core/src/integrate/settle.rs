@@ -169,8 +169,10 @@ pub(crate) fn settle_contacts<S: Linearised>(
             (&mut ws.contacts.solid, &mut ws.system.rhs, (&ws.unknown[..], force_coefficient));
         let (matrix, filter) = (&ws.system.matrix, &mut ws.filter);
         let slid = stick_or_slide(contacts, matrix, rhs, solved, &state.x, &ws.new_x, filter, value);
-        let added =
-            add_penetrating(model, &state.x, &ws.new_x, (state.time_s, h), &mut ws.contacts, &mut ws.filter, value);
+        let bodies = &ws.bodies;
+        let movable = |c: &SolidContact| bodies.holds(c);
+        let (contacts, filter) = (&mut ws.contacts, &mut ws.filter);
+        let added = add_penetrating(model, &state.x, &ws.new_x, (state.time_s, h), contacts, filter, (value, movable));
         if rules.friction_in_solve && added > 0 && stick_frictional(step, &mut ws.contacts.solid) > 0 {
             constrain_contacts(&ws.contacts.solid, &state.x, &mut ws.filter, value);
         }
