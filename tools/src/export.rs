@@ -1,5 +1,5 @@
 //! `cloth export OUT_DIR`: a recorded run (`cloth run --frames N`) as one
-//! binary glTF file (see [`crate::gltf`] for what it holds and why).
+//! binary glTF file (see [`cloth_tools::gltf`] for what it holds and why).
 
 use crate::view::Recorded;
 use anyhow::{Context, Result, bail};

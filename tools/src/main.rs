@@ -31,8 +31,12 @@ enum Command {
         /// Output directory.
         #[arg(long)]
         out: PathBuf,
-        /// Override a scene field, e.g. --set panels.0.particles=[75,75] (repeatable).
-        #[arg(long = "set", value_name = "KEY=VALUE")]
+        // The help is an attribute: rustdoc would read "[75,75]" as a link.
+        #[arg(
+            long = "set",
+            value_name = "KEY=VALUE",
+            help = "Override a scene field, e.g. --set panels.0.particles=[75,75] (repeatable)"
+        )]
         overrides: Vec<String>,
         /// Write every N-th state as DIR/frames/frame_NNNNN.obj.
         #[arg(long, value_name = "N")]

@@ -121,7 +121,7 @@ struct Level {
     coarse: BlockSparseMatrix,
     /// This level's own operator (the fine matrix, or the previous
     /// level's `coarse`) in single precision, for the residuals, on levels
-    /// of at least [`SINGLE_MIN_BLOCKS`] blocks (smaller ones read the
+    /// of at least `SINGLE_MIN_BLOCKS` blocks (smaller ones read the
     /// `f64` operator).
     single: Option<SinglePrecision>,
     /// Damped inverse diagonal blocks of this level's (fine) operator (for
@@ -223,7 +223,7 @@ impl Multigrid {
 
     /// As [`Multigrid::new`], with `f32` copies of the operators of the
     /// levels of at least `blocks` blocks for the cycle's residuals (`new`
-    /// takes [`SINGLE_MIN_BLOCKS`]; see the module docs).
+    /// takes `SINGLE_MIN_BLOCKS`; see the module docs).
     pub fn with_single_precision_from(
         fine: &BlockPattern,
         aggregations: &[Aggregation],
@@ -320,7 +320,7 @@ impl Multigrid {
     /// Sets the smoother's damping for a matrix assembled from PSD element
     /// matrices of at most `nodes` nodes each (2 for links, 3 for
     /// triangles, 6 for Volino's bending triangles): `omega = 0.7 * 2 / nodes`, which keeps
-    /// the cycle positive definite (see [`OMEGA`]); the default is links.
+    /// the cycle positive definite (see `OMEGA`); the default is links.
     pub fn for_element_size(mut self, nodes: usize) -> Self {
         self.omega = OMEGA * 2.0 / nodes.max(2) as f64;
         self

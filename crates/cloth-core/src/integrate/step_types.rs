@@ -33,7 +33,7 @@ pub enum IntegratorKind {
     /// Classic Runge-Kutta (`rk4`): order 4, four force evaluations.
     Rk4,
     /// Dormand-Prince 5(4) with adaptive substeps (`dopri5`): order 5,
-    /// error controlled by [`SolverParams::error_tolerance`].
+    /// error controlled by [`AdaptiveParams::error_tolerance`].
     Dopri5,
     /// Backward Euler, Baraff & Witkin (1998) (`backward-euler`): first
     /// order, strongly damping; PCG to a tolerance.

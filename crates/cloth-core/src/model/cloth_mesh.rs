@@ -38,7 +38,7 @@
 //!   triangles', a boundary triangle's shared among its interior edges),
 //!   `L_p` the unfolded length, `a` the part of it before `m` (unequal
 //!   halves read `4 a (1 - a)` of the curvature equal ones do), `4/3` the
-//!   path's [`crate::material::PATH_CURVATURE_FACTOR`]. `m` lies on the
+//!   path's `PATH_CURVATURE_FACTOR`. `m` lies on the
 //!   edge's chord, off the surface when the cloth bends along the edge,
 //!   so an interaction reads `kappa_cd - kappa_ab / 3` on a regular mesh,
 //!   not the normal curvature `kappa_cd`: over three directions the reads

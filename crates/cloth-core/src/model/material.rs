@@ -318,7 +318,7 @@ impl Material {
     }
 
     /// Bending constants of a link of rest length `rest` (m) standing for
-    /// the area `area` (m^2) of its panel ([`crate::topology::GridLink`]):
+    /// the area `area` (m^2) of its panel (a grid link):
     /// flexural rigidity `k_b = (2/3) B a / L`, N m^2 (also the strip a
     /// type-1 link stands for, capping its compression with the arc-path
     /// law); Choi & Ko's type-2 ramp `c_b = (2/3) C_b a / L^2`, N/m.

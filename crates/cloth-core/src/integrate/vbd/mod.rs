@@ -15,7 +15,7 @@
 //! step's start, as the implicit steps take them. Solids and
 //! self-collision pairs are energies of the particles they touch, with
 //! lagged, smoothed Coulomb friction (IPC), and per-particle bounds on each
-//! local step keep particles out of solids ([`contact`]).
+//! local step keep particles out of solids (its `contact` module).
 
 mod contact;
 #[cfg(test)]
