@@ -499,14 +499,7 @@ fn contact_passes_skip_only_particles_clear_of_every_solid() {
 fn a_released_contact_with_a_body_is_taken_up_again_inside_it() {
     use crate::{ColliderSpec, PinMotion, ShapeSpec};
     let spec = ModelSpec {
-        panels: vec![GridPanel {
-            particles: [3, 3],
-            size_m: [0.1, 0.1],
-            origin_m: [-0.05, -0.05, 0.103],
-            u_axis: [1.0, 0.0, 0.0],
-            v_axis: [0.0, 1.0, 0.0],
-            wrap_u: false,
-        }],
+        panels: vec![GridPanel::flat([3, 3], [0.1, 0.1]).origin([-0.05, -0.05, 0.103])],
         collision: CollisionSpec {
             colliders: vec![ColliderSpec {
                 shape: ShapeSpec::Ball { radius_m: 0.1 },

@@ -266,15 +266,10 @@ impl BodyBuffers {
         self.impact_change.resize(self.com.len(), (Vec3::zeros(), Vec3::zeros()));
         for _ in 0..NO_BOUNCE_SWEEPS {
             let mut moved = false;
-            let mut start = 0;
-            while start < contacts.len() {
-                let particle = contacts[start].particle;
-                let end = start + contacts[start..].iter().take_while(|c| c.particle == particle).count();
-                let held = crate::contacts::held_by(&contacts[start..end]);
-                let k = start + held.map_or(0, |(a, _)| a);
-                start = end;
-                let c = contacts[k];
-                if !matches!(held, Some((_, None))) || !self.holds(&c) {
+            for group in contacts.chunk_by_mut(crate::contacts::same_particle) {
+                let Some((a, None)) = crate::contacts::held_by(group) else { continue };
+                let c = &mut group[a];
+                if !self.holds(c) {
                     continue;
                 }
                 let (i, n, body) = (c.particle as usize, c.normal, self.solid_body[c.collider as usize]);
@@ -288,7 +283,7 @@ impl BodyBuffers {
                 let share = 1.0 / masses[i] + inverse_mass + arm.dot(&(inverse_inertia * arm));
                 let impulse = n * (leaving / share);
                 new_v[i] -= impulse / masses[i];
-                contacts[k].impulse_n_s -= impulse;
+                c.impulse_n_s -= impulse;
                 let change = &mut self.impact_change[body];
                 change.0 += impulse * inverse_mass;
                 change.1 += inverse_inertia * r.cross(&impulse);
