@@ -342,7 +342,16 @@ fn chromium_shows_binary_frames_as_the_obj_ones() {
     let (obj_bytes, bin_bytes) = (size(&obj, "obj"), size(&bin, "bin"));
     let titles: Vec<String> = [&obj, &bin]
         .iter()
-        .map(|out| Server::start(out).title_in_chromium(&chromium, "check&frame=last&heat&forces"))
+        .map(|out| {
+            // Driven and read through DevTools, waiting as long as the page
+            // takes: under CI's load a 30 s virtual-time budget once ended
+            // before the binary page had reported.
+            let server = Server::start(out);
+            let mut page =
+                Browser::open(&chromium, &format!("http://{}/?check&frame=last&heat&forces", server.address));
+            page.wait_for("/loaded (\\d+) of \\1 frames$/.test(document.title)");
+            page.eval("document.title").as_str().unwrap().to_string()
+        })
         .collect();
     println!("OBJ frames {obj_bytes} bytes, frames.bin {bin_bytes} bytes\n{}\n{}", titles[0], titles[1]);
     assert!(titles[0].starts_with("drawn ") && titles[0].contains("stretch max"), "{}", titles[0]);
