@@ -249,6 +249,9 @@ pub struct EnergySummary {
     pub flagged_steps: u64,
     /// BDF2 steps retaken as backward Euler because they were flagged.
     pub retaken_as_backward_euler_steps: u64,
+    /// `backward-euler` steps flagged as a single linearised step and
+    /// retaken with Newton iterations (`solver.newton.auto_iterations`).
+    pub retaken_with_newton_steps: u64,
 }
 
 /// A rigid body at the end of a run.

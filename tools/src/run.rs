@@ -548,6 +548,7 @@ struct EnergyTotals {
     gain_max: f64,
     flagged: u64,
     retaken: u64,
+    retaken_with_newton: u64,
 }
 
 impl EnergyTotals {
@@ -563,6 +564,7 @@ impl EnergyTotals {
         self.gain_max = self.gain_max.max(e.gain_j);
         self.flagged += u64::from(e.flagged);
         self.retaken += u64::from(r.retaken_as_backward_euler);
+        self.retaken_with_newton += u64::from(r.retaken_with_newton);
     }
 
     fn summary(&self) -> Option<EnergySummary> {
@@ -578,6 +580,7 @@ impl EnergyTotals {
             gain_max_j: self.gain_max,
             flagged_steps: self.flagged,
             retaken_as_backward_euler_steps: self.retaken,
+            retaken_with_newton_steps: self.retaken_with_newton,
         })
     }
 }
@@ -653,6 +656,17 @@ pub fn run(args: &RunArgs) -> Result<()> {
             n.engaged_at_s.unwrap_or(0.0),
             n.automatic_steps,
             n.unconverged_steps
+        );
+    }
+    if let Some(e) =
+        summary.energy.as_ref().filter(|e| e.retaken_as_backward_euler_steps + e.retaken_with_newton_steps > 0)
+    {
+        eprintln!(
+            "{}: steps that created energy were retaken (solver.energy_guard): {} as backward Euler, {} with \
+             Newton iterations",
+            args.scene.display(),
+            e.retaken_as_backward_euler_steps,
+            e.retaken_with_newton_steps
         );
     }
     if let Some(line) = summary.energy.as_ref().and_then(|e| energy_warning(&summary.integrator, e.flagged_steps)) {

@@ -390,7 +390,10 @@ pub(super) fn ball_through_curtain(quick: bool) -> Vec<Row> {
     // 1.06 (backward Euler). At 1 ms the single step holds too. Newton
     // only on the steps whose linearised tension is off by more than a
     // quarter of `k_s L` (`solver.newton.trigger = 0.25`) holds at the
-    // single step's cost: the ball's first hit is one step.
+    // single step's cost: the ball's first hit is one step. Backward
+    // Euler retakes the single steps its energy monitor flags with Newton
+    // iterations and holds (1.116); BDF2 retakes its flagged steps as
+    // single backward-Euler ones (1.481).
     const HELD: &str = "single linearised step: a straight link has no transverse stiffness";
     let steps: &[f64] = if quick { &[1e-3] } else { &[1.0 / 90.0, 1e-3] };
     let mut rows = Vec::new();
@@ -409,7 +412,7 @@ pub(super) fn ball_through_curtain(quick: bool) -> Vec<Row> {
                 )
                 .extra(extra.clone())
                 .integrator(integrator)
-                .known_defect((h > 1e-3 && newton == 1).then_some(HELD))
+                .known_defect((h > 1e-3 && newton == 1 && integrator == "bdf2").then_some(HELD))
                 .set("simulation.dt_s", format!("{h:e}"))
                 .set("simulation.duration_s", 0.8)
                 .set("solver.newton.iterations", newton)
@@ -648,9 +651,8 @@ master = "iterated"
     // At 1e3 the 36 kg ball tears through the cloth (stretch 3.5); after
     // it has left, the cloth recoils on its own and one linearised step
     // with no contact gains 1.0 J (the cloth's monitor, step 73): 1.4e-3
-    // of the energy in play. Newton's rows hold.
-    const TORN_THROUGH: &str = "the single linearised step: the cloth, torn through by the ball, gains energy \
-                                recoiling on its own after the ball has left";
+    // of the energy in play, until backward Euler retook the steps its
+    // monitor flags with Newton iterations (now 5.5e-5).
     let cloth_mass = 0.1 * 0.36;
     let ratios: &[f64] = if quick { &[1e-3] } else { &[1e-3, 1.0, 10.0, 1e3] };
     let mut rows = Vec::new();
@@ -658,7 +660,6 @@ master = "iterated"
         for (master, newton) in [("monolithic", 1), ("iterated", 1), ("iterated", 30)] {
             let defect = match (master, newton) {
                 ("iterated", 1) if ratio >= 1.0 => Some(COUPLING_GAIN),
-                ("monolithic", _) if ratio >= 1e3 => Some(TORN_THROUGH),
                 _ => None,
             };
             let case = Case::new(

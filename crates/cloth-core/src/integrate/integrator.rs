@@ -86,7 +86,7 @@ impl Integrator for BackwardEuler {
         solver: &SolverParams,
     ) -> Result<StepReport, StepError> {
         check_step(model, state, h)?;
-        linearised_step(self, model, state, control, h, ws, solver)
+        guarded_backward_euler(model, state, control, h, ws, solver)
     }
 }
 
@@ -288,6 +288,35 @@ impl Linearised for Bdf2 {
     }
 }
 
+/// One backward-Euler step, committed. A single linearised step that
+/// creates energy (after a body tore through a cloth, the cloth alone
+/// recoiling gained 1 J in one step) is retaken with Newton iterations
+/// ([`NewtonParams::auto_iterations`] of them), which follow the
+/// tension-only links across their kink; the next step is again the
+/// single linearised one. Ordinary steps cost what they did. Not when
+/// the step touched a body ([`touches_a_body`]): Newton's penalties on
+/// solids give a body no impulse.
+fn guarded_backward_euler(
+    model: &ClothModel,
+    state: &mut ClothState,
+    control: &Control,
+    h: f64,
+    ws: &mut Workspace,
+    solver: &SolverParams,
+) -> Result<StepReport, StepError> {
+    let report = uncommitted_step(&BackwardEuler, model, state, control, h, ws, solver)?;
+    let flagged = report.energy.is_some_and(|e| e.flagged);
+    if !(solver.energy_guard && flagged && report.newton.is_none()) || touches_a_body(model, control, ws) {
+        return committed(report, state, ws, h);
+    }
+    let newton = NewtonParams { iterations: solver.newton.auto_iterations, trigger: 0.0, ..solver.newton };
+    let retake = SolverParams { newton, ..*solver };
+    let mut report = uncommitted_step(&BackwardEuler, model, state, control, h, ws, &retake)?;
+    commit(state, ws, h)?;
+    report.retaken_with_newton = true;
+    Ok(report)
+}
+
 /// One step of a [`Linearised`] scheme, committed.
 fn linearised_step<S: Linearised>(
     scheme: &S,
@@ -299,9 +328,23 @@ fn linearised_step<S: Linearised>(
     solver: &SolverParams,
 ) -> Result<StepReport, StepError> {
     let report = uncommitted_step(scheme, model, state, control, h, ws, solver)?;
+    committed(report, state, ws, h)
+}
+
+/// Commits the step solved in `ws` whose report is `report`.
+fn committed(report: StepReport, state: &mut ClothState, ws: &mut Workspace, h: f64) -> Result<StepReport, StepError> {
     commit(state, ws, h)?;
     state.newton_engaged |= report.newton.is_some_and(|n| n.automatic);
     Ok(report)
+}
+
+/// Whether a contact of the step just solved (in `ws`) is with a solid
+/// whose reaction goes to a rigid body: a body in the solve, or an
+/// external solid whose motion is a guess (a partitioned master's body,
+/// [`Control::set_solid_motion`]).
+fn touches_a_body(model: &ClothModel, control: &Control, ws: &Workspace) -> bool {
+    let guessed = |k: usize| model.colliders()[k].is_external() && !control.is_solid_prescribed(k);
+    ws.contacts.solid.iter().any(|c| ws.bodies.holds(c) || guessed(c.collider as usize))
 }
 
 /// One step of a [`Linearised`] scheme up to its commit, as named

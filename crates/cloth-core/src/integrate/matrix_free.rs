@@ -128,6 +128,7 @@ impl crate::Integrator for BackwardEulerFixedCg {
             newton: None,
             energy: None,
             retaken_as_backward_euler: false,
+            retaken_with_newton: false,
             descent_iterations: 0,
         })
     }

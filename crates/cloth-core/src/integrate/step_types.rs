@@ -126,7 +126,9 @@ pub struct SolverParams {
     /// CG iterations per step of `backward-euler-fixed-cg`. Default 4.
     pub fixed_cg_iterations: usize,
     /// `bdf2` retakes a step as backward Euler when the energy monitor
-    /// flags it ([`EnergyReport::flagged`]). Default true.
+    /// flags it ([`EnergyReport::flagged`]), and `backward-euler` retakes
+    /// a flagged single linearised step with Newton iterations
+    /// ([`StepReport::retaken_with_newton`]). Default true.
     pub energy_guard: bool,
     /// A step that would leave any link longer than this many times its
     /// rest length fails ([`StepError::BlewUp`]): no cloth stretches so
@@ -389,6 +391,11 @@ pub struct StepReport {
     /// ([`EnergyReport::flagged`]) and was retaken as a backward-Euler
     /// step, which also restarts BDF2's history.
     pub retaken_as_backward_euler: bool,
+    /// Backward Euler (not BDF2's first and retaken steps): the single
+    /// linearised step was flagged ([`EnergyReport::flagged`]) and the
+    /// step was retaken with [`NewtonParams::auto_iterations`] Newton
+    /// iterations (reported in `newton`).
+    pub retaken_with_newton: bool,
     /// Sweeps of the vertex solver (`vbd`; 0 for the others).
     pub descent_iterations: usize,
 }
