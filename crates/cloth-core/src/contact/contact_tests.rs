@@ -490,6 +490,32 @@ fn contact_passes_skip_only_particles_clear_of_every_solid() {
     assert!(skipped > 3700, "{skipped} of {} particle passes skipped", 12 * n);
 }
 
+/// A contact that pulls is released, unless `kept` picks it (a body
+/// heavier than its particle that took it up twice this step): then it
+/// stays, with the pull it read.
+#[test]
+fn a_pulling_contact_is_released_unless_kept() {
+    let pattern = cloth_linalg::BlockPattern::from_pairs(1, []).unwrap();
+    let mut matrix = BlockSparseMatrix::new(pattern);
+    matrix.fill_rows(|_, row| row[0] = Mat3::identity() * 1e-3);
+    // The residual `A u - b` is 1e-3 N s^2 along -z: a pull of 0.1 N at c_f = 0.01 s^2.
+    let (unknown, rhs, x) = ([Vec3::zeros()], [Vec3::new(0.0, 0.0, 1e-3)], [Vec3::zeros()]);
+    for (revivals, released) in [(0, 1), (1, 1), (MAX_REVIVALS, 0)] {
+        let mut c = touching(Vec3::z(), Vec3::zeros(), 0.3, 0.01);
+        c.revivals = revivals;
+        let mut contacts = [c];
+        let mut filter = ConstraintFilter::new(1);
+        let kept = |c: &SolidContact| c.revivals >= MAX_REVIVALS;
+        let value = |target: Vec3, _: usize| target;
+        let n = release_pulling(&mut contacts, &matrix, &rhs, &unknown, 0.01, &x, &mut filter, (value, kept));
+        assert_eq!(n, released, "taken up {revivals} times");
+        assert_eq!(contacts[0].active, released == 0);
+        if released == 0 {
+            assert!((contacts[0].normal_force_n + 0.1).abs() < 1e-12, "{}", contacts[0].normal_force_n);
+        }
+    }
+}
+
 /// A contact released this step is taken up again when its particle ends
 /// within the solid, if the solid is one that `movable` picks (a body
 /// in the solve), held along its normal only; a prescribed solid's
@@ -542,6 +568,7 @@ fn a_released_contact_with_a_body_is_taken_up_again_inside_it() {
         assert_eq!(added, usize::from(taken_up) + bufs.solid.len() - before);
         if taken_up {
             assert_eq!(c.friction_mode, FrictionMode::Slide, "held along its normal only");
+            assert_eq!(c.revivals, 1, "counted");
             assert!(!filter.is_free(middle), "constrained again");
         }
     }

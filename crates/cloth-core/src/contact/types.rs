@@ -61,6 +61,10 @@ pub struct SolidContact {
     /// Whether this step's passes already turned it back from sliding to
     /// sticking once (`stick_or_slide`).
     pub turned_back: bool,
+    /// How often this step's passes took it up again after it was
+    /// released from a body (`add_penetrating`); after the second time it
+    /// is not released again in the step (`release_pulling`).
+    pub revivals: u8,
 }
 
 /// Where a contact's Coulomb friction is decided in an implicit step.
@@ -129,6 +133,7 @@ impl SolidContact {
             friction_mode: FrictionMode::AfterSolve,
             tangent_travel_m: Vec3::zeros(),
             turned_back: false,
+            revivals: 0,
         }
     }
 }

@@ -179,7 +179,8 @@ pub(crate) struct BodyBuffers {
     has_multigrid: bool,
     /// Each body's mean velocity change over the step, m/s and rad/s.
     pub(crate) velocity_change: Vec<(Vec3, Vec3)>,
-    /// Each body's mass (kg) and inverse world inertia (1 / (kg m^2)).
+    /// Each body's inverse mass (1 / kg) and inverse world inertia
+    /// (1 / (kg m^2)).
     inverse_mass: Vec<(f64, Mat3)>,
     /// Scratch: each body's velocity change from no-bounce impacts.
     impact_change: Vec<(Vec3, Vec3)>,
@@ -245,6 +246,13 @@ impl BodyBuffers {
     /// Whether `c` is a contact with a body's solid.
     pub(crate) fn holds(&self, c: &SolidContact) -> bool {
         self.solid_body.get(c.collider as usize).is_some_and(|&b| b != NO_BODY)
+    }
+
+    /// Whether `c` is a contact with a body heavier than its particle, of
+    /// `particle_mass` kg.
+    pub(crate) fn outweighs(&self, c: &SolidContact, particle_mass: f64) -> bool {
+        let body = self.solid_body.get(c.collider as usize).filter(|&&b| b != NO_BODY);
+        body.is_some_and(|&b| self.inverse_mass[b].0 * particle_mass < 1.0)
     }
 
     /// No bounce off a body (see `stop_separation` for solids that do not

@@ -12,8 +12,8 @@
 
 use super::integrator::{Linearised, StepInputs, add_solve, solve};
 use crate::contacts::{
-    FrictionMode, SolidContact, add_penetrating, constrain_contacts, read_contact_forces, release_pulling,
-    stick_frictional_contacts, stick_or_slide,
+    FrictionMode, MAX_REVIVALS, SolidContact, add_penetrating, constrain_contacts, read_contact_forces,
+    release_pulling, stick_frictional_contacts, stick_or_slide,
 };
 use crate::{ClothModel, ContactStats, SolverParams, StepError, StepReport, Workspace};
 
@@ -160,8 +160,11 @@ pub(crate) fn settle_contacts<S: Linearised>(
     for pass in 0..passes {
         let (matrix, rhs) = (&ws.system.matrix, &ws.system.rhs);
         let (contacts, unknown) = (&mut ws.contacts.solid, &ws.unknown);
-        let released =
-            release_pulling(contacts, matrix, rhs, unknown, force_coefficient, &state.x, &mut ws.filter, value);
+        let masses = model.masses();
+        let bodies = &ws.bodies;
+        let kept = |c: &SolidContact| c.revivals >= MAX_REVIVALS && bodies.outweighs(c, masses[c.particle as usize]);
+        let (filter, laws) = (&mut ws.filter, (value, kept));
+        let released = release_pulling(contacts, matrix, rhs, unknown, force_coefficient, &state.x, filter, laws);
         for i in 0..state.len() {
             ws.new_x[i] = scheme.advance(state, &ws.aux, h, i, ws.unknown[i]).0;
         }
