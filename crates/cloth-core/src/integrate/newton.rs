@@ -298,20 +298,23 @@ pub(crate) fn worst_tension_error<S: Linearised>(
 /// its length (no transverse stiffness in the linear model) is off by
 /// `sqrt(1 + 1/9) - 1 = 5.4%`; under small motions a linear step's error is
 /// second order. Buckling (below the rest length) is left out: Choi &
-/// Ko's law is linearised for stability, not accuracy.
+/// Ko's law is linearised for stability, not accuracy. The share does not
+/// depend on `k_s`, so it is computed for a unit stiffness: a link of a
+/// membrane model (`k_s = 0`, the triangles carry the stretch) measures
+/// how far the step's linearisation is off along its edge.
 pub(crate) fn tension_linearisation_error(l: &crate::StretchLink, start: (Vec3, Vec3), end: (Vec3, Vec3)) -> f64 {
     let tension = |p: Vec3| -> (Vec3, Mat3) {
         let d = p.norm();
         if d <= l.rest {
             return (Vec3::zeros(), Mat3::zeros());
         }
-        let (u, phi) = (p / d, l.k_s * (d - l.rest));
+        let (u, stretch) = (p / d, d - l.rest);
         let uu = u * u.transpose();
-        (u * phi, uu * l.k_s + (Mat3::identity() - uu) * (phi / d))
+        (u * stretch, uu + (Mat3::identity() - uu) * (stretch / d))
     };
     let (f0, k0) = tension(start.1 - start.0);
     let predicted = f0 + k0 * ((end.1 - start.1) - (end.0 - start.0));
-    (tension(end.1 - end.0).0 - predicted).norm() / (l.k_s * l.rest)
+    (tension(end.1 - end.0).0 - predicted).norm() / l.rest
 }
 
 /// Adds the solids' penalties (force `k (e - g) n`, N; stiffness

@@ -463,11 +463,15 @@ impl ClothModel {
             .collision
             .build_self_collision(spec.material.tensile_stiffness_n_m, mean_link)
             .map_err(collision_error)?;
-        let stiffest_per_mass = stretch
-            .iter()
-            .map(|l| l.k_s / mass[l.i as usize].min(mass[l.j as usize]))
-            .filter(|r| r.is_finite())
-            .fold(0.0, f64::max);
+        let links = stretch.iter().map(|l| l.k_s / mass[l.i as usize].min(mass[l.j as usize]));
+        // A membrane triangle's corner `k` is held by `C A |g_k|^2` (the
+        // diagonal of its stiffness, with the stiffer direction's `C`).
+        let masses = &mass;
+        let corners = elements.membranes.iter().flat_map(|e| {
+            let c = e.rest.c.c11.max(e.rest.c.c22);
+            (0..3).map(move |k| c * e.rest.area * e.rest.g[k].norm_squared() / masses[e.nodes[k] as usize])
+        });
+        let stiffest_per_mass = links.chain(corners).filter(|r| r.is_finite()).fold(0.0, f64::max);
         Ok(Self {
             colliders,
             contact_thickness: spec.collision.thickness(),
@@ -589,9 +593,10 @@ impl ClothModel {
         self.mass.len()
     }
     /// The largest stiffness per mass of a stretch link, `k_s / m` with
-    /// `m` its lighter end's mass, 1/s^2: `h^2` times it is how large a
-    /// step `h` is for the material (the square of the stiffest link's
-    /// natural frequency times the step).
+    /// `m` its lighter end's mass, or of a membrane triangle's corner,
+    /// `C A |g|^2 / m`, 1/s^2: `h^2` times it is how large a step `h` is
+    /// for the material (the square of the stiffest natural frequency
+    /// times the step).
     pub fn stiffest_per_mass(&self) -> f64 {
         self.stiffest_per_mass
     }
