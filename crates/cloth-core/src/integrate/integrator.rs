@@ -311,10 +311,8 @@ fn guarded_backward_euler(
     }
     let newton = NewtonParams { iterations: solver.newton.auto_iterations, trigger: 0.0, ..solver.newton };
     let retake = SolverParams { newton, ..*solver };
-    let mut report = uncommitted_step(&BackwardEuler, model, state, control, h, ws, &retake)?;
-    commit(state, ws, h)?;
-    report.retaken_with_newton = true;
-    Ok(report)
+    let report = uncommitted_step(&BackwardEuler, model, state, control, h, ws, &retake)?;
+    committed(StepReport { retaken_with_newton: true, ..report }, state, ws, h)
 }
 
 /// One step of a [`Linearised`] scheme, committed.
