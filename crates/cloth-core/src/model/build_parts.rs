@@ -199,7 +199,8 @@ pub(super) fn curvature_elements(
             Some(o) if is_pinned(o) && is_pinned(c[(k + 1) % 3]) && is_pinned(c[(k + 2) % 3]) => EdgeSupport::Clamped,
             Some(_) => EdgeSupport::Shared,
         });
-        let stiffness = curvature_stiffness(c.map(|q| rest[q as usize]), support, b).ok_or(t.panel)?;
+        let across = std::array::from_fn(|k| rest[t.across[k].unwrap_or(c[k]) as usize]);
+        let stiffness = curvature_stiffness(c.map(|q| rest[q as usize]), support, across, b).ok_or(t.panel)?;
         if stiffness == crate::Mat3::zeros() {
             continue;
         }

@@ -55,10 +55,10 @@
 //!   the rest.
 //! - **Volino's elements** are per triangle already: the membrane with its
 //!   rest coordinates along the panel's weft axis, the bending triangle
-//!   with its edge neighbours. His bending triangles are exact only where
-//!   neighbouring triangles form parallelograms (the grid's uniform
-//!   diagonals); on an irregular mesh they store 13% more than `B
-//!   kappa^2 / 2`.
+//!   with its edge neighbours. On an irregular mesh his bending triangles
+//!   remove the bias of their mid-edge slopes (exact on the grid's
+//!   parallelogram pairs), so every uniform curvature stores `B kappa^2 /
+//!   2` (`element_laws::curvature_stiffness`).
 //!
 //! Links along the boundary border one triangle and stand for it alone, as
 //! the grid's boundary links stand for half a cell.

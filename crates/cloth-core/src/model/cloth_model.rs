@@ -236,7 +236,7 @@ impl ClothModel {
         let mut drag = Vec::new();
         let mut buckling = BucklingLaws::default();
         let damping = spec.effects.damping;
-        // Volino's bending triangles need every adjacent pair to be a parallelogram.
+        // Volino's bending triangles are exact on parallelogram pairs as they stand.
         let diagonals =
             if spec.kind == ModelKind::Volino { crate::Diagonals::Uniform } else { crate::Diagonals::Alternating };
         // In bending, the arc-path law counts boundary links for the part of

@@ -125,7 +125,7 @@
 //! curvature tensor comes from the dihedral angles at its three edges,
 //! storing the plate energy `B |kappa|^2 / 2` per unit area
 //! ([`crate::element_laws::curvature_stiffness`]: exact for every quadratic
-//! deflection of the grid; Peirce's cantilever 41.80 / 41.57 / 41.51
+//! deflection, on the grid and on irregular meshes; Peirce's cantilever on the grid 41.80 / 41.57 / 41.51
 //! degrees at 1 / 0.5 / 0.25 cm against the exact 41.49).
 
 use serde::{Deserialize, Serialize};

@@ -116,8 +116,8 @@ pub enum Diagonals {
     /// catch wind and draw with).
     Alternating,
     /// All from corner (i, j) to (i + 1, j + 1): every two triangles that
-    /// share an edge form a parallelogram, which Volino's bending triangles
-    /// need to read every curvature, twist included, exactly
+    /// share an edge form a parallelogram, where Volino's bending triangles
+    /// read every curvature, twist included, exactly without a correction
     /// ([`crate::element_laws::curvature_stiffness`]).
     Uniform,
 }
