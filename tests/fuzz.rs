@@ -44,6 +44,7 @@ fn random_pattern_outlines_are_meshed_or_refused() {
                 u_axis: [1.0, 0.0, 0.0],
                 v_axis: [0.0, 1.0, 0.0],
                 cylinder_radius_m: None,
+                cone: None,
             };
             let result =
                 catch_unwind(AssertUnwindSafe(|| MeshPanel::from_pattern(piece.clone()).resolve(Path::new("."))));

@@ -21,6 +21,7 @@ fn piece(width: f64, length: f64, h: f64, v_axis: [f64; 3], lines: Vec<[[f64; 2]
         u_axis: [1.0, 0.0, 0.0],
         v_axis,
         cylinder_radius_m: None,
+        cone: None,
     }
 }
 
@@ -124,6 +125,7 @@ fn cantilever(kind: ModelKind, h: f64) -> (f64, f64) {
         u_axis: [1.0, 0.0, 0.0],
         v_axis: [0.0, 1.0, 0.0],
         cylinder_radius_m: None,
+        cone: None,
     };
     let mut mesh = MeshPanel::from_pattern(piece);
     mesh.offset_m = [0.0, 0.0, CantileverStrip::CLAMP_Z];

@@ -45,8 +45,9 @@ pub use integrator::{
 };
 pub use material::{BendConstants, Compressive, Lattice, Material, Membrane};
 pub use model::{
-    BendLaw, BendLink, BendingLaw, ClothMesh, ClothModel, Compression, Edge, Effects, Incidence, MeshPanel, MeshRange,
-    ModelBuilder, ModelError, ModelKind, ModelSpec, PanelRange, PatternPiece, PinSpec, StrainLimit, StretchLink,
+    BendLaw, BendLink, BendingLaw, ClothMesh, ClothModel, Compression, ConeWrap, Edge, Effects, Incidence, MeshPanel,
+    MeshRange, ModelBuilder, ModelError, ModelKind, ModelSpec, PanelRange, PatternPiece, PinSpec, StrainLimit,
+    StretchLink,
 };
 pub use pins::{Pin, PinMotion};
 pub use sim::{Simulation, SimulationBuilder};

@@ -25,6 +25,7 @@
 //!     u_axis: [1.0, 0.0, 0.0],
 //!     v_axis: [0.0, 0.0, -1.0],
 //!     cylinder_radius_m: None,
+//!     cone: None,
 //! };
 //! let skirt = ClothModel::builder().mesh(MeshPanel::from_pattern(piece)).pin_vertices(0, [], [0]).build()?;
 //! assert!(skirt.particle_count() > 100 && skirt.pins().len() == 13);

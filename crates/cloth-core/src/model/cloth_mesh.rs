@@ -242,6 +242,7 @@ impl MeshPanel {
                         "u_axis" => "pattern.u_axis",
                         "v_axis" => "pattern.v_axis",
                         "cylinder_radius_m" => "pattern.cylinder_radius_m",
+                        "cone" => "pattern.cone",
                         _ => "pattern",
                     };
                     (field, message)
@@ -520,9 +521,14 @@ mod tests {
         flat.cylinder_radius_m = Some(0.0);
         let mut along = square();
         along.v_axis = [1.0, 0.0, 0.0];
-        for (piece, field) in
-            [(outside, "pattern.lines_m"), (flat, "pattern.cylinder_radius_m"), (along, "pattern.v_axis")]
-        {
+        let mut cone = square();
+        cone.cone = Some(crate::ConeWrap { apex_m: [0.05, -0.5], half_angle_deg: 0.0 });
+        for (piece, field) in [
+            (outside, "pattern.lines_m"),
+            (flat, "pattern.cylinder_radius_m"),
+            (along, "pattern.v_axis"),
+            (cone, "pattern.cone"),
+        ] {
             assert_eq!(MeshPanel::from_pattern(piece).resolve(base).unwrap_err().0, field);
         }
     }

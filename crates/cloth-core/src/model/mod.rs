@@ -27,5 +27,5 @@ pub mod wind;
 pub use builder::ModelBuilder;
 pub use cloth_mesh::{ClothMesh, MeshPanel};
 pub use cloth_model::*;
-pub use pattern::{PatternMesh, PatternPiece};
+pub use pattern::{ConeWrap, PatternMesh, PatternPiece};
 pub use spec::*;

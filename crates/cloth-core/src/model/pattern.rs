@@ -39,6 +39,38 @@ pub struct PatternPiece {
     /// sleeve's panels start around the body this way.
     #[serde(default)]
     pub cylinder_radius_m: Option<f64>,
+    /// Wraps the piece around a cone instead ([`ConeWrap`]): the gores
+    /// of a flared skirt start flared this way. At most one of the two.
+    #[serde(default)]
+    pub cone: Option<ConeWrap>,
+}
+
+/// A cone a pattern piece is wrapped on, lengths kept (a cone unrolls
+/// flat). Its axis runs along `v_axis` through the origin, its apex at
+/// `apex_m`'s height along it (`v_axis * apex_m[1]`), and it opens towards
+/// `v_axis`. A point at distance `rho` from `apex_m`, at angle `psi` from
+/// the pattern's +y (positive towards +x), goes `rho sin(beta)` from the
+/// axis, `apex_m[1] + rho cos(beta)` along it, and `psi / sin(beta)`
+/// around it (0 towards `u_axis`, turning as the cylinder does). So an
+/// annular sector about `apex_m` between radii `r_1 / sin(beta)` and
+/// `r_2 / sin(beta)` becomes a band of the cone from radius `r_1` to `r_2`,
+/// and its angle `alpha` goes `alpha / sin(beta)` round.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConeWrap {
+    /// The apex in pattern coordinates, m.
+    pub apex_m: [f64; 2],
+    /// Angle between the axis and the cone's side, degrees, in (0, 90]
+    /// (90: a flat disc across the axis).
+    pub half_angle_deg: f64,
+}
+
+/// A [`ConeWrap`] checked: its apex (m) and its half angle's sine and cosine.
+#[derive(Debug, Clone, Copy)]
+struct PlacedCone {
+    apex: [f64; 2],
+    sin: f64,
+    cos: f64,
 }
 
 fn x_axis() -> [f64; 3] {
@@ -80,6 +112,7 @@ impl PatternPiece {
             u_axis: x_axis(),
             v_axis: y_axis(),
             cylinder_radius_m: None,
+            cone: None,
         }
     }
 
@@ -123,15 +156,21 @@ impl PatternPiece {
         }
         let (u, v) = self.axes()?;
         let around = v.cross(&u);
-        let place = |x: f64, y: f64| match self.cylinder_radius_m {
-            Some(r) => (u * (x / r).cos() + around * (x / r).sin()) * r + v * y,
-            None => u * x + v * y,
-        };
         if let Some(r) = self.cylinder_radius_m
             && !(r.is_finite() && r > 0.0)
         {
             return Err(("cylinder_radius_m", format!("must be finite and > 0, got {r}")));
         }
+        let cone = self.cone_angles()?;
+        let place = |x: f64, y: f64| match (self.cylinder_radius_m, cone) {
+            (Some(r), _) => (u * (x / r).cos() + around * (x / r).sin()) * r + v * y,
+            (None, Some(PlacedCone { apex: [ax, ay], sin, cos })) => {
+                let (dx, dy) = (x - ax, y - ay);
+                let (rho, turn) = (dx.hypot(dy), dx.atan2(dy) / sin);
+                (u * turn.cos() + around * turn.sin()) * (rho * sin) + v * (ay + rho * cos)
+            }
+            (None, None) => u * x + v * y,
+        };
         let n = corners.len();
         let signed_area: f64 = (0..n)
             .map(|k| corners[k][0] * corners[(k + 1) % n][1] - corners[(k + 1) % n][0] * corners[k][1])
@@ -293,6 +332,23 @@ impl PatternPiece {
     }
 
     /// The placed x and y axes, orthonormal.
+    /// The cone's apex and the sine and cosine of its half angle, checked.
+    fn cone_angles(&self) -> Result<Option<PlacedCone>, (&'static str, String)> {
+        let Some(cone) = self.cone else { return Ok(None) };
+        if self.cylinder_radius_m.is_some() {
+            return Err(("cone", "a piece wraps on a cylinder or a cone, not both".into()));
+        }
+        let beta = cone.half_angle_deg;
+        if !(beta > 0.0 && beta <= 90.0) {
+            return Err(("cone", format!("half_angle_deg must be in (0, 90], got {beta}")));
+        }
+        if cone.apex_m.iter().any(|c| !c.is_finite()) {
+            return Err(("cone", format!("apex_m must be finite, got {:?}", cone.apex_m)));
+        }
+        let (sin, cos) = beta.to_radians().sin_cos();
+        Ok(Some(PlacedCone { apex: cone.apex_m, sin, cos }))
+    }
+
     fn axes(&self) -> Result<(Vec3, Vec3), (&'static str, String)> {
         let u = Vec3::from(self.u_axis)
             .try_normalize(1e-12)
@@ -353,6 +409,7 @@ mod tests {
             u_axis: x_axis(),
             v_axis: y_axis(),
             cylinder_radius_m: None,
+            cone: None,
         }
     }
 
@@ -401,6 +458,62 @@ mod tests {
         let mut outside = rectangle(0.3, 0.2, 0.02);
         outside.lines_m = vec![[[0.1, 0.1], [0.5, 0.1]]];
         assert_eq!(outside.mesh().unwrap_err().0, "lines_m");
+    }
+
+    /// A half-round annular sector about its apex (radii 0.4 and 0.7 m)
+    /// wrapped on a cone of half angle 30 degrees: every vertex lies on the
+    /// cone, the inner arc at 0.2 m from the axis goes half way round (its
+    /// ends at +-y), every edge keeps its length to a chord's shortening
+    /// (about `L^3 / (24 R^2)`, `R` the cone's smallest radius of curvature),
+    /// and the front faces out.
+    #[test]
+    fn a_sector_wrapped_on_a_cone_lies_on_it_and_keeps_its_lengths() {
+        let beta = 30f64.to_radians();
+        let alpha = std::f64::consts::PI * beta.sin();
+        let apex = [0.0, -0.4];
+        let arc = |rho: f64, k: usize| {
+            let psi = -alpha / 2.0 + alpha * k as f64 / 8.0;
+            [apex[0] + rho * psi.sin(), apex[1] + rho * psi.cos()]
+        };
+        let outline = (0..=8).map(|k| arc(0.4, k)).chain((0..=8).rev().map(|k| arc(0.7, k))).collect();
+        let mut piece = PatternPiece::new(outline, 0.03);
+        piece.v_axis = [0.0, 0.0, -1.0];
+        let flat = piece.mesh().unwrap();
+        piece.cone = Some(ConeWrap { apex_m: apex, half_angle_deg: 30.0 });
+        let m = piece.mesh().unwrap();
+        // The apex sits at z = 0.4 (v_axis * -0.4); the cone opens down.
+        for p in &m.positions {
+            let radius = p.x.hypot(p.y);
+            assert!((radius - (0.4 - p.z) * beta.tan()).abs() < 1e-12, "{p}");
+            // The arcs are polylines of 8 and 12 chords: the inner one's dip in.
+            assert!((0.2 * (alpha / 16.0).cos() - 1e-12..=0.35 + 1e-12).contains(&radius), "{p}");
+        }
+        let first = Vec3::new(0.0, 0.2, 0.4 - 0.4 * beta.cos());
+        let last = Vec3::new(0.0, -0.2, first.z);
+        for end in [first, last] {
+            assert!(m.positions.iter().any(|p| (p - end).norm() < 1e-12), "no vertex at {end}");
+        }
+        // At the inner chords' dip; the bound is the leading term, 10% kept for the next.
+        let smallest_radius_of_curvature = 0.2 * (alpha / 16.0).cos() / beta.cos();
+        for t in &m.triangles {
+            let (a, b, c) = (m.positions[t[0] as usize], m.positions[t[1] as usize], m.positions[t[2] as usize]);
+            let normal = (b - a).cross(&(c - a));
+            let radial = Vec3::new(a.x + b.x + c.x, a.y + b.y + c.y, 0.0);
+            assert!(normal.dot(&radial) > 0.0, "triangle {t:?} faces in");
+            for (k, &q) in t.iter().enumerate() {
+                let o = t[(k + 1) % 3];
+                let wrapped = (m.positions[q as usize] - m.positions[o as usize]).norm();
+                let plane = (flat.positions[q as usize] - flat.positions[o as usize]).norm();
+                let shortening = 1.1 * plane.powi(3) / (24.0 * smallest_radius_of_curvature.powi(2));
+                assert!(wrapped <= plane + 1e-15 && plane - wrapped <= shortening + 1e-15, "{wrapped} vs {plane}");
+            }
+        }
+        let mut both = piece.clone();
+        both.cylinder_radius_m = Some(0.2);
+        assert_eq!(both.mesh().unwrap_err().0, "cone");
+        let mut steep = piece.clone();
+        steep.cone = Some(ConeWrap { apex_m: apex, half_angle_deg: 95.0 });
+        assert!(steep.mesh().unwrap_err().1.contains("half_angle_deg"));
     }
 
     /// Wrapped around a cylinder, every edge keeps its length (chords of

@@ -23,6 +23,7 @@ fn stretched((kind, on_mesh): (ModelKind, bool)) -> (ClothModel, Vec<Vec3>, Vec<
         u_axis: [1.0, 0.0, 0.0],
         v_axis: [0.0, 1.0, 0.0],
         cylinder_radius_m: None,
+        cone: None,
     };
     let (panels, meshes) = if on_mesh {
         (vec![], vec![crate::MeshPanel::from_pattern(piece)])
