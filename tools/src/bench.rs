@@ -57,7 +57,20 @@ const ONE_PIECE: [&str; 4] = [
     "panels.2.particles=[47, 7]",
     "panels.3.particles=[96, 27]",
 ];
-pub(crate) const GARMENTS: [Garment; 3] = [
+/// The pattern garments, meshed finer than their fixtures to the paper's
+/// counts: the skirt's two pieces at 1.75 cm (3540 particles; the
+/// fixture's 3.5 cm make 914), the dress's pieces at 0.6 of their edge
+/// lengths (5230; the fixture's 1938).
+const PATTERN_SKIRT: [&str; 2] = ["meshes.0.pattern.edge_length_m=0.0175", "meshes.1.pattern.edge_length_m=0.0175"];
+const PATTERN_DRESS: [&str; 6] = [
+    "meshes.0.pattern.edge_length_m=0.015",
+    "meshes.1.pattern.edge_length_m=0.015",
+    "meshes.2.pattern.edge_length_m=0.013",
+    "meshes.3.pattern.edge_length_m=0.013",
+    "meshes.4.pattern.edge_length_m=0.021",
+    "meshes.5.pattern.edge_length_m=0.021",
+];
+pub(crate) const GARMENTS: [Garment; 5] = [
     Garment {
         name: "one-piece",
         scene: "fixtures/scenes/one-piece-walk.toml",
@@ -69,6 +82,18 @@ pub(crate) const GARMENTS: [Garment; 3] = [
         name: "skirt",
         scene: "fixtures/scenes/skirt-walk.toml",
         overrides: &["panels.0.particles=[96, 36]"],
+        paper: &[4],
+    },
+    Garment {
+        name: "pattern-dress",
+        scene: "fixtures/scenes/pattern-dress-walk.toml",
+        overrides: &PATTERN_DRESS,
+        paper: &[0, 1, 2],
+    },
+    Garment {
+        name: "pattern-skirt",
+        scene: "fixtures/scenes/pattern-skirt-walk.toml",
+        overrides: &PATTERN_SKIRT,
         paper: &[4],
     },
 ];

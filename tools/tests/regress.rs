@@ -138,7 +138,7 @@ fn a_new_case_and_a_broken_scene_fail_the_run() {
     assert!(out.contains("| broken | - | - | - | FAILED |"), "{out}");
     assert!(out.contains("broken.toml") && out.contains("step_count"), "the error names the file and the field: {out}");
     assert!(out.contains("| table1-skirt | - | - | - | FAILED |"), "{out}");
-    assert!(err.contains("4 of 5 cases did not run"), "{err}");
+    assert!(err.contains("6 of 7 cases did not run"), "{err}");
 }
 
 /// Outside the checkout (an installed `cloth`), the default fixtures are
