@@ -460,6 +460,27 @@ mod tests {
         assert_eq!(outside.mesh().unwrap_err().0, "lines_m");
     }
 
+    /// Every triangle of `m`, a piece wrapped round the z axis, faces away
+    /// from the axis, and every edge is at most as long as in `flat` and
+    /// shorter by at most `shortening(its flat length)` (+1e-15 m).
+    fn assert_faces_out_and_keeps_lengths(m: &PatternMesh, flat: &PatternMesh, shortening: impl Fn(f64) -> f64) {
+        for t in &m.triangles {
+            let (a, b, c) = (m.positions[t[0] as usize], m.positions[t[1] as usize], m.positions[t[2] as usize]);
+            let normal = (b - a).cross(&(c - a));
+            let radial = Vec3::new(a.x + b.x + c.x, a.y + b.y + c.y, 0.0);
+            assert!(normal.dot(&radial) > 0.0, "triangle {t:?} faces in");
+            for (k, &q) in t.iter().enumerate() {
+                let o = t[(k + 1) % 3];
+                let wrapped = (m.positions[q as usize] - m.positions[o as usize]).norm();
+                let plane = (flat.positions[q as usize] - flat.positions[o as usize]).norm();
+                assert!(
+                    wrapped <= plane + 1e-15 && plane - wrapped <= shortening(plane) + 1e-15,
+                    "{wrapped} vs {plane}"
+                );
+            }
+        }
+    }
+
     /// A half-round annular sector about its apex (radii 0.4 and 0.7 m)
     /// wrapped on a cone of half angle 30 degrees: every vertex lies on the
     /// cone, the inner arc at 0.2 m from the axis goes half way round (its
@@ -495,19 +516,8 @@ mod tests {
         }
         // At the inner chords' dip; the bound is the leading term, 10% kept for the next.
         let smallest_radius_of_curvature = 0.2 * (alpha / 16.0).cos() / beta.cos();
-        for t in &m.triangles {
-            let (a, b, c) = (m.positions[t[0] as usize], m.positions[t[1] as usize], m.positions[t[2] as usize]);
-            let normal = (b - a).cross(&(c - a));
-            let radial = Vec3::new(a.x + b.x + c.x, a.y + b.y + c.y, 0.0);
-            assert!(normal.dot(&radial) > 0.0, "triangle {t:?} faces in");
-            for (k, &q) in t.iter().enumerate() {
-                let o = t[(k + 1) % 3];
-                let wrapped = (m.positions[q as usize] - m.positions[o as usize]).norm();
-                let plane = (flat.positions[q as usize] - flat.positions[o as usize]).norm();
-                let shortening = 1.1 * plane.powi(3) / (24.0 * smallest_radius_of_curvature.powi(2));
-                assert!(wrapped <= plane + 1e-15 && plane - wrapped <= shortening + 1e-15, "{wrapped} vs {plane}");
-            }
-        }
+        let shortening = |plane: f64| 1.1 * plane.powi(3) / (24.0 * smallest_radius_of_curvature.powi(2));
+        assert_faces_out_and_keeps_lengths(&m, &flat, shortening);
         let mut both = piece.clone();
         both.cylinder_radius_m = Some(0.2);
         assert_eq!(both.mesh().unwrap_err().0, "cone");
@@ -529,20 +539,7 @@ mod tests {
         for p in &m.positions {
             assert!(((p.x * p.x + p.y * p.y).sqrt() - 0.2).abs() < 1e-12, "{p}");
         }
-        for t in &m.triangles {
-            let (a, b, c) = (m.positions[t[0] as usize], m.positions[t[1] as usize], m.positions[t[2] as usize]);
-            let normal = (b - a).cross(&(c - a));
-            let radial = Vec3::new(a.x + b.x + c.x, a.y + b.y + c.y, 0.0);
-            assert!(normal.dot(&radial) > 0.0, "triangle {t:?} faces in");
-            for (k, &q) in t.iter().enumerate() {
-                let o = t[(k + 1) % 3];
-                let (wrapped, plane) = (
-                    (m.positions[q as usize] - m.positions[o as usize]).norm(),
-                    (flat.positions[q as usize] - flat.positions[o as usize]).norm(),
-                );
-                assert!(wrapped <= plane + 1e-15 && plane - wrapped <= plane.powi(3) / (24.0 * 0.04) + 1e-15);
-            }
-        }
+        assert_faces_out_and_keeps_lengths(&m, &flat, |plane| plane.powi(3) / (24.0 * 0.04));
         r.cylinder_radius_m = Some(-1.0);
         assert_eq!(r.mesh().unwrap_err().0, "cylinder_radius_m");
     }
