@@ -411,16 +411,23 @@ fn the_pattern_tshirt_stays_on_the_walking_mannequin() {
 /// front and back, two straps, skirt front and back, ten seams, the skirt
 /// gathered 1.64 times onto the bodice) is sewn while the mannequin stands
 /// and stays on its straps through the walk (measured: nothing inside a
-/// link, stretch 1.357, typically 1.148, 1.336 while sewn, closest 5.4 mm,
-/// 0.411 m out, from 0.629 m below the waist joint, seams within 0.3 mm;
-/// the grid's one-piece 1.423, 1.262, 1.414). Before a stitched point
-/// counted as one for self-collision the four waist-corner stitches, where
-/// each waist seam meets two side seams, stayed 5 mm open: a skirt corner
-/// was repelled by the bodice corner it is sewn to through a side seam.
+/// link, stretch 1.2240 (a strap over the shoulder as the walk blends
+/// in), typically 1.0872, 1.2472 while sewn (the bodice's lower corners,
+/// where the gathered skirt is drawn up), closest 8.2 mm, 0.410 m out,
+/// from 0.626 m below the waist joint, seams within 0.52 mm; the grid's
+/// one-piece 1.423, 1.262, 1.414). With 6.5 cm straps cut straight and
+/// the default sewing pull: 1.357, 1.148, 1.336 (the straps' inner edges
+/// carried the dress); the wider tapered straps alone: 1.489 while sewn,
+/// a seam 17 mm open at 0.6 s; with 0.35 and 0.5 N of sewing pull instead
+/// of 0.75: 1.234 and 1.297, seams within 0.57 and 3.75 mm. Before a
+/// stitched point counted as one for self-collision the four waist-corner
+/// stitches, where each waist seam meets two side seams, stayed 5 mm
+/// open: a skirt corner was repelled by the bodice corner it is sewn to
+/// through a side seam.
 #[test]
 #[ignore = "slow tier: cargo test --release -- --ignored"]
 fn the_pattern_dress_stays_on_the_walking_mannequin() {
     let worn = wear("pattern-dress-walk.toml", "torso", &[]);
-    worn.assert_stays_on(1.37, 0.45, [-0.65, 0.55]);
-    worn.assert_sewn(1e-3, 1.35, 1.16);
+    worn.assert_stays_on(1.24, 0.45, [-0.65, 0.55]);
+    worn.assert_sewn(1e-3, 1.26, 1.10);
 }

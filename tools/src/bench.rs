@@ -60,7 +60,7 @@ const ONE_PIECE: [&str; 4] = [
 /// The pattern garments, meshed finer than their fixtures to the paper's
 /// counts: the skirt's two pieces at 1.75 cm (3540 particles; the
 /// fixture's 3.5 cm make 914), the dress's pieces at 0.6 of their edge
-/// lengths (5230; the fixture's 1938).
+/// lengths (5510; the fixture's 2024).
 const PATTERN_SKIRT: [&str; 2] = ["meshes.0.pattern.edge_length_m=0.0175", "meshes.1.pattern.edge_length_m=0.0175"];
 const PATTERN_DRESS: [&str; 6] = [
     "meshes.0.pattern.edge_length_m=0.015",
