@@ -321,6 +321,11 @@ impl PatternPiece {
             });
             triangles.push(t);
         }
+        // A cone of a vanishing half angle turns a point round without bound.
+        if let Some(p) = positions.iter().find(|p| !p.iter().all(|c| c.is_finite())) {
+            let field = if self.cone.is_some() { "cone" } else { "outline_m" };
+            return Err((field, format!("the piece places a point at {p:?}, not a finite position")));
+        }
         let outline_edges = edge_handles.iter().map(|hs| hs.iter().map(|h| index[h.index()]).collect()).collect();
         if line_handles.iter().flatten().any(|h| index[h.index()] == u32::MAX) {
             return Err(("lines_m", "a line reaches outside the outline".into()));
@@ -331,7 +336,6 @@ impl PatternPiece {
         Ok(PatternMesh { positions, triangles, outline_edges, v_axis: v, outline_lengths })
     }
 
-    /// The placed x and y axes, orthonormal.
     /// The cone's apex and the sine and cosine of its half angle, checked.
     fn cone_angles(&self) -> Result<Option<PlacedCone>, (&'static str, String)> {
         let Some(cone) = self.cone else { return Ok(None) };
@@ -349,6 +353,7 @@ impl PatternPiece {
         Ok(Some(PlacedCone { apex: cone.apex_m, sin, cos }))
     }
 
+    /// The placed x and y axes, orthonormal.
     fn axes(&self) -> Result<(Vec3, Vec3), (&'static str, String)> {
         let u = Vec3::from(self.u_axis)
             .try_normalize(1e-12)
@@ -524,6 +529,10 @@ mod tests {
         let mut steep = piece.clone();
         steep.cone = Some(ConeWrap { apex_m: apex, half_angle_deg: 95.0 });
         assert!(steep.mesh().unwrap_err().1.contains("half_angle_deg"));
+        // A denormal half angle: its sine is so small that the turn overflows.
+        let mut thin = piece.clone();
+        thin.cone = Some(ConeWrap { apex_m: apex, half_angle_deg: 1e-320 });
+        assert_eq!(thin.mesh().unwrap_err().0, "cone");
     }
 
     /// Wrapped around a cylinder, every edge keeps its length (chords of
