@@ -8,6 +8,7 @@
 
 use cloth_core::Vec3;
 use cloth_rapier::convert::{pose_from_rapier, vec_from_rapier};
+use cloth_rapier::rapier3d_f64::prelude::RigidBodyHandle;
 use cloth_rapier::{CoupledRun, CoupledScene};
 use cloth_tests::{fixture, min_unlinked_point_triangle, same_bits};
 
@@ -67,6 +68,14 @@ struct Worn {
     run: CoupledRun,
 }
 
+/// Maps a point to the frame of rig body `link` as it is now, with the
+/// rig file's up axis along z.
+fn in_link_frame(run: &CoupledRun, link: RigidBodyHandle) -> impl Fn(&Vec3) -> Vec3 {
+    let frame = pose_from_rapier(run.world.bodies[link].position());
+    let up = run.rig.as_ref().unwrap().rig.up;
+    move |p| up * (frame.rotation.inverse() * (p - frame.position))
+}
+
 /// Runs `scene`, measuring in the frame of link `on`.
 fn wear(scene: &str, on: &str, overrides: &[&str]) -> Worn {
     let mut run = build(scene, overrides);
@@ -97,11 +106,9 @@ fn wear(scene: &str, on: &str, overrides: &[&str]) -> Worn {
         if step >= sewn_at {
             seam_gap = seam_gap.max(sim.model().max_seam_gap(x));
         }
-        let frame = pose_from_rapier(run.world.bodies[link].position());
-        // The link's frame with the file's up axis along z.
-        let up = run.rig.as_ref().unwrap().rig.up;
+        let to_link = in_link_frame(&run, link);
         for p in x {
-            let local = up * (frame.rotation.inverse() * (p - frame.position));
+            let local = to_link(p);
             radial = radial.max(local.xy().norm());
             low = low.min(local.z);
             high = high.max(local.z);
@@ -224,11 +231,8 @@ fn skirts_from_patterns_and_obj_files_stay_on_the_walking_mannequin() {
 /// the run: the farthest of the particles within 3 cm of the lowest.
 fn hem_reach(worn: &Worn, on: &str) -> f64 {
     let run = &worn.run;
-    let rig = run.rig.as_ref().unwrap();
-    let frame = pose_from_rapier(run.world.bodies[rig.body(on).unwrap()].position());
-    let local: Vec<Vec3> = (run.cloths[run.cloth].simulation().state().x.iter())
-        .map(|p| rig.rig.up * (frame.rotation.inverse() * (p - frame.position)))
-        .collect();
+    let to_link = in_link_frame(run, run.rig.as_ref().unwrap().body(on).unwrap());
+    let local: Vec<Vec3> = run.cloths[run.cloth].simulation().state().x.iter().map(to_link).collect();
     let lowest = local.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
     local.iter().filter(|p| p.z < lowest + 0.03).map(|p| p.xy().norm()).fold(0.0, f64::max)
 }

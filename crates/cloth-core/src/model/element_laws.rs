@@ -358,12 +358,13 @@ pub fn curvature_stiffness(corners: [Vec3; 3], support: [EdgeSupport; 3], across
         }
     });
     let free: Vec<usize> = (0..3).filter(|&k| support[k] == EdgeSupport::Free).collect();
-    let Some(bias) = estimator_bias(corners, support, across, w) else {
+    let axes = PlaneAxes::of(corners);
+    let Some(bias) = estimator_bias(corners, &axes, area, support, across, w) else {
         let m = Mat3::from_fn(|i, j| b * w[i] * w[j] * l[i] * l[j] * n[i].dot(&n[j]).powi(2) / (4.0 * area));
         return free_edges_minimised_out(m, &free);
     };
     // Curvature (k_xx, k_yy, k_xy) read from the angles, bias removed.
-    let planar_n = n.map(|v| planar(v, corners));
+    let planar_n = n.map(|v| axes.planar(v));
     let read = bias.try_inverse()?
         * Matrix3::from_fn(|r, k| {
             let nk = planar_n[k];
@@ -403,12 +404,23 @@ fn free_edges_minimised_out(m: Mat3, free: &[usize]) -> Option<Mat3> {
     }))
 }
 
-/// `v`'s components in the plane of triangle `corners`: along its first
-/// edge and across it.
-fn planar(v: Vec3, corners: [Vec3; 3]) -> Vector2<f64> {
-    let e1 = (corners[1] - corners[0]).normalize();
-    let normal = (corners[1] - corners[0]).cross(&(corners[2] - corners[0])).normalize();
-    Vector2::new(v.dot(&e1), v.dot(&normal.cross(&e1)))
+/// Axes in the plane of a triangle: along its first edge and across it.
+struct PlaneAxes {
+    along: Vec3,
+    across: Vec3,
+}
+
+impl PlaneAxes {
+    fn of(corners: [Vec3; 3]) -> Self {
+        let along = (corners[1] - corners[0]).normalize();
+        let normal = (corners[1] - corners[0]).cross(&(corners[2] - corners[0])).normalize();
+        PlaneAxes { along, across: normal.cross(&along) }
+    }
+
+    /// `v`'s components along the axes.
+    fn planar(&self, v: Vec3) -> Vector2<f64> {
+        Vector2::new(v.dot(&self.along), v.dot(&self.across))
+    }
 }
 
 /// Gradient of the linear interpolant of values `f` at 2D points `p`.
@@ -418,7 +430,7 @@ fn linear_gradient(p: [Vector2<f64>; 3], f: [f64; 3]) -> Vector2<f64> {
 }
 
 /// The curvature `C k` that the mid-edge estimate reads from a uniform
-/// curvature `k = (k_xx, k_yy, k_xy)` (in [`planar`] axes) of a flat
+/// curvature `k = (k_xx, k_yy, k_xy)` (in the triangle's [`PlaneAxes`]) of a flat
 /// triangle and its neighbours unfolded into its plane, None where it is
 /// `k` itself to 1e-12 (every shared edge a parallelogram pair). The
 /// estimated mid-edge slope of a quadratic deflection is off by
@@ -427,13 +439,13 @@ fn linear_gradient(p: [Vector2<f64>; 3], f: [f64; 3]) -> Vector2<f64> {
 /// stores the plate energy on any mesh.
 fn estimator_bias(
     corners: [Vec3; 3],
+    axes: &PlaneAxes,
+    area: f64,
     support: [EdgeSupport; 3],
     across: [Vec3; 3],
     w: [f64; 3],
 ) -> Option<Matrix3<f64>> {
-    let q = corners.map(|x| planar(x - corners[0], corners));
-    let normal = (corners[1] - corners[0]).cross(&(corners[2] - corners[0]));
-    let area = 0.5 * normal.norm();
+    let q = corners.map(|x| axes.planar(x - corners[0]));
     let basis = [Matrix2::new(1.0, 0.0, 0.0, 0.0), Matrix2::new(0.0, 0.0, 0.0, 1.0), Matrix2::new(0.0, 1.0, 1.0, 0.0)];
     let mut c = Matrix3::identity();
     for (j, k_j) in basis.iter().enumerate() {
