@@ -174,6 +174,10 @@ pub struct Summary {
     pub narrow_phase_queries_total: u64,
     /// Spatial-hash rebuilds (0 without self-collision).
     pub hash_builds_total: u64,
+    /// Steps in which the cloth would have passed through itself, kept
+    /// apart by impact zones (`self_collision.continuous`); absent when none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub crossings: Option<CrossingSummary>,
     /// The error that stopped the run, if any.
     pub error: Option<String>,
     /// What looked wrong before the first step (a character of an
@@ -190,6 +194,18 @@ pub struct Summary {
     /// Cloth-body coupling counters (scenes with `[[bodies]]`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub coupling: Option<CouplingSummary>,
+}
+
+/// Crossings of the cloth through itself met during a run.
+#[derive(Debug, Serialize)]
+pub struct CrossingSummary {
+    /// Steps with a point-triangle or edge-edge pair meeting.
+    pub steps: u64,
+    /// Such pairs found, summed over the steps.
+    pub meetings_total: u64,
+    /// Pairs still meeting after the impact zones (a start already
+    /// tangled, or zones held by pins), summed over the steps.
+    pub left_total: u64,
 }
 
 /// How closed the seams are at the end of a run.

@@ -1,8 +1,8 @@
 //! `cloth run`, `cloth validate` and `cloth time`.
 
 use crate::output::{
-    BodySummary, CouplingSummary, EnergySummary, GarmentHeights, NewtonSummary, SeamSummary, StageWall, Summary,
-    write_obj,
+    BodySummary, CouplingSummary, CrossingSummary, EnergySummary, GarmentHeights, NewtonSummary, SeamSummary,
+    StageWall, Summary, write_obj,
 };
 use anyhow::{Context, Result, bail};
 use cloth_core::scene::{EffectName, RunConfig, Scene, SceneError};
@@ -427,6 +427,11 @@ pub(crate) fn simulate_steps(
         released_contacts_total: contacts.released,
         narrow_phase_queries_total: contacts.queries,
         hash_builds_total: contacts.hash_builds,
+        crossings: (contacts.crossings > 0).then_some(CrossingSummary {
+            steps: contacts.crossing_steps,
+            meetings_total: contacts.crossings,
+            left_total: contacts.crossings_left,
+        }),
         error,
         warnings,
         stage_wall_s: stages,
@@ -594,6 +599,9 @@ struct ContactTotals {
     released: u64,
     queries: u64,
     hash_builds: u64,
+    crossings: u64,
+    crossings_left: u64,
+    crossing_steps: u64,
 }
 
 impl ContactTotals {
@@ -604,6 +612,9 @@ impl ContactTotals {
         self.released += c.released as u64;
         self.queries += c.narrow_phase_queries as u64;
         self.hash_builds += c.hash_builds as u64;
+        self.crossings += c.self_crossings as u64;
+        self.crossings_left += c.crossings_left as u64;
+        self.crossing_steps += u64::from(c.self_crossings > 0);
     }
 }
 

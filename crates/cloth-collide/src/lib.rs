@@ -5,6 +5,8 @@
 //!   registered in the cubic voxels they touch; candidate pairs come only
 //!   from shared voxels, so the cost is near-linear in the number of
 //!   particles for cloth-like distributions. Used for self-collision.
+//! - Continuous detection between moving triangles ([`point_triangle_impact`],
+//!   [`edge_edge_impact`]) over the swept boxes of a [`BoxGrid`].
 //! - Narrow phase against solids: [`SolidShape`] (ball, cuboid, capsule,
 //!   cylinder, convex hull, OBJ triangle mesh, half-space) gives the signed
 //!   distance, closest point and outward normal through parry (f64).
@@ -13,12 +15,16 @@
 //!
 //! Results are sorted, so they do not depend on hashing or scheduling.
 
+mod box_grid;
+mod ccd;
 mod collider;
 mod gltf_mesh;
 mod obj;
 mod triangle;
 mod voxel_hash;
 
+pub use box_grid::{Aabb, BoxGrid};
+pub use ccd::{Path, edge_edge_impact, point_triangle_impact, segment_crosses_triangle, segment_distance};
 pub use collider::{BodyPose, ShapeError, ShapeSpec, SolidShape, SurfacePoint};
 pub use gltf_mesh::{parse_gltf, read_gltf};
 pub use obj::{ObjError, SurfaceMesh, parse_obj, parse_obj_points};

@@ -11,7 +11,7 @@ pub enum BroadPhaseError {
     /// A point or triangle corner is not finite.
     #[error("{what} {index} has a non-finite coordinate")]
     NonFinite {
-        /// "point" or "triangle".
+        /// "point", "triangle" or "box".
         what: &'static str,
         /// Its index.
         index: usize,

@@ -105,6 +105,7 @@
 //! thickness_m = 0.01
 //! stiffness_n_m = 200.0        # default: material.tensile_stiffness_n_m
 //! point_triangle = true
+//! continuous = true            # no particle or edge passes through the cloth in a step
 //! ```
 //!
 //! Self-collision needs an implicit integrator with an assembled matrix

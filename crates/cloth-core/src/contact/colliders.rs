@@ -61,6 +61,13 @@ pub struct SelfCollisionSpec {
     /// alone let a particle slip through the middle of a quad.
     #[serde(default = "yes")]
     pub point_triangle: bool,
+    /// After each step, test every particle-triangle and edge-edge pair
+    /// along its path through the step, and move the particles of pairs
+    /// that would pass through each other as rigid impact zones
+    /// (default true): repulsion and separation only see pairs that start
+    /// close, so a fast fold could cross the cloth otherwise.
+    #[serde(default = "yes")]
+    pub continuous: bool,
 }
 
 fn yes() -> bool {
@@ -152,6 +159,8 @@ pub struct SelfCollision {
     pub stiffness_n_m: f64,
     /// Whether particle-triangle pairs are tested too.
     pub point_triangle: bool,
+    /// Whether crossings during the step are prevented (impact zones).
+    pub continuous: bool,
     /// Voxel edge of the spatial hash, m: at least the thickness, and the
     /// mean rest link length so a triangle touches few voxels.
     pub voxel_m: f64,
@@ -216,7 +225,13 @@ impl CollisionSpec {
         let stiffness_n_m =
             positive("self_collision.stiffness_n_m".into(), s.stiffness_n_m.unwrap_or(default_stiffness))?;
         let voxel_m = thickness_m.max(mean_link_m);
-        Ok(Some(SelfCollision { thickness_m, stiffness_n_m, point_triangle: s.point_triangle, voxel_m }))
+        Ok(Some(SelfCollision {
+            thickness_m,
+            stiffness_n_m,
+            point_triangle: s.point_triangle,
+            continuous: s.continuous,
+            voxel_m,
+        }))
     }
 }
 

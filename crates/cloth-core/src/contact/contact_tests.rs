@@ -11,29 +11,7 @@ use cloth_linalg::{BlockSparseMatrix, ConstraintFilter};
 
 /// Two parallel 3 x 3 sheets `gap` apart (z), self-collision on.
 fn two_sheets(gap: f64) -> (ClothModel, Vec<Vec3>) {
-    let sheet = |z: f64| GridPanel {
-        particles: [3, 3],
-        size_m: [0.04, 0.04],
-        origin_m: [0.0, 0.0, z],
-        u_axis: [1.0, 0.0, 0.0],
-        v_axis: [0.0, 1.0, 0.0],
-        wrap_u: false,
-    };
-    let spec = ModelSpec {
-        panels: vec![sheet(0.0), sheet(gap)],
-        material: Material::default(),
-        effects: Effects::default(),
-        collision: CollisionSpec {
-            self_collision: Some(SelfCollisionSpec {
-                thickness_m: 0.01,
-                stiffness_n_m: Some(50.0),
-                point_triangle: true,
-            }),
-            ..CollisionSpec::default()
-        },
-        ..ModelSpec::default()
-    };
-    let model = ClothModel::build(&spec).unwrap();
+    let model = stacked_sheets((3, 0.04), (3, 0.04), gap, [0.0, 0.0]);
     let x = model.rest_positions().to_vec();
     (model, x)
 }
@@ -572,4 +550,131 @@ fn a_released_contact_with_a_body_is_taken_up_again_inside_it() {
             assert!(!filter.is_free(middle), "constrained again");
         }
     }
+}
+
+/// A sheet of `n x n` particles and side `size` (m) at height 0 and one
+/// of `top_n x top_n` and side `top_size` `gap` above it, shifted by
+/// `shift`; self-collision 1 cm thick.
+fn stacked_sheets((n, size): (usize, f64), (top_n, top_size): (usize, f64), gap: f64, shift: [f64; 2]) -> ClothModel {
+    let sheet = |n: usize, size: f64, origin: [f64; 3]| GridPanel {
+        particles: [n, n],
+        size_m: [size, size],
+        origin_m: origin,
+        u_axis: [1.0, 0.0, 0.0],
+        v_axis: [0.0, 1.0, 0.0],
+        wrap_u: false,
+    };
+    let spec = ModelSpec {
+        panels: vec![sheet(n, size, [0.0, 0.0, 0.0]), sheet(top_n, top_size, [shift[0], shift[1], gap])],
+        material: Material::default(),
+        effects: Effects::default(),
+        collision: CollisionSpec {
+            self_collision: Some(SelfCollisionSpec {
+                thickness_m: 0.01,
+                stiffness_n_m: Some(50.0),
+                point_triangle: true,
+                continuous: true,
+            }),
+            ..CollisionSpec::default()
+        },
+        ..ModelSpec::default()
+    };
+    ClothModel::build(&spec).unwrap()
+}
+
+/// Linear and angular momentum (about the origin) of displacements `dx`
+/// from `x`, per unit time.
+fn momenta(model: &ClothModel, x: &[Vec3], dx: &[Vec3]) -> (Vec3, Vec3) {
+    let m = model.masses();
+    (0..x.len()).fold((Vec3::zeros(), Vec3::zeros()), |(p, l), i| (p + dx[i] * m[i], l + x[i].cross(&dx[i]) * m[i]))
+}
+
+/// A small sheet driven through a larger one in one step (2 cm down, the
+/// pair turning) is caught by an impact zone: both move as one rigid
+/// body, so the small one stays 6 mm above the other's plane, and the
+/// zone keeps the step's linear momentum exactly and its angular momentum
+/// to the rotation's second order. Measured: 6.000 mm; linear momentum
+/// off by 5.8e-16 of it, angular by 2.6e-5. Without the zone the small
+/// sheet ends 14 mm below.
+#[test]
+fn an_impact_zone_stops_a_sheet_passing_through_another() {
+    let model = stacked_sheets((7, 0.06), (4, 0.03), 0.006, [0.015, 0.015]);
+    let sc = *model.self_collision().unwrap();
+    let x0 = model.rest_positions().to_vec();
+    let n = 49;
+    let turn = nalgebra::Rotation3::new(Vec3::new(0.0, 0.0, 0.05));
+    let mut new_x: Vec<Vec3> = x0.iter().map(|p| turn * p).collect();
+    for p in &mut new_x[n..] {
+        p.z -= 0.02;
+    }
+    // Lowest height of the small sheet's particles over the large sheet:
+    // along the normal of the large sheet's triangle closest to each.
+    let below: Vec<[u32; 3]> =
+        model.triangles().iter().copied().filter(|t| t.iter().all(|&i| (i as usize) < n)).collect();
+    let gap = |x: &[Vec3]| {
+        let height = |p: Vec3| {
+            let over = |t: &[u32; 3]| {
+                let [a, b, c] = t.map(|i| x[i as usize]);
+                let (q, _) = cloth_collide::closest_point_on_triangle(p, a, b, c);
+                ((p - q).norm(), (p - q).dot(&(b - a).cross(&(c - a)).normalize()))
+            };
+            below.iter().map(over).min_by(|u, v| u.0.total_cmp(&v.0)).unwrap().1
+        };
+        x[n..].iter().map(|&p| height(p)).fold(f64::INFINITY, f64::min)
+    };
+    assert!(gap(&new_x) < -0.01, "the step should pass through: {}", gap(&new_x));
+    let dx: Vec<Vec3> = x0.iter().zip(&new_x).map(|(a, b)| b - a).collect();
+    let (p0, l0) = momenta(&model, &x0, &dx);
+    let tau = 0.01;
+    let mut new_v: Vec<Vec3> = dx.iter().map(|d| d / tau).collect();
+    let (v_start, step_end) = (new_v.clone(), new_x.clone());
+    let mut bufs = ContactBuffers::default();
+    let (met, left) = untangle_step(&model, &sc, &x0, tau, &mut new_x, &mut new_v, &mut bufs);
+    let dx: Vec<Vec3> = x0.iter().zip(&new_x).map(|(a, b)| b - a).collect();
+    let (p1, l1) = momenta(&model, &x0, &dx);
+    let (dp, dl) = ((p1 - p0).norm() / p0.norm(), (l1 - l0).norm() / l0.norm());
+    eprintln!("{met} meetings, {left} left; gap {:.3e} m; momentum off by {dp:.1e}, angular {dl:.1e}", gap(&new_x));
+    assert!(met > 0 && left == 0, "{met} meetings, {left} left");
+    assert!((gap(&new_x) - 0.006).abs() < 1e-12, "the sheets should keep their 6 mm: {}", gap(&new_x));
+    assert!(dp < 1e-14, "linear momentum off by {dp}");
+    assert!(dl < 5e-5, "angular momentum off by {dl}");
+    // Velocities follow the positions: v changes by the position change over tau.
+    for i in 0..x0.len() {
+        let change = (new_x[i] - step_end[i]) / tau;
+        assert!((new_v[i] - v_start[i] - change).norm() < 1e-12, "particle {i}");
+    }
+}
+
+/// A small sheet whose one side dips through a larger one: the zones
+/// grow until nothing meets, and the end has no edge through a triangle
+/// (`self_intersections`), where the raw step has 28. Particles far from
+/// the dip keep their step: zones are local (measured: 90 of 162).
+#[test]
+fn a_partly_crossing_sheet_ends_untangled_and_far_particles_keep_their_step() {
+    let model = stacked_sheets((9, 0.16), (9, 0.16), 0.006, [0.04, 0.04]);
+    let sc = *model.self_collision().unwrap();
+    let x0 = model.rest_positions().to_vec();
+    let n = x0.len() / 2;
+    let mut new_x = x0.clone();
+    // The top sheet's side at x = 0.2 dips 12 mm, its side at x = 0.04 stays.
+    for p in &mut new_x[n..] {
+        p.z -= 0.012 * (p.x - 0.04) / 0.16;
+    }
+    // The lower sheet drifts sideways, unhurried.
+    for p in &mut new_x[..n] {
+        p.y += 0.001;
+    }
+    let raw = self_intersections(&model, &new_x).len();
+    let mut new_v = vec![Vec3::zeros(); x0.len()];
+    let mut bufs = ContactBuffers::default();
+    let before = new_x.clone();
+    let (met, left) = untangle_step(&model, &sc, &x0, 0.01, &mut new_x, &mut new_v, &mut bufs);
+    let after = self_intersections(&model, &new_x).len();
+    let kept = (0..x0.len()).filter(|&i| new_x[i] == before[i]).count();
+    eprintln!(
+        "raw step: {raw} edges through triangles; {met} meetings, {left} left; after: {after}; {kept} particles kept their step"
+    );
+    assert!(raw > 0, "the raw step should cross");
+    assert_eq!((after, left), (0, 0));
+    assert!(kept >= 85, "only {kept} particles kept their step");
 }

@@ -23,7 +23,9 @@
 //! - Self-collision: particle-particle and particle-triangle repulsion
 //!   ([`crate::laws::repulsion`]) found through the voxel hash at the start of the
 //!   step, applied with its Jacobian along the repelling direction only,
-//!   and `separate_self_contacts` after the step.
+//!   and `separate_self_contacts` after the step; then, with
+//!   `continuous`, no particle or edge may pass through the cloth during
+//!   the step (`untangle_step`: continuous detection, rigid impact zones).
 //!
 //! Everything is evaluated in a fixed particle order (or reduced exactly),
 //! so results do not depend on the number of threads.
@@ -36,6 +38,7 @@
 // What a user of the library sees: the contacts a step reports, the
 // counters, and the contact laws.
 pub use super::contact_laws::*;
+pub use super::impact_zones::{MEETING_FRACTION, self_intersections};
 pub use super::projection::Inside;
 pub use super::self_collision::MIN_SELF_GAP;
 pub use super::types::{ContactStats, FrictionMode, SelfContact, SolidContact};
@@ -43,6 +46,7 @@ pub use super::types::{ContactStats, FrictionMode, SelfContact, SolidContact};
 // The steps' drivers, for the integrators of this crate.
 pub(crate) use super::active_set::*;
 pub(crate) use super::detect::*;
+pub(crate) use super::impact_zones::*;
 pub(crate) use super::penalty::*;
 pub(crate) use super::projection::*;
 pub(crate) use super::response::*;

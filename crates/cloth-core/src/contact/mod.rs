@@ -8,6 +8,7 @@ pub mod contacts;
 mod active_set;
 mod contact_laws;
 mod detect;
+mod impact_zones;
 mod penalty;
 mod projection;
 mod response;

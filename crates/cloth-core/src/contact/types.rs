@@ -176,6 +176,12 @@ pub struct ContactStats {
     pub self_contacts: usize,
     /// Pairs pushed apart after the step by `separate_self_contacts`.
     pub self_separations: usize,
+    /// Point-triangle and edge-edge pairs of the cloth found meeting
+    /// during the step, before impact zones kept them apart.
+    pub self_crossings: usize,
+    /// Such pairs still meeting after the impact zones (a start already
+    /// tangled, or zones held by pins).
+    pub crossings_left: usize,
     /// Narrow-phase point queries against solids.
     pub narrow_phase_queries: usize,
     /// Spatial hash rebuilds (self-collision broad phase).
@@ -193,6 +199,8 @@ impl std::ops::AddAssign for ContactStats {
         self.max_penetration_m = self.max_penetration_m.max(o.max_penetration_m);
         self.self_contacts += o.self_contacts;
         self.self_separations += o.self_separations;
+        self.self_crossings += o.self_crossings;
+        self.crossings_left += o.crossings_left;
         self.narrow_phase_queries += o.narrow_phase_queries;
         self.hash_builds += o.hash_builds;
     }
@@ -243,6 +251,8 @@ pub(crate) struct ContactBuffers {
     /// it never repels (its corners and every particle linked to one).
     pub(crate) excluded_ptr: Vec<u32>,
     pub(crate) excluded: Vec<u32>,
+    /// Scratch of the continuous self-collision test.
+    pub(crate) crossings: CrossingBuffers,
     /// Self-collision forces, N.
     pub self_force: Vec<Vec3>,
     /// Self-collision stiffness on the diagonal, `-df_i/dx_i`, N/m.

@@ -4,7 +4,7 @@
 use crate::contacts::{
     ContactBuffers, ContactStats, FrictionMode, apply_friction, constrain_contacts, detect_self_contacts,
     detect_solid_contacts, linearise_squeeze_friction, project_out, separate_self_contacts, squeeze_friction_forces,
-    stop_separation,
+    stop_separation, untangle_step,
 };
 use crate::control::{Control, PinPaths};
 use crate::energy;
@@ -438,7 +438,7 @@ fn uncommitted_step<S: Linearised>(
     // 6. Respond.
     let t_update = Instant::now();
     let response = Response { force_coefficient, newton: escalate, unresolved: settled.unresolved };
-    let pins = respond(step, ws, &loads, response, &mut stats);
+    let (pins, crossings_s) = respond(step, ws, &loads, response, &mut stats);
     // 7. Balance the energy and report.
     let balance = energy::StepEnergy {
         before: energy_before,
@@ -457,9 +457,9 @@ fn uncommitted_step<S: Linearised>(
         forces_s,
         assembly_s,
         solve_s,
-        update_s: t_update.elapsed().as_secs_f64(),
+        update_s: t_update.elapsed().as_secs_f64() - crossings_s,
         collision_s: loads.collision_s,
-        self_collision_s: loads.self_collision_s,
+        self_collision_s: loads.self_collision_s + crossings_s,
     };
     report.contacts = stats;
     Ok(report)
@@ -505,6 +505,10 @@ fn constrain_start<S: Linearised>(step: StepInputs<'_, S>, ws: &mut Workspace, r
     ws.bodies.prepare(model, multigrid, control.bodies(), |p| paths.position(p, state.time_s + h), factors);
 }
 
+/// Rounds of impact zones and projection out of the solids after a step
+/// whose projection pushed cloth (see `respond`).
+const PROJECTION_ROUNDS: usize = 4;
+
 /// What the response needs to know of the solves.
 #[derive(Debug, Clone, Copy)]
 struct Response {
@@ -518,16 +522,17 @@ struct Response {
 
 /// Phase 6: the pins' reactions (their rows of the unfiltered residual),
 /// the new positions and velocities, friction, no bounce off holding
-/// solids, self-collision separation and the last projection out of
-/// solids (solids last: cloth never ends a step inside one). Returns the
-/// pin paths for the energy balance.
+/// solids, self-collision separation, the continuous self-collision test
+/// and the last projection out of solids (solids last: cloth never ends a
+/// step inside one). Returns the pin paths for the energy balance, and the
+/// time the continuous test took (s, counted as self-collision).
 fn respond<'a, S: Linearised>(
     step: StepInputs<'a, S>,
     ws: &mut Workspace,
     loads: &StepLoads,
     response: Response,
     stats: &mut ContactStats,
-) -> PinPaths<'a> {
+) -> (PinPaths<'a>, f64) {
     let StepInputs { scheme, model, state, control, h, .. } = step;
     let newton = response.newton;
     // After Newton the system is assembled at the final iterate: `rhs = -r`.
@@ -554,20 +559,55 @@ fn respond<'a, S: Linearised>(
         let bodies = &ws.bodies;
         stop_separation(solid, model.masses(), &mut ws.new_v, |c| bodies.holds(c));
     }
+    let mut crossings_s = 0.0;
     if let Some(sc) = model.self_collision() {
         let pairs = &ws.contacts.self_pairs;
         stats.self_separations = separate_self_contacts(model, sc, pairs, tau, &mut ws.new_x, &mut ws.new_v);
+        if sc.continuous {
+            let t = Instant::now();
+            ws.contacts.crossings.start_step(ws.new_x.len());
+            (stats.self_crossings, stats.crossings_left) =
+                untangle_step(model, sc, &state.x, tau, &mut ws.new_x, &mut ws.new_v, &mut ws.contacts);
+            crossings_s += t.elapsed().as_secs_f64();
+        }
     }
     if !model.colliders().is_empty() {
         // After Newton iterations (penalties, not constraints), an active
         // set that ran out of passes or self-collision separations (which
         // can push a hem into a swinging shin): check every particle.
-        let all = response.unresolved || newton || stats.self_separations > 0;
-        stats.projected =
-            project_out(model, &state.x, (state.time_s, h), &mut ws.contacts, all, &mut ws.new_x, &mut ws.new_v);
+        let all = response.unresolved || newton || stats.self_separations > 0 || stats.self_crossings > 0;
+        let times = (state.time_s, h);
+        let continuous = model.self_collision().filter(|sc| sc.continuous);
+        if continuous.is_some() {
+            ws.contacts.crossings.before_projection(&ws.new_x);
+        }
+        stats.projected = project_out(model, &state.x, times, &mut ws.contacts, all, &mut ws.new_x, &mut ws.new_v);
+        // A solid pushing cloth out can push it through another layer
+        // (a hem pinched between the knees): the pushed particles are held
+        // and carry what they would cross with them, then the solids
+        // project again, a few rounds.
+        if let Some(sc) = continuous.filter(|_| stats.projected > 0) {
+            for _ in 0..PROJECTION_ROUNDS {
+                let t = Instant::now();
+                ws.contacts.crossings.hold_projected(&ws.new_x);
+                let (met, left) =
+                    untangle_step(model, sc, &state.x, tau, &mut ws.new_x, &mut ws.new_v, &mut ws.contacts);
+                crossings_s += t.elapsed().as_secs_f64();
+                (stats.self_crossings, stats.crossings_left) = (stats.self_crossings + met, left);
+                if met == 0 {
+                    break;
+                }
+                ws.contacts.crossings.before_projection(&ws.new_x);
+                let again = project_out(model, &state.x, times, &mut ws.contacts, true, &mut ws.new_x, &mut ws.new_v);
+                stats.projected += again;
+                if again == 0 {
+                    break;
+                }
+            }
+        }
     }
     stats.contacts = ws.contacts.solid.iter().filter(|c| c.active).count();
-    pins
+    (pins, crossings_s)
 }
 
 /// Adds a contact pass's solve `r` (taking `s` seconds) to the step's

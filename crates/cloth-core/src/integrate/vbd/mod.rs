@@ -552,6 +552,16 @@ impl crate::Integrator for Vbd {
         // entry of `b.x` and `b.v` before it reads them.
         std::mem::swap(new_x, &mut b.x);
         std::mem::swap(new_v, &mut b.v);
+        // Nothing passes through the cloth in the step (velocities are the
+        // displacement over h here).
+        let mut self_collision_s = self_collision_s;
+        if let Some(sc) = model.self_collision().filter(|sc| sc.continuous) {
+            let t = Instant::now();
+            contacts.crossings.start_step(new_x.len());
+            (stats.self_crossings, stats.crossings_left) =
+                crate::contacts::untangle_step(model, sc, xn, h, new_x, new_v, contacts);
+            self_collision_s += t.elapsed().as_secs_f64();
+        }
         let stages = StageTimes {
             solve_s,
             collision_s,
