@@ -6,8 +6,10 @@
 //! that moves as one rigid body over the step (Provot 1997; Bridson,
 //! Fedkiw & Anderson 2002 §7.4). Zones that meet merge, until nothing
 //! meets. A rigid motion of a start that does not intersect itself does
-//! not make it intersect, so the step ends untangled whenever it started
-//! so.
+//! not make it intersect. The exceptions: pairs the test skips (close in
+//! the mesh), and zones holding pinned particles or particles a solid
+//! pushed, which follow those particles' mean displacement, a
+//! translation (`docs/contacts.md`).
 
 use super::contacts::ContactBuffers;
 use super::self_collision::build_exclusions;
