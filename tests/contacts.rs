@@ -566,6 +566,41 @@ fn friction_lets_a_wrapped_curtain_slide_round_a_ball() {
     }
 }
 
+/// Two 0.2 m sheets of 11 x 11 particles, one `gap` (m) above the other,
+/// their corner at `corner` (x, y), in zero gravity, self-collision 6 mm
+/// thick (`continuous` or not), among `colliders`.
+fn stacked_free_sheets(
+    corner: [f64; 2],
+    gap: f64,
+    continuous: bool,
+    colliders: Vec<cloth_core::ColliderSpec>,
+) -> cloth_core::ClothModel {
+    let sheet = |z: f64| cloth_core::GridPanel {
+        particles: [11, 11],
+        size_m: [0.2, 0.2],
+        origin_m: [corner[0], corner[1], z],
+        u_axis: [1.0, 0.0, 0.0],
+        v_axis: [0.0, 1.0, 0.0],
+        wrap_u: false,
+    };
+    let spec = cloth_core::ModelSpec {
+        panels: vec![sheet(0.0), sheet(gap)],
+        effects: cloth_core::Effects { gravity: None, ..cloth_core::Effects::default() },
+        collision: cloth_core::CollisionSpec {
+            colliders,
+            self_collision: Some(cloth_core::SelfCollisionSpec {
+                thickness_m: 0.006,
+                stiffness_n_m: None,
+                point_triangle: true,
+                continuous,
+            }),
+            ..cloth_core::CollisionSpec::default()
+        },
+        ..cloth_core::ModelSpec::default()
+    };
+    cloth_core::ClothModel::build(&spec).unwrap()
+}
+
 /// A sheet thrown at 4 m/s at another 3 cm below it, in zero gravity
 /// (4.4 cm a step, beyond the repulsion's reach): with continuous
 /// self-collision (the default) the two meet in an impact zone and go on
@@ -578,29 +613,7 @@ fn friction_lets_a_wrapped_curtain_slide_round_a_ball() {
 #[test]
 fn a_sheet_thrown_at_another_does_not_pass_through_it() {
     let lowest_height = |continuous: bool| {
-        let sheet = |z: f64| cloth_core::GridPanel {
-            particles: [11, 11],
-            size_m: [0.2, 0.2],
-            origin_m: [0.0, 0.0, z],
-            u_axis: [1.0, 0.0, 0.0],
-            v_axis: [0.0, 1.0, 0.0],
-            wrap_u: false,
-        };
-        let spec = cloth_core::ModelSpec {
-            panels: vec![sheet(0.0), sheet(0.03)],
-            effects: cloth_core::Effects { gravity: None, ..cloth_core::Effects::default() },
-            collision: cloth_core::CollisionSpec {
-                self_collision: Some(cloth_core::SelfCollisionSpec {
-                    thickness_m: 0.006,
-                    stiffness_n_m: None,
-                    point_triangle: true,
-                    continuous,
-                }),
-                ..cloth_core::CollisionSpec::default()
-            },
-            ..cloth_core::ModelSpec::default()
-        };
-        let model = cloth_core::ClothModel::build(&spec).unwrap();
+        let model = stacked_free_sheets([0.0, 0.0], 0.03, continuous, vec![]);
         let mut sim = Simulation::builder(model).build();
         let mut start = sim.snapshot();
         let n = start.x.len() / 2;
@@ -646,37 +659,15 @@ fn a_sheet_thrown_at_another_does_not_pass_through_it() {
 #[test]
 fn a_rising_ball_pushes_one_sheet_into_another_without_crossing() {
     let run = |continuous: bool| {
-        let sheet = |z: f64| cloth_core::GridPanel {
-            particles: [11, 11],
-            size_m: [0.2, 0.2],
-            origin_m: [-0.1, -0.1, z],
-            u_axis: [1.0, 0.0, 0.0],
-            v_axis: [0.0, 1.0, 0.0],
-            wrap_u: false,
+        let ball = cloth_core::ColliderSpec {
+            shape: cloth_core::ShapeSpec::Ball { radius_m: 0.05 },
+            position_m: [0.0, 0.0, -0.06],
+            rotation_deg: [0.0; 3],
+            friction: 0.0,
+            motion: cloth_core::PinMotion::Linear { velocity_m_s: [0.0, 0.0, 2.0] },
+            spin_deg_s: [0.0; 3],
         };
-        let spec = cloth_core::ModelSpec {
-            panels: vec![sheet(0.0), sheet(0.01)],
-            effects: cloth_core::Effects { gravity: None, ..cloth_core::Effects::default() },
-            collision: cloth_core::CollisionSpec {
-                colliders: vec![cloth_core::ColliderSpec {
-                    shape: cloth_core::ShapeSpec::Ball { radius_m: 0.05 },
-                    position_m: [0.0, 0.0, -0.06],
-                    rotation_deg: [0.0; 3],
-                    friction: 0.0,
-                    motion: cloth_core::PinMotion::Linear { velocity_m_s: [0.0, 0.0, 2.0] },
-                    spin_deg_s: [0.0; 3],
-                }],
-                self_collision: Some(cloth_core::SelfCollisionSpec {
-                    thickness_m: 0.006,
-                    stiffness_n_m: None,
-                    point_triangle: true,
-                    continuous,
-                }),
-                ..cloth_core::CollisionSpec::default()
-            },
-            ..cloth_core::ModelSpec::default()
-        };
-        let model = cloth_core::ClothModel::build(&spec).unwrap();
+        let model = stacked_free_sheets([-0.1, -0.1], 0.01, continuous, vec![ball]);
         let n = model.particle_count() / 2;
         let mut sim = Simulation::builder(model).build();
         let h = 1.0 / 90.0;

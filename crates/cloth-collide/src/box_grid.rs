@@ -136,11 +136,6 @@ impl BoxGrid {
         Ok(())
     }
 
-    /// The registered boxes, in order.
-    pub fn boxes(&self) -> &[Aabb] {
-        &self.boxes
-    }
-
     /// Occupied cells; [`BoxGrid::pairs`] takes ranges of them.
     pub fn cells(&self) -> usize {
         self.runs.len()
