@@ -305,3 +305,29 @@ fn a_stitch_closes_once_its_gap_is_within_its_linear_range_and_stays_closed() {
     apart.stitches_closed.pop();
     assert!(matches!(sim.restore(&apart), Err(cloth_core::StepError::StitchStateMismatch { expected: 5, got: 4 })));
 }
+
+/// Provot's deformation constraints shut the closed stitches along with
+/// bounding the links: panel 1 pulled 3 cm off its seam ends with its
+/// closed stitches shut (to rounding) and no link beyond 1.1 times its
+/// length, its one open stitch left to its sewing pull. Without the
+/// stitches in the constraints the closed ones stay 3 cm open.
+#[test]
+fn deformation_constraints_shut_closed_stitches() {
+    let (sim, h, _) = build(&open_seam(0.0), &[]);
+    let model = sim.model();
+    let mut x = model.rest_positions().to_vec();
+    // Panel 1's particles come after panel 0's 25.
+    for p in &mut x[25..] {
+        p.x += 0.03;
+    }
+    let mut v = vec![Vec3::zeros(); x.len()];
+    let closed = [true, true, true, true, false];
+    let limit = cloth_core::StrainLimit { max_strain: 0.1, passes: 2000 };
+    let report = cloth_core::apply_strain_limit(model, &limit, |_| false, &closed, (&mut x, &mut v), h);
+    let gaps: Vec<f64> = model.stitches().iter().map(|s| (x[s.j as usize] - x[s.i as usize]).norm()).collect();
+    println!("{} passes, {} corrections; gaps {gaps:?} m", report.passes, report.corrections);
+    assert!(report.passes < 2000, "the constraints did not converge");
+    assert!(gaps[..4].iter().all(|&g| g < 1e-9), "closed stitches open: {gaps:?}");
+    assert!(gaps[4] > 1e-3, "the open stitch was shut too: {gaps:?}");
+    assert!(model.max_stretch_ratio(&x) <= 1.1 * (1.0 + 1e-9), "a link at {}", model.max_stretch_ratio(&x));
+}

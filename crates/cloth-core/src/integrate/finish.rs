@@ -19,9 +19,9 @@ pub(crate) fn finish_step(
 ) {
     if let Some(limit) = model.strain_limit() {
         let t = std::time::Instant::now();
-        let ClothState { x, v, x_prev, time_s, .. } = state;
+        let ClothState { x, v, x_prev, time_s, stitches_closed, .. } = state;
         let held = |i| control.is_held(i);
-        report.strain_corrections = apply_strain_limit(model, &limit, held, x, v, h).corrections;
+        report.strain_corrections = apply_strain_limit(model, &limit, held, stitches_closed, (x, v), h).corrections;
         // The corrections may move particles into solids: move them out.
         if !model.colliders().is_empty() {
             report.contacts.projected += project_out(model, x_prev, (*time_s - h, h), &mut ws.contacts, true, x, v);

@@ -269,8 +269,9 @@ impl BendingLaw {
 /// Provot's (1995) deformation constraints: after each step, every
 /// structural and shear (type-1) link longer than `(1 + max_strain) L` is
 /// shortened back to that length by moving its free ends (split equally
-/// when both are free, never moving pinned ones), in link order, for up to
-/// `passes` passes or until none is too long.
+/// when both are free, never moving pinned ones), in link order, after
+/// every closed stitch is shut the same way, for up to `passes` passes or
+/// until none is too long or open.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct StrainLimit {
