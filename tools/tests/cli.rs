@@ -393,10 +393,14 @@ fn bench_table1_prints_the_garments_beside_the_paper() {
         serde_json::from_str(&std::fs::read_to_string(out.join("table1.json")).unwrap()).unwrap();
     let rows = rows.as_array().unwrap();
     let garments: Vec<&str> = rows.iter().map(|r| r["garment"].as_str().unwrap()).collect();
-    assert_eq!(garments, ["one-piece", "top", "skirt", "pattern-dress", "pattern-skirt"]);
+    assert_eq!(
+        garments,
+        ["one-piece", "top", "skirt", "pattern-dress", "pattern-skirt", "pattern-tshirt", "flared-skirt"]
+    );
     // The sewn garments at twice their fixtures' resolution, and the pattern
     // garments meshed finer, beside the paper's rows.
-    for (r, particles) in [&rows[0], &rows[1], &rows[3], &rows[4]].into_iter().zip([5458, 2866, 5510, 3540]) {
+    let finer = [&rows[0], &rows[1], &rows[3], &rows[4], &rows[5], &rows[6]];
+    for (r, particles) in finer.into_iter().zip([5458, 2866, 5510, 3540, 2314, 1966]) {
         assert_eq!(r["measured"]["particles"], particles);
         assert_eq!(r["measured"]["steps"], 9);
         assert!(!r["paper"].as_array().unwrap().is_empty());
