@@ -105,7 +105,17 @@ const FLARED_SKIRT: [&str; 4] = [
     DEFORMATION_CONSTRAINTS[0],
     DEFORMATION_CONSTRAINTS[1],
 ];
-pub(crate) const GARMENTS: [Garment; 7] = [
+/// The OBJ skirt read from the same tube at the paper's count
+/// (`fixtures/meshes/tube-skirt-3456.obj`, 96 x 36 vertices), its top
+/// ring of 96 held by the pelvis.
+const OBJ_SKIRT: [&str; 2] = [
+    "meshes.0.obj=\"../meshes/tube-skirt-3456.obj\"",
+    "pins.0.vertices=[0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, \
+     26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51, 52, 53, \
+     54, 55, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72, 73, 74, 75, 76, 77, 78, 79, 80, 81, \
+     82, 83, 84, 85, 86, 87, 88, 89, 90, 91, 92, 93, 94, 95]",
+];
+pub(crate) const GARMENTS: [Garment; 8] = [
     Garment {
         name: "one-piece",
         scene: "fixtures/scenes/one-piece-walk.toml",
@@ -143,6 +153,7 @@ pub(crate) const GARMENTS: [Garment; 7] = [
         overrides: &FLARED_SKIRT,
         paper: &[4],
     },
+    Garment { name: "obj-skirt", scene: "fixtures/scenes/obj-skirt-walk.toml", overrides: &OBJ_SKIRT, paper: &[4] },
 ];
 
 /// Frames of 30 Hz animation per simulated second.
