@@ -21,9 +21,10 @@ pub struct StrainLimitReport {
     pub corrections: usize,
 }
 
-/// Applies `limit` to positions `x` in place, link by link in model order
-/// and then stitch by stitch (Gauss-Seidel, deterministic). Each pass can
-/// re-stretch links fixed earlier in it, so convergence is linear: `passes`
+/// Applies `limit` to positions `x` in place, closed stitch by stitch and
+/// then link by link in model order (Gauss-Seidel, deterministic; links
+/// last: where the passes run out, the stretch is what they bound). Each
+/// pass can re-stretch what it fixed earlier, so convergence is linear: `passes`
 /// is a cap, and the pass loop stops as soon as no link is too long and no
 /// closed stitch (`stitches_closed`, [`crate::ClothState::stitches_closed`])
 /// is open. Velocities get the same correction divided by `h`, so `v`
