@@ -57,20 +57,20 @@ const ONE_PIECE: [&str; 4] = [
     "panels.2.particles=[47, 7]",
     "panels.3.particles=[96, 27]",
 ];
+/// Provot's deformation constraints for the skirts, as the T-shirt's and
+/// the dress's fixtures have them (10%, 50 passes): without them the
+/// pattern skirt's layers lock where the legs pinch its front (peak 1.58
+/// on the primitives, 3.39 on the triangle-mesh mannequin), and the flared
+/// skirt at 2738 particles peaks at 1.55 with a seam 5 mm open. Their
+/// fixtures leave them out: at 3.5 cm the constraints, which follow the
+/// self-collision response, bring the pattern skirt's layers to 2.9 mm of
+/// each other (4.6 mm without).
+const DEFORMATION_CONSTRAINTS: [&str; 2] =
+    ["simulation.effects=[\"gravity\", \"bending\", \"damping\", \"strain-limit\"]", "constraints.passes=50"];
 /// The pattern garments, meshed finer than their fixtures to the paper's
 /// counts: the skirt's two pieces at 1.75 cm (3540 particles; the
 /// fixture's 3.5 cm make 914), the dress's pieces at 0.6 of their edge
 /// lengths (5510; the fixture's 2024).
-/// The skirts also run Provot's deformation constraints, as the T-shirt's
-/// and the dress's fixtures do (10%, 50 passes): without them the pattern
-/// skirt's layers lock where the legs pinch its front (peak 1.58 on the
-/// primitives, 3.39 on the triangle-mesh mannequin), and the flared skirt
-/// at 2738 particles peaks at 1.55 with a seam 5 mm open. Their fixtures
-/// leave them out: at 3.5 cm
-/// the constraints, which follow the self-collision response, bring the
-/// pattern skirt's layers to 2.9 mm of each other (4.6 mm without).
-const DEFORMATION_CONSTRAINTS: [&str; 2] =
-    ["simulation.effects=[\"gravity\", \"bending\", \"damping\", \"strain-limit\"]", "constraints.passes=50"];
 const PATTERN_SKIRT: [&str; 4] = [
     "meshes.0.pattern.edge_length_m=0.0175",
     "meshes.1.pattern.edge_length_m=0.0175",
