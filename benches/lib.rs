@@ -2,7 +2,7 @@
 //! Table-1 scale (75 x 75 = 5625 particles), mid-swing.
 
 use cloth_core::scene::{RunConfig, Scene};
-use cloth_core::{ClothState, Simulation};
+use cloth_core::{Simulation, Snapshot};
 use std::path::PathBuf;
 
 /// Threads used by every benchmark: the target machine's two cores.
@@ -16,12 +16,12 @@ pub fn pool() -> rayon::ThreadPool {
 /// `hang.toml` with an `n x n` grid and the named preconditioner, advanced
 /// by `steps` steps so the cloth is moving and its links are stretched and
 /// buckled.
-pub fn hanging_cloth(n: usize, steps: usize, preconditioner: &str) -> (Simulation, RunConfig, ClothState) {
+pub fn hanging_cloth(n: usize, steps: usize, preconditioner: &str) -> (Simulation, RunConfig, Snapshot) {
     hanging_cloth_with(n, steps, &[format!("solver.preconditioner={preconditioner}")])
 }
 
 /// As [`hanging_cloth`], with any scene overrides.
-pub fn hanging_cloth_with(n: usize, steps: usize, extra: &[String]) -> (Simulation, RunConfig, ClothState) {
+pub fn hanging_cloth_with(n: usize, steps: usize, extra: &[String]) -> (Simulation, RunConfig, Snapshot) {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenes/hang.toml");
     let mut overrides = vec![
         format!("panels.0.particles=[{n}, {n}]"),

@@ -29,7 +29,8 @@ fn timed_in_pool(pool: &rayon::ThreadPool, iters: u64, mut f: impl FnMut() + Sen
 
 /// The BDF2 matrix and right-hand side at the benchmark state.
 fn system() -> (SystemBuffers, ConstraintFilter, Multigrid) {
-    let (sim, cfg, state) = hanging_cloth(N, 45, "multigrid");
+    let (sim, cfg, snapshot) = hanging_cloth(N, 45, "multigrid");
+    let state = &snapshot.state;
     let model = sim.model();
     let h = cfg.dt_s;
     let delta: Vec<Vec3> = state.x.iter().zip(&state.x_prev).map(|(a, b)| a - b).collect();

@@ -172,7 +172,7 @@ fn drapes_stay_outside_their_solids() {
             // margin (5 %) above it: measured 5.000 to 5.239 mm for 405
             // particles, from the ball's own geometry.
             let x = &sim.state().x;
-            let held = sim.contacts().iter().filter(|c| c.active).map(|c| x[c.particle as usize].norm() - 0.3);
+            let held = sim.contacts().solid().iter().filter(|c| c.active).map(|c| x[c.particle as usize].norm() - 0.3);
             let (lo, hi) = held.fold((f64::INFINITY, 0.0_f64), |(lo, hi), g| (lo.min(g), hi.max(g)));
             assert!(lo >= 0.005 - 1e-9 && hi <= 0.00525, "{scene}: held particles {lo} to {hi} m from the ball");
         }
@@ -265,7 +265,7 @@ fn resting_cloth_is_carried_by_its_weight_in_contact_forces() {
         sim.step(cfg.dt_s).unwrap();
     }
     let weight = sim.model().masses().iter().sum::<f64>() * 9.81;
-    let contacts = sim.contacts();
+    let contacts = sim.contacts().solid();
     assert_eq!(contacts.len(), sim.state().len(), "every particle rests on the floor");
     assert!(contacts.iter().all(|c| c.active && c.normal_force_n >= 0.0));
     let carried: f64 = contacts.iter().map(|c| c.normal_force_n).sum();
@@ -292,7 +292,7 @@ fn a_cloth_dropped_onto_the_floor_lands_and_stays() {
         let mut landed = None;
         for step in 0..60 {
             sim.step(cfg.dt_s).unwrap();
-            let held = sim.contacts().iter().filter(|c| c.active).count();
+            let held = sim.contacts().solid().iter().filter(|c| c.active).count();
             let rising = sim.state().v.iter().map(|v| v.z).fold(0.0, f64::max);
             match landed {
                 None if held == n => landed = Some(step),
@@ -504,7 +504,7 @@ fn a_cloth_in_a_v_groove_is_held_by_both_solids() {
     let (mut sim, cfg) = simulation("v-groove.toml", &frictionless);
     let (deepest, _) = deepest_penetration(&mut sim, cfg.dt_s, cfg.steps);
     let mut on_both = std::collections::BTreeMap::<u32, [bool; 2]>::new();
-    for c in sim.contacts() {
+    for c in sim.contacts().solid() {
         on_both.entry(c.particle).or_default()[c.collider as usize] = true;
     }
     let both: Vec<u32> = on_both.iter().filter(|(_, s)| s[0] && s[1]).map(|(&p, _)| p).collect();
@@ -615,10 +615,10 @@ fn a_sheet_thrown_at_another_does_not_pass_through_it() {
     let lowest_height = |continuous: bool| {
         let model = stacked_free_sheets([0.0, 0.0], 0.03, continuous, vec![]);
         let mut sim = Simulation::builder(model).build();
-        let mut start = sim.snapshot();
+        let mut start = sim.state().clone();
         let n = start.x.len() / 2;
         start.v[n..].iter_mut().for_each(|v| *v = Vec3::new(0.0, 0.0, -4.0));
-        sim.restore(&start).unwrap();
+        sim.set_state(&start).unwrap();
         let h = 1.0 / 90.0;
         let (mut lowest, mut crossings, mut centre_speed) = (f64::INFINITY, 0, 0.0);
         for step in 0..20 {

@@ -36,7 +36,7 @@ fn an_external_solid_moves_the_cloth_as_the_same_solid_on_a_path() {
         driven.set_solid_motion(0, motion).unwrap();
         on_path.step(h).unwrap();
         driven.step(h).unwrap();
-        touched = touched.max(driven.contacts().len());
+        touched = touched.max(driven.contacts().solid().len());
     }
     let gap = on_path.state().x.iter().zip(&driven.state().x).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
     println!("largest difference {gap:.3e} m, up to {touched} contacts");
@@ -63,13 +63,13 @@ fn inputs_that_do_not_fit_the_model_are_refused() {
     assert_eq!(driven.set_wind(Vec3::x()), Err(ControlError::WindNotExternal), "no wind at all");
     // A snapshot that does not fit, or holds a NaN, is refused and the
     // state left as it was.
-    let mut short = on_path.snapshot();
+    let mut short = on_path.state().clone();
     short.v.pop();
-    assert!(matches!(on_path.restore(&short), Err(StepError::StateMismatch { got, .. }) if got == n - 1));
+    assert!(matches!(on_path.set_state(&short), Err(StepError::StateMismatch { got, .. }) if got == n - 1));
     for (quantity, field) in [("position", 0), ("velocity", 1)] {
-        let mut bad = on_path.snapshot();
+        let mut bad = on_path.state().clone();
         [&mut bad.x, &mut bad.v][field][7].z = f64::NAN;
-        let refused = on_path.restore(&bad);
+        let refused = on_path.set_state(&bad);
         assert!(
             matches!(refused, Err(StepError::NonFinite { particle: 7, quantity: q, .. }) if q == quantity),
             "{refused:?}"
@@ -134,7 +134,7 @@ fn contact_impulses_are_the_momentum_the_cloth_gains() {
             let before = momentum(&sim);
             sim.step(h).unwrap();
             let impulse = -sim.solid_impulse(0, Vec3::zeros()).linear;
-            contacts = contacts.max(sim.contacts().len());
+            contacts = contacts.max(sim.contacts().solid().len());
             given += impulse;
             worst_step = worst_step.max((momentum(&sim) - before - impulse).norm());
         }

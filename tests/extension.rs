@@ -4,42 +4,48 @@
 use cloth_core::forces::{self, ForceBuffers};
 use cloth_core::terms::{At, ForceTerm, VertexBlock};
 use cloth_core::{
-    ClothModel, ClothState, Control, GridPanel, Integrator, IntegratorKind, Mat3, Simulation, SolverParams, StepError,
-    StepReport, Vec3, Workspace,
+    Capabilities, ClothModel, Contacts, GridPanel, Integrator, IntegratorKind, Mat3, Simulation, SolverParams,
+    StageTimer, Step, StepError, StepOutput, StepReport, Vec3,
 };
 use std::sync::Arc;
 
 /// Symplectic Euler (`v' = v + h f / m`, `x' = x + h v'`) with fixed pins,
-/// written with the public force loop only.
-#[derive(Debug)]
-struct OutsideSymplecticEuler;
+/// written with the public force loop only; its scratch (the forces and
+/// the force loop's buffers) is its own, allocated on its first step.
+#[derive(Debug, Default)]
+struct OutsideSymplecticEuler {
+    scratch: Option<(ForceBuffers, Vec<Vec3>)>,
+}
 
 impl Integrator for OutsideSymplecticEuler {
     fn name(&self) -> &'static str {
         "outside-symplectic-euler"
     }
 
-    fn step(
-        &self,
-        model: &ClothModel,
-        state: &mut ClothState,
-        _control: &Control,
-        h: f64,
-        _ws: &mut Workspace,
-        _solver: &SolverParams,
+    fn capabilities(&self) -> Capabilities {
+        Capabilities::default()
+    }
+
+    fn solve(
+        &mut self,
+        step: &Step<'_>,
+        _: &mut Contacts,
+        out: &mut StepOutput,
+        _: &mut StageTimer,
     ) -> Result<StepReport, StepError> {
-        let f = forces::total_forces(model, &state.x, &state.v, &state.stitches_closed);
-        let (x_prev, v_prev) = (state.x.clone(), state.v.clone());
-        for (i, ((x, v), f)) in state.x.iter_mut().zip(&mut state.v).zip(&f).enumerate() {
+        let (model, state, h) = (step.model, step.state, step.h);
+        let (buffers, f) =
+            self.scratch.get_or_insert_with(|| (ForceBuffers::new(model), vec![Vec3::zeros(); model.particle_count()]));
+        forces::forces_into(model, &state.x, &state.v, &state.stitches_closed, buffers, f);
+        let (x, v) = out.state_mut();
+        for i in 0..state.len() {
             if model.is_pinned(i) {
-                *v = Vec3::zeros();
+                (x[i], v[i]) = (state.x[i], Vec3::zeros());
                 continue;
             }
-            *v += f * (h / model.masses()[i]);
-            *x += *v * h;
+            v[i] = state.v[i] + f[i] * (h / model.masses()[i]);
+            x[i] = state.x[i] + v[i] * h;
         }
-        (state.x_prev, state.v_prev) = (x_prev, v_prev);
-        (state.time_s, state.steps, state.last_dt_s, state.has_history) = (state.time_s + h, state.steps + 1, h, true);
         Ok(StepReport { force_evaluations: 1, substeps: 1, converged: true, ..Default::default() })
     }
 }
@@ -59,7 +65,8 @@ fn hanging_cloth() -> ClothModel {
 #[test]
 fn an_integrator_from_outside_the_crate_steps_a_simulation() {
     let h = 2e-4;
-    let mut outside = Simulation::builder(hanging_cloth()).custom_integrator(Box::new(OutsideSymplecticEuler)).build();
+    let mut outside =
+        Simulation::builder(hanging_cloth()).custom_integrator(Box::<OutsideSymplecticEuler>::default()).build();
     let mut built_in = Simulation::builder(hanging_cloth()).integrator(IntegratorKind::SymplecticEuler).build();
     assert_eq!(outside.integrator_name(), "outside-symplectic-euler");
     assert_eq!(built_in.integrator_name(), "symplectic-euler");

@@ -158,11 +158,11 @@ fn longitudinal_oscillation(
     let solver =
         SolverParams { rel_tol: 1e-10, preconditioner: PreconditionerKind::BlockJacobi, ..SolverParams::default() };
     let mut sim = Simulation::new(model, IntegratorKind::Bdf2, solver);
-    let mut start = sim.snapshot();
+    let mut start = sim.state().clone();
     for (x, r) in start.x.iter_mut().zip(&rest) {
         x.z -= 1e-3 * (q * -r.z).sin();
     }
-    sim.restore(&start).unwrap();
+    sim.set_state(&start).unwrap();
     let [nu, nv] = particles;
     let bottom =
         |x: &[Vec3]| (0..nu).map(|i| rest[(nv - 1) * nu + i].z - x[(nv - 1) * nu + i].z).sum::<f64>() / nu as f64;

@@ -326,11 +326,11 @@ fn implicit_steps_conserve_linear_momentum() {
         let mass = model.masses().to_vec();
         let mut sim = Simulation::new(model, kind, tight_solver());
         let mut rng = Rng(5);
-        let mut s = sim.snapshot();
+        let mut s = sim.state().clone();
         for v in s.v.iter_mut() {
             *v = rng.vec3() * 0.5;
         }
-        sim.restore(&s).unwrap();
+        sim.set_state(&s).unwrap();
         let momentum = |sim: &Simulation| -> Vec3 { sim.state().v.iter().zip(&mass).map(|(v, m)| v * *m).sum() };
         let p0 = momentum(&sim);
         let scale: f64 = sim.state().v.iter().zip(&mass).map(|(v, m)| v.norm() * m).sum();
@@ -415,8 +415,8 @@ fn restore_then_step_reproduces_the_same_bits() {
     for _ in 0..7 {
         sim.step(cfg.dt_s).unwrap();
     }
-    assert!(same_bits(&first.x, &sim.state().x) && same_bits(&first.v, &sim.state().v));
-    assert_eq!(first, *sim.state());
+    assert!(same_bits(&first.state.x, &sim.state().x) && same_bits(&first.state.v, &sim.state().v));
+    assert_eq!(first, sim.snapshot());
 }
 
 #[test]
@@ -441,7 +441,7 @@ fn results_are_bit_identical_with_one_and_two_threads() {
             })
         };
         let (one, two) = (run(1), run(2));
-        assert!(same_bits(&one.x, &two.x) && same_bits(&one.v, &two.v), "{scene}");
+        assert!(same_bits(&one.state.x, &two.state.x) && same_bits(&one.state.v, &two.state.v), "{scene}");
     }
 }
 
@@ -492,7 +492,7 @@ fn preconditioners_agree_on_the_trajectory() {
         for _ in 0..45 {
             iterations += sim.step(cfg.dt_s).unwrap().cg_iterations;
         }
-        (sim.snapshot().x, iterations)
+        (sim.state().x.clone(), iterations)
     };
     let (mg, mg_iters) = run("multigrid");
     for pc in ["block-jacobi", "diagonal"] {
@@ -523,7 +523,7 @@ fn fixed_cg_backward_euler_converges_to_backward_euler() {
         for _ in 0..20 {
             reports.push(sim.step(cfg.dt_s).unwrap());
         }
-        (sim.snapshot().x, reports)
+        (sim.state().x.clone(), reports)
     };
     let (reference, _) = run("backward-euler", 0);
     let mut last = f64::INFINITY;
@@ -625,7 +625,7 @@ fn newton_iterations_converge_the_nonlinear_step() {
             .iter()
             .enumerate()
             .filter(|(i, _)| !model.is_pinned(*i))
-            .map(|(i, fi)| ((after.v[i] - before.v[i]) * model.masses()[i] - fi * h).norm_squared())
+            .map(|(i, fi)| ((after.v[i] - before.state.v[i]) * model.masses()[i] - fi * h).norm_squared())
             .sum();
         sum.sqrt()
     };
@@ -792,10 +792,10 @@ fn drag_decays_velocity_like_the_discrete_exponential() {
         })
         .unwrap();
         let mut sim = Simulation::new(model, kind, SolverParams { fixed_cg_iterations: 200, ..tight_solver() });
-        let mut s = sim.snapshot();
+        let mut s = sim.state().clone();
         let v0 = Vec3::new(0.3, -0.2, 1.0);
         s.v.iter_mut().for_each(|v| *v = v0);
-        sim.restore(&s).unwrap();
+        sim.set_state(&s).unwrap();
         let (mut v, mut v_prev) = (1.0_f64, 1.0_f64);
         for n in 0..30 {
             sim.step(h).unwrap();

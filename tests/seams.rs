@@ -293,7 +293,7 @@ fn a_stitch_closes_once_its_gap_is_within_its_linear_range_and_stays_closed() {
     assert_eq!(switched, model.stitches().len(), "each stitch closed once");
     // Pulled 5 cm apart again, the closed stitches pull with the seam's
     // strength: four times the sewing pull that closed them.
-    let mut apart = sim.snapshot();
+    let mut apart = sim.state().clone();
     // Panel 1's particles come after panel 0's 25.
     for p in &mut apart.x[25..] {
         p.x += 0.05;
@@ -303,7 +303,7 @@ fn a_stitch_closes_once_its_gap_is_within_its_linear_range_and_stays_closed() {
     let pull = |closed: &[bool]| eval_link(&model, k, &apart.x, closed).force.norm();
     assert_eq!((pull(&apart.stitches_closed), pull(&open.stitches_closed)), (s.pull, s.sewing));
     apart.stitches_closed.pop();
-    assert!(matches!(sim.restore(&apart), Err(cloth_core::StepError::StitchStateMismatch { expected: 5, got: 4 })));
+    assert!(matches!(sim.set_state(&apart), Err(cloth_core::StepError::StitchStateMismatch { expected: 5, got: 4 })));
 }
 
 /// Provot's deformation constraints shut the closed stitches along with

@@ -5,7 +5,7 @@
 
 use cloth_core::scene::{Scene as SceneFile, SceneError as SceneFileError, SceneErrorKind};
 use cloth_core::{
-    BodyPose, ClothModel, ClothState, Edge, GridPanel, IntegratorKind, Material, ModelBuilder, ModelKind,
+    BodyPose, ClothModel, Edge, GridPanel, IntegratorKind, Material, ModelBuilder, ModelKind,
     Simulation as CoreSimulation, SolidMotion, SolverParams, Vec3,
 };
 use numpy::ndarray::Array2;
@@ -226,7 +226,7 @@ impl Builder {
 /// A cloth state saved by [`Simulation::snapshot`].
 #[pyclass(module = "cloth", frozen)]
 struct Snapshot {
-    state: ClothState,
+    state: cloth_core::Snapshot,
 }
 
 #[pymethods]
@@ -234,7 +234,7 @@ impl Snapshot {
     /// The time it was taken at, s.
     #[getter]
     fn time_s(&self) -> f64 {
-        self.state.time_s
+        self.state.state.time_s
     }
 }
 
@@ -338,7 +338,7 @@ impl Simulation {
     /// `particle`, `solid` (indices), `point` and `normal` (`(m, 3)`, m and
     /// unit), `impulse` (`(m, 3)`, N s, on the cloth).
     fn contacts<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let c = self.sim.contacts();
+        let c = self.sim.contacts().solid();
         let out = PyDict::new(py);
         out.set_item("particle", c.iter().map(|c| c.particle as i64).collect::<Vec<_>>().into_pyarray(py))?;
         out.set_item("solid", c.iter().map(|c| c.collider as i64).collect::<Vec<_>>().into_pyarray(py))?;

@@ -42,7 +42,7 @@ pub(crate) enum Runner {
 
 /// A saved [`Runner`].
 pub(crate) enum RunnerState {
-    Alone(cloth_core::ClothState),
+    Alone(cloth_core::Snapshot),
     Coupled(Box<cloth_rapier::cloth_set::CoupledSnapshot>),
 }
 
@@ -825,6 +825,7 @@ impl SolidPoses {
     fn add(&mut self, sim: &Simulation, h: f64) {
         let forces = sim
             .contacts()
+            .solid()
             .iter()
             .filter(|c| c.active && sim.state().steps > 0)
             .map(|c| {

@@ -27,7 +27,7 @@ pub use integrate::energy::{EnergyReport, GAIN_TOLERANCE};
 pub use integrate::explicit::ENERGY_WINDOW;
 pub use integrate::vbd::{self, Vbd, VbdParams};
 pub use integrate::{bodies, control};
-use integrate::{energy, explicit, integrator, matrix_free, newton, sim, state};
+use integrate::{energy, params, registry, report, sim, state, step};
 pub use model::seams::{self, SeamSide, SeamSpec, Stitch};
 pub use model::{cloth_mesh, colouring, element_laws, elements, forces, laws, terms, wind};
 use model::{constraints, keyframes, material, pins, topology};
@@ -36,22 +36,26 @@ pub use cloth_collide::{BodyPose, ShapeSpec, VoxelHash};
 pub use cloth_linalg::{PcgParams, PreconditionerKind};
 pub use colliders::{Collider, ColliderSpec, CollisionSpec, SelfCollision, SelfCollisionSpec};
 pub use constraints::{StrainLimitReport, apply_strain_limit};
-pub use contacts::ContactStats;
+pub use contacts::{ContactStats, Contacts};
 pub use control::{Control, ControlError, SolidImpulse, SolidMotion};
 pub use integrate::bodies::{BodyError, BodyInSolve};
-pub use integrator::{
-    AUTO_NEWTON_MIN_K_H2_M, AdaptiveParams, BackwardEuler, Bdf2, ContactSetParams, Integrator, IntegratorKind,
-    NewtonParams, NewtonReport, SolverParams, StageTimes, StepError, StepReport, Workspace,
-};
+pub use integrate::implicit::{BackwardEuler, Bdf2};
+pub use integrate::loads::Loads;
+pub use integrate::matrix_free::BackwardEulerFixedCg;
+pub use integrate::timer::{Lap, Stage, StageTimer};
 pub use material::{BendConstants, Compressive, Lattice, Material, Membrane};
 pub use model::{
     BendLaw, BendLink, BendingLaw, ClothMesh, ClothModel, Compression, ConeWrap, Edge, Effects, Incidence, MeshPanel,
     MeshRange, ModelBuilder, ModelError, ModelKind, ModelSpec, PanelRange, PatternPiece, PinSpec, StrainLimit,
     StretchLink,
 };
+pub use params::{AUTO_NEWTON_MIN_K_H2_M, AdaptiveParams, ContactSetParams, NewtonParams, SolverParams};
 pub use pins::{Pin, PinMotion};
+pub use registry::IntegratorKind;
+pub use report::{NewtonReport, StageTimes, StepError, StepReport};
 pub use sim::{Simulation, SimulationBuilder};
-pub use state::ClothState;
+pub use state::{ClothState, Snapshot};
+pub use step::{Attempt, Capabilities, ContactHandling, Integrator, IntegratorMemory, Step, StepOutput};
 pub use topology::{Diagonals, GridPanel, LinkType, PanelError, PanelMesh};
 pub use wind::{Wind, WindProfile};
 

@@ -55,7 +55,7 @@
 //! (also when a later substep fails).
 
 use crate::unit::{Causality, StepOutcome, Unit, UnitError, UnitState, ValueRef, Variable, bytes, settable};
-use cloth_core::{BodyPose, ClothModel, ClothState, Simulation, SolidMotion, Vec3, wind::WindProfile};
+use cloth_core::{BodyPose, ClothModel, ClothState, Simulation, Snapshot, SolidMotion, Vec3, wind::WindProfile};
 use nalgebra::UnitQuaternion;
 
 /// What a variable of the cloth unit stands for.
@@ -133,8 +133,9 @@ pub struct ClothUnit {
 const AXES: [&str; 3] = ["x", "y", "z"];
 const TAG: &[u8; 8] = b"clothunt";
 
-/// Scalars before the particles' vectors in a serialised state.
-const HEAD: usize = 6;
+/// Scalars before the integrator's memory and the particles' vectors in a
+/// serialised state.
+const HEAD: usize = 4;
 
 /// The variables of one kind of 3-vector: quantity, name after the item
 /// (`pin{k}.` or `solid{k}.`), causality, unit, description.
@@ -573,7 +574,7 @@ impl ClothUnit {
 /// rates were given, and the previous communication point's values.
 #[derive(Debug, Clone, PartialEq)]
 struct Saved {
-    cloth: ClothState,
+    cloth: Snapshot,
     values: Vec<f64>,
     given: Vec<bool>,
     previous: Vec<f64>,
@@ -678,21 +679,22 @@ impl Unit for ClothUnit {
         Ok(())
     }
 
-    /// Layout: tag, then `time, steps, has_history, last_dt, next_dt,
-    /// newton_engaged`,
+    /// Layout: tag, then `time, steps, has_history, last_dt`, the
+    /// integrator's memory (its values in its order: `newton_engaged` for
+    /// the implicit integrators, `next_dt_s` for `dopri5`),
     /// `x, v, x_prev, v_prev` (3 values per particle each), the stitches'
     /// states (1 closed, 0 open), the variables' values, their given flags
     /// (1 given, 0 not) and previous values (NaN: none), the previous step.
     fn serialize_state(&self, state: &UnitState) -> Result<Vec<u8>, UnitError> {
         let saved: &Saved = state.downcast(&self.name, "cloth unit")?;
-        let c = &saved.cloth;
+        let c = &saved.cloth.state;
         let flag = |b: bool| f64::from(u8::from(b));
-        let head = [c.time_s, c.steps as f64, flag(c.has_history), c.last_dt_s, c.next_dt_s, flag(c.newton_engaged)];
+        let memory = saved.cloth.integrator.entries().iter().map(|(_, v)| *v);
+        let head = [c.time_s, c.steps as f64, flag(c.has_history), c.last_dt_s].into_iter().chain(memory);
         let vectors =
             [&c.x, &c.v, &c.x_prev, &c.v_prev].into_iter().flat_map(|a| a.iter().flat_map(|p| [p.x, p.y, p.z]));
         let stitches = c.stitches_closed.iter().map(|&closed| f64::from(u8::from(closed)));
         let values = head
-            .into_iter()
             .chain(vectors)
             .chain(stitches)
             .chain(saved.values.iter().copied())
@@ -706,7 +708,9 @@ impl Unit for ClothUnit {
         let n = self.sim.model().particle_count();
         let m = self.values.len();
         let stitches = self.sim.model().stitches().len();
-        let expected = HEAD + 12 * n + stitches + 3 * m + 1;
+        let memory = self.sim.integrator_memory();
+        let head = HEAD + memory.entries().len();
+        let expected = head + 12 * n + stitches + 3 * m + 1;
         let values = bytes::unpack(TAG, data)
             .and_then(|v| {
                 if v.len() == expected { Ok(v) } else { Err(format!("{} values where it holds {expected}", v.len())) }
@@ -718,7 +722,7 @@ impl Unit for ClothUnit {
         let vec3s = |k: usize| -> Vec<Vec3> {
             (0..n)
                 .map(|i| {
-                    let at = HEAD + 3 * (k * n + i);
+                    let at = head + 3 * (k * n + i);
                     Vec3::new(values[at], values[at + 1], values[at + 2])
                 })
                 .collect()
@@ -728,17 +732,16 @@ impl Unit for ClothUnit {
             steps: values[1] as u64,
             has_history: values[2] != 0.0,
             last_dt_s: values[3],
-            next_dt_s: values[4],
-            newton_engaged: values[5] != 0.0,
             x: vec3s(0),
             v: vec3s(1),
             x_prev: vec3s(2),
             v_prev: vec3s(3),
-            stitches_closed: values[HEAD + 12 * n..HEAD + 12 * n + stitches].iter().map(|&c| c != 0.0).collect(),
+            stitches_closed: values[head + 12 * n..head + 12 * n + stitches].iter().map(|&c| c != 0.0).collect(),
         };
-        let tail = &values[HEAD + 12 * n + stitches..];
+        let integrator = memory.with_values(&values[HEAD..head]).expect("as many values as the memory has names");
+        let tail = &values[head + 12 * n + stitches..];
         Ok(UnitState(Box::new(Saved {
-            cloth,
+            cloth: Snapshot { state: cloth, integrator },
             values: tail[..m].to_vec(),
             given: tail[m..2 * m].iter().map(|&g| g != 0.0).collect(),
             previous: tail[2 * m..3 * m].to_vec(),

@@ -335,7 +335,9 @@ pub mod bytes {
     /// 2: the cloth unit's state records `newton_engaged`.
     /// 3: the cloth unit's state records its inputs at the previous
     /// communication point and which rates were given.
-    pub const FORMAT_VERSION: u32 = 3;
+    /// 4: the cloth unit's state records its integrator's memory (as
+    /// many values as it has) in place of `next_dt` and `newton_engaged`.
+    pub const FORMAT_VERSION: u32 = 4;
 
     /// Writes `tag`, [`FORMAT_VERSION`], the values and the checksum.
     pub fn pack(tag: &[u8; 8], values: impl IntoIterator<Item = f64>) -> Vec<u8> {

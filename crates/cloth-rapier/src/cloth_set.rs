@@ -3,7 +3,7 @@
 
 use crate::convert::pose_from_rapier;
 use crate::world::{CollideWith, Momentum, WorldSnapshot, WorldSolid, admitted_colliders, bodies_momentum};
-use cloth_core::{ClothModel, ClothState, IntegratorKind, ModelError, Simulation, SolverParams, Vec3};
+use cloth_core::{ClothModel, IntegratorKind, ModelError, Simulation, Snapshot, SolverParams, Vec3};
 use rapier3d_f64::prelude::{InteractionGroups, PhysicsWorld, RigidBodyHandle};
 
 /// A cloth pin held at a point of a rigid body; the cloth's pull on the pin
@@ -224,7 +224,7 @@ impl ClothBuilder {
 #[derive(Debug, Clone)]
 pub struct CoupledSnapshot {
     world: WorldSnapshot,
-    cloths: Vec<Option<ClothState>>,
+    cloths: Vec<Option<Snapshot>>,
 }
 
 /// A handle to a cloth in a [`ClothSet`], stale once the cloth is removed.
@@ -329,7 +329,7 @@ impl ClothSet {
         snapshot.world.restore(world);
         for (index, (slot, saved)) in self.slots.iter_mut().zip(&snapshot.cloths).enumerate() {
             if let (Some(c), Some(state)) = (slot.cloth.as_mut(), saved) {
-                let time_s = state.time_s;
+                let time_s = state.state.time_s;
                 c.sim.restore(state).map_err(|e| CouplingError::Cloth {
                     cloth: index,
                     time_s,

@@ -32,7 +32,7 @@
 use crate::cloth_set::{ClothSet, CouplingError};
 use crate::convert::{pose_to_rapier, rotation_from_rapier, vec_from_rapier, vec_to_rapier};
 use crate::world::{BodyStart, Drive, WorldSnapshot};
-use cloth_core::{ClothState, StepReport, Vec3};
+use cloth_core::{Snapshot, StepReport, Vec3};
 use cloth_cosim::{GuessUpdate, Relaxation};
 use rapier3d_f64::prelude::{EventHandler, PhysicsHooks, PhysicsWorld, RigidBodyHandle};
 
@@ -273,7 +273,7 @@ impl ClothSet {
         // Only the iterated master repeats rapier's step; the others step it
         // once and need only the cloths' start.
         let saved_world = matches!(master, Master::Iterated(_)).then(|| WorldSnapshot::take(world));
-        let saved_cloths: Vec<ClothState> = self.cloths_mut().map(|c| c.sim.snapshot()).collect();
+        let saved_cloths: Vec<Snapshot> = self.cloths_mut().map(|c| c.sim.snapshot()).collect();
         let rollback = |set: &mut ClothSet, world: &mut PhysicsWorld| -> Result<(), CouplingError> {
             if let Some(saved) = &saved_world {
                 saved.restore(world);
@@ -306,7 +306,7 @@ impl ClothSet {
     }
 
     /// Puts every cloth back to `saved` (taken at `time_s`).
-    pub(crate) fn restore_cloths(&mut self, saved: &[ClothState], time_s: f64) -> Result<(), CouplingError> {
+    pub(crate) fn restore_cloths(&mut self, saved: &[Snapshot], time_s: f64) -> Result<(), CouplingError> {
         for (index, (c, s)) in self.cloths_mut().zip(saved).enumerate() {
             c.sim.restore(s).map_err(|e| CouplingError::Cloth { cloth: index, time_s, message: e.to_string() })?;
         }
@@ -487,7 +487,7 @@ impl ClothSet {
                 got_here[k].angular += got.angular;
                 contacts += got.contacts;
                 if in_solve {
-                    let touching = cloth.sim.contacts().iter().filter(|c| c.collider as usize == s.solid);
+                    let touching = cloth.sim.contacts().solid().iter().filter(|c| c.collider as usize == s.solid);
                     holds[k].extend(
                         touching
                             .filter(|c| c.impulse_n_s != Vec3::zeros())

@@ -17,7 +17,7 @@ use crate::convert::pose_to_rapier;
 use crate::convert::{vec_from_rapier, vec_to_rapier};
 use crate::coupling::{BodyImpulse, Coupled, Hold, MonolithicCoupling, Pass, mean_twist};
 use crate::world::world_inertia;
-use cloth_core::{BodyInSolve, ClothState, Vec3};
+use cloth_core::{BodyInSolve, Snapshot, Vec3};
 use nalgebra::Matrix3;
 use rapier3d_f64::prelude::{LockedAxes, PhysicsHooks, PhysicsWorld, RigidBody};
 
@@ -53,7 +53,7 @@ impl ClothSet {
         coupled: &[Coupled],
         guess: &mut [f64],
         (h, p, hooks): (f64, &MonolithicCoupling, &dyn PhysicsHooks),
-        start: &[ClothState],
+        start: &[Snapshot],
     ) -> Result<(usize, f64, Pass), CouplingError> {
         let layer = self.cloths_mut().map(|c| c.sim.model().contact_thickness()).fold(f64::INFINITY, f64::min);
         let tol_m = p.tol_m.unwrap_or(crate::coupling::TOL_LAYER_SHARE * layer);
@@ -64,7 +64,7 @@ impl ClothSet {
             return Ok((1, off, pass));
         }
         let time_s = self.cloths_mut().next().map_or(0.0, |c| c.sim.time() - h);
-        let first: Vec<ClothState> = self.cloths_mut().map(|c| c.sim.snapshot()).collect();
+        let first: Vec<Snapshot> = self.cloths_mut().map(|c| c.sim.snapshot()).collect();
         self.restore_cloths(start, time_s)?;
         for ((g, end), assumed) in guess.iter_mut().zip(&pass.end).zip(&pass.solved.assumed) {
             *g += end - assumed;

@@ -344,7 +344,7 @@ impl CoupledScene {
             }
             None => None,
         };
-        let takes_bodies = config.integrator.build().takes_bodies();
+        let takes_bodies = config.integrator.capabilities().bodies;
         self.check_coupling(takes_bodies)?;
         let mut builder = ClothBuilder::new(model.clone()).integrator(config.integrator).solver(config.solver);
         let body_of = |name: &str| {

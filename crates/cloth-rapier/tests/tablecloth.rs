@@ -36,7 +36,7 @@ fn run(velocity: f64, duration: f64) -> (CoupledRun, Vec<Sample>) {
         run.step().unwrap();
         let b = &run.world.bodies[boxed];
         let sim = run.cloths[run.cloth].simulation();
-        let on_box = || sim.contacts().iter().filter(|c| c.collider as usize == solid);
+        let on_box = || sim.contacts().solid().iter().filter(|c| c.collider as usize == solid);
         let on_cloth = on_box().any(|c| c.normal_force_n > 0.0);
         // The particle's impulse; the box takes the opposite.
         let side_impulse = -on_box().filter(|c| c.normal.z.abs() < 0.9).map(|c| c.impulse_n_s.x).sum::<f64>();

@@ -315,12 +315,12 @@ pub(super) fn released_from_ten_times(quick: bool) -> Vec<Row> {
             .set("solver.rel_tol", 1e-12)
             .known_defect((*model == "provot" && *integrator == "backward-euler").then_some(PROVOT_FOLD));
             let stretch_tenfold = |sim: &mut Simulation| {
-                let mut s = sim.snapshot();
+                let mut s = sim.state().clone();
                 let centre = centre_of_mass(sim.model().masses(), &s.x);
                 for x in &mut s.x {
                     *x = centre + (*x - centre) * 10.0;
                 }
-                sim.restore(&s).expect("a state of the same model");
+                sim.set_state(&s).expect("a state of the same model");
             };
             rows.push(match case.run(stretch_tenfold, |_, _| {}) {
                 Ok((p, sim)) => {
@@ -554,10 +554,10 @@ pub(super) fn coincident_particles() -> Vec<Row> {
         // (`element_laws::SHORTEST_HALF`).
         let case = Case::new("coincident particles", variant, "finite").set("simulation.duration_s", 1);
         let collapse = |sim: &mut Simulation| {
-            let mut s = sim.snapshot();
+            let mut s = sim.state().clone();
             let p = s.x[0];
             s.x.iter_mut().take(collapsed).for_each(|x| *x = p);
-            sim.restore(&s).expect("a state of the same model");
+            sim.set_state(&s).expect("a state of the same model");
         };
         rows.push(match case.run(collapse, |_, _| {}) {
             Ok((p, _)) => case.row(Some(&p), p.ran().map(|()| format!("stretch {:.1}", p.worst_stretch))),
@@ -566,9 +566,9 @@ pub(super) fn coincident_particles() -> Vec<Row> {
     }
     let nan = Case::new("coincident particles", "a NaN in a restored state", "a typed error naming the particle");
     let verdict = nan.build().map_err(|e| e.to_string()).and_then(|(mut sim, ..)| {
-        let mut s = sim.snapshot();
+        let mut s = sim.state().clone();
         s.x[7].y = f64::NAN;
-        match sim.restore(&s) {
+        match sim.set_state(&s) {
             Err(e @ StepError::NonFinite { particle: 7, .. }) => Ok(e.to_string()),
             other => Err(format!("got {other:?}")),
         }

@@ -29,7 +29,7 @@ pub(crate) fn add_penetrating(
     x: &[Vec3],
     new_x: &[Vec3],
     (t, h): (f64, f64),
-    bufs: &mut ContactBuffers,
+    bufs: &mut Contacts,
     filter: &mut ConstraintFilter,
     (value, movable): (impl Fn(Vec3, usize) -> Vec3, impl Fn(&SolidContact) -> bool + Sync),
 ) -> usize {

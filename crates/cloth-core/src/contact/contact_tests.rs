@@ -18,19 +18,19 @@ fn two_sheets(gap: f64) -> (ClothModel, Vec<Vec3>) {
 
 /// The two sheets 6 mm apart, the top one shifted so particles sit over
 /// triangle interiors too, at rest, with their self-collision pairs.
-fn overlapping_sheets() -> (ClothModel, SelfCollision, Vec<Vec3>, ContactBuffers, ContactStats) {
+fn overlapping_sheets() -> (ClothModel, SelfCollision, Vec<Vec3>, Contacts, ContactStats) {
     let (model, mut x) = two_sheets(0.006);
     for p in &mut x[9..] {
         *p += Vec3::new(0.006, 0.004, 0.0);
     }
     let sc = *model.self_collision().unwrap();
     let v = vec![Vec3::zeros(); x.len()];
-    let mut bufs = ContactBuffers::default();
+    let mut bufs = Contacts::default();
     let stats = detect_self_contacts(&model, &sc, &x, &v, 0.01, &mut bufs).unwrap();
     (model, sc, x, bufs, stats)
 }
 
-fn energy(model: &ClothModel, bufs: &ContactBuffers, x: &[Vec3]) -> f64 {
+fn energy(model: &ClothModel, bufs: &Contacts, x: &[Vec3]) -> f64 {
     let sc = model.self_collision().unwrap();
     let p = |c: &SelfContact| {
         let other = c.others.iter().zip(&c.weights).fold(Vec3::zeros(), |a, (&o, &w)| a + x[o as usize] * w);
@@ -424,7 +424,7 @@ fn contact_passes_skip_only_particles_clear_of_every_solid() {
     let model = ClothModel::build(&spec).unwrap();
     let state = crate::ClothState::at_rest(&model);
     let (n, h) = (model.particle_count(), 0.01);
-    let (mut cached, mut fresh) = (ContactBuffers::default(), ContactBuffers::default());
+    let (mut cached, mut fresh) = (Contacts::default(), Contacts::default());
     detect_solid_contacts(&model, &state, h, &mut cached);
     detect_solid_contacts(&model, &state, h, &mut fresh);
     let (mut filter_cached, mut filter_fresh) = (ConstraintFilter::new(n), ConstraintFilter::new(n));
@@ -522,7 +522,7 @@ fn a_released_contact_with_a_body_is_taken_up_again_inside_it() {
     let (n, h, middle) = (model.particle_count(), 0.01, 4);
     let value = |target: Vec3, _: usize| target;
     for (movable, end_z, taken_up) in [(true, 0.099, true), (false, 0.099, false), (true, 0.2, false)] {
-        let mut bufs = ContactBuffers::default();
+        let mut bufs = Contacts::default();
         detect_solid_contacts(&model, &state, h, &mut bufs);
         let mut filter = ConstraintFilter::new(n);
         // The middle particle's contact was released by an earlier pass.
@@ -628,7 +628,7 @@ fn an_impact_zone_stops_a_sheet_passing_through_another() {
     let tau = 0.01;
     let mut new_v: Vec<Vec3> = dx.iter().map(|d| d / tau).collect();
     let (v_start, step_end) = (new_v.clone(), new_x.clone());
-    let mut bufs = ContactBuffers::default();
+    let mut bufs = Contacts::default();
     let (met, left) = untangle_step(&model, &sc, &x0, tau, &mut new_x, &mut new_v, &mut bufs);
     let dx: Vec<Vec3> = x0.iter().zip(&new_x).map(|(a, b)| b - a).collect();
     let (p1, l1) = momenta(&model, &x0, &dx);
@@ -666,7 +666,7 @@ fn a_partly_crossing_sheet_ends_untangled_and_far_particles_keep_their_step() {
     }
     let raw = self_intersections(&model, &new_x).len();
     let mut new_v = vec![Vec3::zeros(); x0.len()];
-    let mut bufs = ContactBuffers::default();
+    let mut bufs = Contacts::default();
     let before = new_x.clone();
     let (met, left) = untangle_step(&model, &sc, &x0, 0.01, &mut new_x, &mut new_v, &mut bufs);
     let after = self_intersections(&model, &new_x).len();

@@ -41,7 +41,7 @@ pub use super::contact_laws::*;
 pub use super::impact_zones::{MEETING_FRACTION, self_intersections};
 pub use super::projection::Inside;
 pub use super::self_collision::MIN_SELF_GAP;
-pub use super::types::{ContactStats, FrictionMode, SelfContact, SolidContact};
+pub use super::types::{ContactStats, Contacts, FrictionMode, SelfContact, SolidContact};
 
 // The steps' drivers, for the integrators of this crate.
 pub(crate) use super::active_set::*;
@@ -51,7 +51,7 @@ pub(crate) use super::penalty::*;
 pub(crate) use super::projection::*;
 pub(crate) use super::response::*;
 pub(crate) use super::self_collision::*;
-pub(crate) use super::types::*;
+pub(crate) use super::surroundings::*;
 
 #[cfg(test)]
 #[path = "contact_tests.rs"]

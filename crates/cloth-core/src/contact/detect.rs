@@ -163,7 +163,7 @@ pub(crate) fn detect_solid_contacts(
     model: &ClothModel,
     state: &ClothState,
     h: f64,
-    bufs: &mut ContactBuffers,
+    bufs: &mut Contacts,
 ) -> ContactStats {
     let (x, v, t) = (&state.x, &state.v, state.time_s);
     let v_prev = if state.has_history { &state.v_prev } else { &state.v };

@@ -11,7 +11,7 @@
 //! pushed, which follow those particles' mean displacement, a
 //! translation (`docs/contacts.md`).
 
-use super::contacts::ContactBuffers;
+use super::contacts::Contacts;
 use super::self_collision::build_exclusions;
 use crate::colliders::SelfCollision;
 use crate::{ClothModel, Mat3, Vec3};
@@ -100,7 +100,7 @@ pub(crate) fn untangle_step(
     tau: f64,
     new_x: &mut [Vec3],
     new_v: &mut [Vec3],
-    bufs: &mut ContactBuffers,
+    bufs: &mut Contacts,
 ) -> (usize, usize) {
     let eta = MEETING_FRACTION * sc.thickness_m;
     if bufs.excluded_ptr.len() != model.triangles().len() + 1 {

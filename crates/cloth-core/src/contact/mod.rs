@@ -13,4 +13,6 @@ mod penalty;
 mod projection;
 mod response;
 mod self_collision;
+mod stage;
+mod surroundings;
 mod types;

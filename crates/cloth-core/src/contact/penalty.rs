@@ -17,7 +17,7 @@ pub(crate) fn penalty_contacts(
     x: &[Vec3],
     x_iter: &[Vec3],
     (t, h): (f64, f64),
-    bufs: &mut ContactBuffers,
+    bufs: &mut Contacts,
 ) {
     let thickness = model.contact_thickness();
     let (colliders, masses) = (model.colliders(), model.masses());
@@ -65,14 +65,7 @@ pub(crate) fn penalty_contacts(
 /// particles deep into the ball (nothing to stop a full step), the next
 /// pushed them out past the thickness, and Newton alternated between the
 /// two for all 30 corrections, handing the coupling a 70 N penalty.
-pub(crate) fn penalty_watch(
-    model: &ClothModel,
-    x_iter: &[Vec3],
-    p: &[Vec3],
-    a: f64,
-    t_next: f64,
-    bufs: &mut ContactBuffers,
-) {
+pub(crate) fn penalty_watch(model: &ClothModel, x_iter: &[Vec3], p: &[Vec3], a: f64, t_next: f64, bufs: &mut Contacts) {
     let thickness = model.contact_thickness();
     let colliders = model.colliders();
     let solids_next = bufs.next.at(model, &bufs.external, t_next);

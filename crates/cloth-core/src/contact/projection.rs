@@ -20,7 +20,7 @@ pub(crate) fn project_out(
     model: &ClothModel,
     x: &[Vec3],
     (t, h): (f64, f64),
-    bufs: &mut ContactBuffers,
+    bufs: &mut Contacts,
     all: bool,
     new_x: &mut [Vec3],
     new_v: &mut [Vec3],
@@ -78,7 +78,7 @@ pub(crate) fn collide_after_step(
     model: &ClothModel,
     x: &[Vec3],
     (t, h): (f64, f64),
-    bufs: &mut ContactBuffers,
+    bufs: &mut Contacts,
     new_x: &mut [Vec3],
     new_v: &mut [Vec3],
 ) -> ContactStats {

@@ -30,7 +30,7 @@ pub(crate) fn detect_self_contacts(
     x: &[Vec3],
     v: &[Vec3],
     h: f64,
-    bufs: &mut ContactBuffers,
+    bufs: &mut Contacts,
 ) -> Result<ContactStats, usize> {
     let n = x.len();
     let fastest = v.iter().map(|v| v.norm()).fold(0.0, f64::max);
@@ -196,7 +196,7 @@ pub(crate) fn point_triangle_contacts(
     radius: f64,
     x: &[Vec3],
     hash: &VoxelHash,
-    bufs: &mut ContactBuffers,
+    bufs: &mut Contacts,
     keep: impl Fn(usize, [u32; 3], f64) -> bool + Sync,
 ) {
     let triangles = model.triangles();

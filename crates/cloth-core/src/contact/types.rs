@@ -2,6 +2,7 @@
 //! per-step counters and the buffers reused from step to step.
 
 use super::contacts::*;
+use super::surroundings::Surroundings;
 use crate::control::{Control, SolidMotion};
 use crate::{Mat3, Vec3};
 use cloth_collide::VoxelHash;
@@ -206,18 +207,32 @@ impl std::ops::AddAssign for ContactStats {
     }
 }
 
-/// Scratch space of collision handling, sized once per model.
+/// The contacts of a step: the collision stage's product (as Newton's
+/// `Contacts`), which every integrator reads and the response after its
+/// solve completes. Found at the step's start for the integrators that
+/// take contacts into their solve ([`crate::ContactHandling`]), at its end
+/// for the others; with the scratch that finding them reuses from step
+/// to step.
 #[derive(Debug, Clone, Default)]
-pub(crate) struct ContactBuffers {
+pub struct Contacts {
     /// Cloth-solid contacts of the current step, sorted by particle; a
     /// particle touching two solids (a corner, overlapping solids) has two
     /// consecutive entries.
-    pub solid: Vec<SolidContact>,
+    pub(crate) solid: Vec<SolidContact>,
     /// Solids a Newton correction would carry a particle into (see
     /// `penalty_watch`): the line search's penalty sees them too.
-    pub watch: Vec<SolidContact>,
+    pub(crate) watch: Vec<SolidContact>,
     /// Self-collision pairs of the current step.
-    pub self_pairs: Vec<SelfContact>,
+    pub(crate) self_pairs: Vec<SelfContact>,
+    /// Per particle, the solids around it
+    /// ([`crate::ContactHandling::Penalties`]).
+    pub(crate) around: Vec<Surroundings>,
+    /// Per particle, the narrow-phase queries that found `around`.
+    pub(crate) around_queries: Vec<u32>,
+    /// Per particle, whether the step prescribes it (nothing around it).
+    pub(crate) around_fixed: Vec<bool>,
+    /// What the step's stages did with contacts so far.
+    pub(crate) stats: ContactStats,
     /// Per-particle candidates of the narrow phase (before compaction).
     pub(crate) candidate: Vec<[Option<SolidContact>; 2]>,
     /// Per-particle penetration depth and query count.
@@ -254,17 +269,33 @@ pub(crate) struct ContactBuffers {
     /// Scratch of the continuous self-collision test.
     pub(crate) crossings: CrossingBuffers,
     /// Self-collision forces, N.
-    pub self_force: Vec<Vec3>,
+    pub(crate) self_force: Vec<Vec3>,
     /// Self-collision stiffness on the diagonal, `-df_i/dx_i`, N/m.
-    pub self_stiffness: Vec<Mat3>,
+    pub(crate) self_stiffness: Vec<Mat3>,
     /// Friction of squeezed particles as damping on the diagonal,
     /// `-df_i/dv_i`, N s/m (`linearise_squeeze_friction`).
-    pub friction_damping: Vec<Mat3>,
+    pub(crate) friction_damping: Vec<Mat3>,
     /// Per particle, its nearest triangle's entry in `self_pairs` (or `u32::MAX`).
     pub(crate) nearest: Vec<u32>,
 }
 
-impl ContactBuffers {
+impl Contacts {
+    /// The cloth-solid contacts of the last step (point, normal, solid
+    /// velocity and the normal force each exerted), sorted by particle.
+    pub fn solid(&self) -> &[SolidContact] {
+        &self.solid
+    }
+
+    /// The self-collision pairs found at the last step's start.
+    pub fn self_pairs(&self) -> &[SelfContact] {
+        &self.self_pairs
+    }
+
+    /// What the last step did with contacts.
+    pub fn stats(&self) -> ContactStats {
+        self.stats
+    }
+
     /// Takes the motions of externally driven solids for the next step
     /// from `control` (and forgets solid poses computed before, since a
     /// repeated step may move them differently).

@@ -29,7 +29,7 @@
 //! corrections (when asked for) see the bodies on the motion the settled
 //! solve gave them.
 
-use crate::contacts::{ContactBuffers, FrictionMode, SolidContact};
+use crate::contacts::{Contacts, FrictionMode, SolidContact};
 use crate::control::SolidMotion;
 use crate::{ClothModel, Mat3, Vec3};
 use cloth_collide::BodyPose;
@@ -387,7 +387,7 @@ impl BodyBuffers {
     /// energy balance) sees the body as it moves. (Left on the guess, the
     /// projection pushed particles that had followed a body below its
     /// guess out of the guess.)
-    pub(crate) fn follow(&self, contacts: &mut ContactBuffers, h: f64) {
+    pub(crate) fn follow(&self, contacts: &mut Contacts, h: f64) {
         for c in contacts.solid.iter_mut() {
             let body = self.solid_body[c.collider as usize];
             if body != NO_BODY {
@@ -540,14 +540,14 @@ mod tests {
         let solver = SolverParams { rel_tol: 1e-13, max_iter: 10_000, ..SolverParams::default() };
         let mut sim = Simulation::new(model.clone(), IntegratorKind::BackwardEuler, solver);
         let mut start = sim.snapshot();
-        for (i, (x, v)) in start.x.iter_mut().zip(start.v.iter_mut()).enumerate() {
+        for (i, (x, v)) in start.state.x.iter_mut().zip(start.state.v.iter_mut()).enumerate() {
             *x = Vec3::new(x.x * 1.03, x.y * 1.02, x.z + ((i * 7 % 5) as f64 - 2.0) * 1e-3);
             *v = Vec3::new(0.01 * i as f64, -0.02, 0.03 * (i % 3) as f64);
         }
         sim.restore(&start).unwrap();
         let h = 0.01;
         let pins: Vec<usize> = model.pins().iter().map(|p| p.particle).collect();
-        let targets: Vec<Vec3> = pins.iter().map(|&i| start.x[i] + Vec3::new(0.02, 0.0, 0.05) * h).collect();
+        let targets: Vec<Vec3> = pins.iter().map(|&i| start.state.x[i] + Vec3::new(0.02, 0.0, 0.05) * h).collect();
         for (k, t) in targets.iter().enumerate() {
             sim.set_pin_target(k, *t).unwrap();
         }
@@ -565,7 +565,7 @@ mod tests {
         sim.set_bodies(vec![body]).unwrap();
         sim.step(h).unwrap();
         let (dv, dw) = sim.body_velocity_change(0).unwrap();
-        let (x, v, v_end) = (&start.x, &start.v, &sim.state().v);
+        let (x, v, v_end) = (&start.state.x, &start.state.v, &sim.state().v);
         let forces = |x: &[Vec3], v: &[Vec3]| crate::model::forces::total_forces(&model, x, v, &[]);
         let d: Vec<Vec3> = v_end.iter().map(|u| u * h).collect();
         let eps = 1e-3;

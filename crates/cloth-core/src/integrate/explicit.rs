@@ -7,16 +7,17 @@
 //! particles are prescribed: at every stage and at the end of a step their
 //! position and velocity are set from their path, so pins stay exact.
 
+use super::step::{Capabilities, Integrator, IntegratorMemory, Step, StepOutput};
+use super::timer::{Stage, StageTimer};
+use crate::contacts::Contacts;
 use crate::control::{Control, PinPaths};
 use crate::{
-    ClothModel, ClothState, SolverParams, Vec3, Workspace,
-    forces::{ForceBuffers, forces_into},
-    integrator::{StageTimes, StepError, StepReport},
+    ClothModel, ClothState, IntegratorKind, SolverParams, StepError, StepReport, Vec3,
+    forces::{EnergyBuffers, ForceBuffers, forces_into},
     terms::At,
 };
 use cloth_linalg::ROW_CHUNK;
 use rayon::prelude::*;
-use std::time::Instant;
 
 /// A Butcher tableau `(c, A, b)` with optional embedded error weights
 /// `e = b - b_hat` (the difference to a lower-order solution).
@@ -88,6 +89,8 @@ pub struct ExplicitBuffers {
     external: Vec<Vec3>,
     /// The energy balance since the last report (see [`EnergyWindow`]).
     window: Option<EnergyWindow>,
+    /// Scratch of the energy monitor.
+    energy: EnergyBuffers,
 }
 
 impl ExplicitBuffers {
@@ -108,14 +111,8 @@ impl ExplicitBuffers {
             pin_total: vec![Vec3::zeros(); model.pins().len()],
             external: Vec::new(),
             window: None,
+            energy: EnergyBuffers::new(model),
         }
-    }
-
-    /// Ends the energy window: the next step starts a new one from its
-    /// own state (a restored snapshot may hold the step count the window
-    /// expects and another state).
-    pub(crate) fn end_energy_window(&mut self) {
-        self.window = None;
     }
 }
 
@@ -156,7 +153,7 @@ fn add_external_forces(
     (scratch, force): (&mut ForceBuffers, &mut [Vec3]),
     mut external: Option<&mut Vec<Vec3>>,
 ) {
-    let present = crate::integrator::has_external_forces(model, control);
+    let present = super::loads::has_external_forces(model, control);
     if let Some(e) = external.as_deref_mut() {
         // Without any, an empty list (not last step's forces).
         e.clear();
@@ -220,24 +217,24 @@ pub(crate) fn rk_step(
     h: f64,
     tolerance: f64,
     bufs: &mut ExplicitBuffers,
-    stages_time: &mut StageTimes,
+    timer: &mut StageTimer,
 ) -> (usize, f64) {
     let Start { x, v, t, stitches_closed, pins, control } = start;
     let masses = model.masses();
     bufs.pin_impulse.iter_mut().for_each(|p| *p = Vec3::zeros());
     for s in 0..tab.c.len() {
-        let t_update = Instant::now();
+        let lap = timer.start();
         let (ts, coef) = (t + tab.c[s] * h, tab.a[s]);
         combine(x, h, coef, &bufs.kx, &mut bufs.xs);
         combine(v, h, coef, &bufs.kv, &mut bufs.vs);
         impose_pins(&pins, ts, &mut bufs.xs, &mut bufs.vs);
-        stages_time.update_s += t_update.elapsed().as_secs_f64();
-        let t_force = Instant::now();
+        timer.stop(lap, Stage::Update);
+        let lap = timer.start();
         forces_into(model, &bufs.xs, &bufs.vs, stitches_closed, &mut bufs.forces, &mut bufs.force);
         let external = (s == 0).then_some(&mut bufs.external);
         let state = (&bufs.xs[..], &bufs.vs[..], stitches_closed);
         add_external_forces(model, control, state, ts, (&mut bufs.forces, &mut bufs.force), external);
-        stages_time.forces_s += t_force.elapsed().as_secs_f64();
+        timer.stop(lap, Stage::Forces);
         let (kx, kv) = (&mut bufs.kx[s], &mut bufs.kv[s]);
         kx.copy_from_slice(&bufs.vs);
         kv.iter_mut().zip(&bufs.force).zip(masses).for_each(|((a, f), m)| *a = f / *m);
@@ -247,7 +244,7 @@ pub(crate) fn rk_step(
             kv[i] = Vec3::zeros();
         }
     }
-    let t_update = Instant::now();
+    let lap = timer.start();
     combine(x, h, tab.b, &bufs.kx, &mut bufs.x_new);
     combine(v, h, tab.b, &bufs.kv, &mut bufs.v_new);
     impose_pins(&pins, t + h, &mut bufs.x_new, &mut bufs.v_new);
@@ -271,7 +268,7 @@ pub(crate) fn rk_step(
         }
         (sum / (6 * x.len()).max(1) as f64).sqrt()
     });
-    stages_time.update_s += t_update.elapsed().as_secs_f64();
+    timer.stop(lap, Stage::Update);
     (tab.c.len(), error)
 }
 
@@ -281,15 +278,15 @@ pub(crate) fn symplectic_euler_step(
     start: Start<'_>,
     h: f64,
     bufs: &mut ExplicitBuffers,
-    stages_time: &mut StageTimes,
+    timer: &mut StageTimer,
 ) {
     let Start { x, v, t, stitches_closed, pins, control } = start;
-    let t_force = Instant::now();
+    let lap = timer.start();
     forces_into(model, x, v, stitches_closed, &mut bufs.forces, &mut bufs.force);
     let external = Some(&mut bufs.external);
     add_external_forces(model, control, (x, v, stitches_closed), t, (&mut bufs.forces, &mut bufs.force), external);
-    stages_time.forces_s += t_force.elapsed().as_secs_f64();
-    let t_update = Instant::now();
+    timer.stop(lap, Stage::Forces);
+    let lap = timer.start();
     let masses = model.masses();
     for i in 0..x.len() {
         bufs.v_new[i] = v[i] + bufs.force[i] * (h / masses[i]);
@@ -299,31 +296,33 @@ pub(crate) fn symplectic_euler_step(
         *applied = -bufs.force[i] * h;
     }
     impose_pins(&pins, t + h, &mut bufs.x_new, &mut bufs.v_new);
-    stages_time.update_s += t_update.elapsed().as_secs_f64();
+    timer.stop(lap, Stage::Update);
 }
 
 /// Advances `state` by `h_total` with adaptive Dormand-Prince substeps,
-/// starting from the step size the state suggests. The accepted result is
-/// left in `bufs.x_new`, `bufs.v_new`; returns the report and the next
+/// starting from `next_dt_s`, the step size the last step suggested (0:
+/// none). The accepted result is left in `bufs.x_new`, `bufs.v_new` (the
+/// substeps work in `x_work`, `v_work`); returns the report and the next
 /// suggested step size.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn adaptive_dopri5(
     model: &ClothModel,
     state: &ClothState,
     control: &Control,
-    h_total: f64,
+    (h_total, next_dt_s): (f64, f64),
     solver: &SolverParams,
-    ws: &mut Workspace,
+    bufs: &mut ExplicitBuffers,
+    (x_work, v_work): (&mut Vec<Vec3>, &mut Vec<Vec3>),
+    timer: &mut StageTimer,
 ) -> Result<(StepReport, f64), StepError> {
     let (tolerance, max_substeps) = (solver.adaptive.error_tolerance, solver.adaptive.max_substeps);
-    let bufs = ws.explicit.get_or_insert_with(|| ExplicitBuffers::new(model, DOPRI5.c.len()));
-    let (x_work, v_work) = (&mut ws.new_x, &mut ws.new_v);
     let mut report = StepReport { converged: true, ..Default::default() };
     let pins = PinPaths::new(model, control, &state.x, state.time_s, h_total);
     bufs.pin_total.iter_mut().for_each(|p| *p = Vec3::zeros());
     x_work.copy_from_slice(&state.x);
     v_work.copy_from_slice(&state.v);
     let mut done = 0.0;
-    let mut h = if state.next_dt_s > 0.0 { state.next_dt_s.min(h_total) } else { h_total };
+    let mut h = if next_dt_s > 0.0 { next_dt_s.min(h_total) } else { h_total };
     let mut suggestion = h;
     while done < h_total {
         let remaining = h_total - done;
@@ -331,7 +330,7 @@ pub(crate) fn adaptive_dopri5(
         let h_try = if last { remaining } else { h };
         let closed = &state.stitches_closed;
         let start = Start { x: x_work, v: v_work, t: state.time_s + done, stitches_closed: closed, pins, control };
-        let (evals, err) = rk_step(model, &DOPRI5, start, h_try, tolerance, bufs, &mut report.stages);
+        let (evals, err) = rk_step(model, &DOPRI5, start, h_try, tolerance, bufs, timer);
         report.force_evaluations += evals;
         // Step-size controller (order 5 error estimate of the order-4 solution).
         let factor = if err == 0.0 {
@@ -369,82 +368,130 @@ pub(crate) fn adaptive_dopri5(
     Ok((report, suggestion))
 }
 
-/// The explicit integrators behind [`crate::Integrator`].
-#[derive(Debug, Clone, Copy)]
-pub struct Explicit(pub crate::IntegratorKind);
+/// The explicit integrators behind [`crate::Integrator`]: forward and
+/// symplectic Euler, midpoint, RK4 and the adaptive DOPRI5, by kind.
+#[derive(Debug)]
+pub struct Explicit {
+    kind: IntegratorKind,
+    buffers: Option<Box<ExplicitBuffers>>,
+    /// The adaptive integrator's suggested substep, s (0: none yet): its
+    /// memory.
+    next_dt_s: f64,
+    /// The suggestion of the step being taken, kept once it commits.
+    proposed_dt_s: f64,
+}
 
-impl crate::Integrator for Explicit {
+impl Explicit {
+    /// The explicit integrator of `kind` (one of the explicit kinds).
+    pub(crate) fn new(kind: IntegratorKind) -> Self {
+        Self { kind, buffers: None, next_dt_s: 0.0, proposed_dt_s: 0.0 }
+    }
+}
+
+/// The memory's one entry (DOPRI5's): the substep the last step suggested, s.
+const NEXT_DT: &str = "next_dt_s";
+
+impl Integrator for Explicit {
     fn name(&self) -> &'static str {
-        self.0.name()
+        self.kind.name()
     }
 
-    fn step(
-        &self,
-        model: &ClothModel,
-        state: &mut ClothState,
-        control: &Control,
-        h: f64,
-        ws: &mut crate::Workspace,
-        solver: &crate::SolverParams,
+    fn capabilities(&self) -> Capabilities {
+        Capabilities::default()
+    }
+
+    fn solve(
+        &mut self,
+        step: &Step<'_>,
+        _contacts: &mut Contacts,
+        out: &mut StepOutput,
+        timer: &mut StageTimer,
     ) -> Result<StepReport, StepError> {
-        use crate::IntegratorKind as K;
-        crate::integrator::check_step(model, state, h)?;
-        crate::integrator::reject_self_collision(model, self.0.name())?;
+        use IntegratorKind as K;
+        let Step { model, state, control, h, solver, .. } = *step;
         let limit_s = model.explicit_stitch_step_limit();
-        if self.0 != K::Dopri5 && h >= limit_s {
-            return Err(StepError::StitchesNeedSmallerStep { integrator: self.0.name(), h_s: h, limit_s });
+        if self.kind != K::Dopri5 && h >= limit_s {
+            return Err(StepError::StitchesNeedSmallerStep { integrator: self.kind.name(), h_s: h, limit_s });
         }
         let mut report = StepReport { converged: true, substeps: 1, ..Default::default() };
         let mut next_dt = 0.0;
         let pins = PinPaths::new(model, control, &state.x, state.time_s, h);
-        // Held particles come and go: one entry per prescribed particle.
-        ws.pin_forces.resize(pins.count(), Vec3::zeros());
-        let bufs = ws.explicit.get_or_insert_with(|| ExplicitBuffers::new(model, DOPRI5.c.len()));
+        let bufs = self.buffers.get_or_insert_with(|| Box::new(ExplicitBuffers::new(model, DOPRI5.c.len())));
         bufs.pin_impulse.resize(pins.count(), Vec3::zeros());
         bufs.pin_total.resize(pins.count(), Vec3::zeros());
         let closed = &state.stitches_closed;
         let start = Start { x: &state.x, v: &state.v, t: state.time_s, stitches_closed: closed, pins, control };
-        match self.0 {
+        match self.kind {
             K::SymplecticEuler => {
-                symplectic_euler_step(model, start, h, bufs, &mut report.stages);
+                symplectic_euler_step(model, start, h, bufs, timer);
                 report.force_evaluations = 1;
             }
             K::ForwardEuler | K::Midpoint | K::Rk4 => {
-                let tab = match self.0 {
+                let tab = match self.kind {
                     K::ForwardEuler => &FORWARD_EULER,
                     K::Midpoint => &MIDPOINT,
                     _ => &RK4,
                 };
-                let (evals, _) = rk_step(model, tab, start, h, 0.0, bufs, &mut report.stages);
+                let (evals, _) = rk_step(model, tab, start, h, 0.0, bufs, timer);
                 report.force_evaluations = evals;
             }
-            K::Dopri5 => (report, next_dt) = adaptive_dopri5(model, state, control, h, solver, ws)?,
+            K::Dopri5 => {
+                let work = (&mut out.x, &mut out.v);
+                (report, next_dt) =
+                    adaptive_dopri5(model, state, control, (h, self.next_dt_s), solver, bufs, work, timer)?
+            }
             _ => unreachable!("only the explicit kinds are built as `Explicit`"),
         }
-        let bufs = ws.explicit.as_mut().expect("allocated above");
-        if self.0 != K::Dopri5 {
+        self.proposed_dt_s = next_dt;
+        if self.kind != K::Dopri5 {
             std::mem::swap(&mut bufs.pin_total, &mut bufs.pin_impulse);
         }
         // What the pin gave its particle: its momentum change less the
         // other forces' impulse, as a mean force over the step.
         let masses = model.masses();
-        for ((i, f), other) in pins.particles().zip(&mut ws.pin_forces).zip(&bufs.pin_total) {
+        let forces = out.pin_forces_mut(pins.count());
+        for ((i, f), other) in pins.particles().zip(forces).zip(&bufs.pin_total) {
             *f = ((bufs.v_new[i] - state.v[i]) * masses[i] + other) / h;
         }
-        std::mem::swap(&mut ws.new_x, &mut bufs.x_new);
-        std::mem::swap(&mut ws.new_v, &mut bufs.v_new);
-        report.contacts = crate::integrator::collide_after_step(model, state, control, h, ws, &mut report.stages);
-        let t_energy = Instant::now();
-        report.energy = balance_window(model, state, pins, ws);
-        report.stages.update_s += t_energy.elapsed().as_secs_f64();
-        crate::integrator::commit(state, ws, h)?;
-        state.next_dt_s = next_dt;
+        std::mem::swap(&mut out.x, &mut bufs.x_new);
+        std::mem::swap(&mut out.v, &mut bufs.v_new);
         Ok(report)
+    }
+
+    fn balance(&mut self, step: &Step<'_>, contacts: &Contacts, out: &StepOutput) -> Option<crate::EnergyReport> {
+        let bufs = self.buffers.as_mut().expect("allocated by the step");
+        balance_window(step, contacts, out, bufs)
+    }
+
+    fn committed(&mut self, _: &StepReport) {
+        self.next_dt_s = self.proposed_dt_s;
+    }
+
+    fn memory(&self) -> IntegratorMemory {
+        match self.kind {
+            IntegratorKind::Dopri5 => IntegratorMemory::new(vec![(NEXT_DT, self.next_dt_s)]),
+            _ => IntegratorMemory::default(),
+        }
+    }
+
+    /// Also ends the energy window: the next step starts a new one from
+    /// its own state (a restored snapshot may hold the step count the
+    /// window expects and another state).
+    fn restore_memory(&mut self, memory: &IntegratorMemory) -> Result<(), StepError> {
+        self.memory().same_names(memory)?;
+        self.next_dt_s = memory.get(NEXT_DT).unwrap_or(0.0);
+        if let Some(bufs) = self.buffers.as_mut() {
+            bufs.window = None;
+        }
+        Ok(())
+    }
+
+    fn reset(&mut self) {
+        self.buffers = None;
     }
 }
 
-/// Adds the step from `state` to `ws.new_x`, `ws.new_v` to the energy
-/// window and, at the end of every [`ENERGY_WINDOW`]-th step, returns the
+/// Adds the step from `step.state` to `out` to the energy window and, at the end of every [`ENERGY_WINDOW`]-th step, returns the
 /// window's balance ([`crate::energy`]) and starts the next one. The works
 /// are those the implicit steps report: the pins' mean forces, the
 /// contacts' impulses against the solids' velocities, and the wind's and
@@ -454,13 +501,15 @@ impl crate::Integrator for Explicit {
 /// report's elastic energy is one pass over the links and elements; a
 /// window that starts anew takes one more.
 fn balance_window(
-    model: &ClothModel,
-    state: &ClothState,
-    pins: PinPaths<'_>,
-    ws: &mut Workspace,
+    step: &Step<'_>,
+    contacts: &Contacts,
+    out: &StepOutput,
+    bufs: &mut ExplicitBuffers,
 ) -> Option<crate::EnergyReport> {
-    let Workspace { new_x, new_v, pin_forces, contacts, explicit, energy, .. } = ws;
-    let bufs = explicit.as_mut().expect("allocated by the step");
+    let Step { model, state, control, h, .. } = *step;
+    let pins = PinPaths::new(model, control, &state.x, state.time_s, h);
+    let (new_x, new_v, pin_forces) = (&out.x, &out.v, &out.pin_forces);
+    let energy = &mut bufs.energy;
     let closed = &state.stitches_closed;
     let window = match bufs.window.filter(|w| w.next_steps == state.steps) {
         Some(w) => w,
@@ -473,9 +522,9 @@ fn balance_window(
         },
     };
     let external = (!bufs.external.is_empty()).then_some(&bufs.external[..]);
-    let step = (&state.x[..], &new_x[..]);
+    let moved = (&state.x[..], &new_x[..]);
     let (pin_work, external_work, contact_work) =
-        crate::energy::works(step, (pins, &pin_forces[..]), external, &contacts.solid);
+        crate::energy::works(moved, (pins, &pin_forces[..]), external, &contacts.solid);
     let window = EnergyWindow {
         next_steps: state.steps + 1,
         pin_work: window.pin_work + pin_work,

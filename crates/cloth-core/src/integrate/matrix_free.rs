@@ -6,21 +6,24 @@
 //! mass part, and CG runs exactly `SolverParams::fixed_cg_iterations`
 //! iterations with the product computed link by link, never assembled.
 
-use crate::control::{Control, PinPaths};
-use crate::{
-    ClothModel, ClothState, SolverParams, Vec3, Workspace,
-    forces::{apply_scaled_operator, assemble_matrix_free},
-    integrator::{
-        BackwardEuler, Linearised, StageTimes, StepError, StepReport, check_step, collide_after_step, commit,
-        constrain_pins, external_forces, reject_self_collision,
-    },
-};
-use cloth_linalg::{CgScratch, PcgError, cg_fixed_iterations};
-use std::time::Instant;
+use super::implicit::{EulerScheme, Linearised, constrain_pins};
+use super::step::{Capabilities, Integrator, Step, StepOutput};
+use super::timer::{Stage, StageTimer};
+use crate::contacts::Contacts;
+use crate::control::PinPaths;
+use crate::forces::{SystemBuffers, apply_scaled_operator, assemble_matrix_free};
+use crate::{ClothModel, StepError, StepReport, Vec3};
+use cloth_linalg::{CgScratch, ConstraintFilter, PcgError, cg_fixed_iterations};
 
 /// Buffers of the matrix-free solver, allocated on first use.
 #[derive(Debug, Clone)]
 pub(crate) struct MatrixFreeBuffers {
+    system: SystemBuffers,
+    filter: ConstraintFilter,
+    unknown: Vec<Vec3>,
+    /// Scratch of the operator product (the scheme needs no vectors of
+    /// its own: backward Euler's are empty).
+    product: Vec<Vec3>,
     inv_sqrt_mass: Vec<f64>,
     scaled_rhs: Vec<Vec3>,
     cg: CgScratch,
@@ -30,6 +33,10 @@ impl MatrixFreeBuffers {
     fn new(model: &ClothModel) -> Self {
         let n = model.particle_count();
         Self {
+            system: SystemBuffers::new(model),
+            filter: ConstraintFilter::new(n),
+            unknown: vec![Vec3::zeros(); n],
+            product: vec![Vec3::zeros(); n],
             inv_sqrt_mass: model.masses().iter().map(|m| 1.0 / m.sqrt()).collect(),
             scaled_rhs: vec![Vec3::zeros(); n],
             cg: CgScratch::new(n),
@@ -38,50 +45,61 @@ impl MatrixFreeBuffers {
 }
 
 /// Backward Euler solved by a fixed number of matrix-free CG iterations.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct BackwardEulerFixedCg;
+#[derive(Debug, Default)]
+pub struct BackwardEulerFixedCg {
+    buffers: Option<Box<MatrixFreeBuffers>>,
+}
 
-impl crate::Integrator for BackwardEulerFixedCg {
+impl Integrator for BackwardEulerFixedCg {
     fn name(&self) -> &'static str {
         crate::IntegratorKind::BackwardEulerFixedCg.name()
     }
 
-    fn step(
-        &self,
-        model: &ClothModel,
-        state: &mut ClothState,
-        control: &Control,
-        h: f64,
-        ws: &mut Workspace,
-        solver: &SolverParams,
+    fn capabilities(&self) -> Capabilities {
+        Capabilities { loads_at_start: true, linear_solve: true, ..Capabilities::default() }
+    }
+
+    /// The link blocks and the right-hand side; no matrix.
+    fn assemble(&mut self, step: &Step<'_>, _: &mut Contacts, timer: &mut StageTimer) -> Result<(), StepError> {
+        let Step { model, state, h, loads, .. } = *step;
+        let mf = self.buffers.get_or_insert_with(|| Box::new(MatrixFreeBuffers::new(model)));
+        let mut terms = EulerScheme.terms(state, &[], &[], h);
+        terms.external = loads.forces();
+        let timing = assemble_matrix_free(model, &state.x, &terms, &mut mf.system);
+        timer.add(Stage::Forces, timing.links_s);
+        timer.add(Stage::Assembly, timing.gather_s);
+        Ok(())
+    }
+
+    fn solve(
+        &mut self,
+        step: &Step<'_>,
+        _: &mut Contacts,
+        out: &mut StepOutput,
+        timer: &mut StageTimer,
     ) -> Result<StepReport, StepError> {
-        check_step(model, state, h)?;
-        reject_self_collision(model, self.name())?;
-        let scheme = BackwardEuler;
-        let has_wind = external_forces(model, state, control, ws);
-        let mut terms = scheme.terms(state, &ws.aux, &ws.aux2, h);
-        terms.external = has_wind.then_some(&ws.external[..]);
-        let timing = assemble_matrix_free(model, &state.x, &terms, &mut ws.system);
-        let t_solve = Instant::now();
-        let mf = ws.matrix_free.get_or_insert_with(|| MatrixFreeBuffers::new(model));
+        let Step { model, state, control, h, solver, .. } = *step;
+        let scheme = EulerScheme;
+        let mf = self.buffers.as_mut().expect("assembled before solved");
+        let lap = timer.start();
         // Scale: b^ = M^-1/2 b; unknown y = M^1/2 dv; pins prescribe y too.
-        for ((bs, b), s) in mf.scaled_rhs.iter_mut().zip(&ws.system.rhs).zip(&mf.inv_sqrt_mass) {
+        for ((bs, b), s) in mf.scaled_rhs.iter_mut().zip(&mf.system.rhs).zip(&mf.inv_sqrt_mass) {
             *bs = b * *s;
         }
         let inv_sqrt_mass = &mf.inv_sqrt_mass;
-        constrain_pins(model, state, control, h, &mut ws.filter, |target, i| {
+        constrain_pins(model, state, control, h, &mut mf.filter, |target, i| {
             scheme.pinned(state, h, target, i) / inv_sqrt_mass[i]
         });
-        for (i, (u, s)) in ws.unknown.iter_mut().zip(inv_sqrt_mass).enumerate() {
-            *u = scheme.guess(state, &ws.aux, i) / *s;
+        for (i, (u, s)) in mf.unknown.iter_mut().zip(inv_sqrt_mass).enumerate() {
+            *u = scheme.guess(state, &[], i) / *s;
         }
-        let system = &ws.system;
+        let system = &mf.system;
         let result = cg_fixed_iterations(
             |w, y| apply_scaled_operator(model, system, inv_sqrt_mass, w, y),
             &mf.scaled_rhs,
-            &ws.filter,
+            &mf.filter,
             solver.fixed_cg_iterations,
-            &mut ws.unknown,
+            &mut mf.unknown,
             &mut mf.cg,
         );
         let info = match result {
@@ -94,42 +112,30 @@ impl crate::Integrator for BackwardEulerFixedCg {
         let pins = PinPaths::new(model, control, &state.x, state.time_s, h);
         if pins.count() > 0 {
             // Pin forces from the unfiltered residual, one more operator product.
-            apply_scaled_operator(model, system, inv_sqrt_mass, &ws.unknown, &mut ws.aux);
-            ws.pin_forces.resize(pins.count(), Vec3::zeros());
-            for (i, f) in pins.particles().zip(&mut ws.pin_forces) {
-                *f = (ws.aux[i] - mf.scaled_rhs[i]) / (inv_sqrt_mass[i] * h);
+            apply_scaled_operator(model, system, inv_sqrt_mass, &mf.unknown, &mut mf.product);
+            let forces = out.pin_forces_mut(pins.count());
+            for (i, f) in pins.particles().zip(forces) {
+                *f = (mf.product[i] - mf.scaled_rhs[i]) / (inv_sqrt_mass[i] * h);
             }
         }
-        let solve_s = t_solve.elapsed().as_secs_f64();
-        let t_update = Instant::now();
+        timer.stop(lap, Stage::Solve);
+        let lap = timer.start();
         for i in 0..state.len() {
-            let dv = ws.unknown[i] * mf.inv_sqrt_mass[i];
-            (ws.new_x[i], ws.new_v[i]) = scheme.advance(state, &ws.aux, h, i, dv);
+            let dv = mf.unknown[i] * mf.inv_sqrt_mass[i];
+            (out.x[i], out.v[i]) = scheme.advance(state, &[], h, i, dv);
         }
-        let mut stages = StageTimes {
-            forces_s: timing.links_s,
-            assembly_s: timing.gather_s,
-            solve_s,
-            update_s: t_update.elapsed().as_secs_f64(),
-            ..StageTimes::default()
-        };
-        let contacts = collide_after_step(model, state, control, h, ws, &mut stages);
-        commit(state, ws, h)?;
+        timer.stop(lap, Stage::Update);
         Ok(StepReport {
             force_evaluations: 1,
             substeps: 1,
-            rejected_steps: 0,
-            strain_corrections: 0,
             cg_iterations: info.iterations,
             rel_residual: info.rel_residual,
             converged: true,
-            stages,
-            contacts,
-            newton: None,
-            energy: None,
-            retaken_as_backward_euler: false,
-            retaken_with_newton: false,
-            descent_iterations: 0,
+            ..StepReport::default()
         })
+    }
+
+    fn reset(&mut self) {
+        self.buffers = None;
     }
 }

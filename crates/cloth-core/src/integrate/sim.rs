@@ -1,9 +1,14 @@
-//! A simulation: an immutable model, the explicit state, an integrator and
-//! its scratch space.
+//! A simulation: an immutable model, the explicit state, the per-step
+//! inputs, an integrator, and what each step hands on (the loads, the
+//! contacts, the solved state); [`Simulation::step`] runs the pipeline.
 
-use crate::contacts::{max_penetration, particles_inside};
+use super::loads::Loads;
+use super::pipeline::{self, Parts};
+use super::state::Snapshot;
+use super::step::{Integrator, IntegratorMemory, StepOutput};
+use crate::contacts::{Contacts, max_penetration, particles_inside};
 use crate::control::{Control, ControlError, SolidImpulse, SolidMotion};
-use crate::{ClothModel, ClothState, Integrator, IntegratorKind, SolverParams, StepError, StepReport, Vec3, Workspace};
+use crate::{ClothModel, ClothState, IntegratorKind, SolverParams, StepError, StepReport, Vec3};
 use std::sync::Arc;
 
 /// Owns a model and its state and advances them in time.
@@ -13,10 +18,10 @@ pub struct Simulation {
     state: ClothState,
     integrator: Box<dyn Integrator>,
     solver: SolverParams,
-    workspace: Workspace,
     control: Control,
-    /// The state at the start of the current step.
-    start: ClothState,
+    loads: Loads,
+    contacts: Contacts,
+    out: StepOutput,
 }
 
 /// Builds a [`Simulation`]: BDF2 with the default [`SolverParams`] unless
@@ -60,8 +65,7 @@ impl SimulationBuilder {
     pub fn build(self) -> Simulation {
         let mut sim = Simulation::with_integrator(self.model, self.integrator, self.solver);
         if self.initial_jitter_m > 0.0 {
-            let state = ClothState::jittered(sim.model(), self.initial_jitter_m);
-            sim.restore(&state).expect("a state built for this model");
+            sim.state = ClothState::jittered(sim.model(), self.initial_jitter_m);
         }
         sim
     }
@@ -93,9 +97,10 @@ impl Simulation {
         let model = model.into();
         Self {
             state: ClothState::at_rest(&model),
-            start: ClothState::at_rest(&model),
-            workspace: Workspace::new(&model, &solver),
             control: Control::for_model(&model),
+            loads: Loads::new(&model),
+            contacts: Contacts::default(),
+            out: StepOutput::new(model.particle_count(), model.pins().len()),
             integrator,
             solver,
             model,
@@ -117,27 +122,23 @@ impl Simulation {
         Ok(())
     }
 
-    /// Advances by `h` seconds, then applies the model's deformation
-    /// constraints if it has them and closes the stitches whose gaps have
-    /// closed. On error the state is unchanged.
+    /// Advances by `h` seconds through the step's stages (the pipeline:
+    /// loads, collision, assemble, solve, respond, balance, then commit
+    /// and finish: the model's deformation constraints if it has them, and
+    /// the stitches whose gaps have closed). On error the state is
+    /// unchanged.
     pub fn step(&mut self, h: f64) -> Result<StepReport, StepError> {
-        let (model, control) = (&self.model, &self.control);
-        if !control.bodies().is_empty() && !self.integrator.takes_bodies() {
-            return Err(StepError::BodiesNeedMatrix { integrator: self.integrator.name() });
-        }
-        // The step's start, to go back to if the step blows up (into a
-        // buffer kept from step to step: no allocation).
-        self.start.clone_from(&self.state);
-        let mut report = self.integrator.step(model, &mut self.state, control, h, &mut self.workspace, &self.solver)?;
-        let limit = self.solver.blow_up_stretch;
-        if let Some((stretch, i, j)) = model.most_stretched(&self.state.x).filter(|s| s.0 > limit) {
-            std::mem::swap(&mut self.state, &mut self.start);
-            let (step, time_s) = (self.state.steps + 1, self.state.time_s);
-            return Err(StepError::BlewUp { step, time_s, i, j, stretch, limit });
-        }
-        let integrator = self.integrator.as_ref();
-        super::finish::finish_step(model, control, integrator, &mut self.state, &mut self.workspace, &mut report, h);
-        Ok(report)
+        let parts = Parts {
+            model: &self.model,
+            state: &mut self.state,
+            control: &self.control,
+            solver: &self.solver,
+            integrator: self.integrator.as_mut(),
+            loads: &mut self.loads,
+            contacts: &mut self.contacts,
+            out: &mut self.out,
+        };
+        pipeline::step(parts, h)
     }
 
     /// Simulated time, s.
@@ -161,10 +162,11 @@ impl Simulation {
         self.integrator.name()
     }
 
-    /// The cloth-solid contacts of the last step (point, normal, solid
-    /// velocity and the normal force each exerted), sorted by particle.
-    pub fn contacts(&self) -> &[crate::contacts::SolidContact] {
-        &self.workspace.contacts.solid
+    /// The contacts of the last step: the collision stage's product, with
+    /// the cloth-solid contacts ([`Contacts::solid`]) and the
+    /// self-collision pairs.
+    pub fn contacts(&self) -> &Contacts {
+        &self.contacts
     }
 
     /// The per-step inputs set so far.
@@ -230,7 +232,7 @@ impl Simulation {
     /// comes on top, see [`crate::bodies`]). `None` when no such body took
     /// part in the last step.
     pub fn body_velocity_change(&self, k: usize) -> Option<(Vec3, Vec3)> {
-        self.workspace.bodies.velocity_change.get(k).copied()
+        self.out.bodies.velocity_change.get(k).copied()
     }
 
     /// Adds solids to the model mid-run (a collider added to a world the
@@ -242,7 +244,9 @@ impl Simulation {
             return Ok(());
         }
         let model = Arc::new((*self.model).clone().with_solids(solids)?);
-        self.workspace = Workspace::new(&model, &self.solver);
+        self.contacts = Contacts::default();
+        self.out = StepOutput::new(model.particle_count(), model.pins().len());
+        self.integrator.reset();
         self.control.grow_solids(&model);
         self.model = model;
         Ok(())
@@ -259,7 +263,9 @@ impl Simulation {
     /// first step and for solids not touched.
     pub fn solid_impulse(&self, index: usize, about: Vec3) -> SolidImpulse {
         let mut out = SolidImpulse::default();
-        for c in self.contacts().iter().filter(|c| c.collider as usize == index && c.impulse_n_s != Vec3::zeros()) {
+        let touched =
+            |c: &&crate::contacts::SolidContact| c.collider as usize == index && c.impulse_n_s != Vec3::zeros();
+        for c in self.contacts.solid().iter().filter(touched) {
             let on_solid = -c.impulse_n_s;
             out.linear += on_solid;
             out.angular += (c.point - about).cross(&on_solid);
@@ -272,14 +278,14 @@ impl Simulation {
     /// N (the opposite of what holds the particle on its path: a hanging
     /// cloth pulls its pins down). Zero before the first step.
     pub fn pin_reaction(&self, index: usize) -> Vec3 {
-        self.workspace.pin_forces.get(index).map_or(Vec3::zeros(), |f| -f)
+        self.out.pin_forces.get(index).map_or(Vec3::zeros(), |f| -f)
     }
 
     /// The mean force the cloth exerted on held particle `particle` over
     /// the last step, N (what the hand feels); `None` when it is not held.
     pub fn hold_reaction(&self, particle: usize) -> Option<Vec3> {
         let j = self.control.hold_index(particle)?;
-        let f = self.workspace.pin_forces.get(self.model.pins().len() + j).copied().unwrap_or_default();
+        let f = self.out.pin_forces.get(self.model.pins().len() + j).copied().unwrap_or_default();
         Some(-f)
     }
 
@@ -309,17 +315,45 @@ impl Simulation {
         })
     }
 
-    /// A copy of the complete state (history included), for rollback.
-    pub fn snapshot(&self) -> ClothState {
-        self.state.clone()
+    /// Everything needed to go on from here: the state (history
+    /// included) and the integrator's memory, for rollback.
+    pub fn snapshot(&self) -> Snapshot {
+        Snapshot { state: self.state.clone(), integrator: self.integrator.memory() }
     }
 
-    /// Returns to a snapshot taken from a simulation of the same model.
-    /// Stepping from it reproduces the original run bit for bit. A state of
-    /// the wrong size or with a non-finite position or velocity is refused
-    /// ([`StepError::StateMismatch`], [`StepError::NonFinite`] naming the
-    /// particle).
-    pub fn restore(&mut self, snapshot: &ClothState) -> Result<(), StepError> {
+    /// What the integrator carries from step to step now (see
+    /// [`Integrator::memory`]).
+    pub fn integrator_memory(&self) -> IntegratorMemory {
+        self.integrator.memory()
+    }
+
+    /// Returns to a snapshot taken from a simulation of the same model and
+    /// integrator. Stepping from it reproduces the original run bit for
+    /// bit. A state of the wrong size or with a non-finite position or
+    /// velocity is refused ([`StepError::StateMismatch`],
+    /// [`StepError::NonFinite`] naming the particle), and so is another
+    /// integrator's memory ([`StepError::MemoryMismatch`]).
+    pub fn restore(&mut self, snapshot: &Snapshot) -> Result<(), StepError> {
+        self.check_state(&snapshot.state)?;
+        self.integrator.restore_memory(&snapshot.integrator)?;
+        self.state.clone_from(&snapshot.state);
+        Ok(())
+    }
+
+    /// Puts `state` in place of the current one, the integrator's memory
+    /// as it is (a state built or edited by the caller: a jittered start,
+    /// particles moved by hand). Refused as [`Simulation::restore`]
+    /// refuses a snapshot's state.
+    pub fn set_state(&mut self, state: &ClothState) -> Result<(), StepError> {
+        self.check_state(state)?;
+        // Taken up again, so that what the integrator derived from the
+        // old state (an energy window) starts anew.
+        self.integrator.restore_memory(&self.integrator.memory())?;
+        self.state.clone_from(state);
+        Ok(())
+    }
+
+    fn check_state(&self, snapshot: &ClothState) -> Result<(), StepError> {
         let n = self.model.particle_count();
         let lens = [snapshot.x.len(), snapshot.v.len(), snapshot.x_prev.len(), snapshot.v_prev.len()];
         if let Some(&got) = lens.iter().find(|&&l| l != n) {
@@ -331,10 +365,6 @@ impl Simulation {
         }
         if let Some((particle, quantity)) = snapshot.first_non_finite() {
             return Err(StepError::NonFinite { step: snapshot.steps, time_s: snapshot.time_s, particle, quantity });
-        }
-        self.state.clone_from(snapshot);
-        if let Some(explicit) = self.workspace.explicit.as_mut() {
-            explicit.end_energy_window();
         }
         Ok(())
     }

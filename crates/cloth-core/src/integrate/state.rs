@@ -1,6 +1,8 @@
-//! The explicit, complete simulation state. Cloning it is a snapshot:
-//! restoring a clone and stepping reproduces the same bits.
+//! The explicit simulation state, and a snapshot of a whole simulation:
+//! the state with what the integrator carries from step to step.
+//! Restoring a snapshot and stepping reproduces the same bits.
 
+use super::step::IntegratorMemory;
 use crate::{ClothModel, Vec3};
 
 /// Positions, velocities and the one-step history BDF2 needs.
@@ -23,17 +25,21 @@ pub struct ClothState {
     pub has_history: bool,
     /// The step size that produced the current state, s (0 before the first step).
     pub last_dt_s: f64,
-    /// The adaptive integrator's suggested substep, s (0: none yet). Part of
-    /// the state so that a restored snapshot steps to the same bits.
-    pub next_dt_s: f64,
     /// Of each stitch of the model's seams, whether it has closed: an open
     /// stitch pulls with its gentle sewing pull, a closed one holds with
     /// the seam's strength ([`crate::seams`]). Updated after each step.
     pub stitches_closed: Vec<bool>,
-    /// Whether a step of this run was large for its material, so that
-    /// every step takes Newton iterations from it on
-    /// ([`crate::NewtonParams::auto_trigger`]).
-    pub newton_engaged: bool,
+}
+
+/// Everything a simulation needs to go on from a point of its run: the
+/// cloth's state and what its integrator carries from step to step
+/// ([`crate::Simulation::snapshot`], [`crate::Simulation::restore`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Snapshot {
+    /// The cloth's state.
+    pub state: ClothState,
+    /// The integrator's memory.
+    pub integrator: IntegratorMemory,
 }
 
 impl ClothState {
@@ -49,9 +55,7 @@ impl ClothState {
             v_prev: vec![Vec3::zeros(); n],
             has_history: false,
             last_dt_s: 0.0,
-            next_dt_s: 0.0,
             stitches_closed: Self::stitches_closed_at(model, model.rest_positions()),
-            newton_engaged: false,
         }
     }
 

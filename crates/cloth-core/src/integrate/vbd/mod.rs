@@ -17,22 +17,22 @@
 //! lagged, smoothed Coulomb friction (IPC), and per-particle bounds on each
 //! local step keep particles out of solids (its `contact` module).
 
-mod contact;
+mod self_pairs;
 #[cfg(test)]
 mod tests;
 
+use super::step::{Capabilities, ContactHandling, Integrator, Step, StepOutput};
+use super::timer::{Stage, StageTimer};
 use crate::colouring::Colouring;
 use crate::contacts::{
-    ContactBuffers, FRICTION_SMOOTHING_M_S, SolidContact, contact_penalty, contact_penalty_stiffness,
+    Contacts, FRICTION_SMOOTHING_M_S, Surroundings, contact_penalty, contact_penalty_stiffness, plane_force,
 };
-use crate::control::{Control, PinPaths};
-use crate::integrator::{StageTimes, StepError, StepReport, check_step, commit, external_forces};
+use crate::control::PinPaths;
 use crate::terms::{At, acting};
-use crate::{ClothModel, ClothState, ContactStats, Mat3, SolverParams, Vec3, Workspace};
-use contact::{PairIndex, Plane, SelfPair, Surroundings, plane_force, surroundings};
+use crate::{ClothModel, Mat3, StepError, StepReport, Vec3};
 use rayon::prelude::*;
+use self_pairs::{PairIndex, SelfPair};
 use serde::{Deserialize, Serialize};
-use std::time::Instant;
 
 /// Settings of the vertex solver (`[solver.vbd]` in a scene).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -92,8 +92,10 @@ pub fn chebyshev_omega(k: usize, rho: f64, previous: f64) -> f64 {
 }
 
 /// Vertex Block Descent (`vbd`).
-#[derive(Debug, Clone, Copy, Default)]
-pub struct Vbd;
+#[derive(Debug, Default)]
+pub struct Vbd {
+    buffers: Option<Box<VbdBuffers>>,
+}
 
 /// Buffers of the vertex solver, allocated on first use.
 #[derive(Debug, Clone)]
@@ -118,8 +120,6 @@ pub(crate) struct VbdBuffers {
     moves: Vec<(Vec3, bool)>,
     /// Particles whose bound cut their step in this sweep.
     cut: Vec<bool>,
-    around: Vec<Surroundings>,
-    queries: Vec<u32>,
     pairs: Vec<SelfPair>,
     index: PairIndex,
 }
@@ -139,8 +139,6 @@ impl VbdBuffers {
             fixed: vec![false; n],
             moves: Vec::with_capacity(n),
             cut: vec![false; n],
-            around: vec![Surroundings::free(Vec3::zeros()); n],
-            queries: vec![0; n],
             pairs: Vec::new(),
             index: PairIndex::default(),
         }
@@ -187,10 +185,11 @@ struct Local<'a> {
 }
 
 impl<'a> Local<'a> {
-    /// The local steps at the buffers' iterate.
-    fn at(common: Common<'a>, b: &'a VbdBuffers) -> Self {
+    /// The local steps at the buffers' iterate, with the solids `around`
+    /// each particle.
+    fn at(common: Common<'a>, b: &'a VbdBuffers, around: &'a [Surroundings]) -> Self {
         let (x, v, d, inertial) = (&b.x[..], &b.v[..], &b.d[..], &b.inertial[..]);
-        Self { common, x, v, d, inertial, around: &b.around, pairs: &b.pairs, index: &b.index }
+        Self { common, x, v, d, inertial, around, pairs: &b.pairs, index: &b.index }
     }
 
     /// Particle `i`'s loads from everything but inertia at the iterate
@@ -333,29 +332,29 @@ impl<'a> Local<'a> {
     }
 }
 
-impl crate::Integrator for Vbd {
+impl Integrator for Vbd {
     fn name(&self) -> &'static str {
         crate::IntegratorKind::Vbd.name()
     }
 
-    fn step(
-        &self,
-        model: &ClothModel,
-        state: &mut ClothState,
-        control: &Control,
-        h: f64,
-        ws: &mut Workspace,
-        solver: &SolverParams,
+    fn capabilities(&self) -> Capabilities {
+        Capabilities { contacts: ContactHandling::Penalties, loads_at_start: true, ..Capabilities::default() }
+    }
+
+    fn solve(
+        &mut self,
+        step: &Step<'_>,
+        contacts: &mut Contacts,
+        out: &mut StepOutput,
+        timer: &mut StageTimer,
     ) -> Result<StepReport, StepError> {
-        check_step(model, state, h)?;
+        let Step { model, state, control, h, solver, loads, .. } = *step;
         let params = solver.vbd;
-        let t_start = Instant::now();
-        let has_external = external_forces(model, state, control, ws);
-        let Workspace { vbd, contacts, external, pin_forces, new_x, new_v, .. } = ws;
-        let b = vbd.get_or_insert_with(|| VbdBuffers::new(model));
+        let b = self.buffers.get_or_insert_with(|| Box::new(VbdBuffers::new(model)));
         let n = state.len();
         let (xn, vn) = (&state.x[..], &state.v[..]);
         let gravity = model.effects().gravity.unwrap_or_else(Vec3::zeros);
+        let lap = timer.start();
         for (inertial, v) in b.inertial.iter_mut().zip(vn) {
             *inertial = v * h;
         }
@@ -364,56 +363,20 @@ impl crate::Integrator for Vbd {
         for k in 0..paths.count() {
             b.fixed[paths.particle(k)] = true;
         }
-
-        // Solids and self pairs around each particle, from the step's start.
-        let mut stats = ContactStats::default();
-        let t_self = Instant::now();
+        // The self pairs the collision stage found, as penalties.
         b.pairs.clear();
         let self_thickness = model.self_collision().map_or(0.0, |sc| sc.thickness_m);
         if let Some(sc) = model.self_collision() {
-            let found = crate::contacts::detect_self_contacts(model, sc, xn, vn, h, contacts).map_err(|particle| {
-                StepError::NonFinite { step: state.steps + 1, time_s: state.time_s, particle, quantity: "position" }
-            })?;
-            stats.hash_builds += found.hash_builds;
-            b.pairs.extend(contacts.self_pairs.iter().filter(|c| c.repels).map(|c| SelfPair::of(c, sc.stiffness_n_m)));
-            stats.self_contacts = b.pairs.len();
+            let repelling = contacts.self_pairs.iter().filter(|c| c.repels);
+            b.pairs.extend(repelling.map(|c| SelfPair::of(c, sc.stiffness_n_m)));
         }
         b.index.rebuild(n, &b.pairs);
-        let self_collision_s = t_self.elapsed().as_secs_f64();
+        timer.stop(lap, Stage::Update);
         let thickness = model.contact_thickness();
-        let reach = |i: usize| 2.0 * thickness + 2.0 * h * vn[i].norm();
-        let t_collide = Instant::now();
-        let (solids, solids_now) = if model.colliders().is_empty() {
-            (&[][..], &[][..])
-        } else {
-            contacts.set_external(control);
-            let ContactBuffers { now, next, external: motions, .. } = contacts;
-            (next.at(model, motions, state.time_s + h), now.at(model, motions, state.time_s))
-        };
-        let fixed = &b.fixed;
-        b.around.par_iter_mut().zip(b.queries.par_iter_mut()).enumerate().for_each(|(i, (a, q))| {
-            (*a, *q) = if fixed[i] || solids.is_empty() {
-                (Surroundings::free(xn[i]), 0)
-            } else {
-                surroundings(model, (solids_now, solids), xn[i], reach(i), thickness)
-            };
-        });
-        for (i, (a, q)) in b.around.iter().zip(&b.queries).enumerate() {
-            stats.narrow_phase_queries += *q as usize;
-            // How deep the step starts inside a solid where the solid is
-            // now (as the other integrators report it), for the particles
-            // near one.
-            for p in a.planes.iter().flatten() {
-                let k = p.collider as usize;
-                let now = model.colliders()[k].shape.closest(solids_now[k].pose(), xn[i]);
-                stats.max_penetration_m = stats.max_penetration_m.max(-now.distance_m);
-            }
-        }
-        let collision_s = t_collide.elapsed().as_secs_f64();
         let common = Common {
             model,
             stitches_closed: &state.stitches_closed,
-            external: has_external.then_some(&external[..]),
+            external: loads.forces(),
             h,
             thickness,
             self_thickness,
@@ -422,12 +385,12 @@ impl crate::Integrator for Vbd {
         // The first guess, within the bounds from the step's start: the
         // paper's adaptive one, gravity as far as each particle's last
         // acceleration followed it.
-        let t_solve = Instant::now();
+        let lap = timer.start();
         let mut moves = std::mem::take(&mut b.moves);
         moves.clear();
         moves.resize(n, (Vec3::zeros(), false));
         {
-            let start = Local { x: xn, v: vn, ..Local::at(common, b) };
+            let start = Local { x: xn, v: vn, ..Local::at(common, b, &contacts.around) };
             let history = state.has_history && state.last_dt_s > 0.0;
             moves.par_chunks_mut(MOVE_CHUNK).enumerate().for_each(|(chunk, ms)| {
                 for (k, m) in ms.iter_mut().enumerate() {
@@ -460,7 +423,7 @@ impl crate::Integrator for Vbd {
         for sweep in 1..=params.iterations {
             sweeps = sweep;
             // The friction's normal forces, lagged from the sweep's start.
-            for (i, a) in b.around.iter_mut().enumerate() {
+            for (i, a) in contacts.around.iter_mut().enumerate() {
                 let k = contact_penalty_stiffness(model.masses()[i], h);
                 for p in a.planes.iter_mut().flatten() {
                     p.lagged_normal_n = contact_penalty(p.gap(&b.x[i]), thickness, k).1;
@@ -471,7 +434,7 @@ impl crate::Integrator for Vbd {
                 let group = &b.colouring.groups()[c];
                 moves.clear();
                 moves.resize(group.len(), (Vec3::zeros(), false));
-                let local = Local::at(common, b);
+                let local = Local::at(common, b, &contacts.around);
                 let fixed = &b.fixed;
                 moves.par_chunks_mut(MOVE_CHUNK).zip(group.par_chunks(MOVE_CHUNK)).for_each(|(ms, ids)| {
                     for (m, &i) in ms.iter_mut().zip(ids) {
@@ -498,7 +461,7 @@ impl crate::Integrator for Vbd {
                         continue;
                     }
                     let accelerated = older + (*d - older) * omega;
-                    let (to, a) = (xn[i] + accelerated, &b.around[i]);
+                    let (to, a) = (xn[i] + accelerated, &contacts.around[i]);
                     let in_planes = a.planes.iter().flatten().all(|p| p.gap(&to) >= p.gap(x).min(floor));
                     if in_planes && (to - a.centre).norm() <= a.radius_m {
                         (*d, *x, *v) = (accelerated, to, accelerated / h);
@@ -510,75 +473,40 @@ impl crate::Integrator for Vbd {
                 b.previous.copy_from_slice(&b.d);
             }
             // Particles their ball stopped look around again from where they are.
-            if !solids.is_empty() {
-                let (around, cut, x) = (&mut b.around, &mut b.cut, &b.x);
-                around.par_iter_mut().zip(cut.par_iter_mut()).enumerate().for_each(|(i, (a, c))| {
-                    if *c {
-                        *a = surroundings(model, (solids, solids), x[i], reach(i), thickness).0;
-                        *c = false;
-                    }
-                });
-            }
+            contacts.look_around_again(step, &b.x, &mut b.cut);
             if params.tolerance_m > 0.0 && largest < params.tolerance_m {
                 converged = true;
                 break;
             }
         }
         b.moves = moves;
-        let solve_s = t_solve.elapsed().as_secs_f64();
+        timer.stop(lap, Stage::Solve);
 
-        // Outputs: pin reactions, contact impulses, the new state.
-        let local = Local::at(common, b);
-        pin_forces.resize(paths.count(), Vec3::zeros());
-        for (k, f) in pin_forces.iter_mut().enumerate() {
+        // Outputs: pin reactions and the new state.
+        let lap = timer.start();
+        let local = Local::at(common, b, &contacts.around);
+        let forces = out.pin_forces_mut(paths.count());
+        for (k, f) in forces.iter_mut().enumerate() {
             let i = paths.particle(k);
             let inertia = model.masses()[i] / (h * h);
             *f = (b.d[i] - b.inertial[i]) * inertia - local.loads(i, false).force;
         }
-        contacts.solid.clear();
-        for (i, a) in b.around.iter().enumerate() {
-            let k = contact_penalty_stiffness(model.masses()[i], h);
-            for p in a.planes.iter().flatten() {
-                let gap = p.gap(&b.x[i]);
-                let push = contact_penalty(gap, thickness, k).1;
-                if push > 0.0 {
-                    let (force, _) = plane_force(p, &b.x[i], &b.v[i], k, thickness, h, FRICTION_SMOOTHING_M_S);
-                    contacts.solid.push(solid_contact(i, p, push, force * h, gap));
-                }
-            }
-        }
-        stats.contacts = contacts.solid.len();
         // The iterate becomes the new state; the next step sets every
         // entry of `b.x` and `b.v` before it reads them.
-        std::mem::swap(new_x, &mut b.x);
-        std::mem::swap(new_v, &mut b.v);
-        // Nothing passes through the cloth in the step (velocities are the
-        // displacement over h here).
-        let mut self_collision_s = self_collision_s;
-        if let Some(sc) = model.self_collision().filter(|sc| sc.continuous) {
-            let t = Instant::now();
-            contacts.crossings.start_step(new_x.len());
-            (stats.self_crossings, stats.crossings_left) =
-                crate::contacts::untangle_step(model, sc, xn, h, new_x, new_v, contacts);
-            self_collision_s += t.elapsed().as_secs_f64();
-        }
-        let stages = StageTimes {
-            solve_s,
-            collision_s,
-            self_collision_s,
-            update_s: (t_start.elapsed().as_secs_f64() - solve_s - collision_s - self_collision_s).max(0.0),
-            ..StageTimes::default()
-        };
-        commit(state, ws, h)?;
+        std::mem::swap(&mut out.x, &mut b.x);
+        std::mem::swap(&mut out.v, &mut b.v);
+        timer.stop(lap, Stage::Update);
         Ok(StepReport {
             force_evaluations: sweeps,
             substeps: 1,
             converged,
-            stages,
-            contacts: stats,
             descent_iterations: sweeps,
             ..StepReport::default()
         })
+    }
+
+    fn reset(&mut self) {
+        self.buffers = None;
     }
 }
 
@@ -601,10 +529,4 @@ fn adaptive_acceleration(g: Vec3, last: Option<Vec3>) -> Vec3 {
         Some(a) if g2 > 0.0 => g * (a.dot(&g) / g2).clamp(0.0, 1.0),
         _ => g,
     }
-}
-
-/// What the step reports of a solid's contact with particle `i`.
-fn solid_contact(i: usize, p: &Plane, push: f64, impulse: Vec3, gap: f64) -> SolidContact {
-    let held = SolidContact::new(i, p.collider as usize, p.point, p.normal, p.solid_velocity, p.friction);
-    SolidContact { distance_m: gap, normal_force_n: push, impulse_n_s: impulse, ..held }
 }

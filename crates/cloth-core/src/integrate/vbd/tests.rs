@@ -3,7 +3,7 @@
 //! and its contacts.
 
 use super::*;
-use crate::{Edge, IntegratorKind, ModelKind, NewtonParams, Simulation};
+use crate::{Edge, IntegratorKind, ModelKind, NewtonParams, Simulation, SolverParams};
 
 /// A hanging `n x n` sheet, 0.5 m square, pinned along one edge, with
 /// bending and damping.
@@ -111,7 +111,7 @@ fn the_incremental_potential_falls_at_every_sweep() {
             let mut state = sim.state().clone();
             state.x.clone_from(&x0);
             state.v.clone_from(&v0);
-            sim.restore(&state).unwrap();
+            sim.set_state(&state).unwrap();
             sim.step(h).unwrap();
             let g = incremental_potential(&model, &x0, &v0, h, &sim.state().x);
             assert!(g < last, "{kind:?}: sweep {sweeps} raised the potential from {last} to {g} J");

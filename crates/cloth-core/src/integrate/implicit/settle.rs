@@ -10,12 +10,15 @@
 //! while the set changes: they only decide which contacts hold, stick or
 //! slide. The [`Settling`] state machine says which solve comes next.
 
-use super::integrator::{Linearised, StepInputs, add_solve, solve};
+use super::scheme::Linearised;
+use super::solve::{add_solve, solve};
+use super::{StepInputs, Workspace};
 use crate::contacts::{
     FrictionMode, MAX_REVIVALS, SolidContact, add_penetrating, constrain_contacts, read_contact_forces,
     release_pulling, stick_frictional_contacts, stick_or_slide,
 };
-use crate::{ClothModel, ContactStats, SolverParams, StepError, StepReport, Workspace};
+use crate::integrate::timer::{Stage, StageTimer};
+use crate::{ClothModel, SolverParams, StepError, StepReport};
 
 /// How a step treats its solid contacts, from the solver settings and the
 /// model.
@@ -117,8 +120,6 @@ impl Settling {
 pub(crate) struct Settled {
     /// Solves, CG iterations and whether the set's final solve converged.
     pub(crate) report: StepReport,
-    /// Time in the solves, s.
-    pub(crate) solve_s: f64,
     /// Contacts were still being added when the passes ran out.
     pub(crate) unresolved: bool,
 }
@@ -138,13 +139,15 @@ pub(crate) fn stick_frictional<S>(step: StepInputs<'_, S>, contacts: &mut [Solid
 }
 
 /// Solves the step with the contacts of its start, then settles the set
-/// pass by pass (at most `solver.contacts.max_passes` re-solves).
+/// pass by pass (at most `solver.contacts.max_passes` re-solves); the
+/// passes' counters go to `ws.contacts`' stats, the solves' time to
+/// `timer`'s solve stage.
 pub(crate) fn settle_contacts<S: Linearised>(
     step: StepInputs<'_, S>,
-    ws: &mut Workspace,
+    ws: &mut Workspace<'_>,
     rules: ContactRules,
     force_coefficient: f64,
-    stats: &mut ContactStats,
+    timer: &mut StageTimer,
 ) -> Result<Settled, StepError> {
     let StepInputs { scheme, model, state, control: _, h, solver } = step;
     let value = |target, i| scheme.pinned(state, h, target, i);
@@ -158,27 +161,28 @@ pub(crate) fn settle_contacts<S: Linearised>(
     let last = solver.contacts.max_passes;
     let passes = if model.colliders().is_empty() { 0 } else { last + 1 };
     for pass in 0..passes {
-        let (matrix, rhs) = (&ws.system.matrix, &ws.system.rhs);
-        let (contacts, unknown) = (&mut ws.contacts.solid, &ws.unknown);
+        let (matrix, rhs) = (&ws.s.system.matrix, &ws.s.system.rhs);
+        let (contacts, unknown) = (&mut ws.contacts.solid, &ws.s.unknown);
         let masses = model.masses();
-        let bodies = &ws.bodies;
+        let bodies = &ws.out.bodies;
         let kept = |c: &SolidContact| c.revivals >= MAX_REVIVALS && bodies.outweighs(c, masses[c.particle as usize]);
-        let (filter, laws) = (&mut ws.filter, (value, kept));
+        let (filter, laws) = (&mut ws.s.filter, (value, kept));
         let released = release_pulling(contacts, matrix, rhs, unknown, force_coefficient, &state.x, filter, laws);
         for i in 0..state.len() {
-            ws.new_x[i] = scheme.advance(state, &ws.aux, h, i, ws.unknown[i]).0;
+            ws.out.x[i] = scheme.advance(state, &ws.s.aux, h, i, ws.s.unknown[i]).0;
         }
         let (contacts, rhs, solved) =
-            (&mut ws.contacts.solid, &mut ws.system.rhs, (&ws.unknown[..], force_coefficient));
-        let (matrix, filter) = (&ws.system.matrix, &mut ws.filter);
-        let slid = stick_or_slide(contacts, matrix, rhs, solved, &state.x, &ws.new_x, filter, value);
-        let bodies = &ws.bodies;
+            (&mut ws.contacts.solid, &mut ws.s.system.rhs, (&ws.s.unknown[..], force_coefficient));
+        let (matrix, filter) = (&ws.s.system.matrix, &mut ws.s.filter);
+        let slid = stick_or_slide(contacts, matrix, rhs, solved, &state.x, &ws.out.x, filter, value);
+        let bodies = &ws.out.bodies;
         let movable = |c: &SolidContact| bodies.holds(c);
-        let (contacts, filter) = (&mut ws.contacts, &mut ws.filter);
-        let added = add_penetrating(model, &state.x, &ws.new_x, (state.time_s, h), contacts, filter, (value, movable));
+        let (contacts, filter) = (&mut ws.contacts, &mut ws.s.filter);
+        let added = add_penetrating(model, &state.x, &ws.out.x, (state.time_s, h), contacts, filter, (value, movable));
         if rules.friction_in_solve && added > 0 && stick_frictional(step, &mut ws.contacts.solid) > 0 {
-            constrain_contacts(&ws.contacts.solid, &state.x, &mut ws.filter, value);
+            constrain_contacts(&ws.contacts.solid, &state.x, &mut ws.s.filter, value);
         }
+        let stats = &mut ws.contacts.stats;
         (stats.released, stats.added) = (stats.released + released, stats.added + added);
         unresolved = added > 0 && pass == last;
         let settled = released + added + slid == 0;
@@ -186,7 +190,7 @@ pub(crate) fn settle_contacts<S: Linearised>(
         match settling.after_pass(settled, pass == last, sliding) {
             // Bodies in the solve take the forces of the last solve: it
             // must be of the set that stands.
-            NextSolve::Done if !settled && ws.bodies.active() => {
+            NextSolve::Done if !settled && ws.out.bodies.active() => {
                 let (r, s) = solve(ws, state, solver)?;
                 add_solve(&mut report, &mut solve_s, &r, s, true);
                 break;
@@ -204,12 +208,13 @@ pub(crate) fn settle_contacts<S: Linearised>(
             }
         }
     }
-    if ws.bodies.active() {
-        let (matrix, rhs, solved) = (&ws.system.matrix, &ws.system.rhs, (&ws.unknown[..], force_coefficient));
-        let bodies = &ws.bodies;
+    if ws.out.bodies.active() {
+        let (matrix, rhs, solved) = (&ws.s.system.matrix, &ws.s.system.rhs, (&ws.s.unknown[..], force_coefficient));
+        let bodies = &ws.out.bodies;
         read_contact_forces(&mut ws.contacts.solid, matrix, rhs, solved, |c| bodies.holds(c));
     }
-    Ok(Settled { report, solve_s, unresolved })
+    timer.add(Stage::Solve, solve_s);
+    Ok(Settled { report, unresolved })
 }
 
 #[cfg(test)]

@@ -1,11 +1,12 @@
-//! Contacts inside the descent: every solid near a particle and every
-//! self-collision pair enter the incremental potential as energies of the
-//! particles they touch, and conservative per-particle bounds keep each
-//! local step from carrying a particle through a surface (the idea of
-//! Offset Geometric Contact; Chen et al. 2025), with no continuous
-//! collision detection and no active set.
+//! The solids around each particle, for the integrators whose contacts are
+//! energies ([`crate::ContactHandling::Penalties`]): up to two nearby
+//! solid surfaces, each linearised as a plane, and a ball the particle may
+//! move in without reaching any other solid. Conservative per-particle
+//! bounds keep each local step from carrying a particle through a surface
+//! (the idea of Offset Geometric Contact; Chen et al. 2025), with no
+//! continuous collision detection and no active set.
 
-use crate::contacts::{SelfContact, SolidPose, contact_penalty, smoothed_friction};
+use super::contacts::{SolidPose, contact_penalty, smoothed_friction};
 use crate::{ClothModel, Mat3, Vec3};
 
 /// A solid's surface near a particle, linearised at the closest point
@@ -157,98 +158,6 @@ pub(crate) fn friction_secant(s: f64, limit: f64, eps: f64) -> f64 {
     limit * f1_over_s
 }
 
-/// A self-collision pair as an energy of up to four particles: its gap
-/// `g(x) = d . sum_k c_k x_k` along the direction `d` found at detection
-/// (`c = [1, -w_0, -w_1, -w_2]` for a particle against a point of weights
-/// `w` of a triangle or a particle), with the penalty
-/// [`contact_penalty`] below the self-collision thickness.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct SelfPair {
-    pub nodes: [u32; 4],
-    pub coefficients: [f64; 4],
-    pub direction: Vec3,
-    /// Penalty stiffness, N/m.
-    pub stiffness_n_m: f64,
-}
-
-impl SelfPair {
-    /// The pair of a detected self contact, with penalty stiffness `k` (N/m).
-    pub fn of(c: &SelfContact, k: f64) -> Self {
-        let [a, b, e] = c.others;
-        let [wa, wb, we] = c.weights;
-        Self {
-            nodes: [c.particle, a, b, e],
-            coefficients: [1.0, -wa, -wb, -we],
-            direction: c.direction,
-            stiffness_n_m: k,
-        }
-    }
-
-    /// The gap at `x`, m.
-    pub fn gap(&self, x: &[Vec3]) -> f64 {
-        let p: Vec3 = (0..4).map(|k| x[self.nodes[k] as usize] * self.coefficients[k]).sum();
-        self.direction.dot(&p)
-    }
-
-    /// Force on the pair's slot `slot` (N) and its stiffness block (N/m) at `x`.
-    pub fn force_on(&self, slot: usize, x: &[Vec3], thickness: f64) -> (Vec3, Mat3) {
-        let (_, push) = contact_penalty(self.gap(x), thickness, self.stiffness_n_m);
-        if push == 0.0 {
-            return (Vec3::zeros(), Mat3::zeros());
-        }
-        let c = self.coefficients[slot];
-        let d = self.direction;
-        (d * (push * c), d * d.transpose() * (self.stiffness_n_m * c * c))
-    }
-}
-
-/// Per particle, the self pairs it is in (pair index and slot), CSR.
-#[derive(Debug, Clone, Default)]
-pub(crate) struct PairIndex {
-    start: Vec<u32>,
-    entries: Vec<(u32, u8)>,
-    fill: Vec<u32>,
-}
-
-impl PairIndex {
-    /// Rebuilds the index of `pairs` over `n` particles (no allocation
-    /// once the buffers have grown).
-    pub fn rebuild(&mut self, n: usize, pairs: &[SelfPair]) {
-        self.start.clear();
-        self.start.resize(n + 1, 0);
-        fn slots(p: &SelfPair) -> impl Iterator<Item = usize> + '_ {
-            (0..4).filter(move |&s| p.coefficients[s] != 0.0)
-        }
-        for p in pairs {
-            for s in slots(p) {
-                self.start[p.nodes[s] as usize + 1] += 1;
-            }
-        }
-        for i in 0..n {
-            self.start[i + 1] += self.start[i];
-        }
-        self.entries.clear();
-        self.entries.resize(self.start[n] as usize, (0, 0));
-        self.fill.clear();
-        self.fill.extend_from_slice(&self.start[..n]);
-        for (k, p) in pairs.iter().enumerate() {
-            for s in slots(p) {
-                let i = p.nodes[s] as usize;
-                self.entries[self.fill[i] as usize] = (k as u32, s as u8);
-                self.fill[i] += 1;
-            }
-        }
-    }
-
-    /// Particle `i`'s pairs and slots.
-    pub fn of(&self, i: usize) -> &[(u32, u8)] {
-        if self.start.len() <= i + 1 {
-            return &[];
-        }
-        &self.entries[self.start[i] as usize..self.start[i + 1] as usize]
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -299,48 +208,5 @@ mod tests {
             assert!((friction - law).norm() < 1e-12, "{speed}: {friction} against {law}");
             assert!((friction_secant(speed, 0.8, eps) * speed - law.norm()).abs() < 1e-12);
         }
-    }
-
-    /// A self pair's force on each of its particles is minus its energy's
-    /// gradient there, and its block the force's Jacobian.
-    #[test]
-    fn self_pair_forces_are_the_penalty_gradient() {
-        let c = SelfContact {
-            particle: 0,
-            others: [1, 2, 3],
-            weights: [0.2, 0.5, 0.3],
-            direction: Vec3::new(0.1, 0.2, 1.0).normalize(),
-            distance_m: 0.004,
-            repels: true,
-        };
-        let pair = SelfPair::of(&c, 300.0);
-        let thickness = 0.006;
-        let x = vec![
-            Vec3::new(0.01, 0.0, 0.004),
-            Vec3::new(0.0, 0.0, 0.0),
-            Vec3::new(0.02, 0.0, 0.0),
-            Vec3::new(0.0, 0.02, 0.0),
-        ];
-        for slot in 0..4 {
-            let energy = |p: Vec3| {
-                let mut y = x.clone();
-                y[slot] = p;
-                contact_penalty(pair.gap(&y), thickness, 300.0).0
-            };
-            let (f, k) = pair.force_on(slot, &x, thickness);
-            assert!((f + gradient(energy, x[slot], 1e-7)).norm() < 1e-6 * f.norm(), "slot {slot}");
-            let fd = Mat3::from_fn(|r, col| {
-                let d = Vec3::ith(col, 1e-7);
-                let (mut yp, mut ym) = (x.clone(), x.clone());
-                yp[slot] += d;
-                ym[slot] -= d;
-                -(pair.force_on(slot, &yp, thickness).0 - pair.force_on(slot, &ym, thickness).0)[r] / 2e-7
-            });
-            assert!((k - fd).norm() < 1e-6 * k.norm(), "slot {slot}");
-        }
-        let mut index = PairIndex::default();
-        index.rebuild(5, &[pair]);
-        assert_eq!(index.of(2), &[(0, 2)]);
-        assert!(index.of(4).is_empty());
     }
 }

@@ -55,12 +55,15 @@
 //! [`crate::NewtonParams::tolerance_m`] or after
 //! [`crate::NewtonParams::iterations`] linear solves.
 
+use super::scheme::Linearised;
+use super::solve::{constrain_pins, solve};
+use super::{StepInputs, SystemLoads, Workspace};
 use crate::contacts::{
     SolidContact, contact_friction_potential, contact_penalty_energy, contact_penalty_stiffness,
     linearise_contact_friction, penalty_contacts, penalty_watch,
 };
 use crate::forces::{EnergyBuffers, SystemBuffers, SystemTerms, assemble, elastic_energy};
-use crate::integrator::{Linearised, StepInputs, StepLoads, Workspace, constrain_pins, solve};
+use crate::integrate::timer::{Stage, StageTimer};
 use crate::{ClothModel, ClothState, Mat3, StepError, Vec3};
 
 /// Armijo's sufficient-decrease constant.
@@ -133,32 +136,32 @@ pub(crate) struct NewtonOutcome {
     pub evaluations: usize,
     /// Elastic energy evaluations of the line search.
     pub energy_evaluations: usize,
-    pub forces_s: f64,
-    pub assembly_s: f64,
-    pub solve_s: f64,
 }
 
-/// Newton iterations from the unknown in `ws.unknown` (the first
-/// linearised solve). On return `ws.unknown` holds the last accepted
-/// iterate and `ws.system` the assembly there (its right-hand side is `-r`).
-/// Pins keep the values of the first solve; solids act through
-/// penalties (the filter's contact constraints are removed).
+/// Newton iterations from the unknown in `ws.s.unknown` (the first
+/// linearised solve). On return `ws.s.unknown` holds the last accepted
+/// iterate and `ws.s.system` the assembly there (its right-hand side is
+/// `-r`). Pins keep the values of the first solve; solids act through
+/// penalties (the filter's contact constraints are removed). The
+/// assemblies' and solves' times go to `timer`.
 pub(crate) fn iterate<S: Linearised>(
     step: StepInputs<'_, S>,
-    ws: &mut Workspace,
-    loads: &StepLoads,
+    ws: &mut Workspace<'_>,
+    loads: &SystemLoads,
+    timer: &mut StageTimer,
 ) -> Result<NewtonOutcome, StepError> {
-    let mut nb = ws.newton.take().unwrap_or_else(|| NewtonBuffers::new(step.model));
-    let result = iterate_with(step, ws, loads, &mut nb);
-    ws.newton = Some(nb);
+    let mut nb = ws.s.newton.take().unwrap_or_else(|| NewtonBuffers::new(step.model));
+    let result = iterate_with(step, ws, loads, &mut nb, timer);
+    ws.s.newton = Some(nb);
     result
 }
 
 fn iterate_with<S: Linearised>(
     step: StepInputs<'_, S>,
-    ws: &mut Workspace,
-    loads: &StepLoads,
+    ws: &mut Workspace<'_>,
+    loads: &SystemLoads,
     nb: &mut NewtonBuffers,
+    timer: &mut StageTimer,
 ) -> Result<NewtonOutcome, StepError> {
     let StepInputs { scheme, model, state, control, h, solver } = step;
     let (c_f, a, b) = (scheme.force_coefficient(h), scheme.position_per_unknown(h), scheme.velocity_per_unknown(h));
@@ -168,9 +171,9 @@ fn iterate_with<S: Linearised>(
         // Solids act through the penalty from here on: their constraints go,
         // and so does the squeezed particles' friction linearised at the
         // start of the step (a particle between two solids has two penalties).
-        ws.filter.clear();
+        ws.s.filter.clear();
         for c in ws.contacts.solid.iter().filter(|c| c.pressed) {
-            ws.external[c.particle as usize] -= c.solve_constant_n;
+            ws.s.external[c.particle as usize] -= c.solve_constant_n;
         }
     }
     let squeeze_friction = loads.squeeze_friction && !colliders;
@@ -178,14 +181,14 @@ fn iterate_with<S: Linearised>(
     // constraints, then those of a converged iterate.
     lag_normal_forces(&ws.contacts.solid, &mut nb.lagged);
     let (mut refresh, mut fresh) = (false, false);
-    nb.u.copy_from_slice(&ws.unknown);
+    nb.u.copy_from_slice(&ws.s.unknown);
     for solves in 1.. {
         advance_iterate(scheme, state, ws, h, nb);
-        copy_or_zero(loads.external.then_some(&ws.external), &mut nb.external);
+        copy_or_zero(loads.external.then_some(&ws.s.external), &mut nb.external);
         copy_or_zero(squeeze_friction.then_some(&ws.contacts.friction_damping), &mut nb.damping);
         copy_or_zero(loads.self_collision.then_some(&ws.contacts.self_stiffness), &mut nb.stiffness);
         if colliders {
-            penalty_contacts(model, &state.x, &nb.x, (state.time_s, h), &mut ws.contacts);
+            penalty_contacts(model, &state.x, &nb.x, (state.time_s, h), ws.contacts);
             if refresh {
                 lag_normal_forces(&ws.contacts.solid, &mut nb.lagged);
             }
@@ -203,10 +206,11 @@ fn iterate_with<S: Linearised>(
             diag_damping: Some(&nb.damping),
             ..scheme.newton_terms(h, &nb.v, &nb.y, &state.stitches_closed)
         };
-        let t = assemble(model, &nb.x, &terms, &mut ws.system);
-        (out.forces_s, out.assembly_s, out.evaluations) =
-            (out.forces_s + t.links_s, out.assembly_s + t.gather_s, out.evaluations + 1);
-        constrain_pins(model, state, control, h, &mut ws.filter, |_, _| Vec3::zeros());
+        let t = assemble(model, &nb.x, &terms, &mut ws.s.system);
+        timer.add(Stage::Forces, t.links_s);
+        timer.add(Stage::Assembly, t.gather_s);
+        out.evaluations += 1;
+        constrain_pins(model, state, control, h, &mut ws.s.filter, |_, _| Vec3::zeros());
         out.residual_m = residual_distance(ws, a);
         out.converged = out.residual_m <= solver.newton.tolerance_m;
         if out.converged && colliders && !fresh {
@@ -220,16 +224,16 @@ fn iterate_with<S: Linearised>(
         if out.converged || solves >= solver.newton.iterations {
             break;
         }
-        ws.unknown.iter_mut().for_each(|p| *p = Vec3::zeros());
+        ws.s.unknown.iter_mut().for_each(|p| *p = Vec3::zeros());
         let (r, s) = solve(ws, state, solver)?;
-        (out.cg_iterations, out.cg_converged, out.solve_s) =
-            (out.cg_iterations + r.cg_iterations, out.cg_converged & r.converged, out.solve_s + s);
+        timer.add(Stage::Solve, s);
+        (out.cg_iterations, out.cg_converged) = (out.cg_iterations + r.cg_iterations, out.cg_converged & r.converged);
         out.corrections += 1;
         if colliders {
-            penalty_watch(model, &nb.x, &ws.unknown, a, state.time_s + h, &mut ws.contacts);
+            penalty_watch(model, &nb.x, &ws.s.unknown, a, state.time_s + h, ws.contacts);
         }
         let extra = Extra {
-            external: loads.external.then_some(&ws.external[..]),
+            external: loads.external.then_some(&ws.s.external[..]),
             friction: squeeze_friction.then_some(&ws.contacts.friction_damping[..]),
             contacts: colliders.then_some((&ws.contacts.solid[..], &ws.contacts.watch[..])),
             h,
@@ -243,11 +247,11 @@ fn iterate_with<S: Linearised>(
         if alpha == 0.0 {
             break;
         }
-        for (u, p) in nb.u.iter_mut().zip(&ws.unknown) {
+        for (u, p) in nb.u.iter_mut().zip(&ws.s.unknown) {
             *u += p * alpha;
         }
     }
-    ws.unknown.copy_from_slice(&nb.u);
+    ws.s.unknown.copy_from_slice(&nb.u);
     Ok(out)
 }
 
@@ -255,7 +259,7 @@ fn iterate_with<S: Linearised>(
 const LINK_CHUNK: usize = 1024;
 
 /// The worst error of the single linearised step's tension over its
-/// result `ws.unknown` (its end positions left in `ws.new_x`), as a share
+/// result `ws.s.unknown` (its end positions left in `ws.out.x`), as a share
 /// of `k_s L`
 /// ([`tension_linearisation_error`] of every stretch link). Used by
 /// [`crate::NewtonParams::trigger`].
@@ -264,13 +268,13 @@ pub(crate) fn worst_tension_error<S: Linearised>(
     model: &ClothModel,
     state: &ClothState,
     h: f64,
-    ws: &mut Workspace,
+    ws: &mut Workspace<'_>,
 ) -> f64 {
     use rayon::prelude::*;
     for i in 0..state.len() {
-        ws.new_x[i] = scheme.advance(state, &ws.aux, h, i, ws.unknown[i]).0;
+        ws.out.x[i] = scheme.advance(state, &ws.s.aux, h, i, ws.s.unknown[i]).0;
     }
-    let (x, new_x) = (&state.x, &ws.new_x);
+    let (x, new_x) = (&state.x, &ws.out.x);
     // Checked on every step when the run may engage Newton on its own
     // (`NewtonParams::auto_trigger`): in parallel, and the maximum does not
     // depend on the order.
@@ -357,20 +361,21 @@ fn copy_or_zero<T: Copy + Default>(from: Option<&Vec<T>>, to: &mut [T]) {
 }
 
 /// Positions, velocities and the mass term of the iterate `nb.u`.
-fn advance_iterate<S: Linearised>(scheme: &S, state: &ClothState, ws: &Workspace, h: f64, nb: &mut NewtonBuffers) {
+fn advance_iterate<S: Linearised>(scheme: &S, state: &ClothState, ws: &Workspace<'_>, h: f64, nb: &mut NewtonBuffers) {
     for i in 0..state.len() {
-        (nb.x[i], nb.v[i]) = scheme.advance(state, &ws.aux, h, i, nb.u[i]);
-        nb.y[i] = scheme.newton_mass_term(&ws.aux2, i, nb.u[i]);
+        (nb.x[i], nb.v[i]) = scheme.advance(state, &ws.s.aux, h, i, nb.u[i]);
+        nb.y[i] = scheme.newton_mass_term(&ws.s.aux2, i, nb.u[i]);
     }
 }
 
 /// `max_i |A_ii^-1 S_i r_i| a` with `r = -rhs` of the assembly at the
 /// iterate and `A_ii` the matrix's diagonal block, m.
-fn residual_distance(ws: &Workspace, a: f64) -> f64 {
-    (0..ws.system.rhs.len())
+fn residual_distance(ws: &Workspace<'_>, a: f64) -> f64 {
+    (0..ws.s.system.rhs.len())
         .map(|i| {
-            let r = if ws.filter.is_free(i) { ws.system.rhs[i] } else { ws.filter.projector(i) * ws.system.rhs[i] };
-            let d = ws.system.matrix.diag(i).try_inverse().map_or(f64::INFINITY, |inv| (inv * r).norm());
+            let r =
+                if ws.s.filter.is_free(i) { ws.s.system.rhs[i] } else { ws.s.filter.projector(i) * ws.s.system.rhs[i] };
+            let d = ws.s.system.matrix.diag(i).try_inverse().map_or(f64::INFINITY, |inv| (inv * r).norm());
             if r == Vec3::zeros() { 0.0 } else { d * a }
         })
         .fold(0.0, f64::max)
@@ -504,20 +509,20 @@ impl<'a> Line<'a> {
     }
 }
 
-/// Backtracking along the correction `p = ws.unknown` from the iterate in
+/// Backtracking along the correction `p = ws.s.unknown` from the iterate in
 /// `nb`: returns `(alpha, halvings, energy evaluations)`, `alpha = 0` when
 /// no length down to `2^-30` lowers the incremental potential enough, and
 /// `None` when `p` is not a descent direction.
 fn line_search(
     model: &ClothModel,
-    ws: &Workspace,
+    ws: &Workspace<'_>,
     nb: &mut NewtonBuffers,
     coefficients: Coefficients,
     extra: Extra<'_>,
 ) -> Option<(f64, usize, usize)> {
-    let p = &ws.unknown;
+    let p = &ws.s.unknown;
     let iterate = (&nb.x[..], &nb.v[..], &nb.y[..]);
-    let line = Line::new(model, iterate, &ws.system, p, coefficients, extra);
+    let line = Line::new(model, iterate, &ws.s.system, p, coefficients, extra);
     if line.slope.is_nan() || line.slope >= 0.0 {
         return None;
     }

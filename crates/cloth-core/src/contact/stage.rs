@@ -1,0 +1,294 @@
+//! The collision stage and the contacts' response: the two places of a
+//! step where [`Contacts`] are made. Detection at the step's start finds
+//! what the integrator takes into its solve (by its
+//! [`ContactHandling`]); the response after the solve completes the step
+//! (friction, no bounce off holding solids, self-collision separation,
+//! the continuous self-collision test, the projection out of solids), or
+//! for the integrators without contacts in their solve, handles the
+//! solids at the step's end.
+
+use super::contacts::*;
+use super::surroundings::{Surroundings, plane_force, surroundings};
+use crate::integrate::step::{ContactHandling, Step, StepOutput};
+use crate::integrate::timer::{Stage, StageTimer};
+use crate::{StepError, Vec3};
+use rayon::prelude::*;
+
+/// Rounds of impact zones and projection out of the solids after a step
+/// whose projection pushed cloth (see [`Contacts::respond_to_solve`]).
+const PROJECTION_ROUNDS: usize = 4;
+
+impl Contacts {
+    /// The collision stage: the contacts of the step's start that an
+    /// integrator with `handling` takes into its solve, and their counters.
+    pub(crate) fn detect(
+        &mut self,
+        step: &Step<'_>,
+        handling: ContactHandling,
+        timer: &mut StageTimer,
+    ) -> Result<(), StepError> {
+        self.stats = ContactStats::default();
+        match handling {
+            ContactHandling::Constraints => self.detect_constraints(step, timer),
+            ContactHandling::Penalties => self.detect_surroundings(step, timer),
+            ContactHandling::AfterStep => Ok(()),
+        }
+    }
+
+    /// The response after the solve: completes the step in `out`.
+    pub(crate) fn respond(
+        &mut self,
+        step: &Step<'_>,
+        handling: ContactHandling,
+        out: &mut StepOutput,
+        timer: &mut StageTimer,
+    ) {
+        match handling {
+            ContactHandling::Constraints => {
+                let lap = timer.start();
+                self.respond_to_solve(step, out, timer);
+                timer.stop(lap, Stage::Update);
+            }
+            ContactHandling::Penalties => self.respond_to_penalties(step, out, timer),
+            ContactHandling::AfterStep => {
+                if !step.model.colliders().is_empty() {
+                    timer.time(Stage::Collision, || self.collide_after_step(step, out));
+                }
+            }
+        }
+    }
+
+    /// Self-collision forces of the step's start into `self_force` (and
+    /// their stiffness into `self_stiffness`), and the cloth-solid
+    /// contacts of the step from the particles' predicted positions.
+    fn detect_constraints(&mut self, step: &Step<'_>, timer: &mut StageTimer) -> Result<(), StepError> {
+        let Step { model, state, control, h, .. } = *step;
+        if let Some(sc) = model.self_collision() {
+            let found = timer.time(Stage::SelfCollision, || {
+                detect_self_contacts(model, sc, &state.x, &state.v, h, self).map_err(|particle| StepError::NonFinite {
+                    step: state.steps + 1,
+                    time_s: state.time_s,
+                    particle,
+                    quantity: "position",
+                })
+            })?;
+            self.stats += found;
+        }
+        self.solid.clear();
+        if !model.colliders().is_empty() {
+            let found = timer.time(Stage::Collision, || {
+                self.set_external(control);
+                detect_solid_contacts(model, state, h, self)
+            });
+            self.stats += found;
+        }
+        Ok(())
+    }
+
+    /// The self-collision pairs of the step's start, and each particle's
+    /// surroundings: the solids within its reach (twice the thickness plus
+    /// twice what it covers in a step at its speed), found where each
+    /// solid is at the step's start and carried to its end.
+    fn detect_surroundings(&mut self, step: &Step<'_>, timer: &mut StageTimer) -> Result<(), StepError> {
+        let Step { model, state, control, h, .. } = *step;
+        let (xn, vn) = (&state.x[..], &state.v[..]);
+        if let Some(sc) = model.self_collision() {
+            let found = timer.time(Stage::SelfCollision, || {
+                detect_self_contacts(model, sc, xn, vn, h, self).map_err(|particle| StepError::NonFinite {
+                    step: state.steps + 1,
+                    time_s: state.time_s,
+                    particle,
+                    quantity: "position",
+                })
+            })?;
+            self.stats.hash_builds += found.hash_builds;
+            self.stats.self_contacts = self.self_pairs.iter().filter(|c| c.repels).count();
+        }
+        let lap = timer.start();
+        let n = state.len();
+        self.around.resize(n, Surroundings::free(Vec3::zeros()));
+        self.around_queries.resize(n, 0);
+        let thickness = model.contact_thickness();
+        let reach = |i: usize| 2.0 * thickness + 2.0 * h * vn[i].norm();
+        let (solids, solids_now) = if model.colliders().is_empty() {
+            (&[][..], &[][..])
+        } else {
+            self.set_external(control);
+            let Contacts { now, next, external: motions, .. } = self;
+            (next.at(model, motions, state.time_s + h), now.at(model, motions, state.time_s))
+        };
+        let paths = crate::control::PinPaths::new(model, control, xn, state.time_s, h);
+        self.around_fixed.clear();
+        self.around_fixed.resize(n, false);
+        for i in paths.particles() {
+            self.around_fixed[i] = true;
+        }
+        let fixed = &self.around_fixed;
+        self.around.par_iter_mut().zip(self.around_queries.par_iter_mut()).enumerate().for_each(|(i, (a, q))| {
+            (*a, *q) = if fixed[i] || solids.is_empty() {
+                (Surroundings::free(xn[i]), 0)
+            } else {
+                surroundings(model, (solids_now, solids), xn[i], reach(i), thickness)
+            };
+        });
+        for (i, (a, q)) in self.around.iter().zip(&self.around_queries).enumerate() {
+            self.stats.narrow_phase_queries += *q as usize;
+            // How deep the step starts inside a solid where the solid is
+            // now (as the other integrators report it), for the particles
+            // near one.
+            for p in a.planes.iter().flatten() {
+                let k = p.collider as usize;
+                let now = model.colliders()[k].shape.closest(solids_now[k].pose(), xn[i]);
+                self.stats.max_penetration_m = self.stats.max_penetration_m.max(-now.distance_m);
+            }
+        }
+        timer.stop(lap, Stage::Collision);
+        Ok(())
+    }
+
+    /// The particles a local step's bound stopped (`cut`) look around
+    /// again from where they are (`x`), against the solids at the step's
+    /// end, with the reach of [`Contacts::detect`]; `cut` is cleared.
+    pub(crate) fn look_around_again(&mut self, step: &Step<'_>, x: &[Vec3], cut: &mut [bool]) {
+        let Step { model, state, h, .. } = *step;
+        if model.colliders().is_empty() {
+            return;
+        }
+        let thickness = model.contact_thickness();
+        let vn = &state.v;
+        let reach = |i: usize| 2.0 * thickness + 2.0 * h * vn[i].norm();
+        let solids = self.next.at(model, &self.external, state.time_s + h);
+        self.around.par_iter_mut().zip(cut.par_iter_mut()).enumerate().for_each(|(i, (a, c))| {
+            if *c {
+                *a = surroundings(model, (solids, solids), x[i], reach(i), thickness).0;
+                *c = false;
+            }
+        });
+    }
+
+    /// The response of the assembled implicit steps after their solve
+    /// (positions and velocities in `out`, how the solve went in
+    /// `out.response`): friction (in the solve for squeezed particles and
+    /// in Newton iterations), no bounce off holding solids, self-collision
+    /// separation, the continuous self-collision test and the last
+    /// projection out of solids (solids last: cloth never ends a step
+    /// inside one).
+    fn respond_to_solve(&mut self, step: &Step<'_>, out: &mut StepOutput, timer: &mut StageTimer) {
+        let Step { model, state, h, .. } = *step;
+        let response = out.response;
+        let (tau, newton) = (response.time_s, response.newton);
+        let masses = model.masses();
+        let stats = &mut self.stats;
+        let solid = &mut self.solid;
+        if response.squeeze_friction || newton {
+            squeeze_friction_forces(solid, &out.v);
+        }
+        stats.sticking = apply_friction(solid, masses, (tau, h), newton, &mut out.x, &mut out.v);
+        if !newton {
+            // Held particles do not bounce off their solid.
+            out.bodies.stop_separation(solid, masses, &mut out.v);
+            let bodies = &out.bodies;
+            stop_separation(solid, masses, &mut out.v, |c| bodies.holds(c));
+        }
+        if let Some(sc) = model.self_collision() {
+            let pairs = &self.self_pairs;
+            self.stats.self_separations = separate_self_contacts(model, sc, pairs, tau, &mut out.x, &mut out.v);
+            if sc.continuous {
+                let lap = timer.start();
+                self.crossings.start_step(out.x.len());
+                (self.stats.self_crossings, self.stats.crossings_left) =
+                    untangle_step(model, sc, &state.x, tau, &mut out.x, &mut out.v, self);
+                timer.stop(lap, Stage::SelfCollision);
+            }
+        }
+        if !model.colliders().is_empty() {
+            // After Newton iterations (penalties, not constraints), an active
+            // set that ran out of passes or self-collision separations (which
+            // can push a hem into a swinging shin): check every particle.
+            let stats = self.stats;
+            let all = response.unresolved || newton || stats.self_separations > 0 || stats.self_crossings > 0;
+            let times = (state.time_s, h);
+            let continuous = model.self_collision().filter(|sc| sc.continuous);
+            if continuous.is_some() {
+                self.crossings.before_projection(&out.x);
+            }
+            self.stats.projected = project_out(model, &state.x, times, self, all, &mut out.x, &mut out.v);
+            // A solid pushing cloth out can push it through another layer
+            // (a hem pinched between the knees): the pushed particles are held
+            // and carry what they would cross with them, then the solids
+            // project again, a few rounds.
+            if let Some(sc) = continuous.filter(|_| self.stats.projected > 0) {
+                for _ in 0..PROJECTION_ROUNDS {
+                    let lap = timer.start();
+                    self.crossings.hold_projected(&out.x);
+                    let (met, left) = untangle_step(model, sc, &state.x, tau, &mut out.x, &mut out.v, self);
+                    timer.stop(lap, Stage::SelfCollision);
+                    (self.stats.self_crossings, self.stats.crossings_left) = (self.stats.self_crossings + met, left);
+                    if met == 0 {
+                        break;
+                    }
+                    self.crossings.before_projection(&out.x);
+                    let again = project_out(model, &state.x, times, self, true, &mut out.x, &mut out.v);
+                    self.stats.projected += again;
+                    if again == 0 {
+                        break;
+                    }
+                }
+            }
+        }
+        self.stats.contacts = self.solid.iter().filter(|c| c.active).count();
+    }
+
+    /// The response of the integrators whose contacts are penalties: the
+    /// contacts whose penalty acts at the end of the step (with the
+    /// impulse the penalty and friction gave over it), then the continuous
+    /// self-collision test (nothing passes through the cloth in the step;
+    /// velocities are the displacement over `h` there).
+    fn respond_to_penalties(&mut self, step: &Step<'_>, out: &mut StepOutput, timer: &mut StageTimer) {
+        let Step { model, state, h, .. } = *step;
+        let thickness = model.contact_thickness();
+        let lap = timer.start();
+        self.solid.clear();
+        for (i, a) in self.around.iter().enumerate() {
+            let k = contact_penalty_stiffness(model.masses()[i], h);
+            for p in a.planes.iter().flatten() {
+                let gap = p.gap(&out.x[i]);
+                let push = contact_penalty(gap, thickness, k).1;
+                if push > 0.0 {
+                    let (force, _) = plane_force(p, &out.x[i], &out.v[i], k, thickness, h, FRICTION_SMOOTHING_M_S);
+                    self.solid.push(penalty_contact(i, p, push, force * h, gap));
+                }
+            }
+        }
+        self.stats.contacts = self.solid.len();
+        timer.stop(lap, Stage::Update);
+        if let Some(sc) = model.self_collision().filter(|sc| sc.continuous) {
+            let lap = timer.start();
+            self.crossings.start_step(out.x.len());
+            (self.stats.self_crossings, self.stats.crossings_left) =
+                untangle_step(model, sc, &state.x, h, &mut out.x, &mut out.v, self);
+            timer.stop(lap, Stage::SelfCollision);
+        }
+    }
+
+    /// The solids at the step's end, for the integrators without contacts
+    /// in their solve (see [`collide_after_step`]).
+    fn collide_after_step(&mut self, step: &Step<'_>, out: &mut StepOutput) {
+        let Step { model, state, control, h, .. } = *step;
+        self.set_external(control);
+        let times = (state.time_s, h);
+        self.stats = collide_after_step(model, &state.x, times, self, &mut out.x, &mut out.v);
+    }
+}
+
+/// What a penalty step reports of a solid's contact with particle `i`:
+/// the plane `p`, its push (N), the impulse over the step (N s) and the
+/// gap (m).
+fn penalty_contact(i: usize, p: &super::surroundings::Plane, push: f64, impulse: Vec3, gap: f64) -> SolidContact {
+    SolidContact {
+        distance_m: gap,
+        normal_force_n: push,
+        impulse_n_s: impulse,
+        ..SolidContact::new(i, p.collider as usize, p.point, p.normal, p.solid_velocity, p.friction)
+    }
+}

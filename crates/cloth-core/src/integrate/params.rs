@@ -1,0 +1,244 @@
+//! Every solver setting, in one place: the scene's `[solver]` table and
+//! each algorithm's own table beneath it.
+
+use crate::PcgParams;
+use cloth_linalg::PreconditionerKind;
+use serde::{Deserialize, Serialize};
+
+/// Default of [`SolverParams::max_contact_passes`]: a safety bound, not a
+/// budget. The active set must settle: a stuck contact holds the load off
+/// the stuck ones behind it, so a cloth pulled across a table is released
+/// one row a pass; a low cap leaves rows stuck beyond their Coulomb bound
+/// and the pins pump that into the links (`docs/contacts.md`).
+pub(crate) const MAX_CONTACT_PASSES: usize = 30;
+
+/// Default of [`SolverParams::settling_iterations`].
+pub(crate) const SETTLING_ITERATIONS: usize = 4;
+
+/// Every solver setting of a simulation, in one place: the scene's
+/// `[solver]` table deserialises into it (every key optional, unknown keys
+/// refused). The PCG settings are shared by every assembled implicit step;
+/// each algorithm's own settings are a table of their own
+/// (`[solver.newton]`, `[solver.contacts]`, `[solver.adaptive]`,
+/// `[solver.vbd]`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SolverParams {
+    /// PCG relative tolerance (dimensionless, in (0, 1)). Default 1e-4.
+    pub rel_tol: f64,
+    /// PCG iteration cap. Default 1000.
+    pub max_iter: usize,
+    /// PCG preconditioner. Default the multigrid, built from the model's
+    /// grids.
+    pub preconditioner: PreconditionerKind,
+    /// Accept the last PCG iterate when `max_iter` is reached (the step is
+    /// then reported as unconverged) instead of failing the step.
+    pub accept_unconverged: bool,
+    /// CG iterations per step of `backward-euler-fixed-cg`. Default 4.
+    pub fixed_cg_iterations: usize,
+    /// `bdf2` retakes a step as backward Euler when the energy monitor
+    /// flags it ([`EnergyReport::flagged`](crate::EnergyReport::flagged)), and `backward-euler` retakes
+    /// a flagged single linearised step with Newton iterations
+    /// ([`StepReport::retaken_with_newton`](crate::StepReport::retaken_with_newton)). Default true.
+    pub energy_guard: bool,
+    /// A step that would leave any link longer than this many times its
+    /// rest length fails ([`StepError::BlewUp`](crate::StepError::BlewUp)): no cloth stretches so
+    /// far, and a blown-up run would otherwise go on to the end. Default
+    /// 100 (dimensionless, > 1): a large step can stretch a link tenfold
+    /// for a step or two and recover (BDF2 at h = 0.2 s on the hanging
+    /// cloth: 10.1, then below 1.2).
+    pub blow_up_stretch: f64,
+    /// Newton iterations of `backward-euler` and `bdf2` (`[solver.newton]`).
+    pub newton: NewtonParams,
+    /// How the implicit steps settle their solid contacts (`[solver.contacts]`).
+    pub contacts: ContactSetParams,
+    /// The adaptive explicit integrator's error control (`[solver.adaptive]`).
+    pub adaptive: AdaptiveParams,
+    /// The vertex solver's settings (`[solver.vbd]`; `vbd` only).
+    pub vbd: crate::VbdParams,
+}
+
+impl SolverParams {
+    /// The settings of one PCG solve.
+    pub fn pcg(&self) -> PcgParams {
+        PcgParams { rel_tol: self.rel_tol, max_iter: self.max_iter, preconditioner: self.preconditioner }
+    }
+
+    /// Checks every setting; the error names the first bad key under
+    /// `[solver]` (such as `newton.iterations`) and what is wrong.
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        if !(self.rel_tol.is_finite() && self.rel_tol > 0.0 && self.rel_tol < 1.0) {
+            return Err(("rel_tol".into(), format!("must be in (0, 1), got {}", self.rel_tol)));
+        }
+        if self.max_iter == 0 {
+            return Err(("max_iter".into(), "must be >= 1".into()));
+        }
+        if self.blow_up_stretch.is_nan() || self.blow_up_stretch <= 1.0 {
+            return Err(("blow_up_stretch".into(), format!("must be > 1, got {}", self.blow_up_stretch)));
+        }
+        let within =
+            |table: &str, r: Result<(), (&'static str, String)>| r.map_err(|(k, m)| (format!("{table}.{k}"), m));
+        within("newton", self.newton.validate())?;
+        within("adaptive", self.adaptive.validate())?;
+        within("vbd", self.vbd.validate())
+    }
+}
+
+impl Default for SolverParams {
+    /// Relative tolerance 1e-4, at most 1000 iterations, the multigrid
+    /// preconditioner (built from the model's grids), unconverged solves
+    /// accepted and counted; each algorithm's table at its defaults.
+    fn default() -> Self {
+        Self {
+            rel_tol: PcgParams::default().rel_tol,
+            max_iter: PcgParams::default().max_iter,
+            preconditioner: PreconditionerKind::Multigrid,
+            accept_unconverged: true,
+            fixed_cg_iterations: 4,
+            energy_guard: true,
+            blow_up_stretch: 100.0,
+            newton: NewtonParams::default(),
+            contacts: ContactSetParams::default(),
+            adaptive: AdaptiveParams::default(),
+            vbd: crate::VbdParams::default(),
+        }
+    }
+}
+
+/// The `k h^2 / m` (the stiffest link's or membrane corner's natural
+/// frequency times the step, squared; [`crate::ClothModel::stiffest_per_mass`])
+/// above which a step may be large for the material and
+/// [`NewtonParams::auto_trigger`] checks it: the fixtures at their steps
+/// reach 1.2e4 (the stiff trampoline at 1/90 s; Volino's 5 mm cantilever
+/// at 5 ms, 4.4e5, is checked and never misjudged), the large steps that
+/// overstretch with the single linearised step 1.3e5 (a drape at 0.2 s)
+/// to 6e7 (a stiff cloth at 0.2 s).
+pub const AUTO_NEWTON_MIN_K_H2_M: f64 = 3e4;
+
+/// Newton iterations of `backward-euler` and `bdf2` (`[solver.newton]`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct NewtonParams {
+    /// Most linear solves per step: 1 (default) is Choi & Ko's and Baraff
+    /// & Witkin's single linearised step; more adds Newton corrections
+    /// with a line search on the incremental potential, solids then acting
+    /// as penalties and their friction as a dissipation potential (see
+    /// [`NewtonReport`](crate::NewtonReport)).
+    pub iterations: usize,
+    /// Newton stops once the step equation's residual, as a distance
+    /// (`|r_i| dx/du / m_i`, the distance a particle would still move under
+    /// its unbalanced force alone), is below this everywhere, m. Default 1e-6.
+    pub tolerance_m: f64,
+    /// With `iterations > 1`, the Newton iterations run only on steps whose
+    /// single linearised step misjudged some link's tension by more than
+    /// this share of `k_s L` (its stiffness times its rest length: 0.25 is
+    /// a quarter of the link's length in strain; see
+    /// `newton::tension_linearisation_error`); the other steps are the
+    /// single linearised step, bit for bit. 0 (default): Newton on every
+    /// step. The fixtures' worst steps at 1/90 s: `docs/solvers.md`.
+    pub trigger: f64,
+    /// With `iterations = 1`: a step large for the material by its
+    /// `k_s h^2 / m` ([`AUTO_NEWTON_MIN_K_H2_M`]) whose single linearised
+    /// step misjudged some link's tension by more than this share of
+    /// `k_s L` (measured at 1/90 s the fixtures' worst step is 0.45; a
+    /// hanging cloth at h = 1 s reaches 86) engages Newton: from it on the
+    /// run takes Newton iterations ([`NewtonParams::auto_iterations`] of
+    /// them) on every step (`newton_engaged` ([`crate::Simulation::integrator_memory`])). 0: never.
+    /// Default 0.5.
+    pub auto_trigger: f64,
+    /// The Newton iterations a run takes once [`NewtonParams::auto_trigger`]
+    /// engaged them. Default 10.
+    pub auto_iterations: usize,
+}
+
+impl Default for NewtonParams {
+    fn default() -> Self {
+        Self { iterations: 1, tolerance_m: 1e-6, trigger: 0.0, auto_trigger: 0.5, auto_iterations: 10 }
+    }
+}
+
+impl NewtonParams {
+    /// Checks the settings; names the first bad field.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        if self.iterations == 0 {
+            return Err(("iterations", "must be >= 1".into()));
+        }
+        if !(self.tolerance_m.is_finite() && self.tolerance_m > 0.0) {
+            return Err(("tolerance_m", format!("must be finite and > 0, got {}", self.tolerance_m)));
+        }
+        if !(self.trigger.is_finite() && self.trigger >= 0.0) {
+            return Err(("trigger", format!("must be finite and >= 0, got {}", self.trigger)));
+        }
+        if !(self.auto_trigger.is_finite() && self.auto_trigger >= 0.0) {
+            return Err(("auto_trigger", format!("must be finite and >= 0, got {}", self.auto_trigger)));
+        }
+        if self.auto_iterations < 2 {
+            return Err(("auto_iterations", format!("must be >= 2, got {}", self.auto_iterations)));
+        }
+        Ok(())
+    }
+
+    /// Whether Newton iterations may run at all (`iterations > 1`).
+    pub fn enabled(&self) -> bool {
+        self.iterations > 1
+    }
+}
+
+/// How the implicit steps settle their solid contacts' active set
+/// (`[solver.contacts]`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ContactSetParams {
+    /// Most re-solves of one step's contact active set (contacts released,
+    /// added, switched between sticking and sliding). The default, 30, is a
+    /// bound, not a budget: the set settles, Coulomb's bound holds. Fewer
+    /// trade friction for time: where the passes run out, contacts stay
+    /// stuck beyond their bound (`cloth study stability`, "pulled across a
+    /// table").
+    pub max_passes: usize,
+    /// CG iterations of each solve while a step's contact set is still
+    /// settling: the first solve of a step that starts with solid contacts
+    /// and every re-solve after a pass changed the set. The set settles on
+    /// these rough solves (they only decide which contacts hold, stick or
+    /// slide); then one solve to `rel_tol` and a last check of the set end
+    /// the step. 0: every solve to `rel_tol`. Default 4, which halves the
+    /// CG iterations of the contact fixtures (`docs/contacts.md`).
+    pub settling_iterations: usize,
+}
+
+impl Default for ContactSetParams {
+    fn default() -> Self {
+        Self { max_passes: MAX_CONTACT_PASSES, settling_iterations: SETTLING_ITERATIONS }
+    }
+}
+
+/// The adaptive explicit integrator's error control (`[solver.adaptive]`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct AdaptiveParams {
+    /// Local error tolerance (relative, and absolute in m and m/s).
+    /// Default 1e-4.
+    pub error_tolerance: f64,
+    /// Most substeps (accepted plus rejected) within one step before
+    /// giving up. Default 100000.
+    pub max_substeps: usize,
+}
+
+impl Default for AdaptiveParams {
+    fn default() -> Self {
+        Self { error_tolerance: 1e-4, max_substeps: 100_000 }
+    }
+}
+
+impl AdaptiveParams {
+    /// Checks the settings; names the first bad field.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        if !(self.error_tolerance.is_finite() && self.error_tolerance > 0.0) {
+            return Err(("error_tolerance", format!("must be finite and > 0, got {}", self.error_tolerance)));
+        }
+        if self.max_substeps == 0 {
+            return Err(("max_substeps", "must be >= 1".into()));
+        }
+        Ok(())
+    }
+}
