@@ -25,7 +25,7 @@ pub mod scene;
 pub use contact::{colliders, contacts};
 pub use integrate::energy::{EnergyReport, GAIN_TOLERANCE};
 pub use integrate::explicit::ENERGY_WINDOW;
-pub use integrate::vbd::{self, Vbd, VbdParams};
+pub use integrate::vbd::{self, Vbd};
 pub use integrate::{bodies, control};
 use integrate::{energy, params, registry, report, sim, state, step};
 pub use model::seams::{self, SeamSide, SeamSpec, Stitch};
@@ -49,13 +49,13 @@ pub use model::{
     MeshRange, ModelBuilder, ModelError, ModelKind, ModelSpec, PanelRange, PatternPiece, PinSpec, StrainLimit,
     StretchLink,
 };
-pub use params::{AUTO_NEWTON_MIN_K_H2_M, AdaptiveParams, ContactSetParams, NewtonParams, SolverParams};
+pub use params::{AUTO_NEWTON_MIN_K_H2_M, AdaptiveParams, ContactSetParams, NewtonParams, SolverParams, VbdParams};
 pub use pins::{Pin, PinMotion};
 pub use registry::IntegratorKind;
 pub use report::{NewtonReport, StageTimes, StepError, StepReport};
 pub use sim::{Simulation, SimulationBuilder};
-pub use state::{ClothState, Snapshot};
-pub use step::{Attempt, Capabilities, ContactHandling, Integrator, IntegratorMemory, Step, StepOutput};
+pub use state::{ClothState, IntegratorMemory, Snapshot};
+pub use step::{Attempt, Capabilities, ContactHandling, Integrator, Step, StepOutput};
 pub use topology::{Diagonals, GridPanel, LinkType, PanelError, PanelMesh};
 pub use wind::{Wind, WindProfile};
 

@@ -50,6 +50,7 @@ pub(crate) use super::impact_zones::*;
 pub(crate) use super::penalty::*;
 pub(crate) use super::projection::*;
 pub(crate) use super::response::*;
+pub(crate) use super::scratch::*;
 pub(crate) use super::self_collision::*;
 pub(crate) use super::surroundings::*;
 

@@ -88,15 +88,6 @@ impl Nearest {
     }
 }
 
-/// A solid's pose, motion and world bounding box at one instant.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct SolidPose {
-    /// The pose at this instant (`motion.pose`) and the velocities through it.
-    pub(crate) motion: SolidMotion,
-    pub(crate) lo: Vec3,
-    pub(crate) hi: Vec3,
-}
-
 impl SolidPose {
     /// The solid frame's pose at this instant.
     pub(crate) fn pose(&self) -> &BodyPose {
@@ -118,15 +109,6 @@ impl SolidPose {
     pub(crate) fn velocity_at(&self, point: Vec3) -> Vec3 {
         self.motion.velocity_at(self.motion.time_s, point)
     }
-}
-
-/// Every solid's pose and bounding box at one time, computed once per time
-/// rather than per particle (a spinning solid's pose takes a quaternion
-/// exponential, a mesh's box a transform).
-#[derive(Debug, Clone, Default)]
-pub(crate) struct SolidFrames {
-    pub(crate) time: Option<f64>,
-    pub(crate) solids: Vec<SolidPose>,
 }
 
 impl SolidFrames {
@@ -428,20 +410,6 @@ pub(crate) fn groups(contacts: &[SolidContact]) -> impl Iterator<Item = std::ops
 /// sorted by particle, so a particle's entries are consecutive).
 pub(crate) fn same_particle(a: &SolidContact, b: &SolidContact) -> bool {
     a.particle == b.particle
-}
-
-/// What a step's contact detection or a contact pass learnt of a
-/// particle's distance to the solids at the end of the step: at `from` it
-/// was at least `distance_m` from every solid whose distance is
-/// 1-Lipschitz ([`cloth_collide::SolidShape::distance_is_lipschitz`]). The
-/// passes of a step move most particles by far less than their distance
-/// to the nearest solid; a particle still clear of them by the limit
-/// needs no query at all (the Table-1 dress's particles sit inside the
-/// torso's bounding box: each pass queried the torso for every one).
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Clearance {
-    pub(crate) from: Vec3,
-    pub(crate) distance_m: f64,
 }
 
 impl Clearance {

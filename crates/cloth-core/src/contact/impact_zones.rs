@@ -11,7 +11,7 @@
 //! pushed, which follow those particles' mean displacement, a
 //! translation (`docs/contacts.md`).
 
-use super::contacts::Contacts;
+use super::contacts::{Contacts, CrossingBuffers};
 use super::self_collision::build_exclusions;
 use crate::colliders::SelfCollision;
 use crate::{ClothModel, Mat3, Vec3};
@@ -30,39 +30,6 @@ const ZONE_ROUNDS: usize = 64;
 
 /// Occupied grid cells per parallel chunk of the narrow phase.
 const CELL_CHUNK: usize = 64;
-
-/// Scratch of one chunk of the crossing test: triangle pairs whose boxes
-/// overlap, and the meetings found among their vertices and edges.
-type MeetingChunk = (Vec<(u32, u32)>, Vec<[u32; 4]>);
-
-/// Scratch of the crossing test, built on its first use.
-#[derive(Debug, Clone, Default)]
-pub(crate) struct CrossingBuffers {
-    /// Per triangle, the vertices and edges it tests (`owned_features`).
-    owned: Vec<[u8; 2]>,
-    /// The triangles' swept boxes, and their grid.
-    boxes: Vec<Aabb>,
-    /// Per triangle, its box at the start of the step, its corners' mean
-    /// displacement and their largest departure from it, m.
-    starts: Vec<(Aabb, Vec3, f64)>,
-    extents: Vec<f64>,
-    grid: BoxGrid,
-    /// Per chunk: broad-phase candidates and the meetings found.
-    chunks: Vec<MeetingChunk>,
-    /// The particles of each meeting of the current round.
-    meetings: Vec<[u32; 4]>,
-    /// The step's end positions before any zone moved them.
-    end: Vec<Vec3>,
-    /// Union-find parents of the particles.
-    parent: Vec<u32>,
-    /// Particles in a zone, `(zone root, particle)`, sorted.
-    members: Vec<(u32, u32)>,
-    /// Particles that zones must not move this step: those a solid pushed
-    /// out after the step (see [`CrossingBuffers::hold_projected`]).
-    held: Vec<bool>,
-    /// Positions before the last projection out of the solids.
-    before: Vec<Vec3>,
-}
 
 impl CrossingBuffers {
     /// Starts a step of `n` particles: none held.

@@ -12,6 +12,7 @@ mod impact_zones;
 mod penalty;
 mod projection;
 mod response;
+mod scratch;
 mod self_collision;
 mod stage;
 mod surroundings;

@@ -299,10 +299,6 @@ pub(crate) fn build_exclusions(model: &ClothModel, ptr: &mut Vec<u32>, list: &mu
     }
 }
 
-/// Scratch of one chunk of the particle-triangle search: broad-phase
-/// candidates `(particle, triangle within the chunk)` and the pairs found.
-pub(crate) type TriangleChunk = (Vec<(u32, u32)>, Vec<SelfContact>);
-
 /// Triangles per parallel chunk of the particle-triangle search.
 pub(crate) const TRIANGLE_CHUNK: usize = 256;
 

@@ -8,7 +8,7 @@
 //! solids at the step's end.
 
 use super::contacts::*;
-use super::surroundings::{Surroundings, plane_force, surroundings};
+use super::surroundings::{plane_force, surroundings};
 use crate::integrate::step::{ContactHandling, Step, StepOutput};
 use crate::integrate::timer::{Stage, StageTimer};
 use crate::{StepError, Vec3};
@@ -284,7 +284,7 @@ impl Contacts {
 /// What a penalty step reports of a solid's contact with particle `i`:
 /// the plane `p`, its push (N), the impulse over the step (N s) and the
 /// gap (m).
-fn penalty_contact(i: usize, p: &super::surroundings::Plane, push: f64, impulse: Vec3, gap: f64) -> SolidContact {
+fn penalty_contact(i: usize, p: &Plane, push: f64, impulse: Vec3, gap: f64) -> SolidContact {
     SolidContact {
         distance_m: gap,
         normal_force_n: push,

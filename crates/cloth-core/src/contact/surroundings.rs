@@ -6,44 +6,14 @@
 //! (the idea of Offset Geometric Contact; Chen et al. 2025), with no
 //! continuous collision detection and no active set.
 
-use super::contacts::{SolidPose, contact_penalty, smoothed_friction};
+use super::contacts::{Plane, SolidPose, Surroundings, contact_penalty, smoothed_friction};
 use crate::{ClothModel, Mat3, Vec3};
-
-/// A solid's surface near a particle, linearised at the closest point
-/// found: the particle's gap is `g(x) = n . (x - p)`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct Plane {
-    /// Index of the solid in the model's colliders.
-    pub collider: u32,
-    /// Closest point of the solid at the end of the step, m.
-    pub point: Vec3,
-    /// Unit outward normal there.
-    pub normal: Vec3,
-    /// Velocity of the solid's material point there, m/s.
-    pub solid_velocity: Vec3,
-    /// Coulomb coefficient.
-    pub friction: f64,
-    /// The penalty's force at the start of the current iteration, N: the
-    /// lagged normal force of the friction (IPC's lagged `lambda`).
-    pub lagged_normal_n: f64,
-}
 
 impl Plane {
     /// The particle's gap at `x`, m (negative inside the solid).
     pub fn gap(&self, x: &Vec3) -> f64 {
         self.normal.dot(&(x - self.point))
     }
-}
-
-/// What detection found around one particle: up to two solid surfaces
-/// and a ball the particle may move in without reaching any other solid.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct Surroundings {
-    pub planes: [Option<Plane>; 2],
-    /// Centre of the ball, m.
-    pub centre: Vec3,
-    /// Radius of the ball, m (infinite with no solid near).
-    pub radius_m: f64,
 }
 
 impl Surroundings {

@@ -2,7 +2,6 @@
 //! per-step counters and the buffers reused from step to step.
 
 use super::contacts::*;
-use super::surroundings::Surroundings;
 use crate::control::{Control, SolidMotion};
 use crate::{Mat3, Vec3};
 use cloth_collide::VoxelHash;
@@ -156,6 +155,10 @@ pub struct SelfContact {
     /// particle's nearest triangle); all pairs are kept apart after the step.
     pub repels: bool,
 }
+
+/// Scratch of one chunk of the particle-triangle search: broad-phase
+/// candidates `(particle, triangle within the chunk)` and the pairs found.
+pub(crate) type TriangleChunk = (Vec<(u32, u32)>, Vec<SelfContact>);
 
 /// What collision handling did in one step.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]

@@ -7,12 +7,13 @@
 //! particles are prescribed: at every stage and at the end of a step their
 //! position and velocity are set from their path, so pins stay exact.
 
-use super::step::{Capabilities, Integrator, IntegratorMemory, Step, StepOutput};
+use super::state::IntegratorMemory;
+use super::step::{Capabilities, Integrator, Step, StepOutput};
 use super::timer::{Stage, StageTimer};
 use crate::contacts::Contacts;
 use crate::control::{Control, PinPaths};
 use crate::{
-    ClothModel, ClothState, IntegratorKind, SolverParams, StepError, StepReport, Vec3,
+    ClothModel, ClothState, SolverParams, StepError, StepReport, Vec3,
     forces::{EnergyBuffers, ForceBuffers, forces_into},
     terms::At,
 };
@@ -368,11 +369,34 @@ pub(crate) fn adaptive_dopri5(
     Ok((report, suggestion))
 }
 
+/// An explicit method.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Method {
+    ForwardEuler,
+    SymplecticEuler,
+    Midpoint,
+    Rk4,
+    Dopri5,
+}
+
+impl Method {
+    /// Its name in scene files.
+    pub(crate) const fn name(self) -> &'static str {
+        match self {
+            Method::ForwardEuler => "forward-euler",
+            Method::SymplecticEuler => "symplectic-euler",
+            Method::Midpoint => "midpoint",
+            Method::Rk4 => "rk4",
+            Method::Dopri5 => "dopri5",
+        }
+    }
+}
+
 /// The explicit integrators behind [`crate::Integrator`]: forward and
-/// symplectic Euler, midpoint, RK4 and the adaptive DOPRI5, by kind.
+/// symplectic Euler, midpoint, RK4 and the adaptive DOPRI5, by method.
 #[derive(Debug)]
 pub struct Explicit {
-    kind: IntegratorKind,
+    method: Method,
     buffers: Option<Box<ExplicitBuffers>>,
     /// The adaptive integrator's suggested substep, s (0: none yet): its
     /// memory.
@@ -382,9 +406,9 @@ pub struct Explicit {
 }
 
 impl Explicit {
-    /// The explicit integrator of `kind` (one of the explicit kinds).
-    pub(crate) fn new(kind: IntegratorKind) -> Self {
-        Self { kind, buffers: None, next_dt_s: 0.0, proposed_dt_s: 0.0 }
+    /// The explicit integrator of `method`.
+    pub(crate) fn new(method: Method) -> Self {
+        Self { method, buffers: None, next_dt_s: 0.0, proposed_dt_s: 0.0 }
     }
 }
 
@@ -393,7 +417,7 @@ const NEXT_DT: &str = "next_dt_s";
 
 impl Integrator for Explicit {
     fn name(&self) -> &'static str {
-        self.kind.name()
+        self.method.name()
     }
 
     fn capabilities(&self) -> Capabilities {
@@ -407,11 +431,11 @@ impl Integrator for Explicit {
         out: &mut StepOutput,
         timer: &mut StageTimer,
     ) -> Result<StepReport, StepError> {
-        use IntegratorKind as K;
+        use Method as K;
         let Step { model, state, control, h, solver, .. } = *step;
         let limit_s = model.explicit_stitch_step_limit();
-        if self.kind != K::Dopri5 && h >= limit_s {
-            return Err(StepError::StitchesNeedSmallerStep { integrator: self.kind.name(), h_s: h, limit_s });
+        if self.method != K::Dopri5 && h >= limit_s {
+            return Err(StepError::StitchesNeedSmallerStep { integrator: self.method.name(), h_s: h, limit_s });
         }
         let mut report = StepReport { converged: true, substeps: 1, ..Default::default() };
         let mut next_dt = 0.0;
@@ -421,13 +445,13 @@ impl Integrator for Explicit {
         bufs.pin_total.resize(pins.count(), Vec3::zeros());
         let closed = &state.stitches_closed;
         let start = Start { x: &state.x, v: &state.v, t: state.time_s, stitches_closed: closed, pins, control };
-        match self.kind {
+        match self.method {
             K::SymplecticEuler => {
                 symplectic_euler_step(model, start, h, bufs, timer);
                 report.force_evaluations = 1;
             }
             K::ForwardEuler | K::Midpoint | K::Rk4 => {
-                let tab = match self.kind {
+                let tab = match self.method {
                     K::ForwardEuler => &FORWARD_EULER,
                     K::Midpoint => &MIDPOINT,
                     _ => &RK4,
@@ -440,10 +464,9 @@ impl Integrator for Explicit {
                 (report, next_dt) =
                     adaptive_dopri5(model, state, control, (h, self.next_dt_s), solver, bufs, work, timer)?
             }
-            _ => unreachable!("only the explicit kinds are built as `Explicit`"),
         }
         self.proposed_dt_s = next_dt;
-        if self.kind != K::Dopri5 {
+        if self.method != K::Dopri5 {
             std::mem::swap(&mut bufs.pin_total, &mut bufs.pin_impulse);
         }
         // What the pin gave its particle: its momentum change less the
@@ -468,8 +491,8 @@ impl Integrator for Explicit {
     }
 
     fn memory(&self) -> IntegratorMemory {
-        match self.kind {
-            IntegratorKind::Dopri5 => IntegratorMemory::new(vec![(NEXT_DT, self.next_dt_s)]),
+        match self.method {
+            Method::Dopri5 => IntegratorMemory::new(vec![(NEXT_DT, self.next_dt_s)]),
             _ => IntegratorMemory::default(),
         }
     }

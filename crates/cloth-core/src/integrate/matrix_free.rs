@@ -50,9 +50,14 @@ pub struct BackwardEulerFixedCg {
     buffers: Option<Box<MatrixFreeBuffers>>,
 }
 
+impl BackwardEulerFixedCg {
+    /// Its name in scene files.
+    pub(crate) const NAME: &'static str = "backward-euler-fixed-cg";
+}
+
 impl Integrator for BackwardEulerFixedCg {
     fn name(&self) -> &'static str {
-        crate::IntegratorKind::BackwardEulerFixedCg.name()
+        Self::NAME
     }
 
     fn capabilities(&self) -> Capabilities {

@@ -8,6 +8,7 @@
 //! control, the integrator and what each stage hands on.
 
 pub mod bodies;
+pub(crate) mod body_solve;
 pub mod control;
 pub(crate) mod energy;
 pub(crate) mod explicit;

@@ -55,7 +55,7 @@ pub struct SolverParams {
     /// The adaptive explicit integrator's error control (`[solver.adaptive]`).
     pub adaptive: AdaptiveParams,
     /// The vertex solver's settings (`[solver.vbd]`; `vbd` only).
-    pub vbd: crate::VbdParams,
+    pub vbd: VbdParams,
 }
 
 impl SolverParams {
@@ -100,7 +100,7 @@ impl Default for SolverParams {
             newton: NewtonParams::default(),
             contacts: ContactSetParams::default(),
             adaptive: AdaptiveParams::default(),
-            vbd: crate::VbdParams::default(),
+            vbd: VbdParams::default(),
         }
     }
 }
@@ -238,6 +238,52 @@ impl AdaptiveParams {
         }
         if self.max_substeps == 0 {
             return Err(("max_substeps", "must be >= 1".into()));
+        }
+        Ok(())
+    }
+}
+
+/// Settings of the vertex solver (`[solver.vbd]` in a scene).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct VbdParams {
+    /// Sweeps over every colour per step. Default 10.
+    pub iterations: usize,
+    /// Stop before `iterations` once a sweep moves no particle farther
+    /// than this, m. 0 (default): always `iterations` sweeps.
+    pub tolerance_m: f64,
+    /// Chebyshev acceleration's estimate of the sweeps' spectral radius,
+    /// in `[0, 1)`; 0 (default) turns it off. Off by default: with solid
+    /// contacts it fed energy into the incline's cloth (0.9 drove it
+    /// uphill; `docs/results/vbd.md`).
+    pub chebyshev_rho: f64,
+    /// Halve a local step until the particle's local potential falls, so
+    /// that every sweep lowers the step's potential (default true).
+    /// Without it a sweep over Choi & Ko's links (concave in compression)
+    /// can raise the potential, and the sweeps can cycle short of the
+    /// solution: a hanging strip stalled at 20 times its static sag. It
+    /// costs an energy evaluation at each trial position (2.0 times the
+    /// hanging cloth's step; `docs/results/vbd.md`).
+    pub line_search: bool,
+}
+
+impl Default for VbdParams {
+    fn default() -> Self {
+        Self { iterations: 10, tolerance_m: 0.0, chebyshev_rho: 0.0, line_search: true }
+    }
+}
+
+impl VbdParams {
+    /// Checks the settings; names the first bad field.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        if self.iterations == 0 {
+            return Err(("iterations", "must be >= 1".into()));
+        }
+        if !(self.tolerance_m.is_finite() && self.tolerance_m >= 0.0) {
+            return Err(("tolerance_m", format!("must be finite and >= 0, got {}", self.tolerance_m)));
+        }
+        if !(0.0..1.0).contains(&self.chebyshev_rho) {
+            return Err(("chebyshev_rho", format!("must be in [0, 1), got {}", self.chebyshev_rho)));
         }
         Ok(())
     }

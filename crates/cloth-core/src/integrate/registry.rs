@@ -2,7 +2,11 @@
 //! constructor, and what an integrator can do sits on the
 //! [`crate::Integrator`] trait ([`crate::Capabilities`]).
 
+use super::explicit::{Explicit, Method};
+use super::implicit::{BackwardEuler, Bdf2};
+use super::matrix_free::BackwardEulerFixedCg;
 use super::step::Integrator;
+use super::vbd::Vbd;
 use serde::{Deserialize, Serialize};
 
 /// Which integrator a simulation uses (scene name in brackets).
@@ -48,35 +52,31 @@ struct Entry {
 /// Every built-in integrator, in [`IntegratorKind::ALL`]'s order. One line
 /// an integrator.
 const REGISTRY: [Entry; 9] = [
-    Entry {
-        kind: IntegratorKind::ForwardEuler,
-        name: "forward-euler",
-        build: || explicit(IntegratorKind::ForwardEuler),
-    },
-    Entry {
-        kind: IntegratorKind::SymplecticEuler,
-        name: "symplectic-euler",
-        build: || explicit(IntegratorKind::SymplecticEuler),
-    },
-    Entry { kind: IntegratorKind::Midpoint, name: "midpoint", build: || explicit(IntegratorKind::Midpoint) },
-    Entry { kind: IntegratorKind::Rk4, name: "rk4", build: || explicit(IntegratorKind::Rk4) },
-    Entry { kind: IntegratorKind::Dopri5, name: "dopri5", build: || explicit(IntegratorKind::Dopri5) },
-    Entry {
-        kind: IntegratorKind::BackwardEuler,
-        name: "backward-euler",
-        build: || Box::new(super::implicit::BackwardEuler::default()),
-    },
+    explicit(IntegratorKind::ForwardEuler, Method::ForwardEuler),
+    explicit(IntegratorKind::SymplecticEuler, Method::SymplecticEuler),
+    explicit(IntegratorKind::Midpoint, Method::Midpoint),
+    explicit(IntegratorKind::Rk4, Method::Rk4),
+    explicit(IntegratorKind::Dopri5, Method::Dopri5),
+    Entry { kind: IntegratorKind::BackwardEuler, name: BackwardEuler::NAME, build: || Box::<BackwardEuler>::default() },
     Entry {
         kind: IntegratorKind::BackwardEulerFixedCg,
-        name: "backward-euler-fixed-cg",
-        build: || Box::new(super::matrix_free::BackwardEulerFixedCg::default()),
+        name: BackwardEulerFixedCg::NAME,
+        build: || Box::<BackwardEulerFixedCg>::default(),
     },
-    Entry { kind: IntegratorKind::Bdf2, name: "bdf2", build: || Box::new(super::implicit::Bdf2::default()) },
-    Entry { kind: IntegratorKind::Vbd, name: "vbd", build: || Box::new(super::vbd::Vbd::default()) },
+    Entry { kind: IntegratorKind::Bdf2, name: Bdf2::NAME, build: || Box::<Bdf2>::default() },
+    Entry { kind: IntegratorKind::Vbd, name: Vbd::NAME, build: || Box::<Vbd>::default() },
 ];
 
-fn explicit(kind: IntegratorKind) -> Box<dyn Integrator> {
-    Box::new(super::explicit::Explicit::new(kind))
+/// The entry of an explicit method.
+const fn explicit(kind: IntegratorKind, method: Method) -> Entry {
+    let build: fn() -> Box<dyn Integrator> = match method {
+        Method::ForwardEuler => || Box::new(Explicit::new(Method::ForwardEuler)),
+        Method::SymplecticEuler => || Box::new(Explicit::new(Method::SymplecticEuler)),
+        Method::Midpoint => || Box::new(Explicit::new(Method::Midpoint)),
+        Method::Rk4 => || Box::new(Explicit::new(Method::Rk4)),
+        Method::Dopri5 => || Box::new(Explicit::new(Method::Dopri5)),
+    };
+    Entry { kind, name: method.name(), build }
 }
 
 impl IntegratorKind {

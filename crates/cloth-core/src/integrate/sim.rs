@@ -4,8 +4,8 @@
 
 use super::loads::Loads;
 use super::pipeline::{self, Parts};
-use super::state::Snapshot;
-use super::step::{Integrator, IntegratorMemory, StepOutput};
+use super::state::{IntegratorMemory, Snapshot};
+use super::step::{Integrator, StepOutput};
 use crate::contacts::{Contacts, max_penetration, particles_inside};
 use crate::control::{Control, ControlError, SolidImpulse, SolidMotion};
 use crate::{ClothModel, ClothState, IntegratorKind, SolverParams, StepError, StepReport, Vec3};

@@ -2,8 +2,7 @@
 //! the state with what the integrator carries from step to step.
 //! Restoring a snapshot and stepping reproduces the same bits.
 
-use super::step::IntegratorMemory;
-use crate::{ClothModel, Vec3};
+use crate::{ClothModel, StepError, Vec3};
 
 /// Positions, velocities and the one-step history BDF2 needs.
 #[derive(Debug, Clone, PartialEq)]
@@ -112,4 +111,47 @@ fn unit_noise(k: usize) -> f64 {
     z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
     z ^= z >> 31;
     (z >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+}
+
+/// What an integrator carries from one step to the next besides the
+/// cloth's state, as named numbers (an adaptive integrator's suggested
+/// substep, whether Newton iterations are engaged): part of a
+/// [`crate::Snapshot`], so that a restored snapshot steps to the same bits.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct IntegratorMemory {
+    entries: Vec<(&'static str, f64)>,
+}
+
+impl IntegratorMemory {
+    /// Memory of `entries` (name, value).
+    pub fn new(entries: Vec<(&'static str, f64)>) -> Self {
+        Self { entries }
+    }
+
+    /// Every entry, in the integrator's order.
+    pub fn entries(&self) -> &[(&'static str, f64)] {
+        &self.entries
+    }
+
+    /// The value named `name`.
+    pub fn get(&self, name: &str) -> Option<f64> {
+        self.entries.iter().find(|(n, _)| *n == name).map(|(_, v)| *v)
+    }
+
+    /// The same names with `values` in their order (a memory read back
+    /// from a serialised state); `None` when the count differs.
+    pub fn with_values(&self, values: &[f64]) -> Option<Self> {
+        (values.len() == self.entries.len())
+            .then(|| Self { entries: self.entries.iter().zip(values).map(|((n, _), v)| (*n, *v)).collect() })
+    }
+
+    /// Checks that `other` has this memory's names, in order.
+    pub(crate) fn same_names(&self, other: &Self) -> Result<(), StepError> {
+        let names = |m: &Self| m.entries.iter().map(|(n, _)| *n).collect::<Vec<_>>();
+        if names(self) == names(other) {
+            Ok(())
+        } else {
+            Err(StepError::MemoryMismatch { expected: names(self).join(", "), got: names(other).join(", ") })
+        }
+    }
 }

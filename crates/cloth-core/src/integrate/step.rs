@@ -1,7 +1,6 @@
 //! What an integrator sees of a step and what it hands on: the
 //! [`Integrator`] trait, the step's read-only inputs ([`Step`]), where its
-//! solve writes ([`StepOutput`]), what it can do ([`Capabilities`]) and
-//! what it carries from one step to the next ([`IntegratorMemory`]).
+//! solve writes ([`StepOutput`]), what it can do ([`Capabilities`]).
 //!
 //! The pipeline (`pipeline.rs`) calls the trait's stages in order; an
 //! integrator fills in the ones it has. One written outside this crate
@@ -9,8 +8,9 @@
 //! [`Integrator::solve`], keeps its scratch in itself, and is handed to
 //! [`crate::SimulationBuilder::custom_integrator`].
 
-use super::bodies::BodyBuffers;
+use super::body_solve::BodyBuffers;
 use super::loads::Loads;
+use super::state::IntegratorMemory;
 use super::timer::StageTimer;
 use crate::contacts::Contacts;
 use crate::control::Control;
@@ -163,49 +163,6 @@ impl StepOutput {
     pub fn pin_forces_mut(&mut self, count: usize) -> &mut [Vec3] {
         self.pin_forces.resize(count, Vec3::zeros());
         &mut self.pin_forces
-    }
-}
-
-/// What an integrator carries from one step to the next besides the
-/// cloth's state, as named numbers (an adaptive integrator's suggested
-/// substep, whether Newton iterations are engaged): part of a
-/// [`crate::Snapshot`], so that a restored snapshot steps to the same bits.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct IntegratorMemory {
-    entries: Vec<(&'static str, f64)>,
-}
-
-impl IntegratorMemory {
-    /// Memory of `entries` (name, value).
-    pub fn new(entries: Vec<(&'static str, f64)>) -> Self {
-        Self { entries }
-    }
-
-    /// Every entry, in the integrator's order.
-    pub fn entries(&self) -> &[(&'static str, f64)] {
-        &self.entries
-    }
-
-    /// The value named `name`.
-    pub fn get(&self, name: &str) -> Option<f64> {
-        self.entries.iter().find(|(n, _)| *n == name).map(|(_, v)| *v)
-    }
-
-    /// The same names with `values` in their order (a memory read back
-    /// from a serialised state); `None` when the count differs.
-    pub fn with_values(&self, values: &[f64]) -> Option<Self> {
-        (values.len() == self.entries.len())
-            .then(|| Self { entries: self.entries.iter().zip(values).map(|((n, _), v)| (*n, *v)).collect() })
-    }
-
-    /// Checks that `other` has this memory's names, in order.
-    pub(crate) fn same_names(&self, other: &Self) -> Result<(), StepError> {
-        let names = |m: &Self| m.entries.iter().map(|(n, _)| *n).collect::<Vec<_>>();
-        if names(self) == names(other) {
-            Ok(())
-        } else {
-            Err(StepError::MemoryMismatch { expected: names(self).join(", "), got: names(other).join(", ") })
-        }
     }
 }
 

@@ -16,22 +16,24 @@ mod newton;
 mod scheme;
 mod settle;
 mod solve;
+mod workspace;
 
 pub(crate) use scheme::{EulerScheme, Linearised};
 pub(crate) use solve::constrain_pins;
 
-use super::step::{Attempt, Capabilities, ContactHandling, Integrator, IntegratorMemory, Response, Step, StepOutput};
+use super::state::IntegratorMemory;
+use super::step::{Attempt, Capabilities, ContactHandling, Integrator, Response, Step, StepOutput};
 use super::timer::{Stage, StageTimer};
 use crate::contacts::{Contacts, FrictionMode, constrain_contacts, linearise_squeeze_friction};
 use crate::control::PinPaths;
 use crate::energy::{self, EnergyReport};
-use crate::forces::{EnergyBuffers, SystemBuffers, assemble};
-use crate::{ClothModel, Mat3, NewtonParams, NewtonReport, SolverParams, StepError, StepReport, Vec3};
-use cloth_linalg::{ConstraintFilter, Pcg, PreconditionerKind};
-use newton::NewtonBuffers;
+use crate::forces::assemble;
+use crate::{Mat3, NewtonParams, NewtonReport, SolverParams, StepError, StepReport, Vec3};
+use cloth_linalg::PreconditionerKind;
 use scheme::Bdf2Scheme;
 use settle::{ContactRules, settle_contacts, stick_frictional};
 use solve::with_loads;
+use workspace::{Scratch, StepInputs, SystemLoads, Workspace};
 
 /// Backward Euler (Baraff & Witkin 1998, Eq. 16):
 /// `[M - h D - h^2 K] dv = h (f + h K v)`, `x' = x + h (v + dv)`. A single
@@ -50,9 +52,19 @@ pub struct BackwardEuler(Implicit);
 #[derive(Debug, Default)]
 pub struct Bdf2(Implicit);
 
+impl BackwardEuler {
+    /// Its name in scene files.
+    pub(crate) const NAME: &'static str = "backward-euler";
+}
+
+impl Bdf2 {
+    /// Its name in scene files.
+    pub(crate) const NAME: &'static str = "bdf2";
+}
+
 impl Integrator for BackwardEuler {
     fn name(&self) -> &'static str {
-        crate::IntegratorKind::BackwardEuler.name()
+        Self::NAME
     }
 
     fn capabilities(&self) -> Capabilities {
@@ -112,7 +124,7 @@ impl Integrator for BackwardEuler {
 
 impl Integrator for Bdf2 {
     fn name(&self) -> &'static str {
-        crate::IntegratorKind::Bdf2.name()
+        Self::NAME
     }
 
     fn capabilities(&self) -> Capabilities {
@@ -216,104 +228,6 @@ pub(crate) struct Implicit {
     scratch: Option<Box<Scratch>>,
     newton_engaged: bool,
     scheme: SchemeKind,
-}
-
-/// The loads the assembled system carries besides the links: which of
-/// `Scratch::external`, the contacts' self-collision stiffness and
-/// squeezed particles' friction hold anything this step.
-#[derive(Debug, Clone, Copy, Default)]
-pub(crate) struct SystemLoads {
-    /// `Scratch::external` holds forces (wind, control, self-collision,
-    /// squeezed particles' sliding friction).
-    pub(crate) external: bool,
-    /// `Contacts::self_stiffness` holds self-collision stiffness.
-    pub(crate) self_collision: bool,
-    /// `Contacts::friction_damping` holds friction of squeezed particles.
-    pub(crate) squeeze_friction: bool,
-}
-
-/// Scratch of the implicit steps, sized once per model.
-#[derive(Debug, Clone)]
-pub(crate) struct Scratch {
-    pub(crate) system: SystemBuffers,
-    pub(crate) pcg: Pcg,
-    pub(crate) filter: ConstraintFilter,
-    pub(crate) unknown: Vec<Vec3>,
-    pub(crate) aux: Vec<Vec3>,
-    pub(crate) aux2: Vec<Vec3>,
-    /// Newton iterations' buffers (allocated on first use).
-    pub(crate) newton: Option<NewtonBuffers>,
-    /// The forces the system carries at the step's start, N (see
-    /// [`SystemLoads::external`]).
-    pub(crate) external: Vec<Vec3>,
-    /// Scratch of the energy monitor.
-    energy: EnergyBuffers,
-    /// Which loads the current attempt's system carries.
-    loads: SystemLoads,
-    /// The scheme's force coefficient `c_f` of the current attempt.
-    force_coefficient: f64,
-    /// Kinetic, elastic and gravitational energy at the step's start, J.
-    energy_before: (f64, f64, f64),
-}
-
-impl Scratch {
-    /// Buffers for `model`, and the multigrid hierarchy when `solver` asks for it.
-    fn new(model: &ClothModel, solver: &SolverParams) -> Self {
-        let n = model.particle_count();
-        let mut pcg = Pcg::new(n);
-        if solver.preconditioner == PreconditionerKind::Multigrid {
-            pcg.set_multigrid(model.multigrid());
-        }
-        Self {
-            system: SystemBuffers::new(model),
-            pcg,
-            filter: ConstraintFilter::new(n),
-            unknown: vec![Vec3::zeros(); n],
-            aux: vec![Vec3::zeros(); n],
-            aux2: vec![Vec3::zeros(); n],
-            newton: None,
-            external: vec![Vec3::zeros(); n],
-            energy: EnergyBuffers::new(model),
-            loads: SystemLoads::default(),
-            force_coefficient: 0.0,
-            energy_before: (0.0, 0.0, 0.0),
-        }
-    }
-}
-
-/// The implicit steps' view of a step's buffers: their scratch, the
-/// contacts and the output.
-pub(crate) struct Workspace<'a> {
-    pub(crate) s: &'a mut Scratch,
-    pub(crate) contacts: &'a mut Contacts,
-    pub(crate) out: &'a mut StepOutput,
-}
-
-/// What one attempt of a [`Linearised`] scheme reads and never changes:
-/// the scheme, the model, the state at the step's start, the control
-/// inputs, the step size (s) and the solver settings.
-pub(crate) struct StepInputs<'a, S> {
-    pub(crate) scheme: &'a S,
-    pub(crate) model: &'a ClothModel,
-    pub(crate) state: &'a crate::ClothState,
-    pub(crate) control: &'a crate::Control,
-    pub(crate) h: f64,
-    pub(crate) solver: &'a SolverParams,
-}
-
-impl<S> Clone for StepInputs<'_, S> {
-    fn clone(&self) -> Self {
-        *self
-    }
-}
-
-impl<S> Copy for StepInputs<'_, S> {}
-
-impl<'a, S> StepInputs<'a, S> {
-    fn of(scheme: &'a S, step: &Step<'a>, solver: &'a SolverParams) -> Self {
-        let Step { model, state, control, h, .. } = *step;
-        Self { scheme, model, state, control, h, solver }
-    }
 }
 
 impl Implicit {

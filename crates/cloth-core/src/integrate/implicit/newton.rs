@@ -57,7 +57,7 @@
 
 use super::scheme::Linearised;
 use super::solve::{constrain_pins, solve};
-use super::{StepInputs, SystemLoads, Workspace};
+use super::workspace::{NewtonBuffers, StepInputs, SystemLoads, Workspace};
 use crate::contacts::{
     SolidContact, contact_friction_potential, contact_penalty_energy, contact_penalty_stiffness,
     linearise_contact_friction, penalty_contacts, penalty_watch,
@@ -73,30 +73,6 @@ const MAX_BACKTRACKS: usize = 30;
 
 /// An empty slot of [`NewtonBuffers::lagged`].
 const NO_CONTACT: (u32, f64) = (u32::MAX, 0.0);
-
-/// Scratch of the Newton iterations, sized once per model.
-#[derive(Debug, Clone)]
-pub(crate) struct NewtonBuffers {
-    energy: EnergyBuffers,
-    /// The iterate's unknown, positions and velocities.
-    u: Vec<Vec3>,
-    x: Vec<Vec3>,
-    v: Vec<Vec3>,
-    /// `y0 - u` at the iterate (the residual's mass term).
-    y: Vec<Vec3>,
-    /// Positions of a line-search trial.
-    trial: Vec<Vec3>,
-    /// External forces and diagonal damping of the iterate's assembly:
-    /// the step's plus the held particles' linearised friction.
-    external: Vec<Vec3>,
-    damping: Vec<Mat3>,
-    /// Diagonal stiffness of the iterate's assembly: self-collision's
-    /// (of the start of the step) and the solids' penalties.
-    stiffness: Vec<Mat3>,
-    /// Per particle, up to two `(solid, normal force in N)`: the normal
-    /// forces friction uses, frozen between updates (`u32::MAX`: none).
-    lagged: Vec<[(u32, f64); 2]>,
-}
 
 impl NewtonBuffers {
     pub(crate) fn new(model: &ClothModel) -> Self {

@@ -12,7 +12,7 @@
 
 use super::scheme::Linearised;
 use super::solve::{add_solve, solve};
-use super::{StepInputs, Workspace};
+use super::workspace::{StepInputs, Workspace};
 use crate::contacts::{
     FrictionMode, MAX_REVIVALS, SolidContact, add_penetrating, constrain_contacts, read_contact_forces,
     release_pulling, stick_frictional_contacts, stick_or_slide,

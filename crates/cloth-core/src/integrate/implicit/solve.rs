@@ -2,7 +2,7 @@
 //! PCG (with the bodies in the solve when there are any), the pins in the
 //! constraint filter, and the loads the system carries besides the links.
 
-use super::{SystemLoads, Workspace};
+use super::workspace::{SystemLoads, Workspace};
 use crate::contacts::Contacts;
 use crate::control::{Control, PinPaths};
 use crate::forces::SystemTerms;

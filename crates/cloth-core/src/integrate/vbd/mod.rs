@@ -32,53 +32,6 @@ use crate::terms::{At, acting};
 use crate::{ClothModel, Mat3, StepError, StepReport, Vec3};
 use rayon::prelude::*;
 use self_pairs::{PairIndex, SelfPair};
-use serde::{Deserialize, Serialize};
-
-/// Settings of the vertex solver (`[solver.vbd]` in a scene).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct VbdParams {
-    /// Sweeps over every colour per step. Default 10.
-    pub iterations: usize,
-    /// Stop before `iterations` once a sweep moves no particle farther
-    /// than this, m. 0 (default): always `iterations` sweeps.
-    pub tolerance_m: f64,
-    /// Chebyshev acceleration's estimate of the sweeps' spectral radius,
-    /// in `[0, 1)`; 0 (default) turns it off. Off by default: with solid
-    /// contacts it fed energy into the incline's cloth (0.9 drove it
-    /// uphill; `docs/results/vbd.md`).
-    pub chebyshev_rho: f64,
-    /// Halve a local step until the particle's local potential falls, so
-    /// that every sweep lowers the step's potential (default true).
-    /// Without it a sweep over Choi & Ko's links (concave in compression)
-    /// can raise the potential, and the sweeps can cycle short of the
-    /// solution: a hanging strip stalled at 20 times its static sag. It
-    /// costs an energy evaluation at each trial position (2.0 times the
-    /// hanging cloth's step; `docs/results/vbd.md`).
-    pub line_search: bool,
-}
-
-impl Default for VbdParams {
-    fn default() -> Self {
-        Self { iterations: 10, tolerance_m: 0.0, chebyshev_rho: 0.0, line_search: true }
-    }
-}
-
-impl VbdParams {
-    /// Checks the settings; names the first bad field.
-    pub fn validate(&self) -> Result<(), (&'static str, String)> {
-        if self.iterations == 0 {
-            return Err(("iterations", "must be >= 1".into()));
-        }
-        if !(self.tolerance_m.is_finite() && self.tolerance_m >= 0.0) {
-            return Err(("tolerance_m", format!("must be finite and >= 0, got {}", self.tolerance_m)));
-        }
-        if !(0.0..1.0).contains(&self.chebyshev_rho) {
-            return Err(("chebyshev_rho", format!("must be in [0, 1), got {}", self.chebyshev_rho)));
-        }
-        Ok(())
-    }
-}
 
 /// Chebyshev's weight `omega_k` of sweep `k` (1-based) from the previous
 /// one (Wang 2015, as VBD uses it): 1, then `2 / (2 - rho^2)`, then
@@ -332,9 +285,14 @@ impl<'a> Local<'a> {
     }
 }
 
+impl Vbd {
+    /// Its name in scene files.
+    pub(crate) const NAME: &'static str = "vbd";
+}
+
 impl Integrator for Vbd {
     fn name(&self) -> &'static str {
-        crate::IntegratorKind::Vbd.name()
+        Self::NAME
     }
 
     fn capabilities(&self) -> Capabilities {

@@ -3,7 +3,7 @@
 //! and its contacts.
 
 use super::*;
-use crate::{Edge, IntegratorKind, ModelKind, NewtonParams, Simulation, SolverParams};
+use crate::{Edge, IntegratorKind, ModelKind, NewtonParams, Simulation, SolverParams, VbdParams};
 
 /// A hanging `n x n` sheet, 0.5 m square, pinned along one edge, with
 /// bending and damping.
