@@ -5,7 +5,8 @@ use crate::output::{
     StageWall, Summary, write_obj,
 };
 use anyhow::{Context, Result, bail};
-use cloth_core::scene::{EffectName, RunConfig, Scene, SceneError};
+use cloth_core::Effect;
+use cloth_core::scene::{RunConfig, Scene, SceneError};
 use cloth_core::{ClothModel, ContactStats, Simulation, StepReport, Vec3};
 use cloth_rapier::scene::has_bodies;
 use cloth_rapier::{CoupledRun, CoupledScene, CouplingReport, Master, Momentum};
@@ -389,7 +390,7 @@ pub(crate) fn simulate_steps(
         particles: model.particle_count(),
         stretch_links: model.stretch_links().len(),
         bend_links: model.bend_links().len(),
-        effects: EffectName::ALL.into_iter().filter(|e| scene.has_effect(*e)).map(|e| e.name().to_string()).collect(),
+        effects: Effect::ALL.iter().filter(|e| scene.has_effect(**e)).map(|e| e.name().to_string()).collect(),
         model: scene.simulation.model.name().to_string(),
         integrator: cfg.integrator.name().to_string(),
         threads,

@@ -29,7 +29,7 @@ pub use integrate::vbd::{self, Vbd};
 pub use integrate::{bodies, control};
 use integrate::{energy, params, registry, report, sim, state, step};
 pub use model::seams::{self, SeamSide, SeamSpec, Stitch};
-pub use model::{cloth_mesh, colouring, element_laws, elements, forces, laws, terms, wind};
+pub use model::{cloth_mesh, colouring, element_laws, elements, forces, laws, system, terms, wind};
 use model::{constraints, keyframes, material, pins, topology};
 
 pub use cloth_collide::{BodyPose, ShapeSpec, VoxelHash};
@@ -45,9 +45,9 @@ pub use integrate::matrix_free::BackwardEulerFixedCg;
 pub use integrate::timer::{Lap, Stage, StageTimer};
 pub use material::{BendConstants, Compressive, Lattice, Material, Membrane};
 pub use model::{
-    BendLaw, BendLink, BendingLaw, ClothMesh, ClothModel, Compression, ConeWrap, Edge, Effects, Incidence, MeshPanel,
-    MeshRange, ModelBuilder, ModelError, ModelKind, ModelSpec, PanelRange, PatternPiece, PinSpec, StrainLimit,
-    StretchLink,
+    BendLaw, BendLink, BendingLaw, ClothMesh, ClothModel, Compression, ConeWrap, Edge, Effect, EffectValues, Effects,
+    Incidence, MeshPanel, MeshRange, ModelBuilder, ModelError, ModelKind, ModelSpec, PanelRange, PatternPiece, PinSpec,
+    StrainLimit, StretchLink,
 };
 pub use params::{AUTO_NEWTON_MIN_K_H2_M, AdaptiveParams, ContactSetParams, NewtonParams, SolverParams, VbdParams};
 pub use pins::{Pin, PinMotion};

@@ -114,8 +114,8 @@
 //! respond after the step (projection, inelastic impulse, Coulomb friction).
 
 use crate::{
-    BendingLaw, ClothModel, ColliderSpec, CollisionSpec, Effects, GridPanel, IntegratorKind, Material, ModelKind,
-    ModelSpec, PinSpec, SeamSpec, SelfCollisionSpec, SolverParams, StrainLimit, Vec3, Wind,
+    BendingLaw, ClothModel, ColliderSpec, CollisionSpec, Effect, EffectValues, Effects, GridPanel, IntegratorKind,
+    Material, ModelKind, ModelSpec, PinSpec, SeamSpec, SelfCollisionSpec, SolverParams, StrainLimit, Vec3, Wind,
 };
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -221,27 +221,6 @@ pub fn check_start_outside(
     })
 }
 
-/// An effect a scene can ask for.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum EffectName {
-    /// Uniform gravity (`simulation.gravity_m_s2`).
-    Gravity,
-    /// Directional damping along type-1 links (`material.damping_n_s_m`).
-    Damping,
-    /// Bending links: Choi-Ko type-2 buckling links, or Provot's flexion
-    /// springs (`material.flexural_rigidity_n_m`, `buckling_stiffness_n_m`).
-    Bending,
-    /// Provot's deformation constraints (`[constraints]`).
-    StrainLimit,
-    /// Viscous drag on every particle (`material.drag_n_s_m3`).
-    Drag,
-    /// Provot's viscous fluid force along particle normals (`[wind]`).
-    Wind,
-    /// Aerodynamic drag and lift on triangles (`[wind]`).
-    Aerodynamics,
-}
-
 /// `[simulation]`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -261,7 +240,7 @@ pub struct SimulationSection {
     /// Simulated duration, s.
     pub duration_s: f64,
     /// Effects to compute; anything not listed is not computed.
-    pub effects: Vec<EffectName>,
+    pub effects: Vec<Effect>,
     /// Gravitational acceleration, m/s^2 (used when `gravity` is listed).
     #[serde(default = "default_gravity")]
     pub gravity_m_s2: [f64; 3],
@@ -338,32 +317,6 @@ pub enum SceneErrorKind {
         /// Why it is invalid.
         message: String,
     },
-}
-
-impl EffectName {
-    /// Every effect.
-    pub const ALL: [EffectName; 7] = [
-        EffectName::Gravity,
-        EffectName::Damping,
-        EffectName::Bending,
-        EffectName::StrainLimit,
-        EffectName::Drag,
-        EffectName::Wind,
-        EffectName::Aerodynamics,
-    ];
-
-    /// Name as written in scene files.
-    pub fn name(self) -> &'static str {
-        match self {
-            EffectName::Gravity => "gravity",
-            EffectName::Damping => "damping",
-            EffectName::Bending => "bending",
-            EffectName::StrainLimit => "strain-limit",
-            EffectName::Drag => "drag",
-            EffectName::Wind => "wind",
-            EffectName::Aerodynamics => "aerodynamics",
-        }
-    }
 }
 
 impl Scene {
@@ -470,26 +423,20 @@ impl Scene {
     }
 
     /// Whether the scene lists `effect`.
-    pub fn has_effect(&self, effect: EffectName) -> bool {
+    pub fn has_effect(&self, effect: Effect) -> bool {
         self.simulation.effects.contains(&effect)
     }
 
-    /// The model description.
+    /// The model description: the scene's effects switched on from the
+    /// effects table ([`Effect`]).
     pub fn model_spec(&self) -> ModelSpec {
-        ModelSpec {
+        let mut spec = ModelSpec {
             panels: self.panels.clone(),
             meshes: self.meshes.clone(),
             material: self.material,
             pins: self.pins.clone(),
             seams: self.seams.clone(),
-            effects: Effects {
-                gravity: self.has_effect(EffectName::Gravity).then(|| Vec3::from(self.simulation.gravity_m_s2)),
-                damping: self.has_effect(EffectName::Damping),
-                bending: self.has_effect(EffectName::Bending),
-                drag: self.has_effect(EffectName::Drag),
-                wind: self.has_effect(EffectName::Wind),
-                aerodynamics: self.has_effect(EffectName::Aerodynamics),
-            },
+            effects: Effects::default(),
             wind: self.wind.clone(),
             collision: CollisionSpec {
                 colliders: self.colliders.clone(),
@@ -499,8 +446,14 @@ impl Scene {
             },
             kind: self.simulation.model,
             bending_law: self.simulation.bending_law,
-            strain_limit: self.has_effect(EffectName::StrainLimit).then_some(self.constraints),
+            strain_limit: None,
+        };
+        let values =
+            EffectValues { gravity_m_s2: Vec3::from(self.simulation.gravity_m_s2), strain_limit: self.constraints };
+        for effect in &self.simulation.effects {
+            effect.switch_on(&mut spec, &values);
         }
+        spec
     }
 
     /// Checks every field and builds the model and the run configuration.
@@ -693,29 +646,16 @@ nodes = [[0, 3]]
     }
 
     #[test]
-    fn every_effect_is_listed_and_named_as_in_scene_files() {
-        // Exhaustive: a new effect fails to compile here until it is given
-        // a slot, and then this test until it is in ALL.
-        let slot = |e: EffectName| match e {
-            EffectName::Gravity => 0,
-            EffectName::Damping => 1,
-            EffectName::Bending => 2,
-            EffectName::StrainLimit => 3,
-            EffectName::Drag => 4,
-            EffectName::Wind => 5,
-            EffectName::Aerodynamics => 6,
-        };
-        // ALL holds each effect once: one per slot, none twice.
-        let mut seen = [false; 7];
-        for e in EffectName::ALL {
-            assert!(!std::mem::replace(&mut seen[slot(e)], true), "{e:?} twice in ALL");
-        }
-        assert!(seen.iter().all(|&s| s), "an effect missing from ALL: {seen:?}");
-        // Names are distinct and parse back.
-        for e in EffectName::ALL {
+    fn every_effect_is_named_as_in_scene_files_and_switched_on_by_it() {
+        for &e in Effect::ALL {
             let parsed: toml::Table = toml::from_str(&format!("e = \"{}\"", e.name())).unwrap();
-            let back: EffectName = parsed["e"].clone().try_into().unwrap();
+            let back: Effect = parsed["e"].clone().try_into().unwrap();
             assert_eq!(back, e);
+            let scene =
+                Scene::parse(&BASE.replace("effects = [\"gravity\"]", &format!("effects = [\"{}\"]", e.name())), &[])
+                    .unwrap();
+            let spec = scene.model_spec();
+            assert!(Effect::ALL.iter().all(|&o| o.is_on(&spec) == (o == e)), "{}", e.name());
         }
     }
 

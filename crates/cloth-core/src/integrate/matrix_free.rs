@@ -11,12 +11,12 @@ use super::step::{Capabilities, Integrator, Step, StepOutput};
 use super::timer::{Stage, StageTimer};
 use crate::contacts::Contacts;
 use crate::control::PinPaths;
-use crate::forces::{SystemBuffers, apply_scaled_operator, assemble_matrix_free};
+use crate::system::{SystemBuffers, apply_scaled_operator, assemble_matrix_free};
 use crate::{ClothModel, StepError, StepReport, Vec3};
 use cloth_linalg::{CgScratch, ConstraintFilter, PcgError, cg_fixed_iterations};
 
 /// Buffers of the matrix-free solver, allocated on first use.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub(crate) struct MatrixFreeBuffers {
     system: SystemBuffers,
     filter: ConstraintFilter,

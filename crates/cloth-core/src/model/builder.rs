@@ -35,8 +35,8 @@
 use crate::colliders::{ColliderSpec, SelfCollisionSpec};
 use crate::terms::ForceTerm;
 use crate::{
-    BendingLaw, ClothModel, Edge, GridPanel, Material, MeshPanel, ModelError, ModelKind, ModelSpec, PinSpec, SeamSpec,
-    StrainLimit, Vec3, Wind,
+    BendingLaw, ClothModel, Edge, Effect, EffectValues, GridPanel, Material, MeshPanel, ModelError, ModelKind,
+    ModelSpec, PinSpec, SeamSpec, StrainLimit, Vec3, Wind,
 };
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -118,6 +118,18 @@ impl ModelBuilder {
         self
     }
 
+    /// Switches on `effect` with its default values (gravity along `-z`
+    /// at 9.81 m/s^2, the default constraints; see [`EffectValues`]).
+    pub fn effect(self, effect: Effect) -> Self {
+        self.effect_with(effect, &EffectValues::default())
+    }
+
+    /// Switches on `effect` with `values`.
+    pub fn effect_with(mut self, effect: Effect, values: &EffectValues) -> Self {
+        effect.switch_on(&mut self.spec, values);
+        self
+    }
+
     /// Uniform gravity, m/s^2.
     pub fn gravity(mut self, g_m_s2: [f64; 3]) -> Self {
         self.spec.effects.gravity = Some(Vec3::from(g_m_s2));
@@ -126,21 +138,18 @@ impl ModelBuilder {
 
     /// Bending and compression resistance (Choi & Ko's type-2 links,
     /// Provot's flexion springs, Volino's bending triangles).
-    pub fn bending(mut self) -> Self {
-        self.spec.effects.bending = true;
-        self
+    pub fn bending(self) -> Self {
+        self.effect(Effect::Bending)
     }
 
     /// Directional damping along the links (`material.damping_n_s_m`).
-    pub fn damping(mut self) -> Self {
-        self.spec.effects.damping = true;
-        self
+    pub fn damping(self) -> Self {
+        self.effect(Effect::Damping)
     }
 
     /// Viscous drag on every particle (`material.drag_n_s_m3`).
-    pub fn drag(mut self) -> Self {
-        self.spec.effects.drag = true;
-        self
+    pub fn drag(self) -> Self {
+        self.effect(Effect::Drag)
     }
 
     /// The air's motion and coefficients, for [`ModelBuilder::wind`] and
@@ -152,15 +161,13 @@ impl ModelBuilder {
 
     /// Provot's viscous fluid force along the normals (needs
     /// [`ModelBuilder::air`]).
-    pub fn wind(mut self) -> Self {
-        self.spec.effects.wind = true;
-        self
+    pub fn wind(self) -> Self {
+        self.effect(Effect::Wind)
     }
 
     /// Aerodynamic drag and lift on triangles (needs [`ModelBuilder::air`]).
-    pub fn aerodynamics(mut self) -> Self {
-        self.spec.effects.aerodynamics = true;
-        self
+    pub fn aerodynamics(self) -> Self {
+        self.effect(Effect::Aerodynamics)
     }
 
     /// Provot's deformation constraints.

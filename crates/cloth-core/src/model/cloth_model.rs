@@ -3,6 +3,7 @@
 
 use super::build_mesh::*;
 use super::build_parts::*;
+use super::sparsity::{Sparsity, link_pairs};
 use super::spec::*;
 use crate::colliders::{Collider, SelfCollision};
 use crate::elements::{BendTriple, ElementSet};
@@ -427,33 +428,8 @@ impl ClothModel {
         }
 
         // Sparsity pattern and per-row incidence, in a fixed (link) order.
-        let pairs = stretch
-            .iter()
-            .map(|l| (l.i as usize, l.j as usize))
-            .chain(bend.iter().map(|l| (l.i as usize, l.j as usize)))
-            .chain(stitches.iter().map(|s| (s.i as usize, s.j as usize)));
-        let pattern =
-            BlockPattern::from_pairs(n, pairs.clone().chain(elements.pairs())).expect("links index existing particles");
-        elements.index(n, &pattern);
-        let mut counts = vec![0usize; n + 1];
-        for (i, j) in pairs.clone() {
-            counts[i + 1] += 1;
-            counts[j + 1] += 1;
-        }
-        for k in 0..n {
-            counts[k + 1] += counts[k];
-        }
-        let inc_ptr = counts.clone();
-        let mut fill = counts;
-        let mut inc = vec![Incidence { link: 0, other: 0, first: true, slot: 0 }; inc_ptr[n]];
-        for (link, (i, j)) in pairs.enumerate() {
-            for (row, other, first) in [(i, j, true), (j, i, false)] {
-                let slot = pattern.slot(row, other).expect("pair is in the pattern") - pattern.row_range(row).start;
-                inc[fill[row]] = Incidence { link: link as u32, other: other as u32, first, slot: slot as u32 };
-                fill[row] += 1;
-            }
-        }
-        let diag_local = (0..n).map(|i| (pattern.diag_slot(i) - pattern.row_range(i).start) as u32).collect();
+        let link_pairs = link_pairs(&stretch, &bend, &stitches);
+        let Sparsity { pattern, inc_ptr, inc, diag_local } = Sparsity::of(n, &link_pairs, &mut elements, &[]);
         let (tri_ptr, tri_of) = triangles_of_particles(n, &triangles);
         let (sewn_ptr, sewn) = sewn_groups(n, &stitches);
         let collision_error = |(field, message)| ModelError::Collision { field, message };
@@ -533,13 +509,22 @@ impl ClothModel {
     /// Adds a force of the caller's own ([`ForceTerm`]): every integrator
     /// then applies it. The explicit ones and vertex solvers take its
     /// forces and blocks as they take the built-in terms'; the implicit
-    /// steps linearise it on the diagonal: `-df_i/dx_i` and `-df_i/dv_i`
-    /// from [`ForceTerm::vertex`], its force at the step's start without
-    /// velocity, the damping through the step's velocity term (exact for a
-    /// force on each particle alone). Its energy joins the elastic energy
-    /// that the energy monitor and Newton's line search see.
+    /// steps assemble it from its Jacobian ([`ForceTerm::jacobian`]) at the
+    /// step's positions, its force taken without velocity and its damping
+    /// through the step's velocity term, the sparsity pattern growing by
+    /// the pairs it couples ([`ForceTerm::coupled_pairs`]). Its energy joins
+    /// the elastic energy that the energy monitor and Newton's line search
+    /// see.
     pub fn with_force_term(mut self, term: Arc<dyn ForceTerm>) -> Self {
+        let pairs = term.coupled_pairs(&self);
         self.extra_terms.push(term);
+        if pairs.iter().any(|&[i, j]| self.pattern.slot(i, j).is_none()) {
+            let extra: Vec<[usize; 2]> = self.extra_terms.iter().flat_map(|t| t.coupled_pairs(&self)).collect();
+            let links = link_pairs(&self.stretch, &self.bend, &self.stitches);
+            let n = self.particle_count();
+            let Sparsity { pattern, inc_ptr, inc, diag_local } = Sparsity::of(n, &links, &mut self.elements, &extra);
+            (self.pattern, self.inc_ptr, self.inc, self.diag_local) = (pattern, inc_ptr, inc, diag_local);
+        }
         self
     }
 

@@ -362,13 +362,15 @@ pub fn rhs_at(set: &ElementSet, bufs: &ElementBuffers, i: usize) -> Vec3 {
     acc
 }
 
-/// Adds the element blocks of row `i` into `row` (the row's stored blocks).
-pub fn add_row(set: &ElementSet, bufs: &ElementBuffers, i: usize, row: &mut [Mat3]) {
-    fn add<const K: usize>(slots: &[u32; K], blocks: &[Mat3; K], row: &mut [Mat3]) {
+/// Adds the element blocks of row `i`: `add(slot, block)` for each block,
+/// `slot` its position in the row's stored blocks, corner by corner.
+pub fn add_row(set: &ElementSet, bufs: &ElementBuffers, i: usize, mut row: impl FnMut(usize, &Mat3)) {
+    fn add<const K: usize>(slots: &[u32; K], blocks: &[Mat3; K], row: &mut impl FnMut(usize, &Mat3)) {
         for (s, b) in slots.iter().zip(blocks) {
-            row[*s as usize] += b;
+            row(*s as usize, b);
         }
     }
+    let row = &mut row;
     for c in set.corners(i) {
         let (e, a) = (c.elem as usize, c.corner as usize);
         match c.kind {
@@ -378,6 +380,39 @@ pub fn add_row(set: &ElementSet, bufs: &ElementBuffers, i: usize, row: &mut [Mat
             Kind::Hinge => add(&set.hinge_slots[e][a], &bufs.hinges.blocks[e][a], row),
         }
     }
+}
+
+/// Every element's forces and Hessian blocks at `x`, element by element:
+/// `force(a, f_a)` and `block(a, b, H_ab)` with `H_ab = -df_a/dx_b` (N/m)
+/// for its particles `a`, `b` (allocates its scratch: for tests and
+/// terms' Jacobians, not the step).
+pub fn for_each_block(
+    set: &ElementSet,
+    x: &[Vec3],
+    mut force: impl FnMut(usize, Vec3),
+    mut block: impl FnMut(usize, usize, &Mat3),
+) {
+    let mut bufs = ElementBuffers::new(set);
+    evaluate(set, x, 1.0, 1.0, None, &mut bufs);
+    fn each<const K: usize>(
+        nodes: impl Iterator<Item = [u32; K]>,
+        kind: &KindBuffers<K>,
+        force: &mut impl FnMut(usize, Vec3),
+        block: &mut impl FnMut(usize, usize, &Mat3),
+    ) {
+        for ((nodes, rhs), blocks) in nodes.zip(&kind.rhs).zip(&kind.blocks) {
+            for a in 0..K {
+                force(nodes[a] as usize, rhs.rhs[a]);
+                for b in 0..K {
+                    block(nodes[a] as usize, nodes[b] as usize, &blocks[a][b]);
+                }
+            }
+        }
+    }
+    each(set.membranes.iter().map(|e| e.nodes), &bufs.membranes, &mut force, &mut block);
+    each(set.curvatures.iter().map(|e| e.nodes), &bufs.curvatures, &mut force, &mut block);
+    each(set.triples.iter().map(|e| e.nodes), &bufs.triples, &mut force, &mut block);
+    each(set.hinges.iter().map(|e| e.nodes), &bufs.hinges, &mut force, &mut block);
 }
 
 /// `sum_b blocks_ab w_b s_b` over the elements of particle `i` (with

@@ -27,7 +27,7 @@ use super::timer::{Stage, StageTimer};
 use crate::contacts::{Contacts, FrictionMode, constrain_contacts, linearise_squeeze_friction};
 use crate::control::PinPaths;
 use crate::energy::{self, EnergyReport};
-use crate::forces::assemble;
+use crate::system::assemble;
 use crate::{Mat3, NewtonParams, NewtonReport, SolverParams, StepError, StepReport, Vec3};
 use cloth_linalg::PreconditionerKind;
 use scheme::Bdf2Scheme;

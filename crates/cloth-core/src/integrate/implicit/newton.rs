@@ -62,8 +62,9 @@ use crate::contacts::{
     SolidContact, contact_friction_potential, contact_penalty_energy, contact_penalty_stiffness,
     linearise_contact_friction, penalty_contacts, penalty_watch,
 };
-use crate::forces::{EnergyBuffers, SystemBuffers, SystemTerms, assemble, elastic_energy};
+use crate::forces::{EnergyBuffers, elastic_energy};
 use crate::integrate::timer::{Stage, StageTimer};
+use crate::system::{SystemBuffers, SystemTerms, assemble};
 use crate::{ClothModel, ClothState, Mat3, StepError, Vec3};
 
 /// Armijo's sufficient-decrease constant.

@@ -2,7 +2,7 @@
 //! them: their linear system, their unknown, and how the unknown updates
 //! the state ([`Linearised`]).
 
-use crate::forces::SystemTerms;
+use crate::system::SystemTerms;
 use crate::{ClothState, Vec3};
 
 /// Backward Euler (Baraff & Witkin 1998, Eq. 16):

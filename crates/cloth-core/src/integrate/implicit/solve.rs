@@ -5,7 +5,7 @@
 use super::workspace::{SystemLoads, Workspace};
 use crate::contacts::Contacts;
 use crate::control::{Control, PinPaths};
-use crate::forces::SystemTerms;
+use crate::system::SystemTerms;
 use crate::{ClothModel, ClothState, SolverParams, StepError, StepReport, Vec3};
 use cloth_linalg::{Constraint, ConstraintFilter, PcgError};
 use std::time::Instant;

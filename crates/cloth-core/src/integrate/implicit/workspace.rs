@@ -3,8 +3,9 @@
 //! inputs, and which loads the assembled system carries.
 
 use crate::contacts::Contacts;
-use crate::forces::{EnergyBuffers, SystemBuffers};
+use crate::forces::EnergyBuffers;
 use crate::integrate::step::{Step, StepOutput};
+use crate::system::SystemBuffers;
 use crate::{ClothModel, Mat3, SolverParams, Vec3};
 use cloth_linalg::{ConstraintFilter, Pcg, PreconditionerKind};
 
@@ -23,7 +24,7 @@ pub(crate) struct SystemLoads {
 }
 
 /// Scratch of the implicit steps, sized once per model.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub(crate) struct Scratch {
     pub(crate) system: SystemBuffers,
     pub(crate) pcg: Pcg,

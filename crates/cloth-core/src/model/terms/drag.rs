@@ -1,8 +1,9 @@
 //! Viscous drag on every particle (Provot's "viscous damping" `-C_dis v`):
 //! `f_i = -c_i v_i`, `c_i = material.drag_n_s_m3` times the particle's area.
 
-use super::{At, ForceTerm, VertexBlock};
+use super::{At, ForceTerm, TermAssembly, TermScratch, VertexBlock};
 use crate::forces::ForceBuffers;
+use crate::system::{Row, SystemTerms};
 use crate::{ClothModel, Mat3, Vec3};
 use cloth_linalg::ROW_CHUNK;
 use rayon::prelude::*;
@@ -37,13 +38,35 @@ impl ForceTerm for Drag {
         });
     }
 
-    fn fused(&self) -> bool {
-        true
+    fn assembly(&self) -> Option<&dyn TermAssembly> {
+        Some(self)
     }
 
     fn vertex(&self, at: &At<'_>, i: usize) -> VertexBlock {
         let c = at.model.drag(i);
         let force = -at.v[i] * c;
         VertexBlock { force, stiffness: Mat3::zeros(), damping: Mat3::identity() * c, dissipative: force }
+    }
+}
+
+/// Drag is a diagonal damping `D_ii = -c_i I`: it adds `c_v c_i I` to each
+/// diagonal block and `-a_d c_i w_i` to the right-hand side.
+impl TermAssembly for Drag {
+    fn scratch(&self, _: &ClothModel) -> TermScratch {
+        Box::new(())
+    }
+
+    fn evaluate(&self, _: &At<'_>, _: &SystemTerms<'_>, _: &mut TermScratch) -> f64 {
+        0.0
+    }
+
+    fn add_rhs(&self, at: &At<'_>, c: &SystemTerms<'_>, _: &TermScratch, i: usize, rhs: &mut Vec3) {
+        if let Some((a, w)) = c.d_times {
+            *rhs -= w[i] * (a * at.model.drag(i));
+        }
+    }
+
+    fn add_row(&self, at: &At<'_>, c: &SystemTerms<'_>, _: &TermScratch, i: usize, row: &mut Row<'_>) {
+        row.add_diag(&(Mat3::identity() * (c.c_v * at.model.drag(i))));
     }
 }

@@ -2,9 +2,10 @@
 //! Choi & Ko's arc-path bending triples ([`crate::elements`], laws in
 //! [`crate::element_laws`]).
 
-use super::{At, ForceTerm, VertexBlock};
+use super::{At, ForceTerm, TermAssembly, TermScratch, VertexBlock};
 use crate::elements::{self, ElementBuffers};
 use crate::forces::ForceBuffers;
+use crate::system::{Row, SystemTerms};
 use crate::{ClothModel, Vec3};
 use cloth_linalg::ROW_CHUNK;
 use rayon::prelude::*;
@@ -41,8 +42,28 @@ impl ForceTerm for Elements {
         });
     }
 
-    fn fused(&self) -> bool {
-        true
+    fn coupled_pairs(&self, model: &ClothModel) -> Vec<[usize; 2]> {
+        model.elements().pairs().into_iter().map(|(i, j)| [i, j]).collect()
+    }
+
+    /// Each element's forces and Hessian blocks, `-df_a/dx_b`; no damping.
+    fn jacobian(&self, at: &At<'_>, out: &mut super::Jacobian<'_>) {
+        let mut blocks = Vec::new();
+        elements::for_each_block(
+            at.model.elements(),
+            at.x,
+            |a, f| out.add_force(a, f),
+            |a, b, h| {
+                blocks.push((a, b, *h));
+            },
+        );
+        for (a, b, h) in blocks {
+            out.add_stiffness(a, b, &h);
+        }
+    }
+
+    fn assembly(&self) -> Option<&dyn TermAssembly> {
+        Some(self)
     }
 
     fn vertex(&self, at: &At<'_>, i: usize) -> VertexBlock {
@@ -57,5 +78,40 @@ impl ForceTerm for Elements {
     fn vertex_with_energy(&self, at: &At<'_>, i: usize) -> (VertexBlock, Option<f64>) {
         let (force, stiffness, energy) = elements::vertex_with_energy(at.model.elements(), at.x, i);
         (VertexBlock { force, stiffness, ..VertexBlock::zero() }, Some(energy))
+    }
+}
+
+fn buffers(scratch: &TermScratch) -> &ElementBuffers {
+    scratch.downcast_ref().expect("the elements' own scratch")
+}
+
+/// Each element's right-hand-side terms `c_f f_a - a_k (H w)_a` and blocks
+/// `c_x H_ab`, evaluated in parallel; each row sums its elements' corners
+/// in a fixed order ([`crate::elements`]). The elements carry no damping.
+impl TermAssembly for Elements {
+    fn scratch(&self, model: &ClothModel) -> TermScratch {
+        Box::new(ElementBuffers::new(model.elements()))
+    }
+
+    fn evaluate(&self, at: &At<'_>, c: &SystemTerms<'_>, scratch: &mut TermScratch) -> f64 {
+        let bufs: &mut ElementBuffers = scratch.downcast_mut().expect("the elements' own scratch");
+        elements::evaluate(at.model.elements(), at.x, c.c_x, c.force, c.k_times, bufs);
+        elements::energy(bufs)
+    }
+
+    fn add_rhs(&self, at: &At<'_>, _: &SystemTerms<'_>, scratch: &TermScratch, i: usize, rhs: &mut Vec3) {
+        *rhs += elements::rhs_at(at.model.elements(), buffers(scratch), i);
+    }
+
+    fn add_row(&self, at: &At<'_>, _: &SystemTerms<'_>, scratch: &TermScratch, i: usize, row: &mut Row<'_>) {
+        elements::add_row(at.model.elements(), buffers(scratch), i, |slot, b| row.add(slot, b));
+    }
+
+    fn apply(&self, at: &At<'_>, scratch: &TermScratch, i: usize, w: &[Vec3], s: &[f64], acc: &mut Vec3) {
+        *acc += elements::apply_at(at.model.elements(), buffers(scratch), i, w, s);
+    }
+
+    fn couples(&self) -> bool {
+        true
     }
 }

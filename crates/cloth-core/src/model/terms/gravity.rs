@@ -1,7 +1,8 @@
 //! Uniform gravity: `f_i = m_i g`, energy `-sum_i m_i g . x_i`.
 
-use super::{At, ForceTerm, VertexBlock};
+use super::{At, ForceTerm, TermAssembly, TermScratch, VertexBlock};
 use crate::forces::ForceBuffers;
+use crate::system::{Row, SystemTerms};
 use crate::{ClothModel, Vec3};
 use cloth_linalg::ROW_CHUNK;
 use rayon::prelude::*;
@@ -34,8 +35,8 @@ impl ForceTerm for Gravity {
         });
     }
 
-    fn fused(&self) -> bool {
-        true
+    fn assembly(&self) -> Option<&dyn TermAssembly> {
+        Some(self)
     }
 
     fn vertex(&self, at: &At<'_>, i: usize) -> VertexBlock {
@@ -47,4 +48,24 @@ impl ForceTerm for Gravity {
         let g = at.model.effects().gravity.unwrap_or_else(Vec3::zeros);
         Some(-at.model.masses()[i] * g.dot(&xi))
     }
+}
+
+/// Gravity adds `c_f m_i g` to each row's right-hand side; it has no
+/// Jacobian.
+impl TermAssembly for Gravity {
+    fn scratch(&self, _: &ClothModel) -> TermScratch {
+        Box::new(())
+    }
+
+    fn evaluate(&self, _: &At<'_>, _: &SystemTerms<'_>, _: &mut TermScratch) -> f64 {
+        0.0
+    }
+
+    fn add_rhs(&self, at: &At<'_>, c: &SystemTerms<'_>, _: &TermScratch, i: usize, rhs: &mut Vec3) {
+        if let Some(g) = at.model.effects().gravity {
+            *rhs += g * (at.model.masses()[i] * c.force);
+        }
+    }
+
+    fn add_row(&self, _: &At<'_>, _: &SystemTerms<'_>, _: &TermScratch, _: usize, _: &mut Row<'_>) {}
 }

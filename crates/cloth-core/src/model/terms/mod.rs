@@ -11,12 +11,17 @@
 //! the stiffness block is the Hessian's diagonal block, positive
 //! semidefinite where the laws make it so.
 //!
+//! A term also gives its force's Jacobian, the blocks between particles
+//! included ([`ForceTerm::jacobian`], over the pairs it couples,
+//! [`ForceTerm::coupled_pairs`]), and the implicit steps' assembly loops
+//! over the terms ([`crate::system`]): a term assembles itself
+//! ([`ForceTerm::assembly`]: the built-in ones, link by link and element
+//! by element) or is assembled from its Jacobian.
+//!
 //! Adding an effect is one file implementing [`ForceTerm`] and one line:
 //! in [`INTERNAL_TERMS`] for a built-in effect, or
 //! [`ClothModel::with_force_term`] (or the builder's `force_term`) from
-//! outside the crate. The implicit steps assemble the built-in terms' laws
-//! in one fused pass ([`crate::forces::assemble`]) and linearise any
-//! other term on the diagonal ([`ForceTerm::fused`]).
+//! outside the crate.
 //!
 //! External terms ([`ForceTerm::external`]: the wind's) are forces from
 //! outside the cloth: every step takes them at its start, as given over the
@@ -40,7 +45,10 @@ pub use gravity::Gravity;
 pub use links::Links;
 
 use crate::forces::ForceBuffers;
+use crate::system::{Row, SystemTerms};
 use crate::{ClothModel, Mat3, Vec3};
+use cloth_linalg::BlockPattern;
+use std::any::Any;
 
 /// Where the terms are evaluated: a model at positions `x` (m) and
 /// velocities `v` (m/s), with its stitches' states and the air's velocity.
@@ -149,12 +157,32 @@ pub trait ForceTerm: Send + Sync + std::fmt::Debug {
         (self.vertex(at, i), self.vertex_energy(at, i, at.x[i]))
     }
 
-    /// Whether the implicit steps assemble this term's laws in their fused
-    /// pass ([`crate::forces::assemble`]: the built-in terms). The others
-    /// are linearised on the diagonal from [`ForceTerm::vertex`]: exact for
-    /// a force on each particle alone.
-    fn fused(&self) -> bool {
-        false
+    /// The pairs of particles the term's force couples (each once, in
+    /// either order): the system's sparsity pattern holds their blocks.
+    /// None by default: a force on each particle alone.
+    fn coupled_pairs(&self, _model: &ClothModel) -> Vec<[usize; 2]> {
+        Vec::new()
+    }
+
+    /// The force on every particle at `at` and its Jacobian: into `out`,
+    /// `f_i` (N), `-df_i/dx_j` (N/m) and `-df_i/dv_j` (N s/m) for each
+    /// particle and each pair of [`ForceTerm::coupled_pairs`], in both
+    /// orders. By default each particle's [`ForceTerm::vertex`] on the
+    /// diagonal: exact for a force on each particle alone.
+    fn jacobian(&self, at: &At<'_>, out: &mut Jacobian<'_>) {
+        for i in 0..at.x.len() {
+            let b = self.vertex(at, i);
+            out.add_force(i, b.force);
+            out.add_stiffness(i, i, &b.stiffness);
+            out.add_damping(i, i, &b.damping);
+        }
+    }
+
+    /// How the implicit steps assemble the term: its own assembly (the
+    /// built-in terms', law by law), or `None` (the default): from
+    /// [`ForceTerm::jacobian`] at the step's positions.
+    fn assembly(&self) -> Option<&dyn TermAssembly> {
+        None
     }
 
     /// Whether this is a force from outside the cloth (the wind's): every
@@ -195,21 +223,146 @@ pub fn add_external_forces(at: &At<'_>, scratch: &mut ForceBuffers, out: &mut [V
     }
 }
 
-/// The acting terms the implicit steps linearise on the diagonal (not
-/// [`ForceTerm::fused`]).
-pub fn unfused(model: &ClothModel) -> impl Iterator<Item = &dyn ForceTerm> + '_ {
-    acting(model).filter(|t| !t.fused())
+/// The acting terms the implicit steps assemble from their Jacobian (no
+/// [`ForceTerm::assembly`] of their own).
+pub fn from_jacobian(model: &ClothModel) -> impl Iterator<Item = &dyn ForceTerm> + '_ {
+    acting(model).filter(|t| t.assembly().is_none())
 }
 
-/// The sum of every acting term's block at particle `i`.
+/// Scratch a term's own assembly keeps between its evaluation and its
+/// rows (its per-link or per-element results), made once per model.
+pub type TermScratch = Box<dyn Any + Send + Sync>;
+
+/// A term's own assembly into an implicit step's linear system
+/// `A = M - c_v D - c_x K`, `b = c_f f + ...` (see [`SystemTerms`]): a
+/// parallel pass over its links or elements, then each row's share, read
+/// back in a fixed order (the same bits for any thread count).
+pub trait TermAssembly: Send + Sync {
+    /// Its scratch for `model`.
+    fn scratch(&self, model: &ClothModel) -> TermScratch;
+
+    /// Evaluates the term's laws at `at.x` for the system's coefficients
+    /// `c` into `scratch`; returns the energy it stores there, J (the
+    /// links' and elements': 0 for gravity, whose potential the energy
+    /// monitor counts apart, and for a force without one).
+    fn evaluate(&self, at: &At<'_>, c: &SystemTerms<'_>, scratch: &mut TermScratch) -> f64;
+
+    /// Adds row `i`'s right-hand side: `c_f f_i` and the terms `c` asks
+    /// for (`a_k (K w_k)_i`, `a_d (D w_d)_i`).
+    fn add_rhs(&self, at: &At<'_>, c: &SystemTerms<'_>, scratch: &TermScratch, i: usize, rhs: &mut Vec3);
+
+    /// Adds row `i`'s blocks `-c_x K_ij - c_v D_ij` to `row`.
+    fn add_row(&self, at: &At<'_>, c: &SystemTerms<'_>, scratch: &TermScratch, i: usize, row: &mut Row<'_>);
+
+    /// Adds row `i` of the coupling blocks applied to `w` scaled by `s`,
+    /// `sum_j B_ij w_j s_j`, to `acc` (the matrix-free operator; the
+    /// diagonal's mass and drag are the system's). Nothing by default.
+    fn apply(&self, _at: &At<'_>, _scratch: &TermScratch, _i: usize, _w: &[Vec3], _s: &[f64], _acc: &mut Vec3) {}
+
+    /// Whether [`TermAssembly::apply`] adds anything (false by default).
+    fn couples(&self) -> bool {
+        false
+    }
+}
+
+/// A term's force and Jacobian at one configuration, evaluated apart from
+/// any step ([`ForceTerm::jacobian`] into buffers of its own): to check a
+/// term against finite differences, or to look at it.
+#[derive(Debug, Clone)]
+pub struct JacobianBlocks {
+    pattern: BlockPattern,
+    force: Vec<Vec3>,
+    stiffness: Vec<Mat3>,
+    damping: Vec<Mat3>,
+}
+
+impl JacobianBlocks {
+    /// `term`'s force and Jacobian at `at`.
+    pub fn of(term: &dyn ForceTerm, at: &At<'_>) -> Self {
+        let n = at.x.len();
+        let pairs = term.coupled_pairs(at.model).into_iter().map(|[i, j]| (i, j));
+        let pattern = BlockPattern::from_pairs(n, pairs).expect("a term couples the model's particles");
+        let nnz = pattern.nnz_blocks();
+        let (mut force, mut stiffness, mut damping) =
+            (vec![Vec3::zeros(); n], vec![Mat3::zeros(); nnz], vec![Mat3::zeros(); nnz]);
+        let mut written = vec![false; nnz];
+        let buffers = (&mut force[..], &mut stiffness[..], &mut damping[..], &mut written[..]);
+        term.jacobian(at, &mut Jacobian::new(&pattern, term.name(), buffers));
+        Self { pattern, force, stiffness, damping }
+    }
+
+    /// The force on particle `i`, N.
+    pub fn force(&self, i: usize) -> Vec3 {
+        self.force[i]
+    }
+
+    /// `-df_i/dx_j`, N/m (zero for a pair the term does not couple).
+    pub fn stiffness(&self, i: usize, j: usize) -> Mat3 {
+        self.pattern.slot(i, j).map_or_else(Mat3::zeros, |s| self.stiffness[s])
+    }
+
+    /// `-df_i/dv_j`, N s/m (zero for a pair the term does not couple).
+    pub fn damping(&self, i: usize, j: usize) -> Mat3 {
+        self.pattern.slot(i, j).map_or_else(Mat3::zeros, |s| self.damping[s])
+    }
+}
+
+/// A term's force and Jacobian at one configuration ([`ForceTerm::jacobian`]),
+/// stored by the system's sparsity pattern: what the implicit steps
+/// assemble of a term without an assembly of its own.
+#[derive(Debug)]
+pub struct Jacobian<'p> {
+    pattern: &'p BlockPattern,
+    term: &'static str,
+    force: &'p mut [Vec3],
+    stiffness: &'p mut [Mat3],
+    damping: &'p mut [Mat3],
+    written: &'p mut [bool],
+}
+
+impl<'p> Jacobian<'p> {
+    /// A Jacobian of the term named `term` into buffers sized for
+    /// `pattern` (`force` per particle; the others per stored block).
+    pub(crate) fn new(
+        pattern: &'p BlockPattern,
+        term: &'static str,
+        (force, stiffness, damping, written): (&'p mut [Vec3], &'p mut [Mat3], &'p mut [Mat3], &'p mut [bool]),
+    ) -> Self {
+        Self { pattern, term, force, stiffness, damping, written }
+    }
+
+    /// Adds `f` (N) to the force on particle `i`.
+    pub fn add_force(&mut self, i: usize, f: Vec3) {
+        self.force[i] += f;
+    }
+
+    /// Adds `block` (N/m) to `-df_i/dx_j`. Panics when `(i, j)` is neither
+    /// a diagonal block nor a pair the term couples
+    /// ([`ForceTerm::coupled_pairs`]): the pattern has no room for it.
+    pub fn add_stiffness(&mut self, i: usize, j: usize, block: &Mat3) {
+        let s = self.slot(i, j);
+        self.stiffness[s] += block;
+    }
+
+    /// Adds `block` (N s/m) to `-df_i/dv_j` (see [`Jacobian::add_stiffness`]).
+    pub fn add_damping(&mut self, i: usize, j: usize, block: &Mat3) {
+        let s = self.slot(i, j);
+        self.damping[s] += block;
+    }
+
+    fn slot(&mut self, i: usize, j: usize) -> usize {
+        let Some(s) = self.pattern.slot(i, j) else {
+            panic!("force term {:?}: block ({i}, {j}) is not in the pattern: list the pair in coupled_pairs", self.term)
+        };
+        self.written[s] = true;
+        s
+    }
+}
+
+/// The sum of every acting term's block at particle `i`, in their order.
 pub fn vertex_block(at: &At<'_>, i: usize) -> VertexBlock {
-    sum_of_blocks(acting(at.model), at, i)
-}
-
-/// The sum of `terms`' blocks at particle `i`, in their order.
-pub fn sum_of_blocks<'t>(terms: impl Iterator<Item = &'t dyn ForceTerm>, at: &At<'_>, i: usize) -> VertexBlock {
     let mut total = VertexBlock::zero();
-    for term in terms {
+    for term in acting(at.model) {
         total += term.vertex(at, i);
     }
     total
