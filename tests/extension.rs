@@ -1,8 +1,8 @@
 //! Extending the library from outside its crates: an integrator and a
 //! force term written here, plugged in through the builders.
 
-use cloth_core::forces::{self, ForceBuffers};
-use cloth_core::terms::{At, ForceTerm, Jacobian, JacobianBlocks, VertexBlock};
+use cloth_core::forces;
+use cloth_core::terms::{At, ForceBuffers, ForceTerm, Jacobian, JacobianBlocks, VertexBlock};
 use cloth_core::{
     Capabilities, ClothModel, Contacts, GridPanel, Integrator, IntegratorKind, Mat3, Material, Simulation,
     SolverParams, StageTimer, Step, StepError, StepOutput, StepReport, Vec3,

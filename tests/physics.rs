@@ -2,8 +2,9 @@
 //! energies, Jacobians against forces, momentum, free fall, resolution
 //! independence, stability at large steps, determinism and rollback.
 
-use cloth_core::forces::{EnergyBuffers, elastic_energy, eval_link, potential_energy, total_forces};
+use cloth_core::forces::{EnergyBuffers, elastic_energy, potential_energy, total_forces};
 use cloth_core::system::{SystemBuffers, SystemTerms, assemble};
+use cloth_core::terms::eval_link;
 use cloth_core::{
     BendingLaw, ClothModel, Compression, Effects, GridPanel, IntegratorKind, LinkType, Mat3, Material, ModelKind,
     ModelSpec, PreconditionerKind, Simulation, SolverParams, Vec3,

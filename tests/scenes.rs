@@ -101,7 +101,7 @@ fn flag_wind_force_grows_with_wind_speed() {
         let profile = format!("wind.profile={{ kind = \"constant\", velocity_m_s = [{speed}, 0.3, 0.0] }}");
         let (mut sim, cfg) = simulation("flag.toml", &["panels.0.particles=[16, 11]", &profile]);
         let model = sim.model().clone();
-        let mut scratch = cloth_core::forces::ForceBuffers::new(&model);
+        let mut scratch = cloth_core::terms::ForceBuffers::new(&model);
         let mut total = 0.0;
         let steps = 45;
         for _ in 0..steps {
@@ -140,7 +140,7 @@ fn flat_flag_feels_plate_drag_and_lift() {
         let s = sim.state();
         let mut f = vec![cloth_core::Vec3::zeros(); s.len()];
         let at = At::new(sim.model(), &s.x, &s.v, &s.stitches_closed).with_wind_at(0.0, None, 1.0);
-        let mut scratch = cloth_core::forces::ForceBuffers::new(sim.model());
+        let mut scratch = cloth_core::terms::ForceBuffers::new(sim.model());
         cloth_core::terms::add_external_forces(&at, &mut scratch, &mut f);
         let total: cloth_core::Vec3 = f.iter().sum();
         // The panel: 0.9 x 0.6 m in the x-z plane (normal y); air 1.2 kg/m^3, C_d 1, C_l 0.5.

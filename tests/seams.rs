@@ -3,8 +3,8 @@
 //! open closing at a bounded pull without moving the centre of mass, and
 //! two panels sewn edge to edge moving as the one panel they make.
 
-use cloth_core::forces::{eval_link, link_force};
 use cloth_core::scene::Scene;
+use cloth_core::terms::{eval_link, link_force};
 use cloth_core::{ClothModel, LinkType, Mat3, Simulation, Vec3};
 
 fn build(text: &str, overrides: &[&str]) -> (Simulation, f64, usize) {

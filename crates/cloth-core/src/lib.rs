@@ -45,7 +45,7 @@ pub use integrate::matrix_free::BackwardEulerFixedCg;
 pub use integrate::timer::{Lap, Stage, StageTimer};
 pub use material::{BendConstants, Compressive, Lattice, Material, Membrane};
 pub use model::{
-    BendLaw, BendLink, BendingLaw, ClothMesh, ClothModel, Compression, ConeWrap, Edge, Effect, EffectValues, Effects,
+    BendLaw, BendLink, BendingLaw, ClothMesh, ClothModel, Compression, ConeWrap, Effect, EffectValues, Effects,
     Incidence, MeshPanel, MeshRange, ModelBuilder, ModelError, ModelKind, ModelSpec, PanelRange, PatternPiece, PinSpec,
     StrainLimit, StretchLink,
 };
@@ -56,7 +56,7 @@ pub use report::{NewtonReport, StageTimes, StepError, StepReport};
 pub use sim::{Simulation, SimulationBuilder};
 pub use state::{ClothState, IntegratorMemory, Snapshot};
 pub use step::{Attempt, Capabilities, ContactHandling, Integrator, Step, StepOutput};
-pub use topology::{Diagonals, GridPanel, LinkType, PanelError, PanelMesh};
+pub use topology::{Diagonals, Edge, GridPanel, LinkType, PanelError, PanelMesh};
 pub use wind::{Wind, WindProfile};
 
 // The README's Rust example, compiled and run as a doctest.

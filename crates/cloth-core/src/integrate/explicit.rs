@@ -14,8 +14,9 @@ use crate::contacts::Contacts;
 use crate::control::{Control, PinPaths};
 use crate::{
     ClothModel, ClothState, SolverParams, StepError, StepReport, Vec3,
-    forces::{EnergyBuffers, ForceBuffers, forces_into},
+    forces::{EnergyBuffers, forces_into},
     terms::At,
+    terms::ForceBuffers,
 };
 use cloth_linalg::ROW_CHUNK;
 use rayon::prelude::*;

@@ -4,7 +4,7 @@
 //! hold them constant over the step.
 
 use crate::control::Control;
-use crate::forces::ForceBuffers;
+use crate::terms::ForceBuffers;
 use crate::{ClothModel, ClothState, Vec3};
 
 /// The loads of a step: forces from outside the cloth at its start, N.

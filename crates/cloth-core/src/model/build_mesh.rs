@@ -9,12 +9,6 @@ use crate::element_laws::TriangleRest;
 use crate::elements::{BendHinge, MembraneElement};
 use crate::material::PATH_CURVATURE_FACTOR;
 
-/// The shear modulus of a spring lattice on triangles: `3E/8` (Poisson
-/// ratio 1/3), N/m for `E` in N/m.
-pub fn triangle_lattice_shear_modulus(e: f64) -> f64 {
-    3.0 / 8.0 * e
-}
-
 /// The hinges' bending Poisson ratio is -1/3 (`crate::cloth_mesh`): a
 /// strip free to curve across itself bends with `1 - nu^2 = 8/9` of the
 /// rigidity a cylinder meets. `B` is the strip's (Peirce's cantilever

@@ -6,7 +6,7 @@ use super::*;
 use crate::element_laws::{EdgeSupport, TriangleRest, curvature_stiffness, dihedral_angle, edge_hinge};
 use crate::elements::{BendTriple, CurvatureElement, MembraneElement};
 use crate::material::Compressive;
-use crate::{Material, Pin, Vec3, laws::BucklingLaw};
+use crate::{Edge, Material, Pin, Vec3, laws::BucklingLaw};
 
 /// How a lattice model's links resist compression before they buckle
 /// (`crate::material` docs, "Three lattices"): the arc-path law's type-1
@@ -123,7 +123,7 @@ pub(super) fn check_lattice_on_meshes(spec: &ModelSpec, path: bool) -> Result<()
         let message = format!("{g} N/m: an isotropic membrane of E = {e} N/m needs G > E/4 (Poisson ratio under 1)");
         return Err(ModelError::Material { field: "shear_modulus_n_m", message });
     }
-    let lattice = super::build_mesh::triangle_lattice_shear_modulus(m.tensile_stiffness_n_m);
+    let lattice = crate::material::triangle_lattice_shear_modulus(m.tensile_stiffness_n_m);
     if let Some(g) = m.shear_modulus_n_m
         && spec.kind == ModelKind::Provot
         && (g - lattice).abs() > 1e-3 * lattice

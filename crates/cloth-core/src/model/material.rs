@@ -130,6 +130,12 @@
 
 use serde::{Deserialize, Serialize};
 
+/// The shear modulus of a spring lattice on triangles: `3E/8` (Poisson
+/// ratio 1/3), N/m for `E` in N/m.
+pub(crate) fn triangle_lattice_shear_modulus(e: f64) -> f64 {
+    3.0 / 8.0 * e
+}
+
 /// A fabric, in SI units. See the module docs for how each field maps to
 /// per-link constants.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

@@ -3,6 +3,8 @@
 //! its topology and material, and the interaction laws with the loops that
 //! evaluate them. Nothing here changes during a run.
 
+mod assembly;
+mod build;
 mod build_mesh;
 mod build_parts;
 mod builder;
@@ -16,9 +18,12 @@ pub mod elements;
 pub mod forces;
 pub(crate) mod keyframes;
 pub mod laws;
+mod layout;
+mod links;
 pub(crate) mod material;
 pub mod pattern;
 pub(crate) mod pins;
+mod queries;
 pub mod seams;
 mod sparsity;
 mod spec;
@@ -29,7 +34,9 @@ pub mod wind;
 
 pub use builder::ModelBuilder;
 pub use cloth_mesh::{ClothMesh, MeshPanel};
-pub use cloth_model::*;
+pub use cloth_model::ClothModel;
 pub use effects::{Effect, EffectValues};
+pub use layout::{MeshRange, PanelRange};
+pub use links::{BendLaw, BendLink, Compression, Incidence, StretchLink};
 pub use pattern::{ConeWrap, PatternMesh, PatternPiece};
 pub use spec::*;

@@ -3,10 +3,8 @@
 //! that index it: each particle's links with their slots in its row, the
 //! elements' slots, each row's diagonal slot.
 
-use super::Incidence;
-use crate::StretchLink;
+use super::links::{BendLink, Incidence, StretchLink};
 use crate::elements::ElementSet;
-use crate::model::BendLink;
 use crate::seams::Stitch;
 use cloth_linalg::BlockPattern;
 

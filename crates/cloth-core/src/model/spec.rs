@@ -3,7 +3,7 @@
 
 use crate::colliders::CollisionSpec;
 use crate::seams::SeamSpec;
-use crate::{GridPanel, Material, MeshPanel, PinMotion, Vec3, Wind};
+use crate::{Edge, GridPanel, Material, MeshPanel, PinMotion, Vec3, Wind};
 use serde::{Deserialize, Serialize};
 
 /// Effects computed by a model. An effect that is off costs nothing: no
@@ -24,20 +24,6 @@ pub struct Effects {
     pub wind: bool,
     /// Aerodynamic drag and lift on triangles; needs [`ModelSpec::wind`].
     pub aerodynamics: bool,
-}
-
-/// An edge of a grid panel.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Edge {
-    /// Nodes with `i = 0`.
-    IMin,
-    /// Nodes with `i = nx - 1`.
-    IMax,
-    /// Nodes with `j = 0`.
-    JMin,
-    /// Nodes with `j = ny - 1`.
-    JMax,
 }
 
 /// A set of pinned grid nodes or mesh vertices and the path they follow.

@@ -11,6 +11,20 @@
 use crate::Vec3;
 use serde::{Deserialize, Serialize};
 
+/// An edge of a grid panel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Edge {
+    /// Nodes with `i = 0`.
+    IMin,
+    /// Nodes with `i = nx - 1`.
+    IMax,
+    /// Nodes with `j = 0`.
+    JMin,
+    /// Nodes with `j = ny - 1`.
+    JMax,
+}
+
 /// A rectangular grid of particles, flat or wrapped into a cylinder.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -64,7 +64,8 @@ use crate::contacts::{
 };
 use crate::forces::{EnergyBuffers, elastic_energy};
 use crate::integrate::timer::{Stage, StageTimer};
-use crate::system::{SystemBuffers, SystemTerms, assemble};
+use crate::system::SystemTerms;
+use crate::system::{SystemBuffers, assemble};
 use crate::{ClothModel, ClothState, Mat3, StepError, Vec3};
 
 /// Armijo's sufficient-decrease constant.

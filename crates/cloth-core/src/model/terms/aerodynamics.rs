@@ -3,7 +3,7 @@
 //! with the triangle moving at its corners' mean velocity.
 
 use super::{At, ForceTerm, VertexBlock};
-use crate::forces::ForceBuffers;
+use crate::terms::ForceBuffers;
 use crate::wind::{triangle_aero_derivative, triangle_aero_force};
 use crate::{ClothModel, Vec3};
 

@@ -2,8 +2,8 @@
 //! `f_i = -c_i v_i`, `c_i = material.drag_n_s_m3` times the particle's area.
 
 use super::{At, ForceTerm, TermAssembly, TermScratch, VertexBlock};
-use crate::forces::ForceBuffers;
-use crate::system::{Row, SystemTerms};
+use crate::model::assembly::{Row, SystemTerms};
+use crate::terms::ForceBuffers;
 use crate::{ClothModel, Mat3, Vec3};
 use cloth_linalg::ROW_CHUNK;
 use rayon::prelude::*;

@@ -4,8 +4,8 @@
 
 use super::{At, ForceTerm, TermAssembly, TermScratch, VertexBlock};
 use crate::elements::{self, ElementBuffers};
-use crate::forces::ForceBuffers;
-use crate::system::{Row, SystemTerms};
+use crate::model::assembly::{Row, SystemTerms};
+use crate::terms::ForceBuffers;
 use crate::{ClothModel, Vec3};
 use cloth_linalg::ROW_CHUNK;
 use rayon::prelude::*;

@@ -4,7 +4,7 @@
 //! ([`crate::wind::provot_fluid_force`]).
 
 use super::{At, ForceTerm, VertexBlock};
-use crate::forces::ForceBuffers;
+use crate::terms::ForceBuffers;
 use crate::wind::provot_fluid_force;
 use crate::{ClothModel, Mat3, Vec3};
 

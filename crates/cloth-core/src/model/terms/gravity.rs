@@ -1,8 +1,8 @@
 //! Uniform gravity: `f_i = m_i g`, energy `-sum_i m_i g . x_i`.
 
 use super::{At, ForceTerm, TermAssembly, TermScratch, VertexBlock};
-use crate::forces::ForceBuffers;
-use crate::system::{Row, SystemTerms};
+use crate::model::assembly::{Row, SystemTerms};
+use crate::terms::ForceBuffers;
 use crate::{ClothModel, Vec3};
 use cloth_linalg::ROW_CHUNK;
 use rayon::prelude::*;

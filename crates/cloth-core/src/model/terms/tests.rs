@@ -4,7 +4,7 @@
 //! per-particle blocks against the force loop the explicit steps use.
 
 use super::*;
-use crate::{Edge, GridPanel, Material, ModelKind, ModelSpec};
+use crate::{Edge, GridPanel, Mat3, Material, ModelKind, ModelSpec};
 
 /// A 5 x 4 sheet of the given model (or, `on_mesh`, the same 20 x 15 cm
 /// as a pattern piece meshed at 5 cm), stretched by 3% along u (and v on
@@ -361,7 +361,7 @@ fn wind_blocks_match_the_force_loop_and_finite_differences_in_velocity() {
     }
     for term in external(&model) {
         let mut out = vec![Vec3::zeros(); x.len()];
-        term.add_forces(&at(&model, &x, &v), &mut crate::forces::ForceBuffers::new(&model), &mut out);
+        term.add_forces(&at(&model, &x, &v), &mut ForceBuffers::new(&model), &mut out);
         let (mut worst_d, mut scale) = (0.0_f64, 0.0_f64);
         for i in 0..x.len() {
             let block = term.vertex(&at(&model, &x, &v), i);

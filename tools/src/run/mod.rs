@@ -1,13 +1,19 @@
 //! `cloth run`, `cloth validate` and `cloth time`.
 
+mod records;
+mod totals;
+
+pub(crate) use records::{SOLIDS_FILE, STEPS_FILE, solid_meshes_json, solid_poses};
+use records::{SolidPoses, StepRow, write_steps};
+use totals::{ContactTotals, EnergyTotals, NewtonTotals};
+
 use crate::output::{
-    BodySummary, CouplingSummary, CrossingSummary, EnergySummary, GarmentHeights, NewtonSummary, SeamSummary,
-    StageWall, Summary, write_obj,
+    BodySummary, CouplingSummary, CrossingSummary, GarmentHeights, SeamSummary, StageWall, Summary, write_obj,
 };
 use anyhow::{Context, Result, bail};
 use cloth_core::Effect;
 use cloth_core::scene::{RunConfig, Scene, SceneError};
-use cloth_core::{ClothModel, ContactStats, Simulation, StepReport, Vec3};
+use cloth_core::{ClothModel, Simulation, StepReport, Vec3};
 use cloth_rapier::scene::has_bodies;
 use cloth_rapier::{CoupledRun, CoupledScene, CouplingReport, Master, Momentum};
 use cloth_tools::frames::{FRAMES_FILE, FrameWriter};
@@ -498,127 +504,6 @@ fn coupled_summary(mut summary: Summary, run: &CoupledRun, start: Momentum, tota
     summary
 }
 
-/// Newton counters over a run.
-#[derive(Default)]
-struct NewtonTotals {
-    steps: u64,
-    /// Steps whose iterations the run engaged itself, and when it did, s.
-    automatic: u64,
-    engaged_at_s: Option<f64>,
-    corrections: u64,
-    corrections_max: usize,
-    backtracks: u64,
-    unconverged: u64,
-    residual_max_m: f64,
-}
-
-impl NewtonTotals {
-    fn add(&mut self, r: Option<&cloth_core::NewtonReport>, t_s: f64) {
-        let Some(r) = r else { return };
-        self.steps += 1;
-        if r.automatic {
-            self.automatic += 1;
-            self.engaged_at_s.get_or_insert(t_s);
-        }
-        self.corrections += r.corrections as u64;
-        self.corrections_max = self.corrections_max.max(r.corrections);
-        self.backtracks += r.backtracks as u64;
-        self.unconverged += u64::from(!r.converged);
-        self.residual_max_m = self.residual_max_m.max(r.residual_m);
-    }
-
-    fn summary(&self) -> Option<NewtonSummary> {
-        (self.steps > 0).then(|| NewtonSummary {
-            automatic_steps: self.automatic,
-            engaged_at_s: self.engaged_at_s,
-            corrections_total: self.corrections,
-            corrections_max: self.corrections_max,
-            corrections_mean: self.corrections as f64 / self.steps as f64,
-            backtracks_total: self.backtracks,
-            unconverged_steps: self.unconverged,
-            residual_max_m: self.residual_max_m,
-        })
-    }
-}
-
-/// The energy monitor over a run.
-#[derive(Default)]
-struct EnergyTotals {
-    steps: u64,
-    last: cloth_core::EnergyReport,
-    pin_work: f64,
-    external_work: f64,
-    contact_work: f64,
-    dissipated: f64,
-    gain: f64,
-    gain_max: f64,
-    flagged: u64,
-    retaken: u64,
-    retaken_with_newton: u64,
-}
-
-impl EnergyTotals {
-    fn add(&mut self, r: &StepReport) {
-        let Some(e) = r.energy else { return };
-        self.steps += 1;
-        self.last = e;
-        self.pin_work += e.pin_work_j;
-        self.external_work += e.external_work_j;
-        self.contact_work += e.contact_work_j;
-        self.dissipated += e.dissipated_j;
-        self.gain += e.gain_j;
-        self.gain_max = self.gain_max.max(e.gain_j);
-        self.flagged += u64::from(e.flagged);
-        self.retaken += u64::from(r.retaken_as_backward_euler);
-        self.retaken_with_newton += u64::from(r.retaken_with_newton);
-    }
-
-    fn summary(&self) -> Option<EnergySummary> {
-        (self.steps > 0).then_some(EnergySummary {
-            kinetic_j: self.last.kinetic_j,
-            elastic_j: self.last.elastic_j,
-            gravitational_j: self.last.gravitational_j,
-            pin_work_total_j: self.pin_work,
-            external_work_total_j: self.external_work,
-            contact_work_total_j: self.contact_work,
-            dissipated_total_j: self.dissipated,
-            gain_total_j: self.gain,
-            gain_max_j: self.gain_max,
-            flagged_steps: self.flagged,
-            retaken_as_backward_euler_steps: self.retaken,
-            retaken_with_newton_steps: self.retaken_with_newton,
-        })
-    }
-}
-
-/// Collision counters over a run.
-#[derive(Default)]
-struct ContactTotals {
-    contacts_max: usize,
-    max_penetration_m: f64,
-    self_contacts_max: usize,
-    released: u64,
-    queries: u64,
-    hash_builds: u64,
-    crossings: u64,
-    crossings_left: u64,
-    crossing_steps: u64,
-}
-
-impl ContactTotals {
-    fn add(&mut self, c: &ContactStats) {
-        self.contacts_max = self.contacts_max.max(c.contacts);
-        self.max_penetration_m = self.max_penetration_m.max(c.max_penetration_m);
-        self.self_contacts_max = self.self_contacts_max.max(c.self_contacts);
-        self.released += c.released as u64;
-        self.queries += c.narrow_phase_queries as u64;
-        self.hash_builds += c.hash_builds as u64;
-        self.crossings += c.self_crossings as u64;
-        self.crossings_left += c.crossings_left as u64;
-        self.crossing_steps += u64::from(c.self_crossings > 0);
-    }
-}
-
 pub fn run(args: &RunArgs) -> Result<()> {
     if args.frames == Some(0) {
         bail!("--frames must be at least 1");
@@ -761,127 +646,4 @@ pub(crate) fn process_cpu_s() -> Option<f64> {
     let user: f64 = fields.next()?.parse().ok()?;
     let system: f64 = fields.next()?.parse().ok()?;
     Some((user + system) / 100.0)
-}
-
-/// Beside the OBJ frames: the solids of the scene as triangle meshes in
-/// their own frames, and where each was at every written frame (for
-/// `cloth view`).
-pub const SOLIDS_FILE: &str = "solids.json";
-
-/// The per-step series `cloth run --frames N` writes beside the frames
-/// (the viewer's time plot): one row a step.
-pub const STEPS_FILE: &str = "steps.csv";
-
-/// One step of the series: its energies (empty for steps the energy
-/// monitor did not judge), largest stretch, CG iterations and contacts.
-#[derive(serde::Serialize)]
-struct StepRow {
-    step: u64,
-    time_s: f64,
-    kinetic_j: Option<f64>,
-    elastic_j: Option<f64>,
-    gravitational_j: Option<f64>,
-    max_stretch: f64,
-    cg_iterations: usize,
-    contacts: usize,
-}
-
-impl StepRow {
-    fn of(sim: &Simulation, r: &StepReport, max_stretch: f64) -> Self {
-        Self {
-            step: sim.state().steps,
-            time_s: sim.time(),
-            kinetic_j: r.energy.map(|e| e.kinetic_j),
-            elastic_j: r.energy.map(|e| e.elastic_j),
-            gravitational_j: r.energy.map(|e| e.gravitational_j),
-            max_stretch,
-            cg_iterations: r.cg_iterations,
-            contacts: r.contacts.contacts,
-        }
-    }
-}
-
-fn write_steps(path: &Path, rows: &[StepRow]) -> Result<()> {
-    let mut out = csv::Writer::from_path(path).with_context(|| format!("writing {}", path.display()))?;
-    for row in rows {
-        out.serialize(row).with_context(|| format!("writing {}", path.display()))?;
-    }
-    out.flush().with_context(|| format!("writing {}", path.display()))
-}
-
-/// Solid poses at the written frames.
-#[derive(Default)]
-struct SolidPoses {
-    frames: Vec<FrameSolids>,
-}
-
-/// A frame's step, each solid's position and orientation (`[x, y, z, qw,
-/// qx, qy, qz]`, m) and each contact's `[particle, fx, fy, fz]` (N).
-type FrameSolids = (u64, Vec<[f64; 7]>, Vec<[f64; 4]>);
-
-impl SolidPoses {
-    /// The frame of `sim` after a step of `h` s: the poses, and each active
-    /// contact's particle and the mean force the solid exerted on it over
-    /// the step (its impulse over `h`, friction included), N.
-    fn add(&mut self, sim: &Simulation, h: f64) {
-        let forces = sim
-            .contacts()
-            .solid()
-            .iter()
-            .filter(|c| c.active && sim.state().steps > 0)
-            .map(|c| {
-                let f = c.impulse_n_s / h;
-                [c.particle as f64, f.x, f.y, f.z]
-            })
-            .collect();
-        self.frames.push((sim.state().steps, solid_poses(sim), forces));
-    }
-
-    /// `{"solids": [{"name": "pelvis", "vertices": [x, y, z, ...], "triangles": [a, b, c, ...]}],
-    /// "frames": [{"step": n, "poses": [[x, y, z, qw, qx, qy, qz], ...],
-    /// "contacts": [[particle, fx, fy, fz], ...]}]}`; a solid's name is its
-    /// body's, its rig link's, or `colliders[k]`.
-    fn to_json(&self, model: &ClothModel, names: &[String]) -> Result<String> {
-        let mut solids = solid_meshes_json(model);
-        if let serde_json::Value::Array(list) = &mut solids {
-            for (solid, name) in list.iter_mut().zip(names) {
-                solid["name"] = serde_json::Value::String(name.clone());
-            }
-        }
-        let frames: Vec<serde_json::Value> = self
-            .frames
-            .iter()
-            .map(|(step, poses, contacts)| serde_json::json!({ "step": step, "poses": poses, "contacts": contacts }))
-            .collect();
-        Ok(serde_json::to_string(&serde_json::json!({ "solids": solids, "frames": frames }))?)
-    }
-}
-
-/// The model's solids as triangle meshes in their own frames:
-/// `[{"vertices": [x, y, z, ...], "triangles": [a, b, c, ...]}, ...]`.
-pub(crate) fn solid_meshes_json(model: &ClothModel) -> serde_json::Value {
-    let identity =
-        cloth_core::BodyPose { position: cloth_core::Vec3::zeros(), rotation: nalgebra::UnitQuaternion::identity() };
-    model
-        .colliders()
-        .iter()
-        .map(|c| {
-            let (vertices, triangles) = c.shape.surface_mesh(&identity);
-            serde_json::json!({
-                "vertices": vertices.iter().flat_map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(),
-                "triangles": triangles.iter().flatten().collect::<Vec<_>>(),
-            })
-        })
-        .collect()
-}
-
-/// Where each solid of `sim` is now: `[x, y, z, qw, qx, qy, qz]` (m).
-pub(crate) fn solid_poses(sim: &Simulation) -> Vec<[f64; 7]> {
-    (0..sim.model().colliders().len())
-        .filter_map(|k| sim.solid_pose(k))
-        .map(|p| {
-            let q = p.rotation.quaternion();
-            [p.position.x, p.position.y, p.position.z, q.w, q.i, q.j, q.k]
-        })
-        .collect()
 }

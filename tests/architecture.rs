@@ -1,0 +1,244 @@
+//! The house's rules, read off the sources: no import circles between
+//! cloth-core's files, and no source file of more than 800 lines besides
+//! its tests.
+//!
+//! A file imports another when it names an item only that other file
+//! defines: in a `use`, in a path (`crate::laws::repulsion`), or as a
+//! type (a capitalised name). Re-exports (`pub use`), comments, strings
+//! and test modules are left out, and so are enum variants named like a
+//! type elsewhere. It reads names, not Rust's resolution, so it errs
+//! towards seeing an import: a circle it reports is there or close.
+
+use regex::Regex;
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+fn workspace() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("the tests crate sits in the workspace").to_path_buf()
+}
+
+/// Every `.rs` file under `dir`, sorted.
+fn sources(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                stack.push(path);
+            } else if path.extension().is_some_and(|e| e == "rs") {
+                out.push(path);
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// `text` without its first `#[cfg(test)] mod … { … }` and what follows
+/// (test modules come last in this workspace's files).
+fn before_tests(text: &str) -> &str {
+    let tests = Regex::new(r"#\[cfg\(test\)\]\s*(pub(\([a-z]+\))?\s+)?mod\s+\w+\s*\{").unwrap();
+    tests.find(text).map_or(text, |m| &text[..m.start()])
+}
+
+/// Whether a file (its path below the directory searched) is only tests.
+fn is_test_file(path: &Path) -> bool {
+    let name = path.file_name().unwrap().to_string_lossy();
+    name == "tests.rs" || name.ends_with("_tests.rs") || path.components().any(|c| c.as_os_str() == "tests")
+}
+
+/// The code of `text`: no comments, no string contents, no test modules,
+/// no re-exports.
+fn code(text: &str) -> String {
+    let comments = Regex::new(r"(?s)//[^\n]*|/\*.*?\*/").unwrap();
+    let strings = Regex::new(r#""(\\.|[^"\\])*""#).unwrap();
+    let reexports = Regex::new(r"(?m)^\s*pub(\([a-z]+\))?\s+use\b[^;]*;").unwrap();
+    let text = comments.replace_all(text, "");
+    let text = strings.replace_all(&text, "\"\"");
+    let text = before_tests(&text).to_string();
+    reexports.replace_all(&text, "").into_owned()
+}
+
+/// The file-level import graph of the crate rooted at `root`, lib.rs (the
+/// facade) left out: file -> (file it imports -> the names that make it).
+fn imports(root: &Path) -> BTreeMap<String, BTreeMap<String, BTreeSet<String>>> {
+    let files: Vec<(String, String, String)> = sources(root)
+        .into_iter()
+        .filter(|p| !is_test_file(p.strip_prefix(root).unwrap()))
+        .map(|p| {
+            let rel = p.strip_prefix(root).unwrap().to_string_lossy().into_owned();
+            let stem = p.file_stem().unwrap().to_string_lossy().into_owned();
+            (rel, stem, code(&std::fs::read_to_string(&p).unwrap()))
+        })
+        .filter(|(rel, ..)| rel != "lib.rs")
+        .collect();
+    let item =
+        Regex::new(r"(?m)^(?:pub(?:\([a-z]+\))?\s+)?(?:const\s+fn|fn|struct|enum|trait|const|static|type)\s+(\w+)")
+            .unwrap();
+    let mut defined: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    for (rel, _, text) in &files {
+        for c in item.captures_iter(text) {
+            defined.entry(c[1].to_string()).or_default().insert(rel.clone());
+        }
+    }
+    let modules: BTreeSet<String> = files
+        .iter()
+        .flat_map(|(rel, stem, _)| {
+            let parent = Path::new(rel).parent().and_then(|p| p.file_name()).map(|n| n.to_string_lossy().into_owned());
+            [Some(stem.clone()), parent].into_iter().flatten()
+        })
+        .collect();
+    let unique: BTreeMap<&str, &str> = defined
+        .iter()
+        .filter(|(name, files)| files.len() == 1 && !modules.contains(*name))
+        .map(|(name, files)| (name.as_str(), files.iter().next().unwrap().as_str()))
+        .collect();
+    let uses = Regex::new(r"(?m)^\s*use\b([^;]*);").unwrap();
+    let word = Regex::new(r"\b[A-Za-z_]\w*\b").unwrap();
+    let path = Regex::new(r"::\s*([A-Za-z_]\w*)").unwrap();
+    let method = Regex::new(r"\.\s*[A-Za-z_]\w*").unwrap();
+    let variant_path = Regex::new(r"\b([A-Z]\w*)::[A-Z]\w*").unwrap();
+    let capitalised = Regex::new(r"\b[A-Z]\w*\b").unwrap();
+    let variant = Regex::new(r"(?m)^\s+([A-Z][A-Za-z0-9]*)\s*(?:\(|\{|,|$)").unwrap();
+    let mut graph = BTreeMap::new();
+    for (rel, _, text) in &files {
+        let mut names: BTreeSet<String> = BTreeSet::new();
+        for u in uses.captures_iter(text) {
+            names.extend(word.find_iter(&u[1]).map(|m| m.as_str().to_string()));
+        }
+        names.extend(path.captures_iter(text).map(|c| c[1].to_string()));
+        let rest = method.replace_all(text, ".");
+        let rest = variant_path.replace_all(&rest, "$1");
+        names.extend(capitalised.find_iter(&rest).map(|m| m.as_str().to_string()));
+        for v in variant.captures_iter(text) {
+            names.remove(&v[1]);
+        }
+        let mut edges: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+        for name in names {
+            if let Some(&to) = unique.get(name.as_str())
+                && to != rel
+            {
+                edges.entry(to.to_string()).or_default().insert(name);
+            }
+        }
+        graph.insert(rel.clone(), edges);
+    }
+    graph
+}
+
+/// The strongly connected components of more than one file (Tarjan).
+fn circles(graph: &BTreeMap<String, BTreeMap<String, BTreeSet<String>>>) -> Vec<Vec<String>> {
+    struct Search<'g> {
+        graph: &'g BTreeMap<String, BTreeMap<String, BTreeSet<String>>>,
+        index: BTreeMap<&'g str, usize>,
+        low: BTreeMap<&'g str, usize>,
+        stack: Vec<&'g str>,
+        on: BTreeSet<&'g str>,
+        found: Vec<Vec<String>>,
+    }
+    impl<'g> Search<'g> {
+        fn visit(&mut self, v: &'g str) {
+            let n = self.index.len();
+            self.index.insert(v, n);
+            self.low.insert(v, n);
+            self.stack.push(v);
+            self.on.insert(v);
+            for w in self.graph[v].keys() {
+                let w = w.as_str();
+                if !self.index.contains_key(w) {
+                    self.visit(w);
+                    let low = self.low[v].min(self.low[w]);
+                    self.low.insert(v, low);
+                } else if self.on.contains(w) {
+                    let low = self.low[v].min(self.index[w]);
+                    self.low.insert(v, low);
+                }
+            }
+            if self.low[v] == self.index[v] {
+                let mut component = Vec::new();
+                while let Some(w) = self.stack.pop() {
+                    self.on.remove(w);
+                    component.push(w.to_string());
+                    if w == v {
+                        break;
+                    }
+                }
+                if component.len() > 1 {
+                    component.sort();
+                    self.found.push(component);
+                }
+            }
+        }
+    }
+    let mut search = Search {
+        graph,
+        index: BTreeMap::new(),
+        low: BTreeMap::new(),
+        stack: Vec::new(),
+        on: BTreeSet::new(),
+        found: Vec::new(),
+    };
+    for v in graph.keys() {
+        if !search.index.contains_key(v.as_str()) {
+            search.visit(v);
+        }
+    }
+    search.found
+}
+
+#[test]
+fn cloth_core_has_no_import_circles() {
+    let graph = imports(&workspace().join("crates/cloth-core/src"));
+    let edges: usize = graph.values().map(|e| e.len()).sum();
+    println!("{} files, {edges} imports between them", graph.len());
+    let found = circles(&graph);
+    for component in &found {
+        println!("a circle of {} files:", component.len());
+        for a in component {
+            for (b, names) in &graph[a] {
+                if component.contains(b) {
+                    println!("  {a} -> {b} {names:?}");
+                }
+            }
+        }
+    }
+    assert!(graph.len() > 50 && edges > 200, "the sources were not read");
+    assert!(found.is_empty(), "{} import circles (printed above)", found.len());
+}
+
+/// The checker sees a circle where there is one: two files that name each
+/// other's items.
+#[test]
+fn the_circle_checker_finds_a_circle() {
+    let dir = std::env::temp_dir().join(format!("cloth-architecture-{}", std::process::id()));
+    std::fs::create_dir_all(dir.join("a")).unwrap();
+    std::fs::write(dir.join("a/one.rs"), "use crate::two::Two;\npub struct One(Two);\n").unwrap();
+    std::fs::write(dir.join("a/two.rs"), "pub struct Two;\nimpl Two { fn f(_: &crate::one::One) {} }\n").unwrap();
+    std::fs::write(dir.join("a/three.rs"), "use crate::two::Two;\npub fn three(_: Two) {}\n").unwrap();
+    let found = circles(&imports(&dir));
+    std::fs::remove_dir_all(&dir).ok();
+    assert_eq!(found, vec![vec!["a/one.rs".to_string(), "a/two.rs".to_string()]]);
+}
+
+#[test]
+fn no_source_file_has_more_than_800_lines_besides_its_tests() {
+    let root = workspace();
+    let mut largest = (0, PathBuf::new());
+    let mut over = Vec::new();
+    for dir in ["crates", "tools/src", "python/src", "benches"] {
+        for path in sources(&root.join(dir)).into_iter().filter(|p| !is_test_file(p.strip_prefix(&root).unwrap())) {
+            let text = std::fs::read_to_string(&path).unwrap();
+            let lines = before_tests(&text).lines().count();
+            if lines > largest.0 {
+                largest = (lines, path.clone());
+            }
+            if lines > 800 {
+                over.push((lines, path));
+            }
+        }
+    }
+    println!("largest: {} lines, {}", largest.0, largest.1.display());
+    assert!(largest.0 > 300, "the sources were not read");
+    assert!(over.is_empty(), "files over 800 lines besides tests: {over:?}");
+}
