@@ -1,6 +1,6 @@
 //! The house's rules, read off the sources: no import circles between
-//! cloth-core's files, and no source file of more than 800 lines besides
-//! its tests.
+//! cloth-core's files, no source file of more than 800 lines besides its
+//! tests, and no error taken apart from its text.
 //!
 //! A file imports another when it names an item only that other file
 //! defines: in a `use`, in a path (`crate::laws::repulsion`), or as a
@@ -241,4 +241,28 @@ fn no_source_file_has_more_than_800_lines_besides_its_tests() {
     println!("largest: {} lines, {}", largest.0, largest.1.display());
     assert!(largest.0 > 300, "the sources were not read");
     assert!(over.is_empty(), "files over 800 lines besides tests: {over:?}");
+}
+
+/// An error names its field in a typed value ([`cloth_core::FieldError`],
+/// an enum's variant), so no code reads one back out of the error's text:
+/// no `split_once(": ")` on a message, no `contains` on an error string.
+#[test]
+fn no_error_is_read_back_from_its_text() {
+    let root = workspace();
+    let parsing = Regex::new(r#"split_once\(": "\)|\b(e|err|error|why)\.contains\("#).unwrap();
+    let mut found = Vec::new();
+    let mut files = 0;
+    for dir in ["crates", "tools/src", "python/src"] {
+        for path in sources(&root.join(dir)).into_iter().filter(|p| !is_test_file(p.strip_prefix(&root).unwrap())) {
+            let text = std::fs::read_to_string(&path).unwrap();
+            files += 1;
+            for (k, line) in before_tests(&text).lines().enumerate() {
+                if parsing.is_match(line) {
+                    found.push(format!("{}:{}: {}", path.display(), k + 1, line.trim()));
+                }
+            }
+        }
+    }
+    assert!(files > 100, "the sources were not read");
+    assert!(found.is_empty(), "errors read back from their text:\n{}", found.join("\n"));
 }

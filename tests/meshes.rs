@@ -562,7 +562,7 @@ fn the_gltf_skirt_is_the_obj_skirt() {
 #[test]
 fn bad_grain_and_gltf_fields_are_named() {
     let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../fixtures/meshes");
-    let field = |panel: MeshPanel| panel.resolve(&dir).unwrap_err().0;
+    let field = |panel: MeshPanel| panel.resolve(&dir).unwrap_err().path;
     let mut no_map = MeshPanel::from_triangles(vec![], vec![]);
     no_map.obj = Some("tube-skirt.obj".into());
     no_map.grain_from_uv = true;
@@ -581,7 +581,7 @@ fn bad_grain_and_gltf_fields_are_named() {
     let mut unknown = MeshPanel::from_triangles(vec![], vec![]);
     unknown.gltf = Some("tube-skirt.glb".into());
     unknown.gltf_mesh = Some("dress".into());
-    let (f, message) = unknown.resolve(&dir).unwrap_err();
+    let cloth_core::FieldError { path: f, message } = unknown.resolve(&dir).unwrap_err();
     assert_eq!(f, "gltf_mesh");
     assert!(message.contains("the file has tube-skirt"), "{message}");
     let mut missing = MeshPanel::from_triangles(vec![], vec![]);

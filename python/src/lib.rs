@@ -218,7 +218,7 @@ impl Builder {
         if let Some(tol) = rel_tol {
             solver.rel_tol = tol;
         }
-        solver.validate().map_err(|(field, message)| ModelError::new_err(format!("solver.{field}: {message}")))?;
+        solver.validate().map_err(|e| ModelError::new_err(e.within("solver").to_string()))?;
         Ok(Simulation { sim: CoreSimulation::new(model, kind, solver), dt_s })
     }
 }

@@ -20,11 +20,24 @@ use nalgebra::Matrix4;
 use std::collections::HashMap;
 use std::path::Path;
 
+/// Why a glTF mesh cannot be read. The text names the file and the part
+/// of it at fault (mesh names, primitive numbers).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum GltfError {
+    /// The file cannot be read, is not glTF 2.0, or its mesh is not a
+    /// triangle mesh this reader takes.
+    #[error("{0}")]
+    File(String),
+    /// The mesh asked for is not in the file, or none was named and the
+    /// file has several: a matter of the mesh's name, not of the file.
+    #[error("{0}")]
+    MeshChoice(String),
+}
+
 /// Reads the mesh named `name` (or the file's only mesh when `None`) from
-/// the glTF file at `path`. Errors say what is wrong in words that name
-/// the file's parts (mesh names, primitive numbers).
-pub fn read_gltf(path: &Path, name: Option<&str>) -> Result<SurfaceMesh, String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+/// the glTF file at `path`.
+pub fn read_gltf(path: &Path, name: Option<&str>) -> Result<SurfaceMesh, GltfError> {
+    let bytes = std::fs::read(path).map_err(|e| GltfError::File(format!("cannot read {}: {e}", path.display())))?;
     parse_gltf(&bytes, path, name)
 }
 
@@ -33,42 +46,46 @@ pub fn read_gltf(path: &Path, name: Option<&str>) -> Result<SurfaceMesh, String>
 /// indexes some arrays before checking them (a primitive's `POSITION`
 /// naming an accessor that does not exist panics in gltf-json 1.4.1), so
 /// a panic while reading is caught and refused as a malformed file.
-pub fn parse_gltf(bytes: &[u8], path: &Path, name: Option<&str>) -> Result<SurfaceMesh, String> {
-    crate::catch_panic(|| parse_unguarded(bytes, path, name))
-        .unwrap_or_else(|why| Err(format!("{}: malformed glTF (the reader failed: {why})", path.display())))
+pub fn parse_gltf(bytes: &[u8], path: &Path, name: Option<&str>) -> Result<SurfaceMesh, GltfError> {
+    crate::catch_panic(|| parse_unguarded(bytes, path, name)).unwrap_or_else(|why| {
+        Err(GltfError::File(format!("{}: malformed glTF (the reader failed: {why})", path.display())))
+    })
 }
 
-fn parse_unguarded(bytes: &[u8], path: &Path, name: Option<&str>) -> Result<SurfaceMesh, String> {
-    let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| format!("{}: not glTF 2.0: {e}", path.display()))?;
+fn parse_unguarded(bytes: &[u8], path: &Path, name: Option<&str>) -> Result<SurfaceMesh, GltfError> {
+    let file_error = |what: String| GltfError::File(format!("{}: {what}", path.display()));
+    let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| file_error(format!("not glTF 2.0: {e}")))?;
     let dir = path.parent().unwrap_or(Path::new("."));
     let buffers = gltf
         .buffers()
-        .map(|b| buffer_data(&gltf, &b, dir).map_err(|e| format!("{}: buffer {}: {e}", path.display(), b.index())))
-        .collect::<Result<Vec<Vec<u8>>, String>>()?;
+        .map(|b| buffer_data(&gltf, &b, dir).map_err(|e| file_error(format!("buffer {}: {e}", b.index()))))
+        .collect::<Result<Vec<Vec<u8>>, GltfError>>()?;
     let names: Vec<String> =
         gltf.meshes().map(|m| m.name().map_or_else(|| format!("#{}", m.index()), str::to_owned)).collect();
     let mesh = match name {
         Some(wanted) => gltf.meshes().find(|m| m.name() == Some(wanted)).ok_or_else(|| {
-            format!("{}: no mesh named {wanted:?}; the file has {}", path.display(), names.join(", "))
+            let message = format!("{}: no mesh named {wanted:?}; the file has {}", path.display(), names.join(", "));
+            GltfError::MeshChoice(message)
         })?,
         None => {
             let mut meshes = gltf.meshes();
             match (meshes.next(), meshes.next()) {
                 (Some(only), None) => only,
-                (None, _) => return Err(format!("{}: no mesh", path.display())),
+                (None, _) => return Err(file_error("no mesh".into())),
                 (Some(_), Some(_)) => {
-                    return Err(format!("{}: {} meshes ({}); name one", path.display(), names.len(), names.join(", ")));
+                    let message =
+                        format!("{}: {} meshes ({}); name one", path.display(), names.len(), names.join(", "));
+                    return Err(GltfError::MeshChoice(message));
                 }
             }
         }
     };
-    let transform = world_transform(&gltf, mesh.index()).map_err(|e| format!("{}: {e}", path.display()))?;
+    let transform = world_transform(&gltf, mesh.index()).map_err(file_error)?;
     let mut out = SurfaceMesh::default();
     let mut welded: HashMap<[u32; 3], u32> = HashMap::new();
     for primitive in mesh.primitives() {
-        let err = |what: String| {
-            format!("{}: mesh {}: primitive {}: {what}", path.display(), names[mesh.index()], primitive.index())
-        };
+        let err =
+            |what: String| file_error(format!("mesh {}: primitive {}: {what}", names[mesh.index()], primitive.index()));
         if primitive.mode() != gltf::mesh::Mode::Triangles {
             return Err(err(format!("mode {:?}; only triangles are read", primitive.mode())));
         }
@@ -100,7 +117,7 @@ fn parse_unguarded(bytes: &[u8], path: &Path, name: Option<&str>) -> Result<Surf
                 out.vertices.len() as u32 - 1
             }));
         }
-        let vertex = |k: u32| -> Result<u32, String> {
+        let vertex = |k: u32| -> Result<u32, GltfError> {
             index_of
                 .get(k as usize)
                 .copied()
@@ -113,7 +130,7 @@ fn parse_unguarded(bytes: &[u8], path: &Path, name: Option<&str>) -> Result<Surf
         }
     }
     if out.triangles.is_empty() {
-        return Err(format!("{}: mesh {} has no triangles", path.display(), names[mesh.index()]));
+        return Err(file_error(format!("mesh {} has no triangles", names[mesh.index()])));
     }
     Ok(out)
 }
@@ -213,7 +230,7 @@ mod tests {
         )
     }
 
-    fn read(text: &str, name: Option<&str>) -> Result<SurfaceMesh, String> {
+    fn read(text: &str, name: Option<&str>) -> Result<SurfaceMesh, GltfError> {
         let dir = std::env::temp_dir().join(format!("cloth-gltf-{}-{:p}", std::process::id(), text));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("square.gltf");
@@ -240,25 +257,29 @@ mod tests {
     #[test]
     fn wrong_meshes_and_modes_are_named() {
         let two = read(&square_gltf(true, 4, [0.0; 3]), None).unwrap_err();
+        assert!(matches!(two, GltfError::MeshChoice(_)), "{two}");
+        let two = two.to_string();
         assert!(two.contains("2 meshes (skirt, other); name one"), "{two}");
         assert_eq!(read(&square_gltf(true, 4, [0.0; 3]), Some("skirt")).unwrap().triangles.len(), 2);
         let unknown = read(&square_gltf(true, 4, [0.0; 3]), Some("dress")).unwrap_err();
+        assert!(matches!(unknown, GltfError::MeshChoice(_)), "{unknown}");
+        let unknown = unknown.to_string();
         assert!(unknown.contains("no mesh named \"dress\"; the file has skirt, other"), "{unknown}");
-        let lines = read(&square_gltf(false, 1, [0.0; 3]), None).unwrap_err();
+        let lines = read(&square_gltf(false, 1, [0.0; 3]), None).unwrap_err().to_string();
         assert!(lines.contains("mesh skirt: primitive 0: mode Lines"), "{lines}");
         let dangling = read(&square_gltf(false, 4, [0.0; 3]).replace("\"POSITION\":0", "\"POSITION\":7"), None);
-        assert!(dangling.unwrap_err().contains("malformed glTF"));
-        let garbage = read("{\"asset\":", None).unwrap_err();
+        assert!(dangling.unwrap_err().to_string().contains("malformed glTF"));
+        let garbage = read("{\"asset\":", None).unwrap_err().to_string();
         assert!(garbage.contains("not glTF 2.0"), "{garbage}");
         // Found by libFuzzer: a node among its own children recursed until
         // the stack overflowed, which aborts the host; two parents of one
         // node are refused too (chains of them take exponential time).
         let square = square_gltf(false, 4, [0.0; 3]);
-        let cycle = read(&square.replace("\"children\":[1]", "\"children\":[0,1]"), None).unwrap_err();
+        let cycle = read(&square.replace("\"children\":[1]", "\"children\":[0,1]"), None).unwrap_err().to_string();
         assert!(cycle.contains("node 0 is reached twice"), "{cycle}");
         let shared =
             square.replace("\"children\":[1]", "\"children\":[2,2,1]").replace("{\"mesh\":0}]", "{\"mesh\":0},{}]");
-        let shared = read(&shared, None).unwrap_err();
+        let shared = read(&shared, None).unwrap_err().to_string();
         assert!(shared.contains("node 2 is reached twice"), "{shared}");
     }
 }

@@ -26,7 +26,7 @@ mod voxel_hash;
 pub use box_grid::{Aabb, BoxGrid};
 pub use ccd::{Path, edge_edge_impact, point_triangle_impact, segment_crosses_triangle, segment_distance};
 pub use collider::{BodyPose, ShapeError, ShapeSpec, SolidShape, SurfacePoint};
-pub use gltf_mesh::{parse_gltf, read_gltf};
+pub use gltf_mesh::{GltfError, parse_gltf, read_gltf};
 pub use obj::{ObjError, SurfaceMesh, parse_obj, parse_obj_points};
 pub use triangle::closest_point_on_triangle;
 pub use voxel_hash::{BroadPhaseError, VoxelHash};

@@ -15,6 +15,7 @@
 //! [`contact`] (what it touches), [`scene`] (TOML files).
 
 pub mod contact;
+mod field_error;
 pub mod integrate;
 pub mod model;
 pub mod reference;
@@ -38,6 +39,7 @@ pub use colliders::{Collider, ColliderSpec, CollisionSpec, SelfCollision, SelfCo
 pub use constraints::{StrainLimitReport, apply_strain_limit};
 pub use contacts::{ContactStats, Contacts};
 pub use control::{Control, ControlError, SolidImpulse, SolidMotion};
+pub use field_error::FieldError;
 pub use integrate::bodies::{BodyError, BodyInSolve};
 pub use integrate::implicit::{BackwardEuler, Bdf2};
 pub use integrate::loads::Loads;
@@ -56,7 +58,7 @@ pub use report::{NewtonReport, StageTimes, StepError, StepReport};
 pub use sim::{Simulation, SimulationBuilder};
 pub use state::{ClothState, IntegratorMemory, Snapshot};
 pub use step::{Attempt, Capabilities, ContactHandling, Integrator, Step, StepOutput};
-pub use topology::{Diagonals, Edge, GridPanel, LinkType, PanelError, PanelMesh};
+pub use topology::{Diagonals, Edge, GridPanel, LinkType, PanelMesh};
 pub use wind::{Wind, WindProfile};
 
 // The README's Rust example, compiled and run as a doctest.

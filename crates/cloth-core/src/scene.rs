@@ -114,8 +114,9 @@
 //! respond after the step (projection, inelastic impulse, Coulomb friction).
 
 use crate::{
-    BendingLaw, ClothModel, ColliderSpec, CollisionSpec, Effect, EffectValues, Effects, GridPanel, IntegratorKind,
-    Material, ModelKind, ModelSpec, PinSpec, SeamSpec, SelfCollisionSpec, SolverParams, StrainLimit, Vec3, Wind,
+    BendingLaw, ClothModel, ColliderSpec, CollisionSpec, Effect, EffectValues, Effects, FieldError, GridPanel,
+    IntegratorKind, Material, ModelKind, ModelSpec, PinSpec, SeamSpec, SelfCollisionSpec, SolverParams, StrainLimit,
+    Vec3, Wind,
 };
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -319,6 +320,12 @@ pub enum SceneErrorKind {
     },
 }
 
+impl From<FieldError> for SceneErrorKind {
+    fn from(e: FieldError) -> Self {
+        SceneErrorKind::Invalid { field: e.path, message: e.message }
+    }
+}
+
 impl Scene {
     /// Whether `[collision] allow_start_inside` is set.
     pub fn allows_start_inside(&self) -> bool {
@@ -408,9 +415,7 @@ impl Scene {
                 return Err(invalid("simulation.effects", format!("{e:?} is listed twice")));
             }
         }
-        self.solver
-            .validate()
-            .map_err(|(key, message)| SceneErrorKind::Invalid { field: format!("solver.{key}"), message })?;
+        self.solver.validate().map_err(|e| SceneErrorKind::from(e.within("solver")))?;
         // Checked even when the effect is not listed: a bad value is never silently kept.
         let c = &self.constraints;
         if !(c.max_strain.is_finite() && c.max_strain >= 0.0) {
@@ -461,11 +466,7 @@ impl Scene {
     /// whose error paths (`panels[0].particles`) match the scene's keys.
     pub fn build(&self) -> Result<(ClothModel, RunConfig), SceneErrorKind> {
         self.check_run_fields()?;
-        let model = ClothModel::build(&self.model_spec()).map_err(|e| {
-            let text = e.to_string();
-            let (field, message) = text.split_once(": ").unwrap_or(("scene", &text));
-            SceneErrorKind::Invalid { field: field.to_string(), message: message.to_string() }
-        })?;
+        let model = ClothModel::build(&self.model_spec()).map_err(|e| SceneErrorKind::from(e.field_error()))?;
         let s = &self.simulation;
         if model.self_collision().is_some() && !s.integrator.handles_self_collision() {
             return Err(SceneErrorKind::Invalid {

@@ -30,6 +30,7 @@
 
 use crate::bvh::Bvh;
 use crate::rig::{JointKind, JointValue, Rig, RigPose, UpAxis};
+use cloth_core::FieldError;
 use cloth_core::colliders::rotation_from_degrees;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use serde::Deserialize;
@@ -164,17 +165,17 @@ impl Clip {
                 Translation3::from(Vec3::from(key.root_position_m)),
                 rotation_from_degrees(key.root_rotation_deg),
             );
-            let unknown: Vec<(String, String)> = key
+            let unknown: Vec<FieldError> = key
                 .joints
                 .keys()
                 .filter(|name| rig.joint(name).is_none())
                 .map(|name| {
                     let names = rig.joints.iter().map(|j| j.name.as_str());
-                    (field(&format!("joints.{name}")), crate::names::unknown("rig joint", name, names))
+                    FieldError::new(field(&format!("joints.{name}")), crate::names::unknown("rig joint", name, names))
                 })
                 .collect();
-            if let Some((f, m)) = crate::names::combined(unknown, field("joints")) {
-                return Err(invalid(f, m));
+            if let Some(e) = crate::names::combined(unknown, field("joints")) {
+                return Err(invalid(e.path, e.message));
             }
             for (name, value) in &key.joints {
                 let field = field(&format!("joints.{name}"));
@@ -201,7 +202,7 @@ impl Clip {
         let mut problems = Vec::new();
         let root = bvh.joint(&map.root);
         if root.is_none() {
-            problems.push(("root".to_string(), crate::names::unknown("BVH joint", &map.root, bvh_names())));
+            problems.push(FieldError::new("root", crate::names::unknown("BVH joint", &map.root, bvh_names())));
         }
         // (rig joint, BVH joint) in the rig's joint order.
         let mut pairs: Vec<Option<usize>> = vec![None; rig.joints.len()];
@@ -209,21 +210,23 @@ impl Clip {
             let field = format!("joints.{rig_joint}");
             let (j, b) = (rig.joint(rig_joint), bvh.joint(bvh_joint));
             if j.is_none() {
-                problems.push((field.clone(), crate::names::unknown("rig joint", rig_joint, rig_names())));
+                problems
+                    .push(FieldError::new(field.clone(), crate::names::unknown("rig joint", rig_joint, rig_names())));
             }
             if b.is_none() {
-                problems.push((field.clone(), crate::names::unknown("BVH joint", bvh_joint, bvh_names())));
+                problems
+                    .push(FieldError::new(field.clone(), crate::names::unknown("BVH joint", bvh_joint, bvh_names())));
             }
             let (Some(j), Some(b)) = (j, b) else { continue };
             if matches!(rig.joints[j].kind, JointKind::Fixed | JointKind::Prismatic { .. }) {
                 let message = format!("{:?} joints do not turn: BVH rotations drive the others", rig.joints[j].kind);
-                problems.push((field, message));
+                problems.push(FieldError::new(field, message));
                 continue;
             }
             pairs[j] = Some(b);
         }
-        if let Some((f, m)) = crate::names::combined(problems, "joints") {
-            return Err(invalid(f, m));
+        if let Some(e) = crate::names::combined(problems, "joints") {
+            return Err(invalid(e.path, e.message));
         }
         let root = root.expect("an unknown root is a problem above");
         let up = map.up_axis.turn();
@@ -271,24 +274,23 @@ impl Clip {
 
 /// The rest pose of `rig` with `values` (keyframe notation: degrees, or
 /// `[x, y, z]` degrees for ball joints) on the joints they name. Every
-/// unknown name and bad value is reported, as `(field, message)` with the
-/// field `joints.<name>`.
+/// unknown name and bad value is reported, with the field `joints.<name>`.
 pub fn joints_from_values(
     rig: &Rig,
     values: &BTreeMap<String, toml::Value>,
-) -> Result<Vec<JointValue>, Vec<(String, String)>> {
+) -> Result<Vec<JointValue>, Vec<FieldError>> {
     let mut joints = rig.rest_pose().joints;
     let mut problems = Vec::new();
     for (name, value) in values {
         let field = format!("joints.{name}");
         let Some(j) = rig.joint(name) else {
             let names = rig.joints.iter().map(|j| j.name.as_str());
-            problems.push((field, crate::names::unknown("rig joint", name, names)));
+            problems.push(FieldError::new(field, crate::names::unknown("rig joint", name, names)));
             continue;
         };
         match joint_value(rig.joints[j].kind, value) {
             Ok(v) => joints[j] = v,
-            Err(m) => problems.push((field, m)),
+            Err(m) => problems.push(FieldError::new(field, m)),
         }
     }
     if problems.is_empty() { Ok(joints) } else { Err(problems) }

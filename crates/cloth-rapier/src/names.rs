@@ -1,6 +1,8 @@
 //! Nearest names for errors about unknown joints, links and bodies: a
 //! misspelt name is reported with the names it was probably meant to be.
 
+use cloth_core::FieldError;
+
 /// At most this many suggestions.
 const SUGGESTIONS: usize = 3;
 
@@ -28,15 +30,15 @@ pub(crate) fn unknown<'a>(what: &str, name: &str, known: impl IntoIterator<Item 
     format!("no {what} {name:?} (nearest: {})", list.join(", "))
 }
 
-/// `(field, message)` problems as one error: none, the one as it is, or
-/// several under `group` as `field: problem; field: problem`.
-pub(crate) fn combined(problems: Vec<(String, String)>, group: impl Into<String>) -> Option<(String, String)> {
+/// Problems as one error: none, the one as it is, or several under
+/// `group` as `field: problem; field: problem`.
+pub(crate) fn combined(problems: Vec<FieldError>, group: impl Into<String>) -> Option<FieldError> {
     match problems.len() {
         0 => None,
         1 => problems.into_iter().next(),
         _ => {
-            let all: Vec<String> = problems.iter().map(|(field, message)| format!("{field}: {message}")).collect();
-            Some((group.into(), all.join("; ")))
+            let all: Vec<String> = problems.iter().map(FieldError::to_string).collect();
+            Some(FieldError::new(group, all.join("; ")))
         }
     }
 }

@@ -18,6 +18,7 @@
 //! motion, which is the authority on where the character is.
 
 use cloth_collide::ShapeSpec;
+use cloth_core::FieldError;
 use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion};
 use std::path::{Path, PathBuf};
 
@@ -267,7 +268,7 @@ impl Rig {
                 let field = |f: &str| format!("collision[{k}].{f}");
                 let origin = pose(&c.origin, scale).map_err(|m| invalid("link", &link.name, &field("origin"), m))?;
                 let geometry = geometry(&c.geometry, scale, dir)
-                    .map_err(|(f, m)| invalid("link", &link.name, &field(&format!("geometry.{f}")), m))?;
+                    .map_err(|e| invalid("link", &link.name, &field(&format!("geometry.{}", e.path)), e.message))?;
                 shapes.push(RigShape { origin, geometry });
             }
             links.push(RigLink { name: link.name.clone(), shapes });
@@ -456,13 +457,13 @@ fn pose(p: &urdf_rs::Pose, scale: f64) -> Result<Isometry3<f64>, String> {
     ))
 }
 
-/// A URDF collision geometry, scaled; errors as (field, message).
-fn geometry(g: &urdf_rs::Geometry, scale: f64, dir: &Path) -> Result<RigGeometry, (String, String)> {
+/// A URDF collision geometry, scaled; errors name the field under `geometry`.
+fn geometry(g: &urdf_rs::Geometry, scale: f64, dir: &Path) -> Result<RigGeometry, FieldError> {
     let positive = |field: &str, v: f64| {
         if v.is_finite() && v > 0.0 {
             Ok(v * scale)
         } else {
-            Err((field.to_string(), format!("must be finite and > 0, got {v}")))
+            Err(FieldError::new(field, format!("must be finite and > 0, got {v}")))
         }
     };
     Ok(match g {
@@ -484,8 +485,8 @@ fn geometry(g: &urdf_rs::Geometry, scale: f64, dir: &Path) -> Result<RigGeometry
         }
         urdf_rs::Geometry::Mesh { filename, scale: mesh_scale } => {
             if filename.starts_with("package://") {
-                return Err((
-                    "mesh.filename".into(),
+                return Err(FieldError::new(
+                    "mesh.filename",
                     format!("{filename:?}: package:// paths need ROS; give a path relative to the rig file"),
                 ));
             }
@@ -494,13 +495,13 @@ fn geometry(g: &urdf_rs::Geometry, scale: f64, dir: &Path) -> Result<RigGeometry
                 Vec3::new(positive("mesh.scale", s[0])?, positive("mesh.scale", s[1])?, positive("mesh.scale", s[2])?);
             let path = dir.join(filename.strip_prefix("file://").unwrap_or(filename));
             if !path.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj")) {
-                return Err((
-                    "mesh.filename".into(),
+                return Err(FieldError::new(
+                    "mesh.filename",
                     format!("{filename:?}: only OBJ meshes are read (export STL or Collada meshes as OBJ)"),
                 ));
             }
             if !path.is_file() {
-                return Err(("mesh.filename".into(), format!("{} does not exist", path.display())));
+                return Err(FieldError::new("mesh.filename", format!("{} does not exist", path.display())));
             }
             RigGeometry::Mesh { path, scale }
         }

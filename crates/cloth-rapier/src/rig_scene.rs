@@ -26,6 +26,7 @@ use crate::bvh::Bvh;
 use crate::character::RigBodies;
 use crate::motion::{BvhMap, Clip, Playback, RigMotion, joints_from_values, unit_scale, y_up};
 use crate::rig::{Rig, RigOptions, RigPose, UpAxis};
+use cloth_core::FieldError;
 use cloth_core::colliders::rotation_from_degrees;
 use nalgebra::{Isometry3, Translation3};
 use rapier3d_f64::prelude::PhysicsWorld;
@@ -280,42 +281,51 @@ impl SceneRig {
 
 impl RigSection {
     /// Reads the rig and its motion (paths against `base_dir`) and adds the
-    /// links to `world` at the pose of time 0. Errors as (field, message).
-    pub fn build(&self, world: &mut PhysicsWorld, base_dir: &Path) -> Result<SceneRig, (String, String)> {
+    /// links to `world` at the pose of time 0. Errors name the field from the
+    /// scene's root (`rig.settle_s`).
+    pub fn build(&self, world: &mut PhysicsWorld, base_dir: &Path) -> Result<SceneRig, FieldError> {
         let field = |f: &str| format!("rig.{f}");
         for (name, v) in [("position_m", self.position_m), ("rotation_deg", self.rotation_deg)] {
             if !v.iter().all(|c| c.is_finite()) {
-                return Err((field(name), format!("must be finite, got {v:?}")));
+                return Err(FieldError::new(field(name), format!("must be finite, got {v:?}")));
             }
         }
         for (name, v) in [("settle_s", self.settle_s), ("blend_s", self.blend_s)] {
             if !(v.is_finite() && v >= 0.0) {
-                return Err((field(name), format!("must be finite and >= 0, got {v}")));
+                return Err(FieldError::new(field(name), format!("must be finite and >= 0, got {v}")));
             }
         }
         if !(self.friction.is_finite() && self.friction >= 0.0) {
-            return Err((field("friction"), format!("must be finite and >= 0, got {}", self.friction)));
+            return Err(FieldError::new(field("friction"), format!("must be finite and >= 0, got {}", self.friction)));
         }
         let urdf = base_dir.join(&self.urdf);
         let options = RigOptions { up_axis: self.up_axis, scale: self.scale };
-        let rig = Rig::load(&urdf, options).map_err(|e| (field("urdf"), e.to_string()))?;
+        let rig = Rig::load(&urdf, options).map_err(|e| FieldError::new(field("urdf"), e.to_string()))?;
         let (clip, file) = match &self.motion {
             RigMotionSpec::Rest => (Clip { times_s: vec![0.0], poses: vec![rig.rest_pose()] }, urdf.clone()),
             RigMotionSpec::Keyframes { file } => {
                 let path = base_dir.join(file);
-                (Clip::load_keyframes(&path, &rig).map_err(|e| (field("motion.file"), e.to_string()))?, path)
+                (
+                    Clip::load_keyframes(&path, &rig)
+                        .map_err(|e| FieldError::new(field("motion.file"), e.to_string()))?,
+                    path,
+                )
             }
             RigMotionSpec::Bvh { file, root, joints, up_axis, scale } => {
                 let path = base_dir.join(file);
-                let bvh = Bvh::load(&path).map_err(|e| (field("motion.file"), e.to_string()))?;
+                let bvh = Bvh::load(&path).map_err(|e| FieldError::new(field("motion.file"), e.to_string()))?;
                 let map = BvhMap { root: root.clone(), joints: joints.clone(), up_axis: *up_axis, scale: *scale };
-                (Clip::from_bvh(&bvh, &path, &rig, &map).map_err(|e| (field("motion"), e.to_string()))?, path)
+                (
+                    Clip::from_bvh(&bvh, &path, &rig, &map)
+                        .map_err(|e| FieldError::new(field("motion"), e.to_string()))?,
+                    path,
+                )
             }
         };
         // The rest "motion" is one pose: nothing to loop.
         let looping = self.looping && self.motion != RigMotionSpec::Rest;
         if looping && clip.duration_s() <= 0.0 {
-            return Err((field("looping"), "a motion of one pose cannot loop: set looping = false".into()));
+            return Err(FieldError::new(field("looping"), "a motion of one pose cannot loop: set looping = false"));
         }
         let playback = Playback {
             settle_s: self.settle_s,
@@ -331,16 +341,17 @@ impl RigSection {
             SettlePose::Named(SettlePoseName::Rest) => None,
             SettlePose::Named(SettlePoseName::FirstFrame) => Some(clip.poses[0].joints.clone()),
             SettlePose::Joints { joints } => Some(joints_from_values(&rig, joints).map_err(|problems| {
-                let problems = problems.into_iter().map(|(f, m)| (format!("rig.settle_pose.{f}"), m)).collect();
+                let problems = problems.into_iter().map(|e| e.within("rig.settle_pose")).collect();
                 crate::names::combined(problems, field("settle_pose.joints")).expect("refused for a problem")
             })?),
         };
-        let mut motion = RigMotion::new(clip, &rig, playback, &file).map_err(|e| (field("motion"), e.to_string()))?;
+        let mut motion =
+            RigMotion::new(clip, &rig, playback, &file).map_err(|e| FieldError::new(field("motion"), e.to_string()))?;
         if let Some(joints) = settle {
-            motion = motion.settling_at(joints).map_err(|e| (field("settle_pose"), e.to_string()))?;
+            motion = motion.settling_at(joints).map_err(|e| FieldError::new(field("settle_pose"), e.to_string()))?;
         }
         let bodies = RigBodies::insert(&rig, world, &motion.pose_at(0.0), self.friction, &urdf)
-            .map_err(|e| (field("urdf"), e.to_string()))?;
+            .map_err(|e| FieldError::new(field("urdf"), e.to_string()))?;
         Ok(SceneRig { rig, bodies, motion, file: urdf, options, driven })
     }
 }

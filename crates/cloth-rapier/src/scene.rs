@@ -50,7 +50,7 @@ use crate::rig_scene::{RigSection, SceneRig};
 use cloth_collide::{BodyPose, ShapeSpec, SolidShape};
 use cloth_core::colliders::rotation_from_degrees;
 use cloth_core::scene::{RunConfig, Scene, SceneError, SceneErrorKind, check_start_outside};
-use cloth_core::{PinMotion, Vec3};
+use cloth_core::{FieldError, PinMotion, Vec3};
 use cloth_cosim::Relaxation;
 use nalgebra::UnitQuaternion;
 use rapier3d_f64::prelude::{ColliderBuilder, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle};
@@ -331,12 +331,12 @@ impl CoupledScene {
                 return Err(invalid(field("name"), format!("{:?} is used twice", b.name)));
             }
             let (handle, anchor) =
-                add_body(&mut world, b, &self.scene.base_dir).map_err(|(f, m)| invalid(field(&f), m))?;
+                add_body(&mut world, b, &self.scene.base_dir).map_err(|e| e.within(&format!("bodies[{k}]")))?;
             bodies.push(SceneBody { name: b.name.clone(), handle, spec: b.clone(), anchor });
         }
         let rig = match &self.rig {
             Some(section) => {
-                let built = section.build(&mut world, &self.scene.base_dir).map_err(|(f, m)| invalid(f, m))?;
+                let built = section.build(&mut world, &self.scene.base_dir)?;
                 if let Some(b) = bodies.iter().find(|b| built.rig.link(&b.name).is_some()) {
                     return Err(invalid("bodies".into(), format!("{:?} is also a link of the rig", b.name)));
                 }
@@ -357,14 +357,15 @@ impl CoupledScene {
             .map(|b| b.name.as_str())
             .chain(rig.iter().flat_map(|r| r.rig.links.iter().map(|l| l.name.as_str())))
             .collect();
-        let unknown: Vec<(String, String)> = (self.attachments.iter().enumerate())
+        let unknown: Vec<FieldError> = (self.attachments.iter().enumerate())
             .filter(|(_, a)| body_of(&a.body).is_none())
             .map(|(k, a)| {
-                (format!("attachments[{k}].body"), crate::names::unknown("body or rig link", &a.body, known.clone()))
+                let message = crate::names::unknown("body or rig link", &a.body, known.clone());
+                FieldError::new(format!("attachments[{k}].body"), message)
             })
             .collect();
-        if let Some((f, m)) = crate::names::combined(unknown, "attachments") {
-            return Err(invalid(f, m));
+        if let Some(e) = crate::names::combined(unknown, "attachments") {
+            return Err(e.into());
         }
         for (k, a) in self.attachments.iter().enumerate() {
             let field = |name: &str| format!("attachments[{k}].{name}");
@@ -463,12 +464,12 @@ fn add_body(
     world: &mut PhysicsWorld,
     b: &BodySpec,
     base_dir: &Path,
-) -> Result<(RigidBodyHandle, BodyPose), (String, String)> {
+) -> Result<(RigidBodyHandle, BodyPose), FieldError> {
     let finite = |name: &str, v: &[f64; 3]| {
         if v.iter().all(|c| c.is_finite()) {
             Ok(())
         } else {
-            Err((name.to_string(), format!("must be finite, got {v:?}")))
+            Err(FieldError::new(name.to_string(), format!("must be finite, got {v:?}")))
         }
     };
     finite("position_m", &b.position_m)?;
@@ -480,7 +481,7 @@ fn add_body(
         if v.is_finite() && v >= 0.0 {
             Ok(())
         } else {
-            Err((name.to_string(), format!("must be finite and >= 0, got {v}")))
+            Err(FieldError::new(name.to_string(), format!("must be finite and >= 0, got {v}")))
         }
     };
     non_negative("friction", b.friction)?;
@@ -491,39 +492,35 @@ fn add_body(
         [("linear_damping_1_s", b.linear_damping_1_s), ("angular_damping_1_s", b.angular_damping_1_s)]
     {
         if b.kind != BodyKind::Dynamic && damping > 0.0 {
-            return Err((name.into(), "only dynamic bodies are damped".into()));
+            return Err(FieldError::new(name, "only dynamic bodies are damped"));
         }
     }
-    b.motion.validate().map_err(|(f, m)| (format!("motion.{f}"), m))?;
+    b.motion.validate().map_err(|e| e.within("motion"))?;
     let moving = b.motion != PinMotion::Fixed || b.spin_deg_s != [0.0; 3];
     if b.kind != BodyKind::Kinematic && moving {
-        return Err(("motion".into(), "only kinematic bodies follow a motion or spin".into()));
+        return Err(FieldError::new("motion", "only kinematic bodies follow a motion or spin"));
     }
     if b.motion == PinMotion::External {
-        return Err(("motion".into(), "a scene body cannot be external: use a kinematic path".into()));
+        return Err(FieldError::new("motion", "a scene body cannot be external: use a kinematic path"));
     }
     let dynamic = b.kind == BodyKind::Dynamic;
     if dynamic && matches!(b.shape, ShapeSpec::HalfSpace { .. } | ShapeSpec::Mesh { .. }) {
-        return Err((
-            "shape".into(),
-            "a dynamic body needs a solid shape (not half-space or mesh; use convex-hull)".into(),
+        return Err(FieldError::new(
+            "shape",
+            "a dynamic body needs a solid shape (not half-space or mesh; use convex-hull)",
         ));
     }
-    let shape = SolidShape::build(&b.shape, base_dir).map_err(|e| {
-        let text = e.to_string();
-        let (f, m) = text.split_once(": ").unwrap_or(("", &text));
-        (format!("shape.{f}"), m.to_string())
-    })?;
+    let shape = SolidShape::build(&b.shape, base_dir).map_err(|e| FieldError::from(e).within("shape"))?;
     let (parry_shape, local) = shape.parts();
     let mut collider =
         ColliderBuilder::new(parry_shape.clone()).position(local).friction(b.friction).restitution(b.restitution);
     match (b.density_kg_m3, b.mass_kg) {
-        (Some(_), Some(_)) => return Err(("mass_kg".into(), "give density_kg_m3 or mass_kg, not both".into())),
+        (Some(_), Some(_)) => return Err(FieldError::new("mass_kg", "give density_kg_m3 or mass_kg, not both")),
         (_, Some(m)) if !(m.is_finite() && m > 0.0) => {
-            return Err(("mass_kg".into(), format!("must be finite and > 0, got {m}")));
+            return Err(FieldError::new("mass_kg", format!("must be finite and > 0, got {m}")));
         }
         (Some(d), _) if !(d.is_finite() && d > 0.0) => {
-            return Err(("density_kg_m3".into(), format!("must be finite and > 0, got {d}")));
+            return Err(FieldError::new("density_kg_m3", format!("must be finite and > 0, got {d}")));
         }
         (_, Some(m)) => collider = collider.mass(m),
         (d, None) => collider = collider.density(d.unwrap_or(1000.0)),

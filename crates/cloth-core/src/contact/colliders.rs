@@ -2,6 +2,7 @@
 //! itself. These are the scene-facing descriptions and their checked,
 //! built form; detection and response live in [`crate::contacts`].
 
+use crate::FieldError;
 use crate::keyframes::finite3;
 use crate::{PinMotion, Vec3};
 use cloth_collide::{BodyPose, ShapeSpec, SolidShape};
@@ -166,15 +167,20 @@ pub struct SelfCollision {
     pub voxel_m: f64,
 }
 
-/// Why the collision set-up is invalid: the field path (as in the scene) and why.
-pub type CollisionError = (String, String);
-
-fn non_negative(field: String, v: f64) -> Result<f64, CollisionError> {
-    if v.is_finite() && v >= 0.0 { Ok(v) } else { Err((field, format!("must be finite and >= 0, got {v}"))) }
+fn non_negative(field: String, v: f64) -> Result<f64, FieldError> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(FieldError::new(field, format!("must be finite and >= 0, got {v}")))
+    }
 }
 
-fn positive(field: String, v: f64) -> Result<f64, CollisionError> {
-    if v.is_finite() && v > 0.0 { Ok(v) } else { Err((field, format!("must be finite and > 0, got {v}"))) }
+fn positive(field: String, v: f64) -> Result<f64, FieldError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(FieldError::new(field, format!("must be finite and > 0, got {v}")))
+    }
 }
 
 impl CollisionSpec {
@@ -184,24 +190,22 @@ impl CollisionSpec {
     }
 
     /// Checks and builds the solids (loading meshes).
-    pub fn build_colliders(&self) -> Result<Vec<Collider>, CollisionError> {
+    pub fn build_colliders(&self) -> Result<Vec<Collider>, FieldError> {
         positive("collision.thickness_m".into(), self.thickness())?;
         let mut out = Vec::with_capacity(self.colliders.len());
         for (k, c) in self.colliders.iter().enumerate() {
             let field = |name: &str| format!("colliders[{k}].{name}");
-            let shape = SolidShape::build(&c.shape, &self.base_dir).map_err(|e| {
-                let text = e.to_string();
-                let (f, m) = text.split_once(": ").unwrap_or(("", &text));
-                (field(&format!("shape.{f}")), m.to_string())
-            })?;
-            finite3("position_m", &c.position_m).map_err(|(f, m)| (field(f), m))?;
-            finite3("rotation_deg", &c.rotation_deg).map_err(|(f, m)| (field(f), m))?;
-            finite3("spin_deg_s", &c.spin_deg_s).map_err(|(f, m)| (field(f), m))?;
-            c.motion.validate().map_err(|(f, m)| (field(&format!("motion.{f}")), m))?;
+            let table = format!("colliders[{k}]");
+            let shape = SolidShape::build(&c.shape, &self.base_dir)
+                .map_err(|e| FieldError::from(e).within("shape").within(&table))?;
+            finite3("position_m", &c.position_m).map_err(|e| e.within(&table))?;
+            finite3("rotation_deg", &c.rotation_deg).map_err(|e| e.within(&table))?;
+            finite3("spin_deg_s", &c.spin_deg_s).map_err(|e| e.within(&table))?;
+            c.motion.validate().map_err(|e| e.within("motion").within(&table))?;
             if c.motion == PinMotion::External && c.spin_deg_s != [0.0; 3] {
-                return Err((
+                return Err(FieldError::new(
                     field("spin_deg_s"),
-                    "an external solid's rotation is set from outside: leave spin out".into(),
+                    "an external solid's rotation is set from outside: leave spin out",
                 ));
             }
             let friction = non_negative(field("friction"), c.friction)?;
@@ -219,7 +223,7 @@ impl CollisionSpec {
         &self,
         default_stiffness: f64,
         mean_link_m: f64,
-    ) -> Result<Option<SelfCollision>, CollisionError> {
+    ) -> Result<Option<SelfCollision>, FieldError> {
         let Some(s) = self.self_collision else { return Ok(None) };
         let thickness_m = positive("self_collision.thickness_m".into(), s.thickness_m)?;
         let stiffness_n_m =

@@ -1,6 +1,7 @@
 //! Every solver setting, in one place: the scene's `[solver]` table and
 //! each algorithm's own table beneath it.
 
+use crate::FieldError;
 use crate::PcgParams;
 use cloth_linalg::PreconditionerKind;
 use serde::{Deserialize, Serialize};
@@ -66,18 +67,17 @@ impl SolverParams {
 
     /// Checks every setting; the error names the first bad key under
     /// `[solver]` (such as `newton.iterations`) and what is wrong.
-    pub fn validate(&self) -> Result<(), (String, String)> {
+    pub fn validate(&self) -> Result<(), FieldError> {
         if !(self.rel_tol.is_finite() && self.rel_tol > 0.0 && self.rel_tol < 1.0) {
-            return Err(("rel_tol".into(), format!("must be in (0, 1), got {}", self.rel_tol)));
+            return Err(FieldError::new("rel_tol", format!("must be in (0, 1), got {}", self.rel_tol)));
         }
         if self.max_iter == 0 {
-            return Err(("max_iter".into(), "must be >= 1".into()));
+            return Err(FieldError::new("max_iter", "must be >= 1"));
         }
         if self.blow_up_stretch.is_nan() || self.blow_up_stretch <= 1.0 {
-            return Err(("blow_up_stretch".into(), format!("must be > 1, got {}", self.blow_up_stretch)));
+            return Err(FieldError::new("blow_up_stretch", format!("must be > 1, got {}", self.blow_up_stretch)));
         }
-        let within =
-            |table: &str, r: Result<(), (&'static str, String)>| r.map_err(|(k, m)| (format!("{table}.{k}"), m));
+        let within = |table: &str, r: Result<(), FieldError>| r.map_err(|e| e.within(table));
         within("newton", self.newton.validate())?;
         within("adaptive", self.adaptive.validate())?;
         within("vbd", self.vbd.validate())
@@ -159,21 +159,21 @@ impl Default for NewtonParams {
 
 impl NewtonParams {
     /// Checks the settings; names the first bad field.
-    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+    pub fn validate(&self) -> Result<(), FieldError> {
         if self.iterations == 0 {
-            return Err(("iterations", "must be >= 1".into()));
+            return Err(FieldError::new("iterations", "must be >= 1"));
         }
         if !(self.tolerance_m.is_finite() && self.tolerance_m > 0.0) {
-            return Err(("tolerance_m", format!("must be finite and > 0, got {}", self.tolerance_m)));
+            return Err(FieldError::new("tolerance_m", format!("must be finite and > 0, got {}", self.tolerance_m)));
         }
         if !(self.trigger.is_finite() && self.trigger >= 0.0) {
-            return Err(("trigger", format!("must be finite and >= 0, got {}", self.trigger)));
+            return Err(FieldError::new("trigger", format!("must be finite and >= 0, got {}", self.trigger)));
         }
         if !(self.auto_trigger.is_finite() && self.auto_trigger >= 0.0) {
-            return Err(("auto_trigger", format!("must be finite and >= 0, got {}", self.auto_trigger)));
+            return Err(FieldError::new("auto_trigger", format!("must be finite and >= 0, got {}", self.auto_trigger)));
         }
         if self.auto_iterations < 2 {
-            return Err(("auto_iterations", format!("must be >= 2, got {}", self.auto_iterations)));
+            return Err(FieldError::new("auto_iterations", format!("must be >= 2, got {}", self.auto_iterations)));
         }
         Ok(())
     }
@@ -232,12 +232,15 @@ impl Default for AdaptiveParams {
 
 impl AdaptiveParams {
     /// Checks the settings; names the first bad field.
-    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+    pub fn validate(&self) -> Result<(), FieldError> {
         if !(self.error_tolerance.is_finite() && self.error_tolerance > 0.0) {
-            return Err(("error_tolerance", format!("must be finite and > 0, got {}", self.error_tolerance)));
+            return Err(FieldError::new(
+                "error_tolerance",
+                format!("must be finite and > 0, got {}", self.error_tolerance),
+            ));
         }
         if self.max_substeps == 0 {
-            return Err(("max_substeps", "must be >= 1".into()));
+            return Err(FieldError::new("max_substeps", "must be >= 1"));
         }
         Ok(())
     }
@@ -275,15 +278,15 @@ impl Default for VbdParams {
 
 impl VbdParams {
     /// Checks the settings; names the first bad field.
-    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+    pub fn validate(&self) -> Result<(), FieldError> {
         if self.iterations == 0 {
-            return Err(("iterations", "must be >= 1".into()));
+            return Err(FieldError::new("iterations", "must be >= 1"));
         }
         if !(self.tolerance_m.is_finite() && self.tolerance_m >= 0.0) {
-            return Err(("tolerance_m", format!("must be finite and >= 0, got {}", self.tolerance_m)));
+            return Err(FieldError::new("tolerance_m", format!("must be finite and >= 0, got {}", self.tolerance_m)));
         }
         if !(0.0..1.0).contains(&self.chebyshev_rho) {
-            return Err(("chebyshev_rho", format!("must be in [0, 1), got {}", self.chebyshev_rho)));
+            return Err(FieldError::new("chebyshev_rho", format!("must be in [0, 1), got {}", self.chebyshev_rho)));
         }
         Ok(())
     }

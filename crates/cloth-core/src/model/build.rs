@@ -18,7 +18,7 @@ use crate::elements::{BendTriple, ElementSet};
 use crate::laws::BucklingLaws;
 use crate::material::{Compressive, Lattice, Membrane, PATH_CURVATURE_FACTOR};
 use crate::seams::{self, Stitch};
-use crate::{Pin, Vec3};
+use crate::{FieldError, Pin, Vec3};
 use std::sync::Arc;
 
 impl ClothModel {
@@ -65,7 +65,7 @@ impl ClothModel {
         let Sparsity { pattern, inc_ptr, inc, diag_local } = Sparsity::of(n, &link_pairs, &mut elements, &[]);
         let (tri_ptr, tri_of) = triangles_of_particles(n, &triangles);
         let (sewn_ptr, sewn) = sewn_groups(n, &stitches);
-        let collision_error = |(field, message)| ModelError::Collision { field, message };
+        let collision_error = |e: FieldError| ModelError::Collision { field: e.path, message: e.message };
         let colliders = spec.collision.build_colliders().map_err(collision_error)?;
         let mean_link = stretch.iter().map(|l| l.rest).sum::<f64>() / stretch.len().max(1) as f64;
         let self_collision = spec
@@ -125,7 +125,7 @@ impl ClothModel {
             if !c.spin_rad_s.iter().all(|v| v.is_finite()) {
                 return Err(fail("spin_rad_s", "must be finite".into()));
             }
-            c.motion.validate().map_err(|(f, m)| fail(&format!("motion.{f}"), m))?;
+            c.motion.validate().map_err(|e| fail(&format!("motion.{}", e.path), e.message))?;
             self.colliders.push(c);
         }
         Ok(self)
@@ -260,7 +260,7 @@ fn check_spec(spec: &ModelSpec) -> Result<(), ModelError> {
     if spec.panels.is_empty() && spec.meshes.is_empty() {
         return Err(ModelError::NoPanels);
     }
-    spec.material.validate().map_err(|(field, message)| ModelError::Material { field, message })?;
+    spec.material.validate().map_err(|e: FieldError| ModelError::Material { field: e.path, message: e.message })?;
     if let Some(g) = spec.effects.gravity
         && g.iter().any(|c| !c.is_finite())
     {
@@ -284,7 +284,7 @@ fn check_spec(spec: &ModelSpec) -> Result<(), ModelError> {
                  tensile_stiffness_n_m and shear_modulus_n_m (its Poisson ratio follows from them)",
                 spec.kind.name()
             );
-            return Err(ModelError::Material { field, message });
+            return Err(ModelError::Material { field: field.to_string(), message });
         }
     }
     Ok(())
@@ -323,7 +323,7 @@ impl LinkLaws {
         } else {
             0.0
         };
-        let material_err = |(field, message)| ModelError::Material { field, message };
+        let material_err = |e: FieldError| ModelError::Material { field: e.path, message: e.message };
         let membrane = match spec.kind {
             ModelKind::Volino => {
                 let nu = spec.material.poisson_ratio.unwrap_or(crate::material::DEFAULT_POISSON_RATIO);
@@ -386,15 +386,18 @@ impl Parts {
             drag,
             ..
         } = self;
-        let mesh =
-            panel.mesh_with(diagonals).map_err(|(field, message)| ModelError::Panel { panel: p, field, message })?;
+        let mesh = panel.mesh_with(diagonals).map_err(|e: FieldError| ModelError::Panel {
+            panel: p,
+            field: e.path,
+            message: e.message,
+        })?;
         let offset = mass.len();
         let at = |k: u32| offset as u32 + k;
         let rest_of = |[a, b]: [u32; 2]| (mesh.positions[b as usize] - mesh.positions[a as usize]).norm();
         let degenerate = |rest: f64, values: &[f64]| !(rest > 0.0 && values.iter().all(|v| v.is_finite()));
         let degenerate_err = || ModelError::Panel {
             panel: p,
-            field: "size_m",
+            field: "size_m".into(),
             message: format!("{:?} m gives links of zero or non-finite length or stiffness", panel.size_m),
         };
         let area = |link: &crate::topology::GridLink| if path { link.area } else { mesh.cell_area };
@@ -425,8 +428,11 @@ impl Parts {
             });
         }
         if spec.kind == ModelKind::Volino {
-            let (_, v_axis, _) =
-                panel.frame().map_err(|(field, message)| ModelError::Panel { panel: p, field, message })?;
+            let (_, v_axis, _) = panel.frame().map_err(|e: FieldError| ModelError::Panel {
+                panel: p,
+                field: e.path,
+                message: e.message,
+            })?;
             let (membranes, triangles) =
                 volino_elements(&mesh.positions, &mesh.triangles, &spec.material, &|_| v_axis, p, offset as u32)
                     .ok_or_else(degenerate_err)?;
@@ -496,7 +502,7 @@ impl Parts {
             drag,
             ..
         } = self;
-        let err = |(field, message)| ModelError::Mesh { mesh: k, field, message };
+        let err = |e: FieldError| ModelError::Mesh { mesh: k, field: e.path, message: e.message };
         let mesh = panel.resolve_with(&spec.collision.base_dir, piece).map_err(err)?;
         let offset = mass.len();
         let index = spec.panels.len() + k;
@@ -534,10 +540,10 @@ fn sew(spec: &ModelSpec, grid_offsets: &[usize], meshes: &[MeshRange]) -> Result
     let mut stitches = Vec::new();
     let tensile = spec.material.tensile_stiffness_n_m;
     for (seam, s) in spec.seams.iter().enumerate() {
-        stitches.extend(seams::stitches(s, &targets, tensile).map_err(|(field, message)| ModelError::Seam {
+        stitches.extend(seams::stitches(s, &targets, tensile).map_err(|e| ModelError::Seam {
             seam,
-            field,
-            message,
+            field: e.path,
+            message: e.message,
         })?);
     }
     Ok(stitches)
@@ -554,9 +560,11 @@ fn bending_elements(
     curvature_elements(bending_triangles, rest_positions, pinned, spec.material.flexural_rigidity_n_m).map_err(
         |panel| match panel.checked_sub(spec.panels.len()) {
             Some(mesh) => {
-                ModelError::Mesh { mesh, field: "triangles", message: "a bending triangle is degenerate".into() }
+                ModelError::Mesh { mesh, field: "triangles".into(), message: "a bending triangle is degenerate".into() }
             }
-            None => ModelError::Panel { panel, field: "size_m", message: "a bending triangle is degenerate".into() },
+            None => {
+                ModelError::Panel { panel, field: "size_m".into(), message: "a bending triangle is degenerate".into() }
+            }
         },
     )
 }
@@ -565,10 +573,10 @@ fn bending_elements(
 fn check_wind(spec: &ModelSpec) -> Result<(), ModelError> {
     if spec.effects.wind || spec.effects.aerodynamics {
         let wind = spec.wind.as_ref().ok_or(ModelError::Wind {
-            field: "profile",
+            field: "profile".into(),
             message: "the wind and aerodynamics effects need a [wind] section".into(),
         })?;
-        wind.validate().map_err(|(field, message)| ModelError::Wind { field, message })?;
+        wind.validate().map_err(|e: FieldError| ModelError::Wind { field: e.path, message: e.message })?;
     }
     Ok(())
 }
@@ -578,12 +586,12 @@ fn check_strain_limit(spec: &ModelSpec) -> Result<(), ModelError> {
     if let Some(limit) = spec.strain_limit {
         if !(limit.max_strain.is_finite() && limit.max_strain >= 0.0) {
             return Err(ModelError::StrainLimit {
-                field: "max_strain",
+                field: "max_strain".into(),
                 message: format!("must be finite and >= 0, got {}", limit.max_strain),
             });
         }
         if limit.passes == 0 {
-            return Err(ModelError::StrainLimit { field: "passes", message: "must be >= 1".into() });
+            return Err(ModelError::StrainLimit { field: "passes".into(), message: "must be >= 1".into() });
         }
     }
     Ok(())

@@ -4,7 +4,8 @@
 
 use super::build_parts::{BendingTriangle, clamped, plane_coordinates, volino_elements};
 use super::*;
-use crate::cloth_mesh::{ClothMesh, MeshError, MeshTopology};
+use crate::FieldError;
+use crate::cloth_mesh::{ClothMesh, MeshTopology};
 use crate::element_laws::TriangleRest;
 use crate::elements::{BendHinge, MembraneElement};
 use crate::material::PATH_CURVATURE_FACTOR;
@@ -35,7 +36,7 @@ pub(super) fn mesh_parts(
     mesh: &ClothMesh,
     index: usize,
     offset: u32,
-) -> Result<MeshParts, MeshError> {
+) -> Result<MeshParts, FieldError> {
     let m = &spec.material;
     let (e, b, d) = (m.tensile_stiffness_n_m, m.flexural_rigidity_n_m, m.damping_n_s_m);
     let bending = spec.effects.bending;
@@ -47,7 +48,7 @@ pub(super) fn mesh_parts(
     let topology = mesh.topology();
     let p = &mesh.positions;
     let at = |k: u32| k + offset;
-    let bad = |what: String| ("triangles", what);
+    let bad = |what: String| FieldError::new("triangles", what);
     let mut stretch = Vec::with_capacity(topology.edges.len());
     for edge in &topology.edges {
         let [a, c] = edge.ends;

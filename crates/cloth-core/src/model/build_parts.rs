@@ -34,8 +34,8 @@ pub(super) fn build_pins(
     let mut pins = Vec::new();
     let mut pinned = vec![false; rest.len()];
     for (k, ps) in spec.pins.iter().enumerate() {
-        let err = |field: &'static str, message: String| ModelError::Pin { pin: k, field, message };
-        ps.motion.validate().map_err(|(_, m)| err("motion", m))?;
+        let err = |field: &str, message: String| ModelError::Pin { pin: k, field: field.into(), message };
+        ps.motion.validate().map_err(|e| err("motion", e.message))?;
         if let Some(m) = ps.mesh {
             let mesh =
                 meshes.get(m).ok_or_else(|| err("mesh", format!("no mesh {m} (the scene has {})", meshes.len())))?;
@@ -121,7 +121,7 @@ pub(super) fn check_lattice_on_meshes(spec: &ModelSpec, path: bool) -> Result<()
     let (e, g) = (m.tensile_stiffness_n_m, m.shear_modulus());
     if spec.kind == ModelKind::ChoiKo && g <= e / 4.0 {
         let message = format!("{g} N/m: an isotropic membrane of E = {e} N/m needs G > E/4 (Poisson ratio under 1)");
-        return Err(ModelError::Material { field: "shear_modulus_n_m", message });
+        return Err(ModelError::Material { field: "shear_modulus_n_m".into(), message });
     }
     let lattice = crate::material::triangle_lattice_shear_modulus(m.tensile_stiffness_n_m);
     if let Some(g) = m.shear_modulus_n_m
@@ -132,7 +132,7 @@ pub(super) fn check_lattice_on_meshes(spec: &ModelSpec, path: bool) -> Result<()
             "{g} N/m: {}'s springs on a triangle mesh have G = 3E/8 = {lattice} N/m; the volino model takes any",
             spec.kind.name()
         );
-        return Err(ModelError::Material { field: "shear_modulus_n_m", message });
+        return Err(ModelError::Material { field: "shear_modulus_n_m".into(), message });
     }
     Ok(())
 }

@@ -63,8 +63,10 @@
 //! Links along the boundary border one triangle and stand for it alone, as
 //! the grid's boundary links stand for half a cell.
 
+use crate::FieldError;
 use crate::Vec3;
 pub use crate::model::pattern::PatternPiece;
+use cloth_collide::GltfError;
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -128,8 +130,8 @@ fn unit_scale() -> f64 {
 /// Each triangle's weft: the direction in which the texture map's v grows
 /// (`dx/dv` of the map from the triangle's texture coordinates to its
 /// rest positions), unit. Errors name `grain_from_uv` and the triangle.
-fn uv_wefts(mesh: &ClothMesh, uvs: &[[f64; 2]], corners: &[Option<[u32; 3]>]) -> Result<Vec<Vec3>, MeshError> {
-    let err = |k: usize, what: &str| ("grain_from_uv", format!("triangle {k} {what}"));
+fn uv_wefts(mesh: &ClothMesh, uvs: &[[f64; 2]], corners: &[Option<[u32; 3]>]) -> Result<Vec<Vec3>, FieldError> {
+    let err = |k: usize, what: &str| FieldError::new("grain_from_uv", format!("triangle {k} {what}"));
     mesh.triangles
         .iter()
         .enumerate()
@@ -148,9 +150,6 @@ fn uv_wefts(mesh: &ClothMesh, uvs: &[[f64; 2]], corners: &[Option<[u32; 3]>]) ->
         })
         .collect()
 }
-
-/// Why a mesh panel is invalid: the field and the reason.
-pub type MeshError = (&'static str, String);
 
 /// A mesh panel's rest shape, read and checked.
 #[derive(Debug, Clone, PartialEq)]
@@ -198,18 +197,18 @@ impl MeshPanel {
 
     /// Reads the mesh (an OBJ path relative to `base_dir`), scales and
     /// moves it, and checks it ([`ClothMesh::check`]).
-    pub fn resolve(&self, base_dir: &Path) -> Result<ClothMesh, MeshError> {
+    pub fn resolve(&self, base_dir: &Path) -> Result<ClothMesh, FieldError> {
         self.resolve_with(base_dir, &[])
     }
 
     /// [`MeshPanel::resolve`] with a pattern's outline edges split into
     /// `pieces` where given ([`PatternPiece::mesh_with`]).
-    pub fn resolve_with(&self, base_dir: &Path, pieces: &[Option<usize>]) -> Result<ClothMesh, MeshError> {
+    pub fn resolve_with(&self, base_dir: &Path, pieces: &[Option<usize>]) -> Result<ClothMesh, FieldError> {
         if !(self.scale.is_finite() && self.scale > 0.0) {
-            return Err(("scale", format!("must be finite and > 0, got {}", self.scale)));
+            return Err(FieldError::new("scale", format!("must be finite and > 0, got {}", self.scale)));
         }
         if self.offset_m.iter().any(|c| !c.is_finite()) {
-            return Err(("offset_m", format!("must be finite, got {:?}", self.offset_m)));
+            return Err(FieldError::new("offset_m", format!("must be finite, got {:?}", self.offset_m)));
         }
         let sources = [
             self.obj.is_some(),
@@ -218,24 +217,27 @@ impl MeshPanel {
             self.pattern.is_some(),
         ];
         if sources.iter().filter(|&&s| s).count() != 1 {
-            return Err(("obj", "give one of `obj`, `gltf`, `vertices` with `triangles`, or `pattern`".into()));
+            return Err(FieldError::new("obj", "give one of `obj`, `gltf`, `vertices` with `triangles`, or `pattern`"));
         }
         if self.gltf_mesh.is_some() && self.gltf.is_none() {
-            return Err(("gltf_mesh", "names a mesh of a `gltf` file, and none is given".into()));
+            return Err(FieldError::new("gltf_mesh", "names a mesh of a `gltf` file, and none is given"));
         }
         if self.grain_from_uv && self.weft_axis.is_some() {
-            return Err(("grain_from_uv", "give the grain by `weft_axis` or by the texture map, not both".into()));
+            return Err(FieldError::new(
+                "grain_from_uv",
+                "give the grain by `weft_axis` or by the texture map, not both",
+            ));
         }
         if self.grain_from_uv && self.obj.is_none() && self.gltf.is_none() {
-            return Err(("grain_from_uv", "needs a texture map: an `obj` or `gltf` file".into()));
+            return Err(FieldError::new("grain_from_uv", "needs a texture map: an `obj` or `gltf` file"));
         }
         let (mut outline_edges, mut outline_lengths) = (Vec::new(), Vec::new());
         let mut weft = Vec3::y();
         let mut file_uvs = None;
         let (vertices, triangles) = match (&self.obj, &self.pattern) {
             (_, Some(piece)) => {
-                let m = piece.mesh_with(pieces).map_err(|(field, message)| {
-                    let field = match field {
+                let m = piece.mesh_with(pieces).map_err(|e| {
+                    let field = match e.path.as_str() {
                         "outline_m" => "pattern.outline_m",
                         "edge_length_m" => "pattern.edge_length_m",
                         "lines_m" => "pattern.lines_m",
@@ -245,7 +247,7 @@ impl MeshPanel {
                         "cone" => "pattern.cone",
                         _ => "pattern",
                     };
-                    (field, message)
+                    FieldError::new(field, e.message)
                 })?;
                 outline_edges = m.outline_edges;
                 outline_lengths = m.outline_lengths.iter().map(|l| l * self.scale).collect();
@@ -255,15 +257,20 @@ impl MeshPanel {
             (Some(path), None) => {
                 let full = base_dir.join(path);
                 let text = std::fs::read_to_string(&full)
-                    .map_err(|e| ("obj", format!("cannot read {}: {e}", full.display())))?;
-                let mesh = cloth_collide::parse_obj(&text).map_err(|e| ("obj", format!("{}: {e}", full.display())))?;
+                    .map_err(|e| FieldError::new("obj", format!("cannot read {}: {e}", full.display())))?;
+                let mesh = cloth_collide::parse_obj(&text)
+                    .map_err(|e| FieldError::new("obj", format!("{}: {e}", full.display())))?;
                 file_uvs = Some((mesh.uvs, mesh.triangle_uvs));
                 (mesh.vertices, mesh.triangles)
             }
             (None, None) => match &self.gltf {
                 Some(path) => {
-                    let mesh = cloth_collide::read_gltf(&base_dir.join(path), self.gltf_mesh.as_deref())
-                        .map_err(|e| (if e.contains("no mesh named") { "gltf_mesh" } else { "gltf" }, e))?;
+                    let mesh = cloth_collide::read_gltf(&base_dir.join(path), self.gltf_mesh.as_deref()).map_err(
+                        |e| match e {
+                            GltfError::MeshChoice(why) => FieldError::new("gltf_mesh", why),
+                            GltfError::File(why) => FieldError::new("gltf", why),
+                        },
+                    )?;
                     file_uvs = Some((mesh.uvs, mesh.triangle_uvs));
                     (mesh.vertices, mesh.triangles)
                 }
@@ -274,7 +281,7 @@ impl MeshPanel {
             weft = Vec3::from(w)
                 .try_normalize(1e-12)
                 .filter(|w| w.iter().all(|c| c.is_finite()))
-                .ok_or(("weft_axis", format!("must be a finite non-zero direction, got {w:?}")))?;
+                .ok_or(FieldError::new("weft_axis", format!("must be a finite non-zero direction, got {w:?}")))?;
         }
         let offset = Vec3::from(self.offset_m);
         let positions: Vec<Vec3> = vertices.iter().map(|v| v * self.scale + offset).collect();
@@ -337,41 +344,44 @@ impl ClothMesh {
     /// Checks that the mesh is a consistently wound manifold surface of
     /// finite, non-degenerate triangles using every vertex; names the
     /// field (`vertices` or `triangles`) of the first fault.
-    pub fn check(&self) -> Result<(), MeshError> {
+    pub fn check(&self) -> Result<(), FieldError> {
         let n = self.positions.len();
         if self.triangles.is_empty() {
-            return Err(("triangles", "the mesh has no triangles".into()));
+            return Err(FieldError::new("triangles", "the mesh has no triangles"));
         }
         if n > u32::MAX as usize / 2 {
-            return Err(("vertices", format!("{n} vertices is too many")));
+            return Err(FieldError::new("vertices", format!("{n} vertices is too many")));
         }
         if let Some(k) = self.positions.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
-            return Err(("vertices", format!("vertex {k} is not finite")));
+            return Err(FieldError::new("vertices", format!("vertex {k} is not finite")));
         }
         let mut used = vec![false; n];
         let longest = self.positions.iter().map(|p| p.norm()).fold(0.0, f64::max).max(1e-300);
         for (k, t) in self.triangles.iter().enumerate() {
             if let Some(&v) = t.iter().find(|&&v| v as usize >= n) {
-                return Err(("triangles", format!("triangle {k} names vertex {v}; the mesh has {n}")));
+                return Err(FieldError::new("triangles", format!("triangle {k} names vertex {v}; the mesh has {n}")));
             }
             if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
-                return Err(("triangles", format!("triangle {k} repeats a vertex: {t:?}")));
+                return Err(FieldError::new("triangles", format!("triangle {k} repeats a vertex: {t:?}")));
             }
             let area = triangle_area(t.map(|v| self.positions[v as usize]));
             if area <= 1e-14 * longest * longest {
-                return Err(("triangles", format!("triangle {k} {t:?} has no area")));
+                return Err(FieldError::new("triangles", format!("triangle {k} {t:?} has no area")));
             }
             t.iter().for_each(|&v| used[v as usize] = true);
         }
         if let Some(v) = used.iter().position(|u| !u) {
-            return Err(("vertices", format!("vertex {v} belongs to no triangle (it would have no mass)")));
+            return Err(FieldError::new(
+                "vertices",
+                format!("vertex {v} belongs to no triangle (it would have no mass)"),
+            ));
         }
         let mut directed: HashMap<(u32, u32), usize> = HashMap::new();
         for (k, t) in self.triangles.iter().enumerate() {
             for e in 0..3 {
                 let (a, b) = (t[e], t[(e + 1) % 3]);
                 if let Some(other) = directed.insert((a, b), k) {
-                    return Err((
+                    return Err(FieldError::new(
                         "triangles",
                         format!(
                             "triangles {other} and {k} both run along edge {a} -> {b}: they are wound \
@@ -499,19 +509,19 @@ mod tests {
             f(&mut m);
             m.resolve(base).unwrap_err()
         };
-        assert_eq!(with(&|m| m.triangles[1] = [0, 3, 2]).0, "triangles", "wound the other way");
-        assert_eq!(with(&|m| m.triangles[1] = [0, 2, 4]).0, "triangles");
-        assert_eq!(with(&|m| m.triangles[1] = [0, 2, 2]).0, "triangles");
-        assert_eq!(with(&|m| m.vertices.push([5.0, 5.0, 5.0])).0, "vertices");
-        assert_eq!(with(&|m| m.vertices[3] = [0.5, 0.5, 0.0]).0, "triangles", "no area");
-        assert_eq!(with(&|m| m.vertices[3][2] = f64::NAN).0, "vertices");
-        assert_eq!(with(&|m| m.scale = 0.0).0, "scale");
-        assert_eq!(with(&|m| m.weft_axis = Some([0.0; 3])).0, "weft_axis");
-        assert_eq!(with(&|m| m.obj = Some("nowhere.obj".into())).0, "obj");
+        assert_eq!(with(&|m| m.triangles[1] = [0, 3, 2]).path, "triangles", "wound the other way");
+        assert_eq!(with(&|m| m.triangles[1] = [0, 2, 4]).path, "triangles");
+        assert_eq!(with(&|m| m.triangles[1] = [0, 2, 2]).path, "triangles");
+        assert_eq!(with(&|m| m.vertices.push([5.0, 5.0, 5.0])).path, "vertices");
+        assert_eq!(with(&|m| m.vertices[3] = [0.5, 0.5, 0.0]).path, "triangles", "no area");
+        assert_eq!(with(&|m| m.vertices[3][2] = f64::NAN).path, "vertices");
+        assert_eq!(with(&|m| m.scale = 0.0).path, "scale");
+        assert_eq!(with(&|m| m.weft_axis = Some([0.0; 3])).path, "weft_axis");
+        assert_eq!(with(&|m| m.obj = Some("nowhere.obj".into())).path, "obj");
         let mut missing = square();
         (missing.vertices, missing.triangles) = (Vec::new(), Vec::new());
         missing.obj = Some("nowhere.obj".into());
-        let (field, message) = missing.resolve(base).unwrap_err();
+        let crate::FieldError { path: field, message } = missing.resolve(base).unwrap_err();
         assert!(field == "obj" && message.contains("nowhere.obj"), "{message}");
         // A pattern's own fields, each under `pattern.`.
         let square = || crate::PatternPiece::new(vec![[0.0, 0.0], [0.1, 0.0], [0.1, 0.1], [0.0, 0.1]], 0.02);
@@ -529,7 +539,7 @@ mod tests {
             (along, "pattern.v_axis"),
             (cone, "pattern.cone"),
         ] {
-            assert_eq!(MeshPanel::from_pattern(piece).resolve(base).unwrap_err().0, field);
+            assert_eq!(MeshPanel::from_pattern(piece).resolve(base).unwrap_err().path, field);
         }
     }
 }

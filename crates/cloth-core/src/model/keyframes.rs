@@ -1,6 +1,7 @@
 //! Piecewise-linear keyframe tracks of 3-vectors, shared by pin paths and
 //! wind profiles.
 
+use crate::FieldError;
 use crate::Vec3;
 
 /// The value at time `t` of the track through `(times[k], values[k])`:
@@ -28,25 +29,33 @@ pub fn slope(times: &[f64], values: &[[f64; 3]], t: f64) -> Vec3 {
 }
 
 /// Checks a track; `values_field` names the values in errors.
-pub fn validate(times: &[f64], values: &[[f64; 3]], values_field: &'static str) -> Result<(), (&'static str, String)> {
+pub fn validate(times: &[f64], values: &[[f64; 3]], values_field: &'static str) -> Result<(), FieldError> {
     if times.is_empty() || times.len() != values.len() {
-        return Err((
+        return Err(FieldError::new(
             values_field,
             format!("needs one value per time and at least one ({} times, {} values)", times.len(), values.len()),
         ));
     }
     if times.iter().any(|t| !t.is_finite()) || times.windows(2).any(|w| w[1] <= w[0]) {
-        return Err(("times_s", "must be finite and strictly increasing".into()));
+        return Err(FieldError::new("times_s", "must be finite and strictly increasing"));
     }
     values.iter().try_for_each(|v| finite3(values_field, v))
 }
 
 /// Checks a frequency is finite and non-negative (Hz).
-pub fn frequency(f: f64) -> Result<(), (&'static str, String)> {
-    if f.is_finite() && f >= 0.0 { Ok(()) } else { Err(("frequency_hz", format!("must be finite and >= 0, got {f}"))) }
+pub fn frequency(f: f64) -> Result<(), FieldError> {
+    if f.is_finite() && f >= 0.0 {
+        Ok(())
+    } else {
+        Err(FieldError::new("frequency_hz", format!("must be finite and >= 0, got {f}")))
+    }
 }
 
 /// Checks every component of `v` is finite.
-pub fn finite3(name: &'static str, v: &[f64; 3]) -> Result<(), (&'static str, String)> {
-    if v.iter().all(|c| c.is_finite()) { Ok(()) } else { Err((name, format!("must be finite, got {v:?}"))) }
+pub fn finite3(name: &'static str, v: &[f64; 3]) -> Result<(), FieldError> {
+    if v.iter().all(|c| c.is_finite()) {
+        Ok(())
+    } else {
+        Err(FieldError::new(name, format!("must be finite, got {v:?}")))
+    }
 }

@@ -128,6 +128,7 @@
 //! deflection, on the grid and on irregular meshes; Peirce's cantilever on the grid 41.80 / 41.57 / 41.51
 //! degrees at 1 / 0.5 / 0.25 cm against the exact 41.49).
 
+use crate::FieldError;
 use serde::{Deserialize, Serialize};
 
 /// The shear modulus of a spring lattice on triangles: `3E/8` (Poisson
@@ -272,7 +273,7 @@ impl Material {
     /// `compressive`: uniaxial tension modulus `E` and picture-frame shear
     /// modulus `G` (module docs, "Three lattices"). Errors name the field
     /// that leaves no lattice with positive constants.
-    pub fn lattice_membrane(&self, compressive: Compressive) -> Result<Membrane, (&'static str, String)> {
+    pub fn lattice_membrane(&self, compressive: Compressive) -> Result<Membrane, FieldError> {
         let (e, g, c) = (self.tensile_stiffness_n_m, self.shear_modulus(), compressive);
         // Picture frame: one diagonal stretched, one compressed: G = (K2 + K2c) / 2.
         let k2 = (2.0 * g - c.diagonal) / (1.0 + c.ratio);
@@ -282,7 +283,7 @@ impl Material {
                 self.buckling_stiffness_n_m,
                 c.diagonal / 2.0
             );
-            return Err(("buckling_stiffness_n_m", message));
+            return Err(FieldError::new("buckling_stiffness_n_m", message));
         }
         // Uniaxial tension: (K1 + K2 - E)(K1c + K2) = K2^2 with K1c = r K1 + a,
         // the quadratic r K1^2 + qb K1 + qc = 0; qc < 0 leaves one positive root.
@@ -291,7 +292,7 @@ impl Material {
         let root = (qb * qb - 4.0 * c.ratio * qc).sqrt();
         let k1 = if qb > 0.0 { -2.0 * qc / (qb + root) } else { (root - qb) / (2.0 * c.ratio) };
         if !(qc < 0.0 && k1.is_finite() && k1 > 0.0) {
-            return Err((
+            return Err(FieldError::new(
                 "shear_modulus_n_m",
                 format!(
                     "G = {g} N/m with E = {e} N/m and buckling_stiffness_n_m = {} N/m leaves no lattice \
@@ -310,12 +311,12 @@ impl Material {
     /// uniaxial tension: shear viscosity `D G / E` on the diagonals, and
     /// axis links such that a strip stretching at `e11'` (and contracting
     /// at `lateral e11'`) meets the stress `D e11'` (module docs).
-    pub fn damping_lattice(&self, lateral: f64) -> Result<Lattice, (&'static str, String)> {
+    pub fn damping_lattice(&self, lateral: f64) -> Result<Lattice, FieldError> {
         let d = self.damping_n_s_m;
         let diagonal = d * self.shear_modulus() / self.tensile_stiffness_n_m;
         let axis = d - diagonal * (1.0 - lateral);
         if d > 0.0 && axis <= 0.0 {
-            return Err((
+            return Err(FieldError::new(
                 "shear_modulus_n_m",
                 format!("G / E = {} leaves the damping lattice no axial viscosity", diagonal / d),
             ));
@@ -337,7 +338,7 @@ impl Material {
     }
 
     /// Checks every field is finite and in range; names the first bad field.
-    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+    pub fn validate(&self) -> Result<(), FieldError> {
         let fields = [
             ("areal_density_kg_m2", self.areal_density_kg_m2, false),
             ("tensile_stiffness_n_m", self.tensile_stiffness_n_m, false),
@@ -355,7 +356,7 @@ impl Material {
             if let Some(v) = value
                 && !(v.is_finite() && v > 0.0)
             {
-                return Err((name, format!("must be finite and > 0, got {v}")));
+                return Err(FieldError::new(name, format!("must be finite and > 0, got {v}")));
             }
         }
         if let Some(nu) = self.poisson_ratio {
@@ -363,16 +364,19 @@ impl Material {
             let e_v = self.weft_stiffness_n_m.unwrap_or(self.tensile_stiffness_n_m);
             // Plane stress needs nu_uv nu_vu < 1.
             if !(nu.is_finite() && nu >= 0.0 && nu * nu * e_v / e_u < 1.0) {
-                return Err(("poisson_ratio", format!("must be >= 0 with nu^2 E_v / E_u < 1, got {nu}")));
+                return Err(FieldError::new(
+                    "poisson_ratio",
+                    format!("must be >= 0 with nu^2 E_v / E_u < 1, got {nu}"),
+                ));
             }
         }
         for (name, value, zero_ok) in fields {
             if !value.is_finite() {
-                return Err((name, format!("must be finite, got {value}")));
+                return Err(FieldError::new(name, format!("must be finite, got {value}")));
             }
             if value < 0.0 || (!zero_ok && value == 0.0) {
                 let need = if zero_ok { ">= 0" } else { "> 0" };
-                return Err((name, format!("must be {need}, got {value}")));
+                return Err(FieldError::new(name, format!("must be {need}, got {value}")));
             }
         }
         Ok(())

@@ -2,6 +2,7 @@
 //! length by constrained Delaunay refinement (Ruppert's and Chew's
 //! algorithms, as the `spade` crate implements them), then placed in 3D.
 
+use crate::FieldError;
 use crate::Vec3;
 use serde::{Deserialize, Serialize};
 use spade::{AngleLimit, ConstrainedDelaunayTriangulation, Point2, RefinementParameters, Triangulation};
@@ -120,7 +121,7 @@ impl PatternPiece {
     /// `edge_length_m`, `lines_m`, `u_axis`, `v_axis`). A panic inside the
     /// triangulator (which reports some degenerate inputs that way) is
     /// caught and refused as an error on `outline_m`.
-    pub fn mesh(&self) -> Result<PatternMesh, (&'static str, String)> {
+    pub fn mesh(&self) -> Result<PatternMesh, FieldError> {
         self.mesh_with(&[])
     }
 
@@ -128,9 +129,10 @@ impl PatternPiece {
     /// equal pieces where given (a seam sews node to node, so two edges
     /// sewn together need as many), else into pieces no longer than
     /// `edge_length_m`.
-    pub fn mesh_with(&self, pieces: &[Option<usize>]) -> Result<PatternMesh, (&'static str, String)> {
-        cloth_collide::catch_panic(|| self.mesh_unguarded(pieces))
-            .unwrap_or_else(|why| Err(("outline_m", format!("the triangulator failed on this outline ({why})"))))
+    pub fn mesh_with(&self, pieces: &[Option<usize>]) -> Result<PatternMesh, FieldError> {
+        cloth_collide::catch_panic(|| self.mesh_unguarded(pieces)).unwrap_or_else(|why| {
+            Err(FieldError::new("outline_m", format!("the triangulator failed on this outline ({why})")))
+        })
     }
 
     /// The pieces outline edge `k` is split into by default (`None` for no
@@ -142,24 +144,24 @@ impl PatternPiece {
         (1.0..PATTERN_MAX_TRIANGLES).contains(&pieces).then_some(pieces as usize)
     }
 
-    fn mesh_unguarded(&self, forced: &[Option<usize>]) -> Result<PatternMesh, (&'static str, String)> {
+    fn mesh_unguarded(&self, forced: &[Option<usize>]) -> Result<PatternMesh, FieldError> {
         let h = self.edge_length_m;
         if !(h.is_finite() && h > 0.0) {
-            return Err(("edge_length_m", format!("must be finite and > 0, got {h}")));
+            return Err(FieldError::new("edge_length_m", format!("must be finite and > 0, got {h}")));
         }
         let corners = &self.outline_m;
         if corners.len() < 3 {
-            return Err(("outline_m", format!("needs at least 3 corners, got {}", corners.len())));
+            return Err(FieldError::new("outline_m", format!("needs at least 3 corners, got {}", corners.len())));
         }
         if let Some(k) = corners.iter().position(|c| c.iter().any(|v| !v.is_finite())) {
-            return Err(("outline_m", format!("corner {k} is not finite")));
+            return Err(FieldError::new("outline_m", format!("corner {k} is not finite")));
         }
         let (u, v) = self.axes()?;
         let around = v.cross(&u);
         if let Some(r) = self.cylinder_radius_m
             && !(r.is_finite() && r > 0.0)
         {
-            return Err(("cylinder_radius_m", format!("must be finite and > 0, got {r}")));
+            return Err(FieldError::new("cylinder_radius_m", format!("must be finite and > 0, got {r}")));
         }
         let cone = self.cone_angles()?;
         let place = |x: f64, y: f64| match (self.cylinder_radius_m, cone) {
@@ -178,21 +180,25 @@ impl PatternPiece {
             / 2.0;
         let expected = signed_area.abs() / (3f64.sqrt() / 4.0 * h * h);
         if !expected.is_finite() || expected >= PATTERN_MAX_TRIANGLES {
-            return Err(("edge_length_m", format!("{h} m makes about {expected:.0} triangles; at most 4e6")));
+            return Err(FieldError::new(
+                "edge_length_m",
+                format!("{h} m makes about {expected:.0} triangles; at most 4e6"),
+            ));
         }
         if signed_area.abs() == 0.0 {
-            return Err(("outline_m", "the outline encloses no area".into()));
+            return Err(FieldError::new("outline_m", "the outline encloses no area"));
         }
         let mut cdt = ConstrainedDelaunayTriangulation::<Point2<f64>>::new();
         let insert = |cdt: &mut ConstrainedDelaunayTriangulation<Point2<f64>>, p: [f64; 2]| {
-            cdt.insert(Point2::new(p[0], p[1])).map_err(|e| ("outline_m", format!("corner at {p:?}: {e:?}")))
+            cdt.insert(Point2::new(p[0], p[1]))
+                .map_err(|e| FieldError::new("outline_m", format!("corner at {p:?}: {e:?}")))
         };
         // Corners first, so that a repeated corner is seen before the edges split.
         let mut corner_handles = Vec::with_capacity(n);
         for (k, &c) in corners.iter().enumerate() {
             let handle = insert(&mut cdt, c)?;
             if corner_handles.contains(&handle) {
-                return Err(("outline_m", format!("corner {k} {c:?} repeats an earlier corner")));
+                return Err(FieldError::new("outline_m", format!("corner {k} {c:?} repeats an earlier corner")));
             }
             corner_handles.push(handle);
         }
@@ -216,7 +222,7 @@ impl PatternPiece {
         let mut breaks: Vec<Vec<f64>> = vec![Vec::new(); n];
         for (k, line) in lines.iter_mut().enumerate() {
             if line.iter().flatten().any(|c| !c.is_finite()) || line[0] == line[1] {
-                return Err(("lines_m", format!("line {k} must join two different finite points")));
+                return Err(FieldError::new("lines_m", format!("line {k} must join two different finite points")));
             }
             for end in line.iter_mut() {
                 for (e, b) in breaks.iter_mut().enumerate() {
@@ -238,10 +244,16 @@ impl PatternPiece {
             let at = |t: f64| [p[0] + t * (q[0] - p[0]), p[1] + t * (q[1] - p[1])];
             let pieces = forced.get(k).copied().flatten();
             if pieces.is_some() && b.len() > 2 {
-                return Err(("lines_m", format!("a line ends on outline edge {k}, which a seam splits evenly")));
+                return Err(FieldError::new(
+                    "lines_m",
+                    format!("a line ends on outline edge {k}, which a seam splits evenly"),
+                ));
             }
             if pieces.is_some_and(|p| p == 0 || p as f64 >= PATTERN_MAX_TRIANGLES) {
-                return Err(("outline_m", format!("outline edge {k} cannot be split into {pieces:?} pieces")));
+                return Err(FieldError::new(
+                    "outline_m",
+                    format!("outline edge {k} cannot be split into {pieces:?} pieces"),
+                ));
             }
             let mut handles = vec![corner_handles[k]];
             for w in b.windows(2) {
@@ -260,7 +272,7 @@ impl PatternPiece {
         for (k, &[a, b]) in lines.iter().enumerate() {
             let middle = [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0];
             if !(on_or_inside(a) && on_or_inside(b) && on_or_inside(middle)) {
-                return Err(("lines_m", format!("line {k} reaches outside the outline")));
+                return Err(FieldError::new("lines_m", format!("line {k} reaches outside the outline")));
             }
         }
         let mut line_handles = Vec::with_capacity(lines.len());
@@ -276,7 +288,7 @@ impl PatternPiece {
             for (k, handles) in runs.iter().enumerate() {
                 for pair in handles.windows(2) {
                     if pair[0] == pair[1] || cdt.try_add_constraint(pair[0], pair[1]).is_empty() {
-                        return Err((field, why(k)));
+                        return Err(FieldError::new(field, why(k)));
                     }
                 }
             }
@@ -298,7 +310,7 @@ impl PatternPiece {
             .with_max_additional_vertices(8 * expected_vertices);
         let result = cdt.refine(params);
         if !result.refinement_complete {
-            return Err(("outline_m", "the refinement did not finish: a corner may be too sharp".into()));
+            return Err(FieldError::new("outline_m", "the refinement did not finish: a corner may be too sharp"));
         }
         let mut index = vec![u32::MAX; cdt.num_vertices()];
         let mut positions = Vec::new();
@@ -324,11 +336,11 @@ impl PatternPiece {
         // A cone of a vanishing half angle turns a point round without bound.
         if let Some(p) = positions.iter().find(|p| !p.iter().all(|c| c.is_finite())) {
             let field = if self.cone.is_some() { "cone" } else { "outline_m" };
-            return Err((field, format!("the piece places a point at {p:?}, not a finite position")));
+            return Err(FieldError::new(field, format!("the piece places a point at {p:?}, not a finite position")));
         }
         let outline_edges = edge_handles.iter().map(|hs| hs.iter().map(|h| index[h.index()]).collect()).collect();
         if line_handles.iter().flatten().any(|h| index[h.index()] == u32::MAX) {
-            return Err(("lines_m", "a line reaches outside the outline".into()));
+            return Err(FieldError::new("lines_m", "a line reaches outside the outline"));
         }
         let outline_lengths = (0..n)
             .map(|k| (corners[(k + 1) % n][0] - corners[k][0]).hypot(corners[(k + 1) % n][1] - corners[k][1]))
@@ -337,33 +349,32 @@ impl PatternPiece {
     }
 
     /// The cone's apex and the sine and cosine of its half angle, checked.
-    fn cone_angles(&self) -> Result<Option<PlacedCone>, (&'static str, String)> {
+    fn cone_angles(&self) -> Result<Option<PlacedCone>, FieldError> {
         let Some(cone) = self.cone else { return Ok(None) };
         if self.cylinder_radius_m.is_some() {
-            return Err(("cone", "a piece wraps on a cylinder or a cone, not both".into()));
+            return Err(FieldError::new("cone", "a piece wraps on a cylinder or a cone, not both"));
         }
         let beta = cone.half_angle_deg;
         if !(beta > 0.0 && beta <= 90.0) {
-            return Err(("cone", format!("half_angle_deg must be in (0, 90], got {beta}")));
+            return Err(FieldError::new("cone", format!("half_angle_deg must be in (0, 90], got {beta}")));
         }
         if cone.apex_m.iter().any(|c| !c.is_finite()) {
-            return Err(("cone", format!("apex_m must be finite, got {:?}", cone.apex_m)));
+            return Err(FieldError::new("cone", format!("apex_m must be finite, got {:?}", cone.apex_m)));
         }
         let (sin, cos) = beta.to_radians().sin_cos();
         Ok(Some(PlacedCone { apex: cone.apex_m, sin, cos }))
     }
 
     /// The placed x and y axes, orthonormal.
-    fn axes(&self) -> Result<(Vec3, Vec3), (&'static str, String)> {
+    fn axes(&self) -> Result<(Vec3, Vec3), FieldError> {
         let u = Vec3::from(self.u_axis)
             .try_normalize(1e-12)
             .filter(|u| u.iter().all(|c| c.is_finite()))
-            .ok_or(("u_axis", format!("must be a finite non-zero direction, got {:?}", self.u_axis)))?;
+            .ok_or(FieldError::new("u_axis", format!("must be a finite non-zero direction, got {:?}", self.u_axis)))?;
         let v = Vec3::from(self.v_axis);
-        let v = (v - u * u.dot(&v))
-            .try_normalize(1e-9 * v.norm())
-            .filter(|v| v.iter().all(|c| c.is_finite()))
-            .ok_or(("v_axis", format!("must be finite, non-zero and not along u_axis, got {:?}", self.v_axis)))?;
+        let v = (v - u * u.dot(&v)).try_normalize(1e-9 * v.norm()).filter(|v| v.iter().all(|c| c.is_finite())).ok_or(
+            FieldError::new("v_axis", format!("must be finite, non-zero and not along u_axis, got {:?}", self.v_axis)),
+        )?;
         Ok((u, v))
     }
 }
@@ -451,18 +462,18 @@ mod tests {
     fn bad_outlines_name_the_field() {
         let mut r = rectangle(0.3, 0.2, 0.02);
         r.outline_m[2] = [0.3, 0.0];
-        assert_eq!(r.mesh().unwrap_err().0, "outline_m", "a repeated corner");
+        assert_eq!(r.mesh().unwrap_err().path, "outline_m", "a repeated corner");
         let mut bow = rectangle(0.3, 0.2, 0.02);
         bow.outline_m.swap(2, 3);
-        assert_eq!(bow.mesh().unwrap_err().0, "outline_m", "a bow tie crosses itself");
-        assert_eq!(rectangle(0.3, 0.2, 0.0).mesh().unwrap_err().0, "edge_length_m");
-        assert_eq!(rectangle(0.3, 0.2, 1e-6).mesh().unwrap_err().0, "edge_length_m", "too many triangles");
+        assert_eq!(bow.mesh().unwrap_err().path, "outline_m", "a bow tie crosses itself");
+        assert_eq!(rectangle(0.3, 0.2, 0.0).mesh().unwrap_err().path, "edge_length_m");
+        assert_eq!(rectangle(0.3, 0.2, 1e-6).mesh().unwrap_err().path, "edge_length_m", "too many triangles");
         let mut flat = rectangle(0.3, 0.2, 0.02);
         flat.v_axis = [2.0, 0.0, 0.0];
-        assert_eq!(flat.mesh().unwrap_err().0, "v_axis");
+        assert_eq!(flat.mesh().unwrap_err().path, "v_axis");
         let mut outside = rectangle(0.3, 0.2, 0.02);
         outside.lines_m = vec![[[0.1, 0.1], [0.5, 0.1]]];
-        assert_eq!(outside.mesh().unwrap_err().0, "lines_m");
+        assert_eq!(outside.mesh().unwrap_err().path, "lines_m");
     }
 
     /// Every triangle of `m`, a piece wrapped round the z axis, faces away
@@ -525,14 +536,14 @@ mod tests {
         assert_faces_out_and_keeps_lengths(&m, &flat, shortening);
         let mut both = piece.clone();
         both.cylinder_radius_m = Some(0.2);
-        assert_eq!(both.mesh().unwrap_err().0, "cone");
+        assert_eq!(both.mesh().unwrap_err().path, "cone");
         let mut steep = piece.clone();
         steep.cone = Some(ConeWrap { apex_m: apex, half_angle_deg: 95.0 });
-        assert!(steep.mesh().unwrap_err().1.contains("half_angle_deg"));
+        assert!(steep.mesh().unwrap_err().message.contains("half_angle_deg"));
         // A denormal half angle: its sine is so small that the turn overflows.
         let mut thin = piece.clone();
         thin.cone = Some(ConeWrap { apex_m: apex, half_angle_deg: 1e-320 });
-        assert_eq!(thin.mesh().unwrap_err().0, "cone");
+        assert_eq!(thin.mesh().unwrap_err().path, "cone");
     }
 
     /// Wrapped around a cylinder, every edge keeps its length (chords of
@@ -550,7 +561,7 @@ mod tests {
         }
         assert_faces_out_and_keeps_lengths(&m, &flat, |plane| plane.powi(3) / (24.0 * 0.04));
         r.cylinder_radius_m = Some(-1.0);
-        assert_eq!(r.mesh().unwrap_err().0, "cylinder_radius_m");
+        assert_eq!(r.mesh().unwrap_err().path, "cylinder_radius_m");
     }
 
     #[test]

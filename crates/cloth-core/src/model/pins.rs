@@ -4,6 +4,7 @@
 //! implicit step it becomes a fully constrained Baraff-Witkin filter entry,
 //! so pinned particles move exactly along their path.
 
+use crate::FieldError;
 use crate::Vec3;
 use crate::keyframes::{self, finite3};
 use serde::{Deserialize, Serialize};
@@ -66,7 +67,7 @@ impl PinMotion {
     }
 
     /// Checks the motion's numbers; names the first bad field.
-    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+    pub fn validate(&self) -> Result<(), FieldError> {
         match self {
             PinMotion::Fixed | PinMotion::External => Ok(()),
             PinMotion::Linear { velocity_m_s } => finite3("velocity_m_s", velocity_m_s),
@@ -120,7 +121,7 @@ mod tests {
         assert!((m.offset(1.25).z - 0.25).abs() < 1e-15);
         assert_eq!(m.offset(5.0), Vec3::new(0.0, 0.0, 1.0));
         let bad = PinMotion::Keyframes { times_s: vec![1.0, 1.0], offsets_m: vec![[0.0; 3]; 2] };
-        assert_eq!(bad.validate().unwrap_err().0, "times_s");
+        assert_eq!(bad.validate().unwrap_err().path, "times_s");
     }
 
     #[test]

@@ -29,6 +29,7 @@
 //! seam's allowance stiffens it instead; documented in `docs/garments.md`).
 
 use crate::Edge;
+use crate::FieldError;
 use crate::GridPanel;
 use serde::{Deserialize, Serialize};
 
@@ -133,9 +134,6 @@ impl Stitch {
     }
 }
 
-/// Why a seam is invalid: the field (below `seams[k]`) and the reason.
-pub(crate) type SeamError = (&'static str, String);
-
 /// Where the particles of the panels and meshes a seam may name live:
 /// the grid panels with their first particles' global indices, and the
 /// mesh panels (their outline edges).
@@ -159,35 +157,41 @@ impl SeamSide {
 
 /// Resolves `seam` over `targets` into stitches. `tensile` is the
 /// material's tensile stiffness, N/m.
-pub(crate) fn stitches(seam: &SeamSpec, targets: &SeamTargets<'_>, tensile: f64) -> Result<Vec<Stitch>, SeamError> {
+pub(crate) fn stitches(seam: &SeamSpec, targets: &SeamTargets<'_>, tensile: f64) -> Result<Vec<Stitch>, FieldError> {
     let (a, spacing_a) = side_run(&seam.a, ["a.panel", "a.edge", "a.range", "a.mesh", "a.outline_edge"], targets)?;
     let (mut b, spacing_b) = side_run(&seam.b, ["b.panel", "b.edge", "b.range", "b.mesh", "b.outline_edge"], targets)?;
     if a.len() != b.len() {
-        return Err(("b.range", format!("runs {} nodes, a runs {}: a seam sews node to node", b.len(), a.len())));
+        return Err(FieldError::new(
+            "b.range",
+            format!("runs {} nodes, a runs {}: a seam sews node to node", b.len(), a.len()),
+        ));
     }
     if seam.reverse {
         b.reverse();
     }
     let k = seam.stiffness_n_m.unwrap_or(10.0 * tensile);
     if !(k.is_finite() && k > 0.0) {
-        return Err(("stiffness_n_m", format!("must be finite and > 0, got {k}")));
+        return Err(FieldError::new("stiffness_n_m", format!("must be finite and > 0, got {k}")));
     }
     let pull = seam.pull_n.unwrap_or(tensile * spacing_a.min(spacing_b));
     if !(pull.is_finite() && pull > 0.0) {
-        return Err(("pull_n", format!("must be finite and > 0, got {pull}")));
+        return Err(FieldError::new("pull_n", format!("must be finite and > 0, got {pull}")));
     }
     let sewing = seam.sewing_pull_n.unwrap_or(pull / 4.0);
     if !(sewing.is_finite() && sewing > 0.0 && sewing <= pull) {
-        return Err(("sewing_pull_n", format!("must be finite, > 0 and at most pull_n ({pull} N), got {sewing}")));
+        return Err(FieldError::new(
+            "sewing_pull_n",
+            format!("must be finite, > 0 and at most pull_n ({pull} N), got {sewing}"),
+        ));
     }
     let speed = seam.closing_speed_m_s.unwrap_or(0.5);
     if !(speed.is_finite() && speed > 0.0) {
-        return Err(("closing_speed_m_s", format!("must be finite and > 0, got {speed}")));
+        return Err(FieldError::new("closing_speed_m_s", format!("must be finite and > 0, got {speed}")));
     }
     let mut out = Vec::with_capacity(a.len());
     for (&i, &j) in a.iter().zip(&b) {
         if i == j {
-            return Err(("b", format!("sews particle {i} to itself")));
+            return Err(FieldError::new("b", format!("sews particle {i} to itself")));
         }
         out.push(Stitch { i, j, k, pull, sewing, closing_speed_m_s: speed });
     }
@@ -243,33 +247,40 @@ fn side_run(
     side: &SeamSide,
     fields: [&'static str; 5],
     targets: &SeamTargets<'_>,
-) -> Result<(Vec<u32>, f64), SeamError> {
+) -> Result<(Vec<u32>, f64), FieldError> {
     let [panel_field, edge_field, range_field, mesh_field, outline_field] = fields;
     let [from, to] = side.range;
     if !(from.is_finite() && to.is_finite() && (0.0..=1.0).contains(&from) && (0.0..=1.0).contains(&to)) {
-        return Err((range_field, format!("must be two fractions in [0, 1], got {:?}", side.range)));
+        return Err(FieldError::new(range_field, format!("must be two fractions in [0, 1], got {:?}", side.range)));
     }
     let Some(mesh) = side.mesh else {
         if side.outline_edge.is_some() {
-            return Err((outline_field, "is a pattern mesh's: give `mesh` too".into()));
+            return Err(FieldError::new(outline_field, "is a pattern mesh's: give `mesh` too"));
         }
-        let edge = side.edge.ok_or((edge_field, "a grid panel's side needs its `edge`".to_string()))?;
+        let edge = side.edge.ok_or(FieldError::new(edge_field, "a grid panel's side needs its `edge`".to_string()))?;
         return run(side, edge, [panel_field, edge_field, range_field], targets.panels, targets.offsets);
     };
     if side.edge.is_some() || side.panel != 0 {
-        return Err((mesh_field, "a mesh's side takes `outline_edge`, not a grid's `panel` and `edge`".into()));
+        return Err(FieldError::new(mesh_field, "a mesh's side takes `outline_edge`, not a grid's `panel` and `edge`"));
     }
-    let range = targets
-        .meshes
-        .get(mesh)
-        .ok_or_else(|| (mesh_field, format!("no mesh {mesh} (the scene has {})", targets.meshes.len())))?;
-    let k = side.outline_edge.ok_or((outline_field, "a mesh's side needs its `outline_edge`".to_string()))?;
+    let range = targets.meshes.get(mesh).ok_or_else(|| {
+        FieldError::new(mesh_field, format!("no mesh {mesh} (the scene has {})", targets.meshes.len()))
+    })?;
+    let k = side
+        .outline_edge
+        .ok_or(FieldError::new(outline_field, "a mesh's side needs its `outline_edge`".to_string()))?;
     let edges = &range.outline_edges;
     let (vertices, length) = edges.get(k).zip(range.outline_lengths.get(k)).ok_or_else(|| {
-        (outline_field, format!("mesh {mesh} has {} outline edges (only pattern pieces have them)", edges.len()))
+        FieldError::new(
+            outline_field,
+            format!("mesh {mesh} has {} outline edges (only pattern pieces have them)", edges.len()),
+        )
     })?;
     if from > to {
-        return Err((range_field, format!("{:?}: from > to, which only a wrapped grid edge has", side.range)));
+        return Err(FieldError::new(
+            range_field,
+            format!("{:?}: from > to, which only a wrapped grid edge has", side.range),
+        ));
     }
     // Outline vertices are evenly spaced along the edge (unless a line ends on it).
     let pieces = vertices.len() - 1;
@@ -282,7 +293,10 @@ fn side_run(
         .map(|j| vertices[j] + range.offset as u32)
         .collect();
     if run.is_empty() {
-        return Err((range_field, format!("{:?} holds no vertex of the edge ({} vertices)", side.range, pieces + 1)));
+        return Err(FieldError::new(
+            range_field,
+            format!("{:?} holds no vertex of the edge ({} vertices)", side.range, pieces + 1),
+        ));
     }
     Ok((run, length / pieces as f64))
 }
@@ -294,20 +308,20 @@ fn run(
     [panel_field, edge_field, range_field]: [&'static str; 3],
     panels: &[GridPanel],
     offsets: &[usize],
-) -> Result<(Vec<u32>, f64), SeamError> {
-    let panel = panels
-        .get(side.panel)
-        .ok_or_else(|| (panel_field, format!("no panel {} (the scene has {})", side.panel, panels.len())))?;
+) -> Result<(Vec<u32>, f64), FieldError> {
+    let panel = panels.get(side.panel).ok_or_else(|| {
+        FieldError::new(panel_field, format!("no panel {} (the scene has {})", side.panel, panels.len()))
+    })?;
     let [from, to] = side.range;
     let [nx, ny] = panel.particles;
     let (dx, dy) = panel.spacing();
     let along_u = matches!(edge, Edge::JMin | Edge::JMax);
     if panel.wrap_u && !along_u {
-        return Err((edge_field, "a wrapped panel has no i edges: its columns close into a cylinder".into()));
+        return Err(FieldError::new(edge_field, "a wrapped panel has no i edges: its columns close into a cylinder"));
     }
     let wrapped = panel.wrap_u;
     if from > to && !wrapped {
-        return Err((
+        return Err(FieldError::new(
             range_field,
             format!("{:?}: from > to runs across node 0, which only a wrapped edge has", side.range),
         ));
@@ -334,7 +348,10 @@ fn run(
         tail.chain((0..count).filter(|&k| inside(fraction(k), 0.0, to))).map(node).collect()
     };
     if nodes.is_empty() {
-        return Err((range_field, format!("{:?} holds no node of the edge ({count} nodes)", side.range)));
+        return Err(FieldError::new(
+            range_field,
+            format!("{:?} holds no node of the edge ({count} nodes)", side.range),
+        ));
     }
     Ok((nodes, if along_u { dx } else { dy }))
 }
@@ -348,7 +365,12 @@ mod tests {
         SeamSide { range, ..SeamSide::grid(panel, edge) }
     }
 
-    fn stitches(s: &SeamSpec, panels: &[GridPanel], offsets: &[usize], tensile: f64) -> Result<Vec<Stitch>, SeamError> {
+    fn stitches(
+        s: &SeamSpec,
+        panels: &[GridPanel],
+        offsets: &[usize],
+        tensile: f64,
+    ) -> Result<Vec<Stitch>, FieldError> {
         super::stitches(s, &SeamTargets { panels, offsets, meshes: &[] }, tensile)
     }
 
@@ -393,7 +415,7 @@ mod tests {
         let offsets = [0, 15];
         let check = |s: SeamSpec, field: &str| {
             let e = stitches(&s, &panels, &offsets, 200.0).unwrap_err();
-            assert_eq!(e.0, field, "{e:?}");
+            assert_eq!(e.path, field, "{e:?}");
         };
         check(seam(side(0, Edge::JMax, [0.0, 1.0]), side(1, Edge::JMin, [0.0, 1.0])), "b.range");
         check(seam(side(2, Edge::JMax, [0.0, 1.0]), side(1, Edge::JMin, [0.0, 1.0])), "a.panel");

@@ -3,7 +3,7 @@
 
 use crate::colliders::CollisionSpec;
 use crate::seams::SeamSpec;
-use crate::{Edge, GridPanel, Material, MeshPanel, PinMotion, Vec3, Wind};
+use crate::{Edge, FieldError, GridPanel, Material, MeshPanel, PinMotion, Vec3, Wind};
 use serde::{Deserialize, Serialize};
 
 /// Effects computed by a model. An effect that is off costs nothing: no
@@ -105,86 +105,74 @@ pub struct ModelSpec {
 }
 
 /// Why a model could not be built. Field paths match the scene file's keys.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum ModelError {
     /// The model has no panel.
-    #[error("panels: at least one panel or mesh is required")]
     NoPanels,
     /// The paper's arc-chord law was asked of a model with mesh panels.
-    #[error("simulation.bending_law: arc-chord reads a grid's type-2 links; mesh panels take arc-path (the default)")]
     MeshBendingLaw,
     /// A mesh panel is invalid.
-    #[error("meshes[{mesh}].{field}: {message}")]
     Mesh {
         /// Mesh index.
         mesh: usize,
         /// Offending field.
-        field: &'static str,
+        field: String,
         /// What is wrong.
         message: String,
     },
     /// A panel is invalid.
-    #[error("panels[{panel}].{field}: {message}")]
     Panel {
         /// Panel index.
         panel: usize,
         /// Offending field.
-        field: &'static str,
+        field: String,
         /// What is wrong.
         message: String,
     },
     /// The material is invalid.
-    #[error("material.{field}: {message}")]
     Material {
         /// Offending field.
-        field: &'static str,
+        field: String,
         /// What is wrong.
         message: String,
     },
     /// A pin is impossible.
-    #[error("pins[{pin}].{field}: {message}")]
     Pin {
         /// Pin index.
         pin: usize,
         /// Offending field.
-        field: &'static str,
+        field: String,
         /// What is wrong.
         message: String,
     },
     /// The wind is missing or invalid.
-    #[error("wind.{field}: {message}")]
     Wind {
         /// Offending field.
-        field: &'static str,
+        field: String,
         /// What is wrong.
         message: String,
     },
     /// The deformation constraints are invalid.
-    #[error("constraints.{field}: {message}")]
     StrainLimit {
         /// Offending field.
-        field: &'static str,
+        field: String,
         /// What is wrong.
         message: String,
     },
     /// Gravity is not finite.
-    #[error("simulation.gravity_m_s2: must be finite, got {0:?}")]
     Gravity([f64; 3]),
     /// A bending law was asked of a model that does not have it.
-    #[error("simulation.bending_law: {0} is a law of the choi-ko model, not of {1}")]
     BendingLaw(&'static str, &'static str),
     /// A seam is invalid.
-    #[error("seams[{seam}].{field}: {message}")]
     Seam {
         /// Seam index.
         seam: usize,
         /// Offending field (`a.range`).
-        field: &'static str,
+        field: String,
         /// What is wrong.
         message: String,
     },
     /// A collider or the self-collision set-up is invalid.
-    #[error("{field}: {message}")]
     Collision {
         /// Dotted path of the field (`colliders[0].shape.radius_m`).
         field: String,
@@ -192,6 +180,42 @@ pub enum ModelError {
         message: String,
     },
 }
+
+impl ModelError {
+    /// The field at fault, by its path from a scene's root
+    /// (`panels[0].size_m`, `material.shear_modulus_n_m`), and what is
+    /// wrong with it: what the scene reports, and this error's text.
+    pub fn field_error(&self) -> FieldError {
+        let at = |table: String, field: &str, message: &str| FieldError::new(field, message).within(&table);
+        match self {
+            ModelError::NoPanels => FieldError::new("panels", "at least one panel or mesh is required"),
+            ModelError::MeshBendingLaw => FieldError::new(
+                "simulation.bending_law",
+                "arc-chord reads a grid's type-2 links; mesh panels take arc-path (the default)",
+            ),
+            ModelError::Mesh { mesh, field, message } => at(format!("meshes[{mesh}]"), field, message),
+            ModelError::Panel { panel, field, message } => at(format!("panels[{panel}]"), field, message),
+            ModelError::Material { field, message } => at("material".into(), field, message),
+            ModelError::Pin { pin, field, message } => at(format!("pins[{pin}]"), field, message),
+            ModelError::Wind { field, message } => at("wind".into(), field, message),
+            ModelError::StrainLimit { field, message } => at("constraints".into(), field, message),
+            ModelError::Gravity(g) => FieldError::new("simulation.gravity_m_s2", format!("must be finite, got {g:?}")),
+            ModelError::BendingLaw(law, kind) => {
+                FieldError::new("simulation.bending_law", format!("{law} is a law of the choi-ko model, not of {kind}"))
+            }
+            ModelError::Seam { seam, field, message } => at(format!("seams[{seam}]"), field, message),
+            ModelError::Collision { field, message } => FieldError::new(field.clone(), message.clone()),
+        }
+    }
+}
+
+impl std::fmt::Display for ModelError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.field_error().fmt(f)
+    }
+}
+
+impl std::error::Error for ModelError {}
 
 /// Which discretisation of the fabric a model uses. Both take the same
 /// [`Material`]; see [`Material`]'s docs for the constants.

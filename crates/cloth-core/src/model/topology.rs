@@ -8,6 +8,7 @@
 //! Interlacing matters: with sequential links only, a fold can form without
 //! raising any bending energy (Choi & Ko 2002, §3.1).
 
+use crate::FieldError;
 use crate::Vec3;
 use serde::{Deserialize, Serialize};
 
@@ -119,9 +120,6 @@ pub struct GridLink {
 /// with a full cell a 5-row strip is 8% too stiff in bending along it.
 pub const INTERLACED_BOUNDARY_SHARE: f64 = 0.75;
 
-/// Why a panel is not a valid grid: the field and the reason.
-pub type PanelError = (&'static str, String);
-
 /// How a grid panel splits its cells into triangles.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Diagonals {
@@ -153,39 +151,42 @@ impl GridPanel {
     }
 
     /// Checks sizes, counts and axes; names the first bad field.
-    pub fn validate(&self) -> Result<(), PanelError> {
+    pub fn validate(&self) -> Result<(), FieldError> {
         let [nx, ny] = self.particles;
         let min_nx = if self.wrap_u { 5 } else { 2 };
         if nx < min_nx || ny < 2 {
-            return Err(("particles", format!("needs at least [{min_nx}, 2] particles, got [{nx}, {ny}]")));
+            return Err(FieldError::new(
+                "particles",
+                format!("needs at least [{min_nx}, 2] particles, got [{nx}, {ny}]"),
+            ));
         }
         if nx.saturating_mul(ny) > 50_000_000 {
-            return Err(("particles", format!("{nx} x {ny} particles is too many")));
+            return Err(FieldError::new("particles", format!("{nx} x {ny} particles is too many")));
         }
         for (k, s) in self.size_m.iter().enumerate() {
             if !s.is_finite() || *s <= 0.0 {
-                return Err(("size_m", format!("entry {k} must be finite and > 0, got {s}")));
+                return Err(FieldError::new("size_m", format!("entry {k} must be finite and > 0, got {s}")));
             }
         }
         for (name, v) in [("origin_m", self.origin_m), ("u_axis", self.u_axis), ("v_axis", self.v_axis)] {
             if v.iter().any(|c| !c.is_finite()) {
-                return Err((name, format!("must be finite, got {v:?}")));
+                return Err(FieldError::new(name, format!("must be finite, got {v:?}")));
             }
         }
         self.frame().map(|_| ())
     }
 
     /// Orthonormal (u, v, n = u x v).
-    pub fn frame(&self) -> Result<(Vec3, Vec3, Vec3), PanelError> {
+    pub fn frame(&self) -> Result<(Vec3, Vec3, Vec3), FieldError> {
         let u = Vec3::from(self.u_axis);
         let v = Vec3::from(self.v_axis);
         if u.norm() < 1e-12 {
-            return Err(("u_axis", "must be non-zero".into()));
+            return Err(FieldError::new("u_axis", "must be non-zero"));
         }
         let u = u.normalize();
         let v_perp = v - u * u.dot(&v);
         if v_perp.norm() < 1e-9 * v.norm().max(1e-300) || v.norm() < 1e-12 {
-            return Err(("v_axis", "must be non-zero and not parallel to u_axis".into()));
+            return Err(FieldError::new("v_axis", "must be non-zero and not parallel to u_axis"));
         }
         let v = v_perp.normalize();
         Ok((u, v, u.cross(&v)))
@@ -200,12 +201,12 @@ impl GridPanel {
 
     /// Generates positions, area shares, links and triangles (diagonals
     /// alternating like a checkerboard). Call [`GridPanel::validate`] first.
-    pub fn mesh(&self) -> Result<PanelMesh, PanelError> {
+    pub fn mesh(&self) -> Result<PanelMesh, FieldError> {
         self.mesh_with(Diagonals::Alternating)
     }
 
     /// [`GridPanel::mesh`] with the cells split along `diagonals`.
-    pub fn mesh_with(&self, diagonals: Diagonals) -> Result<PanelMesh, PanelError> {
+    pub fn mesh_with(&self, diagonals: Diagonals) -> Result<PanelMesh, FieldError> {
         self.validate()?;
         let (u, v, n) = self.frame()?;
         let [nx, ny] = self.particles;
@@ -350,14 +351,14 @@ pub(crate) mod tests {
     #[test]
     fn invalid_panels_name_the_field() {
         let mut p = panel(1, 4, false);
-        assert_eq!(p.validate().unwrap_err().0, "particles");
+        assert_eq!(p.validate().unwrap_err().path, "particles");
         p = panel(4, 4, true);
-        assert_eq!(p.validate().unwrap_err().0, "particles");
+        assert_eq!(p.validate().unwrap_err().path, "particles");
         p = panel(4, 4, false);
         p.size_m[1] = f64::NAN;
-        assert_eq!(p.validate().unwrap_err().0, "size_m");
+        assert_eq!(p.validate().unwrap_err().path, "size_m");
         p = panel(4, 4, false);
         p.v_axis = [2.0, 0.0, 0.0];
-        assert_eq!(p.validate().unwrap_err().0, "v_axis");
+        assert_eq!(p.validate().unwrap_err().path, "v_axis");
     }
 }

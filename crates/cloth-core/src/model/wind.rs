@@ -7,6 +7,7 @@
 //! steps the wind force is taken at the start of the step (explicitly);
 //! its velocity dependence is mild next to the cloth's stiffness.
 
+use crate::FieldError;
 use crate::keyframes::{self, finite3};
 use crate::{Mat3, Vec3};
 use serde::{Deserialize, Serialize};
@@ -57,7 +58,7 @@ impl WindProfile {
     }
 
     /// Checks the numbers; names the first bad field.
-    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+    pub fn validate(&self) -> Result<(), FieldError> {
         match self {
             WindProfile::Constant { velocity_m_s } => finite3("velocity_m_s", velocity_m_s),
             WindProfile::Gust { mean_m_s, amplitude_m_s, frequency_hz } => {
@@ -122,7 +123,7 @@ fn default_lift() -> f64 {
 
 impl Wind {
     /// Checks the numbers; names the first bad field.
-    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+    pub fn validate(&self) -> Result<(), FieldError> {
         self.profile.validate()?;
         for (name, v) in [
             ("fluid_coefficient_n_s_m3", self.fluid_coefficient_n_s_m3),
@@ -131,7 +132,7 @@ impl Wind {
             ("lift_coefficient", self.lift_coefficient),
         ] {
             if !(v.is_finite() && v >= 0.0) {
-                return Err((name, format!("must be finite and >= 0, got {v}")));
+                return Err(FieldError::new(name, format!("must be finite and >= 0, got {v}")));
             }
         }
         Ok(())
@@ -224,6 +225,6 @@ mod tests {
         assert_eq!(WindProfile::External.velocity(4.0, Some(set)), set);
         assert_eq!(WindProfile::External.velocity(4.0, None), Vec3::zeros());
         let bad = WindProfile::Keyframes { times_s: vec![1.0, 0.0], velocities_m_s: vec![[0.0; 3]; 2] };
-        assert_eq!(bad.validate().unwrap_err().0, "times_s");
+        assert_eq!(bad.validate().unwrap_err().path, "times_s");
     }
 }
