@@ -7,7 +7,8 @@
 //! simulation step does, so no per-call cross-thread dispatch is timed.
 
 use cloth_benches::{hanging_cloth, pool};
-use cloth_core::system::{SystemBuffers, SystemTerms, assemble};
+use cloth_core::terms::SystemTerms;
+use cloth_core::testing::{SystemBuffers, assemble};
 use cloth_core::{PcgParams, PreconditionerKind, Vec3};
 use cloth_linalg::{Constraint, ConstraintFilter, Multigrid, Pcg};
 use criterion::{Criterion, criterion_group, criterion_main};

@@ -1,6 +1,7 @@
 //! The house's rules, read off the sources: no import circles between
 //! cloth-core's files, no source file of more than 800 lines besides its
-//! tests, and no error taken apart from its text.
+//! tests, no error taken apart from its text, and each public item of
+//! cloth-core by one path.
 //!
 //! A file imports another when it names an item only that other file
 //! defines: in a `use`, in a path (`crate::laws::repulsion`), or as a
@@ -265,4 +266,50 @@ fn no_error_is_read_back_from_its_text() {
     }
     assert!(files > 100, "the sources were not read");
     assert!(found.is_empty(), "errors read back from their text:\n{}", found.join("\n"));
+}
+
+/// cloth-core's public modules are the laws, the force-term interface,
+/// the scene files and (feature `testing`) the tests' internals; every
+/// other item is re-exported at the root from a private module, so no
+/// item has two paths. A module is a name with a file (`laws.rs`,
+/// `terms/mod.rs`) in the crate.
+#[test]
+fn each_public_item_of_cloth_core_has_one_path() {
+    let src = workspace().join("crates/cloth-core/src");
+    let modules: BTreeSet<String> = sources(&src)
+        .iter()
+        .map(|p| {
+            let stem = p.file_stem().unwrap().to_string_lossy().to_string();
+            if stem == "mod" { p.parent().unwrap().file_name().unwrap().to_string_lossy().to_string() } else { stem }
+        })
+        .collect();
+    let lib = code(&std::fs::read_to_string(src.join("lib.rs")).unwrap());
+    let text = std::fs::read_to_string(src.join("lib.rs")).unwrap();
+    let declared = Regex::new(r"(?m)^\s*pub mod (\w+);").unwrap();
+    let reexport = Regex::new(r"(?m)^pub use ([^;]+);").unwrap();
+    let name = Regex::new(r"\b(\w+)\b").unwrap();
+    let mut public: BTreeSet<String> = declared.captures_iter(&lib).map(|c| c[1].to_string()).collect();
+    let mut items_from = Vec::new();
+    for c in reexport.captures_iter(&text) {
+        let path = c[1].to_string();
+        // `a::b::{c, d}` or `a::b::c`: the names come from module `b`.
+        let (prefix, list) = match path.split_once('{') {
+            Some((prefix, list)) => (prefix.trim_end_matches("::"), list),
+            None => path.rsplit_once("::").unwrap_or(("", &path)),
+        };
+        let from = prefix.rsplit("::").next().unwrap_or("");
+        for n in name.captures_iter(list).map(|n| n[1].to_string()) {
+            assert!(n != "self", "a module and its items both at the root: pub use {path}");
+            if modules.contains(&n) {
+                public.insert(n);
+            } else {
+                items_from.push((from.to_string(), n));
+            }
+        }
+    }
+    let expected = ["aero_laws", "contact_laws", "element_laws", "laws", "scene", "terms", "testing"];
+    assert_eq!(public, expected.iter().map(|s| s.to_string()).collect(), "cloth-core's public modules");
+    assert!(items_from.len() > 50, "the root's re-exports were not read");
+    let twice: Vec<_> = items_from.iter().filter(|(from, _)| public.contains(from)).collect();
+    assert!(twice.is_empty(), "items both in a public module and at the root: {twice:?}");
 }

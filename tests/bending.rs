@@ -3,7 +3,7 @@
 //! degrees at 1, 0.5 and 0.25 cm for `choi-ko` and `volino`; these tests
 //! hold what is reached (`cloth study bending` prints the table).
 
-use cloth_core::reference::CantileverStrip;
+use cloth_core::testing::reference::CantileverStrip;
 use cloth_tests::simulation;
 
 /// What a settled cantilever shows: its chord angle and the exact one for

@@ -627,7 +627,7 @@ fn a_sheet_thrown_at_another_does_not_pass_through_it() {
             let x = &sim.state().x;
             lowest = (0..n).map(|i| x[n + i].z - x[i].z).fold(lowest, f64::min);
             if continuous {
-                assert!(cloth_core::contacts::self_intersections(sim.model(), x).is_empty(), "step {step}");
+                assert!(cloth_core::self_intersections(sim.model(), x).is_empty(), "step {step}");
             }
             if step == 0 {
                 centre_speed = sim.state().v.iter().sum::<Vec3>().z / (2 * n) as f64;
@@ -676,7 +676,7 @@ fn a_rising_ball_pushes_one_sheet_into_another_without_crossing() {
             let r = sim.step(h).unwrap();
             crossings += r.contacts.self_crossings;
             let x = &sim.state().x;
-            worst = worst.max(cloth_core::contacts::self_intersections(sim.model(), x).len());
+            worst = worst.max(cloth_core::self_intersections(sim.model(), x).len());
             let centre = Vec3::new(0.0, 0.0, -0.06 + 2.0 * sim.time());
             inside = x.iter().map(|p| 0.05 - (p - centre).norm()).fold(inside, f64::max);
             gap = (0..n).map(|i| x[n + i].z - x[i].z).fold(gap, f64::min);

@@ -1,7 +1,6 @@
 //! Extending the library from outside its crates: an integrator and a
 //! force term written here, plugged in through the builders.
 
-use cloth_core::forces;
 use cloth_core::terms::{At, ForceBuffers, ForceTerm, Jacobian, JacobianBlocks, VertexBlock};
 use cloth_core::{
     Capabilities, ClothModel, Contacts, GridPanel, Integrator, IntegratorKind, Mat3, Material, Simulation,
@@ -36,7 +35,7 @@ impl Integrator for OutsideSymplecticEuler {
         let (model, state, h) = (step.model, step.state, step.h);
         let (buffers, f) =
             self.scratch.get_or_insert_with(|| (ForceBuffers::new(model), vec![Vec3::zeros(); model.particle_count()]));
-        forces::forces_into(model, &state.x, &state.v, &state.stitches_closed, buffers, f);
+        cloth_core::forces_into(model, &state.x, &state.v, &state.stitches_closed, buffers, f);
         let (x, v) = out.state_mut();
         for i in 0..state.len() {
             if model.is_pinned(i) {
@@ -339,7 +338,7 @@ fn bdf2_converges_with_a_coupling_term_from_outside_as_with_the_built_ins() {
     let (_, alone) = run(&tethered_sheet(None, 1.0, true), h, 900).unwrap();
     let (settled, tethered) = run(&tethered_sheet(Some(20.0), 1.2, true), h, 900).unwrap();
     let (model, state) = (settled.model(), settled.state());
-    let forces = cloth_core::forces::total_forces(model, &state.x, &state.v, &state.stitches_closed);
+    let forces = cloth_core::total_forces(model, &state.x, &state.v, &state.stitches_closed);
     let free = forces.iter().enumerate().filter(|(i, _)| !model.is_pinned(*i));
     let (residual, tether) = (
         free.map(|(_, f)| f.norm()).fold(0.0, f64::max),

@@ -4,7 +4,7 @@
 
 use cloth_core::{
     BendingLaw, ClothModel, Edge, Effects, GridPanel, IntegratorKind, Material, ModelKind, ModelSpec, PinSpec,
-    PreconditionerKind, Simulation, SolverParams, Vec3, forces,
+    PreconditionerKind, Simulation, SolverParams, Vec3, potential_energy,
 };
 use cloth_tests::{least_squares_slope, settle};
 
@@ -113,7 +113,7 @@ fn picture_frame_energy(model: (ModelKind, Option<BendingLaw>), n: usize, materi
     let effects = Effects { bending: true, ..Effects::default() };
     let model = strip(model, [n, n], [0.1, 0.1], material, effects, false);
     let x: Vec<Vec3> = model.rest_positions().iter().map(|p| p + Vec3::new(-gamma * p.z, 0.0, 0.0)).collect();
-    forces::potential_energy(&model, &x, &[]) / 0.01
+    potential_energy(&model, &x, &[]) / 0.01
 }
 
 /// A picture frame (simple shear `gamma = 1e-3` of a 10 cm square, every
@@ -263,7 +263,7 @@ fn volino_membrane_has_its_warp_weft_shear_and_poisson_moduli() {
             .iter()
             .map(|p| Vec3::new(p.x * (1.0 + eu) - gamma * p.z, p.y, p.z * (1.0 + ev)))
             .collect();
-        let w = forces::potential_energy(&model, &x, &[]) / 0.01;
+        let w = potential_energy(&model, &x, &[]) / 0.01;
         println!("{name}: energy / exact = {:.6}", w / exact);
         assert!((w / exact - 1.0).abs() < 1.5e-4, "{name}: {w} J/m^2 against {exact}");
     }

@@ -5,7 +5,7 @@
 
 use cloth_core::{
     ClothModel, Effects, IntegratorKind, Material, MeshPanel, ModelKind, ModelSpec, PatternPiece, PinMotion, PinSpec,
-    PreconditionerKind, Simulation, SolverParams, Vec3, forces,
+    PreconditionerKind, Simulation, SolverParams, Vec3, potential_energy,
 };
 use cloth_tests::settle;
 
@@ -101,7 +101,7 @@ fn a_pattern_membrane_takes_the_shear_modulus_given() {
         let mesh = MeshPanel::from_pattern(piece(0.1, 0.1, 0.01, [0.0, 1.0, 0.0], vec![]));
         let m = model(ModelKind::ChoiKo, mesh, material, Effects::default(), vec![]);
         let x: Vec<Vec3> = m.rest_positions().iter().map(|p| p + Vec3::new(gamma * p.y, 0.0, 0.0)).collect();
-        let ratio = forces::potential_energy(&m, &x, &[]) / 0.01 / (0.5 * g * gamma * gamma);
+        let ratio = potential_energy(&m, &x, &[]) / 0.01 / (0.5 * g * gamma * gamma);
         assert!((ratio - 1.0).abs() < 1e-3, "G = {g}: {ratio}");
     }
     let too_soft = Material { shear_modulus_n_m: Some(50.0), ..cotton() };
@@ -116,7 +116,7 @@ fn a_pattern_membrane_takes_the_shear_modulus_given() {
 /// clamped on the 1 cm behind a line across it at x = 0: its chord angle
 /// (degrees) after 3 s and the heavy elastica's.
 fn cantilever(kind: ModelKind, h: f64) -> (f64, f64) {
-    use cloth_core::reference::{CantileverStrip, TipMeasure};
+    use cloth_core::testing::reference::{CantileverStrip, TipMeasure};
     let outline = vec![[-0.01, -0.01], [0.1, -0.01], [0.1, 0.01], [-0.01, 0.01]];
     let piece = PatternPiece {
         outline_m: outline,
@@ -250,7 +250,7 @@ fn a_pattern_picture_frame_stores_the_shear_modulus() {
         let x: Vec<Vec3> = m.rest_positions().iter().map(|p| p + Vec3::new(gamma * p.y, 0.0, 0.0)).collect();
         // Choi & Ko's and Volino's membranes take the material's G; Provot's springs have 3E/8.
         let g = if kind == ModelKind::Provot { 3.0 / 8.0 * 200.0 } else { cotton().shear_modulus() };
-        let ratio = forces::potential_energy(&m, &x, &[]) / 0.01 / (0.5 * g * gamma * gamma);
+        let ratio = potential_energy(&m, &x, &[]) / 0.01 / (0.5 * g * gamma * gamma);
         println!("{kind:?}: energy / (G gamma^2 / 2) = {ratio:.4}");
         assert!((ratio - 1.0).abs() < 0.035, "{kind:?}: {ratio}");
     }
@@ -282,7 +282,7 @@ fn cylinder_energy_ratio(kind: ModelKind, angle: f64, size: f64) -> f64 {
             Vec3::new(c * across + s * v, -s * across + c * v, up)
         })
         .collect();
-    forces::potential_energy(&m, &x, &[]) / (size * size) / (0.5 * b * kappa * kappa)
+    potential_energy(&m, &x, &[]) / (size * size) / (0.5 * b * kappa * kappa)
 }
 
 /// Bent onto a cylinder in any direction, a 20 cm irregular mesh stores

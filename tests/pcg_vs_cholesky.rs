@@ -387,9 +387,9 @@ fn multigrid_damped_for_its_elements_stays_positive_definite() {
     let (sim, cfg) = cloth_tests::simulation("cantilever.toml", &overrides);
     let model = sim.model();
     let h = cfg.dt_s;
-    let terms = cloth_core::system::SystemTerms::new(4.0 * h * h / 9.0, 2.0 * h / 3.0, 0.0, &[]);
-    let mut bufs = cloth_core::system::SystemBuffers::new(model);
-    cloth_core::system::assemble(model, model.rest_positions(), &terms, &mut bufs);
+    let terms = cloth_core::terms::SystemTerms::new(4.0 * h * h / 9.0, 2.0 * h / 3.0, 0.0, &[]);
+    let mut bufs = cloth_core::testing::SystemBuffers::new(model);
+    cloth_core::testing::assemble(model, model.rest_positions(), &terms, &mut bufs);
     let a = &bufs.matrix;
     let n = a.n();
     let mut filter = ConstraintFilter::new(n);

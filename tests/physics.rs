@@ -2,13 +2,14 @@
 //! energies, Jacobians against forces, momentum, free fall, resolution
 //! independence, stability at large steps, determinism and rollback.
 
-use cloth_core::forces::{EnergyBuffers, elastic_energy, potential_energy, total_forces};
-use cloth_core::system::{SystemBuffers, SystemTerms, assemble};
-use cloth_core::terms::eval_link;
+use cloth_core::terms::SystemTerms;
+use cloth_core::testing::eval_link;
+use cloth_core::testing::{SystemBuffers, assemble};
 use cloth_core::{
     BendingLaw, ClothModel, Compression, Effects, GridPanel, IntegratorKind, LinkType, Mat3, Material, ModelKind,
     ModelSpec, PreconditionerKind, Simulation, SolverParams, Vec3,
 };
+use cloth_core::{EnergyBuffers, elastic_energy, potential_energy, total_forces};
 use cloth_tests::{Rng, same_bits, simulation};
 
 fn small_model(bending: bool, damping: bool, gravity: bool) -> ClothModel {
@@ -130,7 +131,7 @@ fn forces_are_minus_the_energy_gradient() {
     let compressed = compressed_links(&model, &x);
     assert!(compressed > 0 && compressed < model.link_count(), "{compressed} compressed links");
     let triples = &model.elements().triples;
-    let straight = |t: &cloth_core::elements::BendTriple| {
+    let straight = |t: &cloth_core::BendTriple| {
         let [i, m, j] = t.nodes.map(|n| x[n as usize]);
         (x_dist(i, j) - x_dist(i, m) - x_dist(m, j)).abs() < 1e-12
     };
@@ -156,10 +157,10 @@ fn energy_only_buffers_give_the_assemblys_elastic_energy_bit_for_bit() {
         assert_eq!(monitor.to_bits(), system.elastic_energy().to_bits());
     }
     let set = models[0].elements();
-    let mut forces_only = cloth_core::elements::ElementBuffers::forces_only(set);
+    let mut forces_only = cloth_core::testing::ElementBuffers::forces_only(set);
     let x = models[0].rest_positions();
     let refused = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        cloth_core::elements::evaluate(set, x, 1.0, 1.0, None, &mut forces_only)
+        cloth_core::testing::evaluate(set, x, 1.0, 1.0, None, &mut forces_only)
     }));
     assert!(refused.is_err(), "an assembly into forces-only buffers must not pass silently");
 }
@@ -743,7 +744,7 @@ fn volino_bending_triangles_store_the_plate_energy_of_every_quadratic() {
             .map(|p| Vec3::new(p.x, p.y, 0.5 * (a * p.x * p.x + 2.0 * bxy * p.x * p.y + c * p.y * p.y)))
             .collect();
         let plate = 0.5 * b * (a * a + 2.0 * bxy * bxy + c * c);
-        let bending = |e: &cloth_core::elements::CurvatureElement| {
+        let bending = |e: &cloth_core::CurvatureElement| {
             curvature_bending_with(e.nodes.map(|q| x[q as usize]), e.rest_angles, &e.stiffness, false).energy
         };
         for e in &interior {

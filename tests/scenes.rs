@@ -113,7 +113,7 @@ fn flag_wind_force_grows_with_wind_speed() {
                 sim.control().wind(),
                 sim.control().wind_scale(),
             );
-            cloth_core::terms::add_external_forces(&at, &mut scratch, &mut f);
+            cloth_core::testing::add_external_forces(&at, &mut scratch, &mut f);
             total += f.iter().sum::<cloth_core::Vec3>().norm();
         }
         let mean = total / steps as f64;
@@ -141,7 +141,7 @@ fn flat_flag_feels_plate_drag_and_lift() {
         let mut f = vec![cloth_core::Vec3::zeros(); s.len()];
         let at = At::new(sim.model(), &s.x, &s.v, &s.stitches_closed).with_wind_at(0.0, None, 1.0);
         let mut scratch = cloth_core::terms::ForceBuffers::new(sim.model());
-        cloth_core::terms::add_external_forces(&at, &mut scratch, &mut f);
+        cloth_core::testing::add_external_forces(&at, &mut scratch, &mut f);
         let total: cloth_core::Vec3 = f.iter().sum();
         // The panel: 0.9 x 0.6 m in the x-z plane (normal y); air 1.2 kg/m^3, C_d 1, C_l 0.5.
         let (rho, c_d, c_l, area) = (1.2, 1.0, 0.5, 0.9 * 0.6);

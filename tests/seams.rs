@@ -1,10 +1,10 @@
-//! Seams: panels sewn along their edges (`[[seams]]`, `cloth_core::seams`).
+//! Seams: panels sewn along their edges (`[[seams]]`, `cloth_core::SeamSpec`).
 //! A stitch's force and Jacobian against finite differences, a seam laid
 //! open closing at a bounded pull without moving the centre of mass, and
 //! two panels sewn edge to edge moving as the one panel they make.
 
 use cloth_core::scene::Scene;
-use cloth_core::terms::{eval_link, link_force};
+use cloth_core::testing::{eval_link, link_force};
 use cloth_core::{ClothModel, LinkType, Mat3, Simulation, Vec3};
 
 fn build(text: &str, overrides: &[&str]) -> (Simulation, f64, usize) {
@@ -323,7 +323,7 @@ fn deformation_constraints_shut_closed_stitches() {
     let mut v = vec![Vec3::zeros(); x.len()];
     let closed = [true, true, true, true, false];
     let limit = cloth_core::StrainLimit { max_strain: 0.1, passes: 2000 };
-    let report = cloth_core::apply_strain_limit(model, &limit, |_| false, &closed, (&mut x, &mut v), h);
+    let report = cloth_core::testing::apply_strain_limit(model, &limit, |_| false, &closed, (&mut x, &mut v), h);
     let gaps: Vec<f64> = model.stitches().iter().map(|s| (x[s.j as usize] - x[s.i as usize]).norm()).collect();
     println!("{} passes, {} corrections; gaps {gaps:?} m", report.passes, report.corrections);
     assert!(report.passes < 2000, "the constraints did not converge");

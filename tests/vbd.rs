@@ -3,7 +3,7 @@
 //! and two threads, and a hanging strip's static sag against the
 //! continuum.
 
-use cloth_core::contacts::FRICTION_SMOOTHING_M_S;
+use cloth_core::contact_laws::FRICTION_SMOOTHING_M_S;
 use cloth_core::{Simulation, Vec3};
 use cloth_tests::{same_bits, simulation};
 

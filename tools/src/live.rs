@@ -15,7 +15,7 @@
 use crate::run::{CouplingTotals, Runner, solid_meshes_json, solid_poses};
 use crate::view::{read_request, respond};
 use anyhow::{Context, Result, bail};
-use cloth_core::wind::WindProfile;
+use cloth_core::WindProfile;
 use cloth_core::{ControlError, Simulation, Vec3};
 use std::io::Write;
 use std::net::{TcpListener, TcpStream};

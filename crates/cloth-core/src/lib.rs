@@ -2,45 +2,59 @@
 //! models, implicit integrators (backward Euler, BDF2) solved by filtered
 //! PCG, and TOML scene files.
 //!
-//! Data flow of one step: [`ClothModel`] (immutable) + [`ClothState`]
-//! (explicit) -> link laws ([`laws`], looped by [`forces`]) and collision
-//! detection ([`contacts`], geometry from `cloth-collide`) -> system matrix
-//! with a pattern built once -> PCG with pins and contacts as Baraff-Witkin
+//! Data flow of one step ([`Simulation::step`], its stages in
+//! `docs/step.md`): [`ClothModel`] (immutable) + [`ClothState`] (explicit)
+//! -> force terms ([`terms`], each applying its [`laws`]) and the contacts
+//! ([`Contacts`], geometry from `cloth-collide`) -> system matrix with a
+//! pattern built once -> PCG with pins and contacts as Baraff-Witkin
 //! constraints -> friction -> new state. Units are SI throughout.
 //!
-//! Layout: [`model`] (what the cloth is: model, topology, material, laws),
-//! [`integrate`] (how it moves: state, integrators, the simulation, and
-//! [`control`], where an outside unit plugs in: external solids, pin
-//! targets and forces in, contact impulses and pin reactions out),
-//! [`contact`] (what it touches), [`scene`] (TOML files).
+//! The surface, each item by one path: the model and its builder
+//! ([`ClothModel`], [`ModelBuilder`], [`ModelSpec`]), the state
+//! ([`ClothState`], [`Snapshot`]), the simulation ([`Simulation`], the
+//! [`Integrator`] trait and [`IntegratorKind`]), the per-step inputs from
+//! outside ([`Control`]: external solids, pin targets and forces in,
+//! contact impulses and pin reactions out), the scene files ([`scene`]),
+//! the laws ([`laws`], [`element_laws`], [`contact_laws`], [`aero_laws`])
+//! and the force-term interface ([`terms`]).
 
-pub mod contact;
+mod contact;
 mod field_error;
-pub mod integrate;
-pub mod model;
-pub mod reference;
+mod integrate;
+mod model;
 pub mod scene;
+#[cfg(feature = "testing")]
+pub mod testing;
 
-// Every module also under its own name at the root, so paths stay short
-// (`cloth_core::laws`, `cloth_core::contacts`) and inside the crate too.
-pub use contact::{colliders, contacts};
-pub use integrate::energy::{EnergyReport, GAIN_TOLERANCE};
-pub use integrate::explicit::ENERGY_WINDOW;
-pub use integrate::vbd::{self, Vbd};
-pub use integrate::{bodies, control};
-use integrate::{energy, params, registry, report, sim, state, step};
-pub use model::seams::{self, SeamSide, SeamSpec, Stitch};
-pub use model::{cloth_mesh, colouring, element_laws, elements, forces, laws, system, terms, wind};
-use model::{constraints, keyframes, material, pins, topology};
+// The public surface: each item by one path. The laws and the force-term
+// interface are modules of their own; everything else sits at the root.
+pub use contact::contact_laws;
+pub use model::{aero_laws, element_laws, laws, terms};
+
+// Short paths inside the crate (`crate::contacts`, `crate::forces`).
+pub(crate) use contact::{colliders, contacts};
+pub(crate) use integrate::{bodies, control, energy, params, registry, report, sim, state, step, vbd};
+pub(crate) use model::{
+    cloth_mesh, colouring, constraints, elements, forces, keyframes, material, pins, seams, system, topology, wind,
+};
 
 pub use cloth_collide::{BodyPose, ShapeSpec, VoxelHash};
 pub use cloth_linalg::{PcgParams, PreconditionerKind};
-pub use colliders::{Collider, ColliderSpec, CollisionSpec, SelfCollision, SelfCollisionSpec};
-pub use constraints::{StrainLimitReport, apply_strain_limit};
-pub use contacts::{ContactStats, Contacts};
+pub use cloth_mesh::{MeshEdge, MeshHinge, MeshTopology};
+pub use colliders::{
+    Collider, ColliderSpec, CollisionSpec, DEFAULT_THICKNESS_M, SelfCollision, SelfCollisionSpec, rotation_from_degrees,
+};
+pub use contacts::{
+    ContactStats, Contacts, FrictionMode, Inside, MEETING_FRACTION, MIN_SELF_GAP, SelfContact, SolidContact,
+    self_intersections,
+};
 pub use control::{Control, ControlError, SolidImpulse, SolidMotion};
+pub use elements::{BendHinge, BendTriple, CurvatureElement, ElementSet, MembraneElement};
+pub use energy::{EnergyReport, GAIN_TOLERANCE};
 pub use field_error::FieldError;
+pub use forces::{EnergyBuffers, elastic_energy, forces_into, potential_energy, total_forces};
 pub use integrate::bodies::{BodyError, BodyInSolve};
+pub use integrate::explicit::ENERGY_WINDOW;
 pub use integrate::implicit::{BackwardEuler, Bdf2};
 pub use integrate::loads::Loads;
 pub use integrate::matrix_free::BackwardEulerFixedCg;
@@ -48,17 +62,19 @@ pub use integrate::timer::{Lap, Stage, StageTimer};
 pub use material::{BendConstants, Compressive, Lattice, Material, Membrane};
 pub use model::{
     BendLaw, BendLink, BendingLaw, ClothMesh, ClothModel, Compression, ConeWrap, Effect, EffectValues, Effects,
-    Incidence, MeshPanel, MeshRange, ModelBuilder, ModelError, ModelKind, ModelSpec, PanelRange, PatternPiece, PinSpec,
-    StrainLimit, StretchLink,
+    Incidence, MeshPanel, MeshRange, ModelBuilder, ModelError, ModelKind, ModelSpec, PanelRange, PatternMesh,
+    PatternPiece, PinSpec, StrainLimit, StretchLink,
 };
 pub use params::{AUTO_NEWTON_MIN_K_H2_M, AdaptiveParams, ContactSetParams, NewtonParams, SolverParams, VbdParams};
 pub use pins::{Pin, PinMotion};
 pub use registry::IntegratorKind;
 pub use report::{NewtonReport, StageTimes, StepError, StepReport};
+pub use seams::{SeamSide, SeamSpec, Stitch};
 pub use sim::{Simulation, SimulationBuilder};
 pub use state::{ClothState, IntegratorMemory, Snapshot};
 pub use step::{Attempt, Capabilities, ContactHandling, Integrator, Step, StepOutput};
-pub use topology::{Diagonals, Edge, GridPanel, LinkType, PanelMesh};
+pub use topology::{Diagonals, Edge, GridLink, GridPanel, LinkType, PanelMesh};
+pub use vbd::Vbd;
 pub use wind::{Wind, WindProfile};
 
 // The README's Rust example, compiled and run as a doctest.

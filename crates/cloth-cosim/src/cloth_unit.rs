@@ -55,7 +55,7 @@
 //! (also when a later substep fails).
 
 use crate::unit::{Causality, StepOutcome, Unit, UnitError, UnitState, ValueRef, Variable, bytes, settable};
-use cloth_core::{BodyPose, ClothModel, ClothState, Simulation, Snapshot, SolidMotion, Vec3, wind::WindProfile};
+use cloth_core::{BodyPose, ClothModel, ClothState, Simulation, Snapshot, SolidMotion, Vec3, WindProfile};
 use nalgebra::UnitQuaternion;
 
 /// What a variable of the cloth unit stands for.

@@ -120,11 +120,8 @@ fn an_external_wind_input_blows_like_the_scene_s_gust() {
         let (model, cfg) = Scene::parse_file(&path, &overrides).unwrap().build().unwrap();
         ClothUnit::new("flag", cfg.simulation(model))
     };
-    let gust = cloth_core::wind::WindProfile::Gust {
-        mean_m_s: [6.0, 0.5, 0.0],
-        amplitude_m_s: [2.0, 0.0, 0.0],
-        frequency_hz: 0.5,
-    };
+    let gust =
+        cloth_core::WindProfile::Gust { mean_m_s: [6.0, 0.5, 0.0], amplitude_m_s: [2.0, 0.0, 0.0], frequency_hz: 0.5 };
     let mut scene_wind = flag(
         "wind.profile={ kind = \"gust\", mean_m_s = [6.0, 0.5, 0.0], amplitude_m_s = [2.0, 0.0, 0.0], frequency_hz = 0.5 }",
     );

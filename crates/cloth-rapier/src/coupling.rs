@@ -115,7 +115,7 @@ pub enum Master {
     Iterated(IteratedCoupling),
     /// The bodies inside the cloth's solve: every dynamic body a cloth
     /// touches or holds joins its implicit step as six unknowns
-    /// ([`cloth_core::bodies`]), so the cloth and the body answer each
+    /// ([`cloth_core::BodyInSolve`]), so the cloth and the body answer each
     /// other within the step; rapier then steps once with the cloth's
     /// impulses (a second solve of the cloths when rapier's own contacts
     /// or joints moved a body where a cloth meets it: see

@@ -31,7 +31,7 @@
 use crate::bvh::Bvh;
 use crate::rig::{JointKind, JointValue, Rig, RigPose, UpAxis};
 use cloth_core::FieldError;
-use cloth_core::colliders::rotation_from_degrees;
+use cloth_core::rotation_from_degrees;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use serde::Deserialize;
 use std::collections::BTreeMap;

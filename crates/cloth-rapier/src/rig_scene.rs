@@ -27,7 +27,7 @@ use crate::character::RigBodies;
 use crate::motion::{BvhMap, Clip, Playback, RigMotion, joints_from_values, unit_scale, y_up};
 use crate::rig::{Rig, RigOptions, RigPose, UpAxis};
 use cloth_core::FieldError;
-use cloth_core::colliders::rotation_from_degrees;
+use cloth_core::rotation_from_degrees;
 use nalgebra::{Isometry3, Translation3};
 use rapier3d_f64::prelude::PhysicsWorld;
 use serde::{Deserialize, Serialize};

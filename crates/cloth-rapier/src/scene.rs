@@ -48,7 +48,7 @@ use crate::convert::{pose_to_rapier, vec_to_rapier};
 use crate::coupling::{CouplingReport, IteratedCoupling, Master, MonolithicCoupling};
 use crate::rig_scene::{RigSection, SceneRig};
 use cloth_collide::{BodyPose, ShapeSpec, SolidShape};
-use cloth_core::colliders::rotation_from_degrees;
+use cloth_core::rotation_from_degrees;
 use cloth_core::scene::{RunConfig, Scene, SceneError, SceneErrorKind, check_start_outside};
 use cloth_core::{FieldError, PinMotion, Vec3};
 use cloth_cosim::Relaxation;

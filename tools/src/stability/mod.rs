@@ -14,8 +14,8 @@
 mod cases;
 
 use cases::*;
-use cloth_core::forces::{EnergyBuffers, elastic_energy};
 use cloth_core::scene::{Scene, SceneErrorKind};
+use cloth_core::{EnergyBuffers, elastic_energy};
 use cloth_core::{Simulation, StepError, StepReport, Vec3};
 use std::time::Instant;
 

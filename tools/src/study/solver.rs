@@ -171,9 +171,9 @@ pub fn cosim(args: &StudyArgs) -> Result<()> {
 
 /// Peirce's cantilever (ASTM D1388) against the heavy elastica: chord
 /// angle and tip drop per model, grid spacing and overhang, with the cost.
-/// The elastica is solved by shooting ([`cloth_core::reference`]).
+/// The elastica is solved by shooting ([`cloth_core::testing::reference`]).
 pub fn bending(args: &StudyArgs) -> Result<()> {
-    use cloth_core::reference::CantileverStrip;
+    use cloth_core::testing::reference::CantileverStrip;
     let pool = setup(args)?;
     let scene = cloth_tools::in_checkout("fixtures/scenes/cantilever.toml");
     // Model names as the table shows them, with the overrides that select them.

@@ -37,7 +37,7 @@
 
 // What a user of the library sees: the contacts a step reports, the
 // counters, and the contact laws.
-pub use super::contact_laws::*;
+pub(crate) use super::contact_laws::*;
 pub use super::impact_zones::{MEETING_FRACTION, self_intersections};
 pub use super::projection::Inside;
 pub use super::self_collision::MIN_SELF_GAP;

@@ -2,11 +2,11 @@
 //! their built form) and the detection and response of cloth-solid and
 //! cloth-cloth contacts ([`contacts`]).
 
-pub mod colliders;
-pub mod contacts;
+pub(crate) mod colliders;
+pub(crate) mod contacts;
 
 mod active_set;
-mod contact_laws;
+pub mod contact_laws;
 mod detect;
 mod impact_zones;
 mod penalty;

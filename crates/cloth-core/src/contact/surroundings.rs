@@ -11,14 +11,14 @@ use crate::{ClothModel, Mat3, Vec3};
 
 impl Plane {
     /// The particle's gap at `x`, m (negative inside the solid).
-    pub fn gap(&self, x: &Vec3) -> f64 {
+    pub(crate) fn gap(&self, x: &Vec3) -> f64 {
         self.normal.dot(&(x - self.point))
     }
 }
 
 impl Surroundings {
     /// Nothing near.
-    pub fn free(at: Vec3) -> Self {
+    pub(crate) fn free(at: Vec3) -> Self {
         Self { planes: [None; 2], centre: at, radius_m: f64::INFINITY }
     }
 }

@@ -105,7 +105,7 @@ pub(crate) fn check_bodies(model: &ClothModel, bodies: &[BodyInSolve]) -> Result
 
 /// `J = [I | -[r]x]`: a point at lever `r` from the centre of mass moves
 /// by `J (dx, dtheta)`.
-pub fn lever(r: Vec3) -> Matrix3x6<f64> {
+pub(crate) fn lever(r: Vec3) -> Matrix3x6<f64> {
     let mut j = Matrix3x6::zeros();
     j.fixed_view_mut::<3, 3>(0, 0).copy_from(&Mat3::identity());
     j.fixed_view_mut::<3, 3>(0, 3).copy_from(&-r.cross_matrix());

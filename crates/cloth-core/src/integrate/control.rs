@@ -200,7 +200,7 @@ impl Control {
     }
 
     /// Lets `bodies` join the next steps' solves (monolithic coupling, see
-    /// [`crate::bodies`]): each drives some external solids and pins, whose
+    /// [`crate::BodyInSolve`]): each drives some external solids and pins, whose
     /// motions and targets (set as usual) are its predicted motion. Replaces
     /// the bodies set before; an empty list makes every solid and pin
     /// prescribed again. Only the assembled implicit integrators take

@@ -72,7 +72,7 @@ pub(crate) const DOPRI5: Tableau = Tableau {
 
 /// Scratch space of the explicit integrators.
 #[derive(Debug, Clone)]
-pub struct ExplicitBuffers {
+pub(crate) struct ExplicitBuffers {
     kx: Vec<Vec<Vec3>>,
     kv: Vec<Vec<Vec3>>,
     xs: Vec<Vec3>,
@@ -97,7 +97,7 @@ pub struct ExplicitBuffers {
 
 impl ExplicitBuffers {
     /// Buffers for up to `stages` stages.
-    pub fn new(model: &ClothModel, stages: usize) -> Self {
+    pub(crate) fn new(model: &ClothModel, stages: usize) -> Self {
         let n = model.particle_count();
         let zeros = || vec![Vec3::zeros(); n];
         Self {
@@ -396,7 +396,7 @@ impl Method {
 /// The explicit integrators behind [`crate::Integrator`]: forward and
 /// symplectic Euler, midpoint, RK4 and the adaptive DOPRI5, by method.
 #[derive(Debug)]
-pub struct Explicit {
+pub(crate) struct Explicit {
     method: Method,
     buffers: Option<Box<ExplicitBuffers>>,
     /// The adaptive integrator's suggested substep, s (0: none yet): its

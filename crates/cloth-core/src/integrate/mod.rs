@@ -7,9 +7,9 @@
 //! name in a registry, and [`crate::Simulation`], which owns model, state,
 //! control, the integrator and what each stage hands on.
 
-pub mod bodies;
+pub(crate) mod bodies;
 pub(crate) mod body_solve;
-pub mod control;
+pub(crate) mod control;
 pub(crate) mod energy;
 pub(crate) mod explicit;
 pub(crate) mod implicit;
@@ -23,4 +23,4 @@ pub(crate) mod sim;
 pub(crate) mod state;
 pub(crate) mod step;
 pub(crate) mod timer;
-pub mod vbd;
+pub(crate) mod vbd;

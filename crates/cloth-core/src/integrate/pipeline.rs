@@ -16,9 +16,10 @@
 use super::loads::Loads;
 use super::step::{Attempt, Capabilities, ContactHandling, Integrator, Step, StepOutput};
 use super::timer::{Stage, StageTimer};
+use crate::constraints::apply_strain_limit;
 use crate::contacts::{Contacts, project_out, restart_history_at_contacts};
 use crate::control::Control;
-use crate::{ClothModel, ClothState, SolverParams, StepError, StepReport, apply_strain_limit};
+use crate::{ClothModel, ClothState, SolverParams, StepError, StepReport};
 
 /// Everything a step reads and writes, borrowed from the simulation.
 pub(crate) struct Parts<'a> {

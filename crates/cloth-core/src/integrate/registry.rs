@@ -36,7 +36,7 @@ pub enum IntegratorKind {
     Bdf2,
     /// Vertex Block Descent (`vbd`), Chen, Macklin et al. (2024): backward
     /// Euler's incremental potential minimised by coloured Gauss-Seidel
-    /// sweeps of per-particle Newton steps ([`crate::vbd`]); the sweeps
+    /// sweeps of per-particle Newton steps ([`crate::Vbd`]); the sweeps
     /// are [`SolverParams::vbd`](crate::SolverParams::vbd)'s.
     Vbd,
 }

@@ -229,7 +229,7 @@ impl Simulation {
     /// Body `k`'s change of mean linear (m/s) and angular (rad/s) velocity
     /// over the last step from the motion set for it, as the solve found
     /// it (`M dv` is the normal and pin impulse the cloth gave it; friction
-    /// comes on top, see [`crate::bodies`]). `None` when no such body took
+    /// comes on top, see [`crate::BodyInSolve`]). `None` when no such body took
     /// part in the last step.
     pub fn body_velocity_change(&self, k: usize) -> Option<(Vec3, Vec3)> {
         self.out.bodies.velocity_change.get(k).copied()

@@ -26,7 +26,7 @@ pub struct ClothState {
     pub last_dt_s: f64,
     /// Of each stitch of the model's seams, whether it has closed: an open
     /// stitch pulls with its gentle sewing pull, a closed one holds with
-    /// the seam's strength ([`crate::seams`]). Updated after each step.
+    /// the seam's strength ([`crate::SeamSpec`]). Updated after each step.
     pub stitches_closed: Vec<bool>,
 }
 

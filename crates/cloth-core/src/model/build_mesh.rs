@@ -17,7 +17,7 @@ use crate::material::PATH_CURVATURE_FACTOR;
 /// both), so the hinges take `1 / (1 - nu^2) = 9/8` of it: the cantilever
 /// at 1 cm reads 41.42 degrees against the elastica's 41.49 (44.28
 /// without), a cylinder stores 1.125-1.17 of `B kappa^2 / 2`.
-pub const FREE_STRIP_FACTOR: f64 = 9.0 / 8.0;
+pub(super) const FREE_STRIP_FACTOR: f64 = 9.0 / 8.0;
 
 /// What one mesh panel adds to the model (global particle indices).
 pub(super) struct MeshParts {

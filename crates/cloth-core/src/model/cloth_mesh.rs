@@ -65,7 +65,7 @@
 
 use crate::FieldError;
 use crate::Vec3;
-pub use crate::model::pattern::PatternPiece;
+pub(crate) use crate::model::pattern::PatternPiece;
 use cloth_collide::GltfError;
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
@@ -441,7 +441,7 @@ impl ClothMesh {
 /// `ab`: where `cd` crosses `ab` as the weight of `b` (`None` unless it
 /// crosses strictly inside), the length of `cd` (m), and the part of it
 /// from `c` to the crossing.
-pub fn unfold([c, a, b, d]: [Vec3; 4]) -> (Option<f64>, f64, f64) {
+pub(crate) fn unfold([c, a, b, d]: [Vec3; 4]) -> (Option<f64>, f64, f64) {
     let ab = b - a;
     let len = ab.norm();
     let along = ab / len;

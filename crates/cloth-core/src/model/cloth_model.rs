@@ -76,7 +76,7 @@ impl ForceBuffers {
         }
     }
 
-    /// Buffers for `model`'s external terms only ([`crate::terms::external`]).
+    /// Buffers for `model`'s external terms only ([`ForceTerm::external`]).
     pub fn external(model: &ClothModel) -> Self {
         Self {
             link: Vec::new(),

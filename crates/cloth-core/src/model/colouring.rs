@@ -8,7 +8,7 @@ use crate::ClothModel;
 
 /// A colour per particle, and the particles of each colour.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Colouring {
+pub(crate) struct Colouring {
     colour: Vec<u32>,
     groups: Vec<Vec<u32>>,
 }
@@ -19,7 +19,7 @@ impl Colouring {
     /// an element joins them): in particle order, each particle takes the
     /// smallest colour that no coupled particle before it has. The same
     /// model always gets the same colours.
-    pub fn of(model: &ClothModel) -> Self {
+    pub(crate) fn of(model: &ClothModel) -> Self {
         let pattern = model.pattern();
         let n = pattern.n();
         let mut colour = vec![u32::MAX; n];
@@ -47,23 +47,19 @@ impl Colouring {
     }
 
     /// The particles of each colour, ascending.
-    pub fn groups(&self) -> &[Vec<u32>] {
+    pub(crate) fn groups(&self) -> &[Vec<u32>] {
         &self.groups
     }
 
     /// Particle `i`'s colour.
+    #[cfg(test)]
     pub fn colour(&self, i: usize) -> u32 {
         self.colour[i]
     }
 
     /// Number of colours.
-    pub fn len(&self) -> usize {
+    pub(crate) fn len(&self) -> usize {
         self.groups.len()
-    }
-
-    /// Whether there are no particles.
-    pub fn is_empty(&self) -> bool {
-        self.groups.is_empty()
     }
 }
 

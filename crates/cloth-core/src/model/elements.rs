@@ -348,7 +348,7 @@ pub fn evaluate(
 }
 
 /// Sum of the element right-hand-side terms at particle `i`.
-pub fn rhs_at(set: &ElementSet, bufs: &ElementBuffers, i: usize) -> Vec3 {
+pub(crate) fn rhs_at(set: &ElementSet, bufs: &ElementBuffers, i: usize) -> Vec3 {
     let mut acc = Vec3::zeros();
     for c in set.corners(i) {
         let (e, a) = (c.elem as usize, c.corner as usize);
@@ -364,7 +364,7 @@ pub fn rhs_at(set: &ElementSet, bufs: &ElementBuffers, i: usize) -> Vec3 {
 
 /// Adds the element blocks of row `i`: `add(slot, block)` for each block,
 /// `slot` its position in the row's stored blocks, corner by corner.
-pub fn add_row(set: &ElementSet, bufs: &ElementBuffers, i: usize, mut row: impl FnMut(usize, &Mat3)) {
+pub(crate) fn add_row(set: &ElementSet, bufs: &ElementBuffers, i: usize, mut row: impl FnMut(usize, &Mat3)) {
     fn add<const K: usize>(slots: &[u32; K], blocks: &[Mat3; K], row: &mut impl FnMut(usize, &Mat3)) {
         for (s, b) in slots.iter().zip(blocks) {
             row(*s as usize, b);
@@ -386,7 +386,7 @@ pub fn add_row(set: &ElementSet, bufs: &ElementBuffers, i: usize, mut row: impl 
 /// `force(a, f_a)` and `block(a, b, H_ab)` with `H_ab = -df_a/dx_b` (N/m)
 /// for its particles `a`, `b` (allocates its scratch: for tests and
 /// terms' Jacobians, not the step).
-pub fn for_each_block(
+pub(crate) fn for_each_block(
     set: &ElementSet,
     x: &[Vec3],
     mut force: impl FnMut(usize, Vec3),
@@ -417,7 +417,7 @@ pub fn for_each_block(
 
 /// `sum_b blocks_ab w_b s_b` over the elements of particle `i` (with
 /// `s = m^-1/2` for the mass-scaled operator).
-pub fn apply_at(set: &ElementSet, bufs: &ElementBuffers, i: usize, w: &[Vec3], s: &[f64]) -> Vec3 {
+pub(crate) fn apply_at(set: &ElementSet, bufs: &ElementBuffers, i: usize, w: &[Vec3], s: &[f64]) -> Vec3 {
     fn apply<const K: usize>(nodes: &[u32; K], blocks: &[Mat3; K], w: &[Vec3], s: &[f64]) -> Vec3 {
         nodes.iter().zip(blocks).fold(Vec3::zeros(), |acc, (&p, b)| acc + b * (w[p as usize] * s[p as usize]))
     }
@@ -437,14 +437,14 @@ pub fn apply_at(set: &ElementSet, bufs: &ElementBuffers, i: usize, w: &[Vec3], s
 /// The force on particle `i` from its elements at `x`, N, and the sum of
 /// their diagonal blocks `H_ii` (N/m): a vertex solver's local system.
 /// Each element is evaluated whole for each corner asked.
-pub fn vertex_at(set: &ElementSet, x: &[Vec3], i: usize) -> (Vec3, Mat3) {
+pub(crate) fn vertex_at(set: &ElementSet, x: &[Vec3], i: usize) -> (Vec3, Mat3) {
     let (force, stiffness, _) = vertex_with_energy(set, x, i);
     (force, stiffness)
 }
 
 /// [`vertex_at`] and [`vertex_energy`] at `x` from one evaluation of each
 /// element: force (N), `H_ii` (N/m) and energy (J).
-pub fn vertex_with_energy(set: &ElementSet, x: &[Vec3], i: usize) -> (Vec3, Mat3, f64) {
+pub(crate) fn vertex_with_energy(set: &ElementSet, x: &[Vec3], i: usize) -> (Vec3, Mat3, f64) {
     fn corner<const K: usize>(
         nodes: &[u32; K],
         a: usize,
@@ -496,7 +496,7 @@ fn first_slot(nodes: &[u32], i: usize, a: usize) -> bool {
 
 /// The energy of particle `i`'s elements with `i` at `xi` and the others
 /// at `x`, J: what changes when `i` alone moves.
-pub fn vertex_energy(set: &ElementSet, x: &[Vec3], i: usize, xi: Vec3) -> f64 {
+pub(crate) fn vertex_energy(set: &ElementSet, x: &[Vec3], i: usize, xi: Vec3) -> f64 {
     let mut energy = 0.0;
     for c in set.corners(i) {
         let (e, a) = (c.elem as usize, c.corner as usize);
@@ -536,6 +536,6 @@ pub fn vertex_energy(set: &ElementSet, x: &[Vec3], i: usize, xi: Vec3) -> f64 {
 }
 
 /// Total element energy of the last [`evaluate`], J.
-pub fn energy(bufs: &ElementBuffers) -> f64 {
+pub(crate) fn energy(bufs: &ElementBuffers) -> f64 {
     bufs.membranes.energy() + bufs.curvatures.energy() + bufs.triples.energy() + bufs.hinges.energy()
 }

@@ -1,5 +1,5 @@
 //! Drivers that loop the interaction laws over a model's links: each
-//! link's force, Jacobian blocks and energy ([`crate::terms::eval_link`]), the total
+//! link's force, Jacobian blocks and energy (`terms::links`), the total
 //! force the explicit integrators take ([`forces_into`]) and the energies
 //! the energy monitor and Newton's line search take ([`elastic_energy`]).
 //! The implicit steps' system is assembled in [`crate::system`].
@@ -32,7 +32,7 @@ impl EnergyBuffers {
 
 /// Elastic energy of every link and element at `x`, J, without
 /// allocating: laws in parallel, summed in link and element order (the
-/// same bits for any thread count). `stitches_closed` as for [`crate::terms::eval_link`].
+/// same bits for any thread count). `stitches_closed` as for [`crate::ClothState::stitches_closed`].
 pub fn elastic_energy(model: &ClothModel, x: &[Vec3], stitches_closed: &[bool], bufs: &mut EnergyBuffers) -> f64 {
     bufs.link.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(chunk, es)| {
         for (k, e) in es.iter_mut().enumerate() {
@@ -58,7 +58,7 @@ fn extra_energy(model: &ClothModel, x: &[Vec3], stitches_closed: &[bool]) -> f64
 }
 
 /// Total potential energy at `x`: link energies plus gravity `-sum m g.x`,
-/// J. `stitches_closed` as for [`crate::terms::eval_link`].
+/// J. `stitches_closed` as for [`crate::ClothState::stitches_closed`].
 pub fn potential_energy(model: &ClothModel, x: &[Vec3], stitches_closed: &[bool]) -> f64 {
     let elastic = elastic_energy(model, x, stitches_closed, &mut EnergyBuffers::new(model));
     let gravity = model
@@ -72,7 +72,7 @@ pub fn potential_energy(model: &ClothModel, x: &[Vec3], stitches_closed: &[bool]
 /// drag, N) into `out`, without allocating: each acting term of
 /// [`crate::terms::INTERNAL_TERMS`] in turn (links in parallel, then a
 /// fixed-order gather per particle). `stitches_closed` as for
-/// [`crate::terms::eval_link`].
+/// [`crate::ClothState::stitches_closed`].
 pub fn forces_into(
     model: &ClothModel,
     x: &[Vec3],
@@ -89,7 +89,7 @@ pub fn forces_into(
 }
 
 /// Total force on every particle at `(x, v)`: elastic, damping and
-/// gravity, N. `stitches_closed` as for [`crate::terms::eval_link`].
+/// gravity, N. `stitches_closed` as for [`crate::ClothState::stitches_closed`].
 pub fn total_forces(model: &ClothModel, x: &[Vec3], v: &[Vec3], stitches_closed: &[bool]) -> Vec<Vec3> {
     let mut out = vec![Vec3::zeros(); model.particle_count()];
     forces_into(model, x, v, stitches_closed, &mut ForceBuffers::new(model), &mut out);

@@ -7,7 +7,7 @@ use crate::Vec3;
 /// The value at time `t` of the track through `(times[k], values[k])`:
 /// linear between keyframes, held before the first and after the last.
 /// `times` must be non-empty and strictly increasing (see [`validate`]).
-pub fn interpolate(times: &[f64], values: &[[f64; 3]], t: f64) -> Vec3 {
+pub(crate) fn interpolate(times: &[f64], values: &[[f64; 3]], t: f64) -> Vec3 {
     let k = times.partition_point(|&tk| tk <= t);
     if k == 0 {
         return Vec3::from(values[0]);
@@ -20,7 +20,7 @@ pub fn interpolate(times: &[f64], values: &[[f64; 3]], t: f64) -> Vec3 {
 }
 
 /// The slope of the segment containing `t` (zero outside the keyframes).
-pub fn slope(times: &[f64], values: &[[f64; 3]], t: f64) -> Vec3 {
+pub(crate) fn slope(times: &[f64], values: &[[f64; 3]], t: f64) -> Vec3 {
     let k = times.partition_point(|&tk| tk <= t);
     if k == 0 || k == times.len() {
         return Vec3::zeros();
@@ -29,7 +29,7 @@ pub fn slope(times: &[f64], values: &[[f64; 3]], t: f64) -> Vec3 {
 }
 
 /// Checks a track; `values_field` names the values in errors.
-pub fn validate(times: &[f64], values: &[[f64; 3]], values_field: &'static str) -> Result<(), FieldError> {
+pub(crate) fn validate(times: &[f64], values: &[[f64; 3]], values_field: &'static str) -> Result<(), FieldError> {
     if times.is_empty() || times.len() != values.len() {
         return Err(FieldError::new(
             values_field,
@@ -43,7 +43,7 @@ pub fn validate(times: &[f64], values: &[[f64; 3]], values_field: &'static str) 
 }
 
 /// Checks a frequency is finite and non-negative (Hz).
-pub fn frequency(f: f64) -> Result<(), FieldError> {
+pub(crate) fn frequency(f: f64) -> Result<(), FieldError> {
     if f.is_finite() && f >= 0.0 {
         Ok(())
     } else {
@@ -52,7 +52,7 @@ pub fn frequency(f: f64) -> Result<(), FieldError> {
 }
 
 /// Checks every component of `v` is finite.
-pub fn finite3(name: &'static str, v: &[f64; 3]) -> Result<(), FieldError> {
+pub(crate) fn finite3(name: &'static str, v: &[f64; 3]) -> Result<(), FieldError> {
     if v.iter().all(|c| c.is_finite()) {
         Ok(())
     } else {

@@ -1,5 +1,5 @@
 //! Interaction laws: small pure functions, one per law, each with its formula
-//! and source. Drivers that loop over links live in [`crate::forces`].
+//! and source. The force terms that apply them are in [`crate::terms`].
 //!
 //! Convention for a pair `(i, j)`: `x_ij = x_j - x_i`, `d = |x_ij|`,
 //! `u = x_ij / d`, `P = u u^T`. A central law with energy `E(d)` has
@@ -286,7 +286,7 @@ pub fn repulsion(d: f64, thickness: f64, k_r: f64) -> ScalarLaw {
     ScalarLaw { energy: 0.5 * k_r * gap * gap, phi: -k_r * gap, dphi: k_r }
 }
 
-/// A seam's stitch ([`crate::seams`]): a thread of zero rest length whose
+/// A seam's stitch ([`crate::SeamSpec`]): a thread of zero rest length whose
 /// pull is capped at `pull` while the seam is open, so panels laid out
 /// apart are drawn together at a bounded force (a garment tool's sewing):
 /// `phi = min(k d, pull)`; `E = k d^2 / 2` for `d <= d_c = pull / k`,

@@ -186,10 +186,10 @@ pub struct Material {
 
 /// The arc-path law's type-2 rigidity is `k_b` times this: its halves are
 /// chords, so it reads `kappa'^2 = (3/4) kappa^2` (module docs).
-pub const PATH_CURVATURE_FACTOR: f64 = 4.0 / 3.0;
+pub(crate) const PATH_CURVATURE_FACTOR: f64 = 4.0 / 3.0;
 
 /// Poisson ratio when the scene gives none.
-pub const DEFAULT_POISSON_RATIO: f64 = 0.3;
+pub(crate) const DEFAULT_POISSON_RATIO: f64 = 0.3;
 
 /// Per-area stiffness (or viscosity) of a square grid's link families:
 /// a uniform strain `eps` stores (module docs, "The lattice")

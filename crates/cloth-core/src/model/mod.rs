@@ -3,34 +3,35 @@
 //! its topology and material, and the interaction laws with the loops that
 //! evaluate them. Nothing here changes during a run.
 
+pub mod aero_laws;
 mod assembly;
 mod build;
 mod build_mesh;
 mod build_parts;
 mod builder;
-pub mod cloth_mesh;
+pub(crate) mod cloth_mesh;
 mod cloth_model;
-pub mod colouring;
+pub(crate) mod colouring;
 pub(crate) mod constraints;
 mod effects;
 pub mod element_laws;
-pub mod elements;
-pub mod forces;
+pub(crate) mod elements;
+pub(crate) mod forces;
 pub(crate) mod keyframes;
 pub mod laws;
 mod layout;
 mod links;
 pub(crate) mod material;
-pub mod pattern;
+pub(crate) mod pattern;
 pub(crate) mod pins;
 mod queries;
-pub mod seams;
+pub(crate) mod seams;
 mod sparsity;
 mod spec;
-pub mod system;
+pub(crate) mod system;
 pub mod terms;
 pub(crate) mod topology;
-pub mod wind;
+pub(crate) mod wind;
 
 pub use builder::ModelBuilder;
 pub use cloth_mesh::{ClothMesh, MeshPanel};

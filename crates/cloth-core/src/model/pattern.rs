@@ -82,10 +82,10 @@ fn y_axis() -> [f64; 3] {
 }
 
 /// Smallest angle the refinement keeps, degrees (30 can fail to end).
-pub const PATTERN_MIN_ANGLE_DEG: f64 = 25.0;
+pub(crate) const PATTERN_MIN_ANGLE_DEG: f64 = 25.0;
 
 /// Most triangles a pattern piece may mesh into.
-pub const PATTERN_MAX_TRIANGLES: f64 = 4e6;
+pub(crate) const PATTERN_MAX_TRIANGLES: f64 = 4e6;
 
 /// A meshed pattern piece.
 #[derive(Debug, Clone, PartialEq)]

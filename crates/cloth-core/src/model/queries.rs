@@ -81,7 +81,7 @@ impl ClothModel {
     }
     /// Closes every stitch whose gap at `x` is within `pull / k` (the
     /// closed law's linear range); `closed` holds one flag per stitch, and a
-    /// closed stitch stays closed (see [`crate::seams`]).
+    /// closed stitch stays closed (see [`crate::SeamSpec`]).
     pub fn close_stitches(&self, x: &[Vec3], closed: &mut [bool]) {
         for (s, c) in self.stitches.iter().zip(closed) {
             *c = *c || (x[s.j as usize] - x[s.i as usize]).norm() <= s.pull / s.k;

@@ -14,7 +14,7 @@
 //! ([`RHS_ORDER`], [`BLOCK_ORDER`]): the same bits for any thread count,
 //! and the same as the fused assembly these parts replaced.
 
-pub use crate::model::assembly::{Row, SystemTerms};
+pub(crate) use crate::model::assembly::{Row, SystemTerms};
 use crate::terms::{At, ForceTerm, INTERNAL_TERMS, Jacobian, TermAssembly, TermScratch};
 use crate::{ClothModel, Mat3, Vec3};
 use cloth_linalg::{BlockSparseMatrix, ROW_CHUNK};
@@ -50,15 +50,16 @@ enum Slot {
 /// with an assembly of their own in the registry's order (those named in
 /// neither order), then the Jacobians' part. Kept as the fused assembly
 /// summed, so results stay bit for bit.
-pub const RHS_ORDER: [&str; 8] =
+pub(crate) const RHS_ORDER: [&str; 8] =
     ["gravity", "inertia", "loads", "contact stiffness", "drag", "contact damping", "elements", "links"];
 
 /// The order in which a row sums its blocks (see [`RHS_ORDER`]).
-pub const BLOCK_ORDER: [&str; 6] = ["inertia", "drag", "contact stiffness", "contact damping", "links", "elements"];
+pub(crate) const BLOCK_ORDER: [&str; 6] =
+    ["inertia", "drag", "contact stiffness", "contact damping", "links", "elements"];
 
 /// The order in which the matrix-free operator sums a row's coupling
 /// blocks (see [`RHS_ORDER`]).
-pub const OPERATOR_ORDER: [&str; 2] = ["elements", "links"];
+pub(crate) const OPERATOR_ORDER: [&str; 2] = ["elements", "links"];
 
 fn slot_of(name: &'static str) -> Slot {
     match name {
@@ -353,7 +354,7 @@ fn add_rhs(
 /// Like [`assemble`] but leaves the matrix unassembled: only each part's
 /// evaluation (the blocks [`apply_scaled_operator`] reads) and the
 /// right-hand side.
-pub fn assemble_matrix_free(
+pub(crate) fn assemble_matrix_free(
     model: &ClothModel,
     x: &[Vec3],
     terms: &SystemTerms<'_>,
@@ -390,7 +391,7 @@ pub fn assemble_matrix_free(
 /// `y_i = w_i (1 + c_v c_i / m_i) + m_i^-1/2 sum_j B_ij w_j m_j^-1/2`,
 /// with the coupling blocks `B` of the last [`assemble_matrix_free`]
 /// (drag `c_i` on the diagonal). `inv_sqrt_mass[i] = m_i^-1/2`.
-pub fn apply_scaled_operator(
+pub(crate) fn apply_scaled_operator(
     model: &ClothModel,
     bufs: &SystemBuffers,
     inv_sqrt_mass: &[f64],

@@ -62,7 +62,7 @@ pub enum LinkType {
     Sequential,
     /// Interlaced: buckling (bending) link.
     Interlaced,
-    /// A seam's stitch ([`crate::seams`]).
+    /// A seam's stitch ([`crate::SeamSpec`]).
     Seam,
 }
 
@@ -91,10 +91,10 @@ pub struct PanelMesh {
 /// `area` is the part of the panel the link stands for, m^2: in each link
 /// family (along u, along v, each diagonal) the areas add up to the panel's,
 /// so a family stores the continuum energy of a uniform strain or curvature
-/// (see [`crate::material`]). Interior links stand for one cell; a link
+/// (see [`crate::Material`]). Interior links stand for one cell; a link
 /// along a boundary line borders half a cell on one side only, so it
 /// stands for half a cell. Type-2 links along a boundary take
-/// [`INTERLACED_BOUNDARY_SHARE`] instead.
+/// a share of their own (`INTERLACED_BOUNDARY_SHARE`) instead.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GridLink {
     /// The two particles (local indices).
@@ -118,7 +118,7 @@ pub struct GridLink {
 /// At a free edge only the curvature along the edge carries a moment
 /// (Kirchhoff's free-edge conditions), so this is the stiffness that counts;
 /// with a full cell a 5-row strip is 8% too stiff in bending along it.
-pub const INTERLACED_BOUNDARY_SHARE: f64 = 0.75;
+pub(crate) const INTERLACED_BOUNDARY_SHARE: f64 = 0.75;
 
 /// How a grid panel splits its cells into triangles.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

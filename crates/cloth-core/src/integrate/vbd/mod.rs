@@ -36,7 +36,7 @@ use self_pairs::{PairIndex, SelfPair};
 /// Chebyshev's weight `omega_k` of sweep `k` (1-based) from the previous
 /// one (Wang 2015, as VBD uses it): 1, then `2 / (2 - rho^2)`, then
 /// `4 / (4 - rho^2 omega_{k-1})`.
-pub fn chebyshev_omega(k: usize, rho: f64, previous: f64) -> f64 {
+pub(crate) fn chebyshev_omega(k: usize, rho: f64, previous: f64) -> f64 {
     match k {
         0 | 1 => 1.0,
         2 => 2.0 / (2.0 - rho * rho),

@@ -1,10 +1,10 @@
 //! Aerodynamic drag and lift on each triangle (effect `aerodynamics`),
-//! shared equally by its corners ([`crate::wind::triangle_aero_force`]),
+//! shared equally by its corners ([`crate::aero_laws::triangle_aero_force`]),
 //! with the triangle moving at its corners' mean velocity.
 
 use super::{At, ForceTerm, VertexBlock};
+use crate::aero_laws::{triangle_aero_derivative, triangle_aero_force};
 use crate::terms::ForceBuffers;
-use crate::wind::{triangle_aero_derivative, triangle_aero_force};
 use crate::{ClothModel, Vec3};
 
 /// Drag and lift on triangles (effect `aerodynamics`): an external term,

@@ -87,7 +87,7 @@ fn buffers(scratch: &TermScratch) -> &ElementBuffers {
 
 /// Each element's right-hand-side terms `c_f f_a - a_k (H w)_a` and blocks
 /// `c_x H_ab`, evaluated in parallel; each row sums its elements' corners
-/// in a fixed order ([`crate::elements`]). The elements carry no damping.
+/// in a fixed order. The elements carry no damping.
 impl TermAssembly for Elements {
     fn scratch(&self, model: &ClothModel) -> TermScratch {
         Box::new(ElementBuffers::new(model.elements()))

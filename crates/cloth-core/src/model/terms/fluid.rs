@@ -1,11 +1,11 @@
 //! Provot's (1995) viscous fluid force (effect `wind`): on each particle,
 //! `F = C_v A_i [n_i . (u - v_i)] n_i`, with `n_i` the particle's
 //! area-weighted normal and `A_i` a third of its triangles' area
-//! ([`crate::wind::provot_fluid_force`]).
+//! ([`crate::aero_laws::provot_fluid_force`]).
 
 use super::{At, ForceTerm, VertexBlock};
+use crate::aero_laws::provot_fluid_force;
 use crate::terms::ForceBuffers;
-use crate::wind::provot_fluid_force;
 use crate::{ClothModel, Mat3, Vec3};
 
 /// Provot's fluid force (effect `wind`): an external term, taken as given

@@ -14,41 +14,43 @@
 //! A term also gives its force's Jacobian, the blocks between particles
 //! included ([`ForceTerm::jacobian`], over the pairs it couples,
 //! [`ForceTerm::coupled_pairs`]), and the implicit steps' assembly loops
-//! over the terms ([`crate::system`]): a term assembles itself
+//! over the terms (the `system` module): a term assembles itself
 //! ([`ForceTerm::assembly`]: the built-in ones, link by link and element
 //! by element) or is assembled from its Jacobian.
 //!
 //! Adding an effect is one file implementing [`ForceTerm`] and one line:
 //! in [`INTERNAL_TERMS`] for a built-in effect, or
-//! [`ClothModel::with_force_term`] (or the builder's `force_term`) from
+//! [`crate::ClothModel::with_force_term`] (or the builder's `force_term`) from
 //! outside the crate.
 //!
 //! External terms ([`ForceTerm::external`]: the wind's) are forces from
 //! outside the cloth: every step takes them at its start, as given over the
 //! step, and the energy monitor counts their work as external work.
 //! Self-collision repulsion is not a term: it acts on the pairs the
-//! contact stage detects each step ([`crate::contacts`]), not on `(x, v)`
+//! contact stage detects each step ([`crate::Contacts`]), not on `(x, v)`
 //! alone.
 
+pub(crate) mod acting;
 mod aerodynamics;
 mod drag;
 mod element_terms;
 mod fluid;
 mod gravity;
-mod links;
+pub(crate) mod links;
 
+pub(crate) use acting::{acting, add_external_forces, external, from_jacobian};
 pub use aerodynamics::Aerodynamics;
 pub use drag::Drag;
 pub use element_terms::Elements;
 pub use fluid::Fluid;
 pub use gravity::Gravity;
+pub use links::Links;
 pub(crate) use links::link_energy;
-pub use links::{LinkEval, Links, eval_link, link_force};
 
+pub use super::assembly::{Row, SystemTerms};
 pub use super::cloth_model::{
     At, ForceBuffers, ForceTerm, Jacobian, JacobianBlocks, TermAssembly, TermScratch, VertexBlock,
 };
-use crate::{ClothModel, Vec3};
 
 /// The forces the cloth exerts on itself and gravity, in the order every
 /// particle adds them. One line an effect.
@@ -57,42 +59,6 @@ pub const INTERNAL_TERMS: &[&dyn ForceTerm] = &[&Gravity, &Drag, &Elements, &Lin
 /// The forces from outside the cloth, in the order every particle adds
 /// them. One line an effect.
 pub const EXTERNAL_TERMS: &[&dyn ForceTerm] = &[&Aerodynamics, &Fluid];
-
-/// The internal terms that act on `model`: those of [`INTERNAL_TERMS`] it
-/// has, then those added from outside ([`ClothModel::with_force_term`]).
-pub fn acting(model: &ClothModel) -> impl Iterator<Item = &dyn ForceTerm> + '_ {
-    let extra = model.extra_terms().iter().map(|t| t.as_ref() as &dyn ForceTerm);
-    INTERNAL_TERMS.iter().map(|t| *t as &dyn ForceTerm).chain(extra).filter(move |t| t.acts_on(model) && !t.external())
-}
-
-/// The external terms that act on `model`: those of [`EXTERNAL_TERMS`] it
-/// has, then those added from outside.
-pub fn external(model: &ClothModel) -> impl Iterator<Item = &dyn ForceTerm> + '_ {
-    let extra = model.extra_terms().iter().map(|t| t.as_ref() as &dyn ForceTerm);
-    EXTERNAL_TERMS.iter().map(|t| *t as &dyn ForceTerm).chain(extra).filter(move |t| t.acts_on(model) && t.external())
-}
-
-/// Adds every external term's forces at `at` to `out`, N.
-pub fn add_external_forces(at: &At<'_>, scratch: &mut ForceBuffers, out: &mut [Vec3]) {
-    for term in external(at.model) {
-        term.add_forces(at, scratch, out);
-    }
-}
-
-/// The acting terms the implicit steps assemble from their Jacobian (no
-/// [`ForceTerm::assembly`] of their own).
-pub fn from_jacobian(model: &ClothModel) -> impl Iterator<Item = &dyn ForceTerm> + '_ {
-    acting(model).filter(|t| t.assembly().is_none())
-}
-
-/// The sum of every acting term's block at particle `i`, in their order.
-pub fn vertex_block(at: &At<'_>, i: usize) -> VertexBlock {
-    let mut total = VertexBlock::zero();
-    for term in acting(at.model) {
-        total += term.vertex(at, i);
-    }
-    total
-}
 
 #[cfg(test)]
 mod tests;

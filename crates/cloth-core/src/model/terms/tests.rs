@@ -4,6 +4,7 @@
 //! per-particle blocks against the force loop the explicit steps use.
 
 use super::*;
+use crate::{ClothModel, Vec3};
 use crate::{Edge, GridPanel, Mat3, Material, ModelKind, ModelSpec};
 
 /// A 5 x 4 sheet of the given model (or, `on_mesh`, the same 20 x 15 cm
@@ -382,4 +383,14 @@ fn wind_blocks_match_the_force_loop_and_finite_differences_in_velocity() {
         assert!(scale > 0.0);
         assert!(worst_d <= 2e-9 * scale, "{}: damping {worst_d:e}", term.name());
     }
+}
+
+/// The sum of every acting term's block at particle `i`, in their order
+/// (what the vertex solver adds term by term, checked in the tests).
+fn vertex_block(at: &At<'_>, i: usize) -> VertexBlock {
+    let mut total = VertexBlock::zero();
+    for term in super::acting(at.model) {
+        total += term.vertex(at, i);
+    }
+    total
 }
