@@ -358,3 +358,45 @@ fn a_hanging_cylinder_sags_as_the_strip_and_stays_round() {
         assert!(out_of_round < 1e-13 && off_axis < 1e-15, "{name}: radii {out_of_round:e}, centres {off_axis:e} m");
     }
 }
+
+/// Choi & Ko's grid under finite stretch, pinned as
+/// `docs/results/grid-stretch.md` measures it (`cloth study grid-stretch`):
+/// a 0.1 x 1 m strip of `E = 200 N/m` hanging under its weight, its sag
+/// against a Hookean strip's `eps L / 2`. The axis links across the strip,
+/// compressed by its contraction, carry compression only until the strip
+/// they stand for buckles, which `B` sets: below that the lattice's
+/// uniaxial modulus `K1 + K2 K1c / (K1c + K2)` is `E`, beyond it `K1c` is
+/// lost and the modulus is `K1`. So the sag is exact at 1% strain with the
+/// default `B = 1e-5 N m` and grows with the strain, and without `B` it is
+/// the buckled lattice's at every strain: at most `E / K1 - 1` too far (the
+/// pinned top row holds part of the width). Provot's linear springs and
+/// Volino's membrane do not depend on `B` (Volino's Green strain is
+/// stiffer at finite strain). Measured: +32.22%, -0.58%, +12.79%, -0.59%,
+/// -4.83%; the tolerance is 0.2 percentage points.
+#[test]
+fn choi_ko_grid_stretch_against_flexural_rigidity_and_strain_is_pinned() {
+    use cloth_core::testing::reference::HangingStrip;
+    let cases = [
+        (ModelKind::ChoiKo, 0.0, 0.01, 0.3222),
+        (ModelKind::ChoiKo, 1e-5, 0.01, -0.0058),
+        (ModelKind::ChoiKo, 1e-5, 0.05, 0.1280),
+        (ModelKind::Provot, 1e-5, 0.05, -0.0059),
+        (ModelKind::Volino, 1e-5, 0.05, -0.0483),
+    ];
+    let mut buckled = f64::NAN;
+    for (kind, b, eps, measured) in cases {
+        let strip = HangingStrip { particles: [11, 101], size_m: [0.1, 1.0], top_strain: eps };
+        let material = Material { flexural_rigidity_n_m: b, ..Material::default() };
+        let error = strip.sag_error(kind, material);
+        println!("{} B = {b:e} N m, {:.0}% at the top: sag {:+.2}%", kind.name(), eps * 100.0, error * 100.0);
+        assert!((error - measured).abs() < 0.002, "{kind:?} B = {b} eps = {eps}: {error} against {measured}");
+        if kind == ModelKind::ChoiKo && b == 0.0 {
+            buckled = error;
+        }
+    }
+    let lattice = Material::default().lattice_membrane(cloth_core::Compressive { ratio: 1.0, ..Default::default() });
+    let k1 = lattice.unwrap().stiffness.axis;
+    let bound = 200.0 / k1 - 1.0;
+    println!("the buckled lattice's modulus K1 = {k1:.1} N/m: at most {:+.1}%", bound * 100.0);
+    assert!(buckled < bound && buckled > 0.9 * bound, "B = 0: {buckled} against the buckled lattice's {bound}");
+}

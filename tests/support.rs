@@ -2,7 +2,7 @@
 
 use cloth_collide::closest_point_on_triangle;
 use cloth_core::scene::{RunConfig, Scene};
-use cloth_core::{ClothModel, IntegratorKind, NewtonParams, PreconditionerKind, Simulation, SolverParams, Vec3};
+use cloth_core::{ClothModel, Simulation, Vec3};
 use std::path::PathBuf;
 
 /// Path of a fixture scene.
@@ -124,19 +124,4 @@ pub fn min_unlinked_point_triangle_brute(model: &ClothModel, x: &[Vec3]) -> f64 
     best
 }
 
-/// The static shape of `model` under its loads: 20 backward Euler steps of
-/// 1 s with Newton iterations to 1e-10 m (and PCG to 1e-10 with
-/// `preconditioner`) converge to statics.
-pub fn settle(model: ClothModel, preconditioner: PreconditionerKind) -> Vec<Vec3> {
-    let solver = SolverParams {
-        rel_tol: 1e-10,
-        preconditioner,
-        newton: NewtonParams { iterations: 50, tolerance_m: 1e-10, ..Default::default() },
-        ..SolverParams::default()
-    };
-    let mut sim = Simulation::new(model, IntegratorKind::BackwardEuler, solver);
-    for _ in 0..20 {
-        sim.step(1.0).unwrap();
-    }
-    sim.state().x.clone()
-}
+pub use cloth_core::testing::reference::settle;

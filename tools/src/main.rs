@@ -247,6 +247,8 @@ enum StudyKind {
     Stability,
     /// Cost and CG iterations per step against particle count, 1k to 263k.
     Scaling,
+    /// A strip under its own weight: sag per model against flexural rigidity and strain.
+    GridStretch,
 }
 
 fn main() -> ExitCode {
@@ -288,6 +290,7 @@ fn main() -> ExitCode {
                 StudyKind::LargeSteps => study::large_steps(&args),
                 StudyKind::Stability => study::stability(&args),
                 StudyKind::Scaling => study::scaling(&args),
+                StudyKind::GridStretch => study::grid_stretch(&args),
             }
         }
     };

@@ -7,10 +7,12 @@
 //! large steps, bending, co-simulation and the hard-case suite). This file
 //! holds what they share: the methods, a monitored run, the output files.
 
+mod grid_stretch;
 mod solver;
 mod vbd;
 mod volino;
 
+pub use grid_stretch::grid_stretch;
 pub use solver::{bending, cosim, large_steps, scaling, stability};
 pub use vbd::vbd;
 pub use volino::{cost, drape, freefall, precision};

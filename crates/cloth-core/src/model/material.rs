@@ -57,7 +57,14 @@
 //! `E` at the default `G`); at finite strain the models part by their
 //! strain measures (Volino's Green strain is 4.8% stiffer at 5%); a
 //! compressed link buckles once its strip does, so compression moduli hold
-//! only below that (0.6% at 1 cm for a light cotton). The arc-chord law
+//! only below that (0.6% at 1 cm for a light cotton). For `choi-ko` that
+//! includes the compression across a strip in tension: once its axis links
+//! across buckle, `K1c` is lost and the uniaxial modulus `K1 + K2 K1c /
+//! (K1c + K2)` falls from `E` to `K1` (0.746 `E`). A hanging strip then
+//! sags 13% too far at 5% strain with `B = 1e-5 N m`, and 32% at any
+//! strain with `B` of 1e-7 N m or less (`docs/results/grid-stretch.md`).
+//! This is the paper's lattice and is kept; `volino` is the model whose
+//! membrane stays exact under stretch. The arc-chord law
 //! (the paper's) carries compression on type-2 links across two cells
 //! (`K1x = (2/3) C_b`, `K2x = C_b / 3`, `r = 0`; `C_b > 6 G` leaves no
 //! tension diagonal and is an error), which buckle at a fraction of the

@@ -15,6 +15,15 @@
 //! Runge-Kutta in `s`, bisection on the end condition); nothing is
 //! tabulated. At `l / c = 2` the tip drops `1.2815 c` and the chord from
 //! clamp to tip falls `41.49` degrees below horizontal.
+//!
+//! ## A strip hanging under its weight
+//! A strip of length `L` (m), areal density `rho` and uniaxial modulus `E`
+//! (N/m) hangs from its top edge. The tension per width at a distance `s`
+//! below the top is `rho g (L - s)` in the reference length, so a Hookean
+//! strip (stress proportional to engineering strain) stretches by
+//! `eps(s) = rho g (L - s) / E` and its bottom drops `rho g L^2 / (2 E)
+//! = eps_top L / 2`, at any strain. [`HangingStrip`] picks `rho` for a
+//! given strain at the top; [`settle`] finds the static shape.
 
 /// The heavy elastica of one overhang, in units of the bending length.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -162,6 +171,105 @@ impl CantileverStrip {
         let c = bending_length(m.flexural_rigidity_n_m, m.areal_density_kg_m2, g);
         (heavy_elastica(self.overhang / c), c)
     }
+}
+
+/// A vertical strip `size_m` (width, length; m) of `particles` (across,
+/// along) hanging from its pinned top row under `g = 9.81 m/s^2`, loaded
+/// so that its top is strained by `top_strain` in a Hookean strip of the
+/// material's `tensile_stiffness_n_m`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HangingStrip {
+    /// Particles across and along the strip.
+    pub particles: [usize; 2],
+    /// Width and length, m.
+    pub size_m: [f64; 2],
+    /// Strain at the top of a Hookean strip, dimensionless.
+    pub top_strain: f64,
+}
+
+impl HangingStrip {
+    /// Gravitational acceleration, m/s^2.
+    pub const G: f64 = 9.81;
+
+    /// The areal density (kg/m^2) that strains the top by
+    /// [`HangingStrip::top_strain`]: `eps E / (g L)`.
+    pub fn areal_density(&self, tensile_stiffness_n_m: f64) -> f64 {
+        self.top_strain * tensile_stiffness_n_m / (Self::G * self.size_m[1])
+    }
+
+    /// The strip as a model of `kind` and `material` (its areal density
+    /// set by [`HangingStrip::areal_density`]), with gravity and bending.
+    pub fn model(&self, kind: crate::ModelKind, material: crate::Material) -> crate::ClothModel {
+        let material =
+            crate::Material { areal_density_kg_m2: self.areal_density(material.tensile_stiffness_n_m), ..material };
+        let effects = crate::Effects {
+            gravity: Some(crate::Vec3::new(0.0, 0.0, -Self::G)),
+            bending: true,
+            ..crate::Effects::default()
+        };
+        crate::ClothModel::build(&crate::ModelSpec {
+            kind,
+            panels: vec![crate::GridPanel {
+                particles: self.particles,
+                size_m: self.size_m,
+                origin_m: [0.0, 0.0, 0.0],
+                u_axis: [1.0, 0.0, 0.0],
+                v_axis: [0.0, 0.0, -1.0],
+                wrap_u: false,
+            }],
+            material,
+            pins: vec![crate::PinSpec { edge: Some(crate::Edge::JMin), ..crate::PinSpec::default() }],
+            effects,
+            ..crate::ModelSpec::default()
+        })
+        .expect("a hanging strip of valid constants builds")
+    }
+
+    /// The Hookean strip's drop of its bottom edge, m: `eps_top L / 2`.
+    pub fn exact_sag(&self) -> f64 {
+        self.top_strain * self.size_m[1] / 2.0
+    }
+
+    /// The mean drop of the bottom row from `rest` to `x`, m.
+    pub fn sag(&self, rest: &[crate::Vec3], x: &[crate::Vec3]) -> f64 {
+        let [nu, nv] = self.particles;
+        let bottom = (nv - 1) * nu..nv * nu;
+        bottom.map(|i| rest[i].z - x[i].z).sum::<f64>() / nu as f64
+    }
+
+    /// The settled strip's sag against [`HangingStrip::exact_sag`], as a
+    /// fraction (`+0.32`: 32% too far).
+    pub fn sag_error(&self, kind: crate::ModelKind, material: crate::Material) -> f64 {
+        let model = self.model(kind, material);
+        let rest = model.rest_positions().to_vec();
+        let x = settle(model, crate::PreconditionerKind::BlockJacobi);
+        self.sag(&rest, &x) / self.exact_sag() - 1.0
+    }
+}
+
+/// A step that moves no particle farther than this has reached statics, m.
+const STILL_M: f64 = 1e-12;
+
+/// The static shape of `model` under its loads: backward Euler steps of
+/// 1 s with Newton iterations to 1e-10 m (and PCG to 1e-10 with
+/// `preconditioner`) until a step moves no particle by 1e-12 m, 20 at
+/// most (a hanging strip gets there in about 8).
+pub fn settle(model: crate::ClothModel, preconditioner: crate::PreconditionerKind) -> Vec<crate::Vec3> {
+    let solver = crate::SolverParams {
+        rel_tol: 1e-10,
+        preconditioner,
+        newton: crate::NewtonParams { iterations: 50, tolerance_m: 1e-10, ..Default::default() },
+        ..crate::SolverParams::default()
+    };
+    let mut sim = crate::Simulation::new(model, crate::IntegratorKind::BackwardEuler, solver);
+    for _ in 0..20 {
+        sim.step(1.0).expect("a hanging cloth settles");
+        let state = sim.state();
+        if state.x.iter().zip(&state.x_prev).all(|(x, before)| (x - before).norm() < STILL_M) {
+            break;
+        }
+    }
+    sim.state().x.clone()
 }
 
 #[cfg(test)]
