@@ -20,6 +20,8 @@
 
 mod contact;
 mod field_error;
+#[cfg(test)]
+mod finite_differences;
 mod integrate;
 mod model;
 pub mod scene;

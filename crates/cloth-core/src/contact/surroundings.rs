@@ -131,14 +131,7 @@ pub(crate) fn friction_secant(s: f64, limit: f64, eps: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// Central differences of `f` at `x` along each axis, step `d`.
-    fn gradient(f: impl Fn(Vec3) -> f64, x: Vec3, d: f64) -> Vec3 {
-        Vec3::from_fn(|a, _| {
-            let e = Vec3::ith(a, d);
-            (f(x + e) - f(x - e)) / (2.0 * d)
-        })
-    }
+    use crate::finite_differences::gradient;
 
     /// A plane's penalty force is minus its energy's gradient and its block
     /// the force's Jacobian; friction's force is the smoothed Coulomb law,

@@ -262,10 +262,11 @@ pub fn assemble(model: &ClothModel, x: &[Vec3], terms: &SystemTerms<'_>, bufs: &
     let t0 = Instant::now();
     let SystemBuffers { parts, scratch, jacobians, matrix, .. } = bufs;
     let at = At::new(model, x, &[], terms.stitches_closed);
+    let evaluated = Evaluated { model, at: &at, c: terms, parts, scratch, jacobians };
     matrix.fill_rows(|i, blocks| {
         let mut row = Row::new(blocks, model.diag_local(i));
         for part in &parts.blocks {
-            add_row(part, model, &at, terms, (parts, scratch, jacobians), i, &mut row);
+            evaluated.add_row(part, i, &mut row);
         }
         row.store_diag();
     });
@@ -273,79 +274,78 @@ pub fn assemble(model: &ClothModel, x: &[Vec3], terms: &SystemTerms<'_>, bufs: &
     timing
 }
 
-/// Row `i`'s blocks of `part`.
-fn add_row(
-    part: &Part,
-    model: &ClothModel,
-    at: &At<'_>,
-    c: &SystemTerms<'_>,
-    (parts, scratch, jacobians): (&Parts, &[TermScratch], &JacobianBuffers),
-    i: usize,
-    row: &mut Row<'_>,
-) {
-    match *part {
-        Part::Term(p) => own(model, parts.terms[p]).add_row(at, c, &scratch[p], i, row),
-        Part::Inertia => row.add_diag(&(Mat3::identity() * model.masses()[i])),
-        Part::ContactStiffness => {
-            if let Some(s) = c.diag_stiffness {
-                row.add_diag(&(s[i] * c.c_x));
-            }
-        }
-        Part::ContactDamping => {
-            if let Some(d) = c.diag_damping {
-                row.add_diag(&(d[i] * c.c_v));
-            }
-        }
-        Part::Jacobians => {
-            let pattern = model.pattern();
-            let start = pattern.row_range(i).start;
-            for s in pattern.row_range(i).filter(|&s| jacobians.written[s]) {
-                row.add(s - start, &(jacobians.stiffness[s] * c.c_x + jacobians.damping[s] * c.c_v));
-            }
-        }
-        Part::Loads => {}
-    }
+/// What the rows are gathered from: the positions, the step's
+/// coefficients, and each part's evaluation.
+struct Evaluated<'a> {
+    model: &'a ClothModel,
+    at: &'a At<'a>,
+    c: &'a SystemTerms<'a>,
+    parts: &'a Parts,
+    scratch: &'a [TermScratch],
+    jacobians: &'a JacobianBuffers,
 }
 
-/// Row `i`'s right-hand side of `part`, added to `rhs`.
-fn add_rhs(
-    part: &Part,
-    model: &ClothModel,
-    at: &At<'_>,
-    c: &SystemTerms<'_>,
-    (parts, scratch, jacobians): (&Parts, &[TermScratch], &JacobianBuffers),
-    i: usize,
-    rhs: &mut Vec3,
-) {
-    match *part {
-        Part::Term(p) => own(model, parts.terms[p]).add_rhs(at, c, &scratch[p], i, rhs),
-        Part::Inertia => {
-            if let Some(y) = c.mass_times {
-                *rhs += y[i] * model.masses()[i];
+impl Evaluated<'_> {
+    /// Row `i`'s blocks of `part`.
+    fn add_row(&self, part: &Part, i: usize, row: &mut Row<'_>) {
+        let Evaluated { model, at, c, parts, scratch, jacobians } = *self;
+        match *part {
+            Part::Term(p) => own(model, parts.terms[p]).add_row(at, c, &scratch[p], i, row),
+            Part::Inertia => row.add_diag(&(Mat3::identity() * model.masses()[i])),
+            Part::ContactStiffness => {
+                if let Some(s) = c.diag_stiffness {
+                    row.add_diag(&(s[i] * c.c_x));
+                }
             }
+            Part::ContactDamping => {
+                if let Some(d) = c.diag_damping {
+                    row.add_diag(&(d[i] * c.c_v));
+                }
+            }
+            Part::Jacobians => {
+                let pattern = model.pattern();
+                let start = pattern.row_range(i).start;
+                for s in pattern.row_range(i).filter(|&s| jacobians.written[s]) {
+                    row.add(s - start, &(jacobians.stiffness[s] * c.c_x + jacobians.damping[s] * c.c_v));
+                }
+            }
+            Part::Loads => {}
         }
-        Part::Loads => {
-            if let Some(f) = c.external {
-                *rhs += f[i] * c.force;
+    }
+
+    /// Row `i`'s right-hand side of `part`, added to `rhs`.
+    fn add_rhs(&self, part: &Part, i: usize, rhs: &mut Vec3) {
+        let Evaluated { model, at, c, parts, scratch, jacobians } = *self;
+        match *part {
+            Part::Term(p) => own(model, parts.terms[p]).add_rhs(at, c, &scratch[p], i, rhs),
+            Part::Inertia => {
+                if let Some(y) = c.mass_times {
+                    *rhs += y[i] * model.masses()[i];
+                }
             }
-        }
-        Part::ContactStiffness => {
-            if let (Some(s), Some((a, w))) = (c.diag_stiffness, c.k_times) {
-                *rhs -= s[i] * w[i] * a;
+            Part::Loads => {
+                if let Some(f) = c.external {
+                    *rhs += f[i] * c.force;
+                }
             }
-        }
-        Part::ContactDamping => {
-            if let (Some(d), Some((a, w))) = (c.diag_damping, c.d_times) {
-                *rhs -= d[i] * w[i] * a;
+            Part::ContactStiffness => {
+                if let (Some(s), Some((a, w))) = (c.diag_stiffness, c.k_times) {
+                    *rhs -= s[i] * w[i] * a;
+                }
             }
-        }
-        Part::Jacobians => {
-            *rhs += jacobians.force[i] * c.force;
-            if let Some((a, w)) = c.k_times {
-                *rhs -= jacobians.row_times(model, &jacobians.stiffness, i, w) * a;
+            Part::ContactDamping => {
+                if let (Some(d), Some((a, w))) = (c.diag_damping, c.d_times) {
+                    *rhs -= d[i] * w[i] * a;
+                }
             }
-            if let Some((a, w)) = c.d_times {
-                *rhs -= jacobians.row_times(model, &jacobians.damping, i, w) * a;
+            Part::Jacobians => {
+                *rhs += jacobians.force[i] * c.force;
+                if let Some((a, w)) = c.k_times {
+                    *rhs -= jacobians.row_times(model, &jacobians.stiffness, i, w) * a;
+                }
+                if let Some((a, w)) = c.d_times {
+                    *rhs -= jacobians.row_times(model, &jacobians.damping, i, w) * a;
+                }
             }
         }
     }
@@ -371,13 +371,13 @@ pub(crate) fn assemble_matrix_free(
         jacobians.evaluate(model, x, terms.stitches_closed);
     }
     let t1 = Instant::now();
-    let (parts, scratch, jacobians) = (&*parts, &scratch[..], &*jacobians);
+    let evaluated = Evaluated { model, at: &at, c: terms, parts, scratch, jacobians };
     rhs.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(chunk, out)| {
         for (k, bi) in out.iter_mut().enumerate() {
             let i = chunk * ROW_CHUNK + k;
             let mut acc = Vec3::zeros();
             for part in &parts.rhs {
-                add_rhs(part, model, &at, terms, (parts, scratch, jacobians), i, &mut acc);
+                evaluated.add_rhs(part, i, &mut acc);
             }
             *bi = acc;
         }

@@ -62,33 +62,54 @@ impl Bdf2 {
     pub(crate) const NAME: &'static str = "bdf2";
 }
 
-impl Integrator for BackwardEuler {
-    fn name(&self) -> &'static str {
-        Self::NAME
-    }
+/// The stages and memory both implicit integrators share, delegated to
+/// [`Implicit`]; each writes its own `assemble` (which scheme),
+/// `retake` and `committed`.
+macro_rules! implicit_stages {
+    () => {
+        fn name(&self) -> &'static str {
+            Self::NAME
+        }
 
-    fn capabilities(&self) -> Capabilities {
-        IMPLICIT
-    }
+        fn capabilities(&self) -> Capabilities {
+            IMPLICIT
+        }
+
+        fn solve(
+            &mut self,
+            step: &Step<'_>,
+            contacts: &mut Contacts,
+            out: &mut StepOutput,
+            timer: &mut StageTimer,
+        ) -> Result<StepReport, StepError> {
+            self.0.solve(step, contacts, out, timer)
+        }
+
+        fn balance(&mut self, step: &Step<'_>, contacts: &Contacts, out: &StepOutput) -> Option<EnergyReport> {
+            Some(self.0.balance(step, contacts, out))
+        }
+
+        fn memory(&self) -> IntegratorMemory {
+            self.0.memory()
+        }
+
+        fn restore_memory(&mut self, memory: &IntegratorMemory) -> Result<(), StepError> {
+            self.0.restore_memory(memory)
+        }
+
+        fn reset(&mut self) {
+            self.0.scratch = None;
+        }
+    };
+}
+
+impl Integrator for BackwardEuler {
+    implicit_stages!();
 
     fn assemble(&mut self, step: &Step<'_>, contacts: &mut Contacts, timer: &mut StageTimer) -> Result<(), StepError> {
         self.0.scheme = SchemeKind::Euler;
         self.0.assemble(step, contacts, timer);
         Ok(())
-    }
-
-    fn solve(
-        &mut self,
-        step: &Step<'_>,
-        contacts: &mut Contacts,
-        out: &mut StepOutput,
-        timer: &mut StageTimer,
-    ) -> Result<StepReport, StepError> {
-        self.0.solve(step, contacts, out, timer)
-    }
-
-    fn balance(&mut self, step: &Step<'_>, contacts: &Contacts, out: &StepOutput) -> Option<EnergyReport> {
-        Some(self.0.balance(step, contacts, out))
     }
 
     /// A single linearised step that the energy monitor flags is retaken
@@ -108,28 +129,10 @@ impl Integrator for BackwardEuler {
     fn committed(&mut self, report: &StepReport) {
         self.0.newton_engaged |= report.newton.is_some_and(|n| n.automatic);
     }
-
-    fn memory(&self) -> IntegratorMemory {
-        self.0.memory()
-    }
-
-    fn restore_memory(&mut self, memory: &IntegratorMemory) -> Result<(), StepError> {
-        self.0.restore_memory(memory)
-    }
-
-    fn reset(&mut self) {
-        self.0.scratch = None;
-    }
 }
 
 impl Integrator for Bdf2 {
-    fn name(&self) -> &'static str {
-        Self::NAME
-    }
-
-    fn capabilities(&self) -> Capabilities {
-        IMPLICIT
-    }
+    implicit_stages!();
 
     /// BDF2 with a previous step of the same size; backward Euler
     /// otherwise and when retaken.
@@ -139,20 +142,6 @@ impl Integrator for Bdf2 {
         self.0.scheme = if bdf2 { SchemeKind::Bdf2 } else { SchemeKind::Euler };
         self.0.assemble(step, contacts, timer);
         Ok(())
-    }
-
-    fn solve(
-        &mut self,
-        step: &Step<'_>,
-        contacts: &mut Contacts,
-        out: &mut StepOutput,
-        timer: &mut StageTimer,
-    ) -> Result<StepReport, StepError> {
-        self.0.solve(step, contacts, out, timer)
-    }
-
-    fn balance(&mut self, step: &Step<'_>, contacts: &Contacts, out: &StepOutput) -> Option<EnergyReport> {
-        Some(self.0.balance(step, contacts, out))
     }
 
     /// A BDF2 step that creates energy (its linearisation across the kink
@@ -169,18 +158,6 @@ impl Integrator for Bdf2 {
         if self.0.scheme == SchemeKind::Euler {
             self.0.newton_engaged |= report.newton.is_some_and(|n| n.automatic);
         }
-    }
-
-    fn memory(&self) -> IntegratorMemory {
-        self.0.memory()
-    }
-
-    fn restore_memory(&mut self, memory: &IntegratorMemory) -> Result<(), StepError> {
-        self.0.restore_memory(memory)
-    }
-
-    fn reset(&mut self) {
-        self.0.scratch = None;
     }
 }
 

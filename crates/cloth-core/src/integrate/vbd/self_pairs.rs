@@ -100,14 +100,7 @@ impl PairIndex {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// Central differences of `f` at `x` along each axis, step `d`.
-    fn gradient(f: impl Fn(Vec3) -> f64, x: Vec3, d: f64) -> Vec3 {
-        Vec3::from_fn(|a, _| {
-            let e = Vec3::ith(a, d);
-            (f(x + e) - f(x - e)) / (2.0 * d)
-        })
-    }
+    use crate::finite_differences::gradient;
 
     /// A self pair's force on each of its particles is minus its energy's
     /// gradient there, and its block the force's Jacobian.
