@@ -280,7 +280,7 @@ fn measure(scene: &Path, overrides: &[&str], args: &BenchArgs) -> Result<Measure
     }
     let mut runs: Vec<Summary> = Vec::with_capacity(args.repeat);
     for _ in 0..args.repeat {
-        let s = simulate(scene, &set, args.threads, None, true)?;
+        let s = simulate(scene, &set, args.threads, None, true, false)?;
         if let Some(e) = &s.error {
             bail!("{}: {e}", scene.display());
         }

@@ -52,6 +52,11 @@ enum Command {
         /// No progress bar.
         #[arg(long)]
         quiet: bool,
+        /// Stop with an error at the first tangle (a crossing of the cloth
+        /// through itself that lasts, or cloth pushed through a solid)
+        /// instead of warning.
+        #[arg(long)]
+        strict: bool,
     },
     /// Run a scene several times and print a Markdown row of median timings
     /// (Choi & Ko Table-1 style: ms per step, CG iterations, stage split).
@@ -254,9 +259,9 @@ enum StudyKind {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Run { scene, out, overrides, frames, frame_format, threads, quiet } => {
+        Command::Run { scene, out, overrides, frames, frame_format, threads, quiet, strict } => {
             let binary_frames = frame_format == "bin";
-            run::run(&run::RunArgs { scene, out, overrides, frames, binary_frames, threads, quiet })
+            run::run(&run::RunArgs { scene, out, overrides, frames, binary_frames, threads, quiet, strict })
         }
         Command::Bench { bench: BenchKind::Table1, out, threads, repeat, duration, overrides, name } => {
             bench::table1(&bench::BenchArgs { out, threads, repeat, duration_s: duration, overrides, name })

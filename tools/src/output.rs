@@ -51,6 +51,9 @@ pub struct StageWall {
     pub self_collision: f64,
     /// Frame output.
     pub output: f64,
+    /// The tangle check after each step: crossings of the cloth through
+    /// itself, particles through a solid.
+    pub tangle: f64,
 }
 
 impl StageWall {
@@ -64,12 +67,20 @@ impl StageWall {
             collision: self.collision * factor,
             self_collision: self.self_collision * factor,
             output: self.output * factor,
+            tangle: self.tangle * factor,
         }
     }
 
     /// All stages together, s.
     pub fn total(&self) -> f64 {
-        self.forces + self.assembly + self.solve + self.update + self.collision + self.self_collision + self.output
+        self.forces
+            + self.assembly
+            + self.solve
+            + self.update
+            + self.collision
+            + self.self_collision
+            + self.output
+            + self.tangle
     }
 }
 
@@ -178,6 +189,8 @@ pub struct Summary {
     /// apart by impact zones (`self_collision.continuous`); absent when none.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub crossings: Option<CrossingSummary>,
+    /// Whether the cloth tangled: through itself or through a solid.
+    pub tangle: TangleSummary,
     /// The error that stopped the run, if any.
     pub error: Option<String>,
     /// What looked wrong before the first step (a character of an
@@ -206,6 +219,29 @@ pub struct CrossingSummary {
     /// Pairs still meeting after the impact zones (a start already
     /// tangled, or zones held by pins), summed over the steps.
     pub left_total: u64,
+}
+
+/// Whether the cloth tangled, from the state after each step: its mesh
+/// edges through its own triangles (stitched and adjacent elements left
+/// out) and its particles deeper inside a solid than the contact thickness.
+#[derive(Debug, Default, Serialize)]
+pub struct TangleSummary {
+    /// Most crossings of the cloth through itself after a step.
+    pub self_crossings_max: usize,
+    /// Crossings after the last step.
+    pub self_crossings_end: usize,
+    /// Steps after which the cloth crossed itself.
+    pub self_crossing_steps: u64,
+    /// Most particles deeper inside a solid than the contact thickness after a step.
+    pub deep_in_solids_max: usize,
+    /// Such particles after the last step.
+    pub deep_in_solids_end: usize,
+    /// The first crossing that lasted (`cloth_core::LASTING_STEPS` steps), in words.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lasting_crossing: Option<String>,
+    /// The first step that left cloth through a solid, in words.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub through_solid: Option<String>,
 }
 
 /// How closed the seams are at the end of a run.

@@ -238,8 +238,15 @@ fn stale_goldens(goldens: &Path, cases: &[Case]) -> Vec<String> {
 fn check(case: &Case, fixtures: &Path, goldens: &Path, args: &RegressArgs) -> Result<Checked> {
     let [json_path, obj_path] = golden_paths(goldens, &case.name);
     let golden = read_golden(&json_path, &obj_path)?;
-    let run =
-        simulate_steps(&fixtures.join(&case.scene), &case.overrides, args.threads, None, false, Some(case.max_steps));
+    let run = simulate_steps(
+        &fixtures.join(&case.scene),
+        &case.overrides,
+        args.threads,
+        None,
+        false,
+        Some(case.max_steps),
+        false,
+    );
     let run = match run {
         Ok(run) => run,
         Err(e) => {

@@ -528,3 +528,56 @@ fn cloth_starting_inside_a_collider_is_named() {
     assert!(allowed.status.success());
     assert!(String::from_utf8_lossy(&allowed.stdout).contains("warning: the cloth starts inside solids"));
 }
+
+/// A scene built to tangle (`tangle-fold.toml`: the fold without
+/// self-collision, its layers falling through each other) is flagged: a
+/// warning naming the time and the particles, `summary.json`'s `tangle`
+/// counts and words, `steps.csv`'s crossings a step. With `--strict` the
+/// run stops there with a non-zero exit and the error in `summary.json`.
+/// The same fold with self-collision does not tangle.
+#[test]
+fn a_tangling_scene_is_flagged_and_strict_mode_stops_it() {
+    let out = out_dir("tangle");
+    let run = cloth()
+        .args(["run", scene("tangle-fold.toml").to_str().unwrap(), "--quiet", "--frames", "10", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{stderr}");
+    assert!(stderr.contains("warning: the cloth passes through itself from t = "), "{stderr}");
+    assert!(stderr.contains("(step ") && stderr.contains("through triangle ("), "{stderr}");
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let tangle = &s["tangle"];
+    assert!(tangle["self_crossings_max"].as_u64().unwrap() > 10, "{tangle}");
+    assert!(tangle["self_crossing_steps"].as_u64().unwrap() >= cloth_core::LASTING_STEPS, "{tangle}");
+    assert!(tangle["lasting_crossing"].as_str().is_some_and(|w| w.contains("no [self_collision]")), "{tangle}");
+    assert_eq!(s["steps"], 200);
+    let steps = std::fs::read_to_string(out.join("frames/steps.csv")).unwrap();
+    let header: Vec<&str> = steps.lines().next().unwrap().split(',').collect();
+    let column = header.iter().position(|h| *h == "self_crossings").expect("a crossings column");
+    let most = steps.lines().skip(1).map(|l| l.split(',').nth(column).unwrap().parse::<u64>().unwrap()).max();
+    assert_eq!(most, tangle["self_crossings_max"].as_u64());
+
+    let strict = out_dir("tangle-strict");
+    let run = cloth()
+        .args(["run", scene("tangle-fold.toml").to_str().unwrap(), "--quiet", "--strict", "--out"])
+        .arg(&strict)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success(), "--strict must fail on a tangle: {stderr}");
+    assert!(stderr.contains("tangled (--strict): the cloth passes through itself"), "{stderr}");
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(strict.join("summary.json")).unwrap()).unwrap();
+    assert!(s["error"].as_str().is_some_and(|e| e.contains("--strict")), "{}", s["error"]);
+    assert!(s["steps"].as_u64().unwrap() < 200, "stopped at the tangle");
+
+    let held = summary_of("fold.toml", &["simulation.duration_s=1.0"]);
+    assert_eq!(held["tangle"]["self_crossings_max"], 0, "{}", held["tangle"]);
+    assert_eq!(held["tangle"]["deep_in_solids_max"], 0, "{}", held["tangle"]);
+    for dir in [out, strict] {
+        std::fs::remove_dir_all(dir).ok();
+    }
+}

@@ -47,8 +47,8 @@ pub use colliders::{
     Collider, ColliderSpec, CollisionSpec, DEFAULT_THICKNESS_M, SelfCollision, SelfCollisionSpec, rotation_from_degrees,
 };
 pub use contacts::{
-    ContactStats, Contacts, FrictionMode, Inside, MEETING_FRACTION, MIN_SELF_GAP, SelfContact, SolidContact,
-    self_intersections,
+    ContactStats, Contacts, Crossing, CrossingCheck, FrictionMode, Inside, LASTING_STEPS, MEETING_FRACTION,
+    MIN_SELF_GAP, SelfContact, SolidContact, TangleCounts, TangleEvent, TangleWatch, self_intersections,
 };
 pub use control::{Control, ControlError, SolidImpulse, SolidMotion};
 pub use elements::{BendHinge, BendTriple, CurvatureElement, ElementSet, MembraneElement};

@@ -398,15 +398,7 @@ impl CoupledScene {
         let master = self.coupling.master(takes_bodies);
         let mut run = CoupledRun { world, cloths, cloth, bodies, rig, master, config, allowed: Vec::new() };
         let names = run.solid_names();
-        // A pin inside the body it is attached to is held there by design.
-        let c = &run.cloths[cloth];
-        let pin_body = |particle: usize| {
-            let pins = c.simulation().model().pins();
-            c.attachments().iter().find(|a| pins[a.pin].particle == particle).map(|a| a.body)
-        };
-        let solid_body = |solid: usize| c.world_solids().iter().find(|s| s.solid == solid).and_then(|s| s.body);
-        let held = |particle: usize, solid: usize| pin_body(particle).is_some_and(|b| solid_body(solid) == Some(b));
-        let inside = c.simulation().particles_inside(held);
+        let inside = run.particles_inside();
         let allow = self.scene.allows_start_inside();
         run.allowed.extend(check_start_outside(&inside, allow, |k| names[k].clone())?);
         Ok(run)
@@ -542,6 +534,21 @@ fn add_body(
 }
 
 impl CoupledRun {
+    /// The scene's cloth particles inside a solid now, with the solid each
+    /// is deepest in (see [`cloth_core::Simulation::particles_inside`]),
+    /// but for a pin inside the body it is attached to: held there by
+    /// design.
+    pub fn particles_inside(&self) -> Vec<cloth_core::Inside> {
+        let c = &self.cloths[self.cloth];
+        let pin_body = |particle: usize| {
+            let pins = c.simulation().model().pins();
+            c.attachments().iter().find(|a| pins[a.pin].particle == particle).map(|a| a.body)
+        };
+        let solid_body = |solid: usize| c.world_solids().iter().find(|s| s.solid == solid).and_then(|s| s.body);
+        let held = |particle: usize, solid: usize| pin_body(particle).is_some_and(|b| solid_body(solid) == Some(b));
+        c.simulation().particles_inside(held)
+    }
+
     /// What looks wrong with the scene before its first step (a character
     /// of an implausible height or lying on its side, cloth allowed to
     /// start inside a solid), each naming the file or the key to set.

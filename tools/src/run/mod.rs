@@ -8,12 +8,13 @@ use records::{SolidPoses, StepRow, write_steps};
 use totals::{ContactTotals, EnergyTotals, NewtonTotals};
 
 use crate::output::{
-    BodySummary, CouplingSummary, CrossingSummary, GarmentHeights, SeamSummary, StageWall, Summary, write_obj,
+    BodySummary, CouplingSummary, CrossingSummary, GarmentHeights, SeamSummary, StageWall, Summary, TangleSummary,
+    write_obj,
 };
 use anyhow::{Context, Result, bail};
 use cloth_core::Effect;
 use cloth_core::scene::{RunConfig, Scene, SceneError};
-use cloth_core::{ClothModel, Simulation, StepReport, Vec3};
+use cloth_core::{ClothModel, Inside, Simulation, StepReport, TangleWatch, Vec3};
 use cloth_rapier::scene::has_bodies;
 use cloth_rapier::{CoupledRun, CoupledScene, CouplingReport, Master, Momentum};
 use cloth_tools::frames::{FRAMES_FILE, FrameWriter};
@@ -30,6 +31,9 @@ pub struct RunArgs {
     pub binary_frames: bool,
     pub threads: usize,
     pub quiet: bool,
+    /// A tangle (a lasting crossing, cloth through a solid) stops the run
+    /// with an error instead of a warning.
+    pub strict: bool,
 }
 
 /// Reads, checks and builds a scene; errors name the file and the field.
@@ -87,6 +91,15 @@ impl Runner {
         match self {
             Runner::Alone(sim, _) => (0..sim.model().colliders().len()).map(|k| format!("colliders[{k}]")).collect(),
             Runner::Coupled(run) => run.solid_names(),
+        }
+    }
+
+    /// The cloth's particles inside a solid now, but for pins inside the
+    /// body that holds them (see [`CoupledRun::particles_inside`]).
+    pub(crate) fn particles_inside(&self) -> Vec<Inside> {
+        match self {
+            Runner::Alone(sim, _) => sim.particles_inside(|_, _| false),
+            Runner::Coupled(run) => run.particles_inside(),
         }
     }
 
@@ -235,8 +248,9 @@ pub(crate) fn simulate(
     threads: usize,
     frames: Option<FrameOutput>,
     progress: bool,
+    strict: bool,
 ) -> Result<Summary> {
-    simulate_steps(scene_path, overrides, threads, frames, progress, None).map(|run| run.summary)
+    simulate_steps(scene_path, overrides, threads, frames, progress, None, strict).map(|run| run.summary)
 }
 
 /// What [`simulate_steps`] ran to.
@@ -247,7 +261,9 @@ pub(crate) struct Simulated {
 }
 
 /// [`simulate`], stopping after at most `max_steps` steps when given (the
-/// scene's own count otherwise), and keeping the final positions.
+/// scene's own count otherwise), and keeping the final positions. The
+/// first tangle of each kind is a warning, or with `strict` the error that
+/// ends the run.
 pub(crate) fn simulate_steps(
     scene_path: &Path,
     overrides: &[String],
@@ -255,6 +271,7 @@ pub(crate) fn simulate_steps(
     frames: Option<FrameOutput>,
     progress: bool,
     max_steps: Option<u64>,
+    strict: bool,
 ) -> Result<Simulated> {
     if threads == 0 {
         bail!("--threads must be at least 1");
@@ -293,6 +310,9 @@ pub(crate) fn simulate_steps(
     let mut peak_stretch = runner.sim().model().max_stretch_ratio(&runner.sim().state().x);
     let mut series = frames.as_ref().map(|_| Vec::with_capacity(cfg.steps as usize));
     let mut garment: Option<GarmentHeights> = None;
+    let mut watch = TangleWatch::new(runner.sim().model(), &runner.particles_inside());
+    let mut tangle = TangleSummary::default();
+    let solid_names = runner.solid_names();
     let mut error = None;
     let wall = Instant::now();
     let cpu_start = process_cpu_s();
@@ -349,8 +369,42 @@ pub(crate) fn simulate_steps(
                 energy.add(&r);
                 let stretch = runner.sim().model().max_stretch_ratio(&runner.sim().state().x);
                 peak_stretch = peak_stretch.max(stretch);
+                let t = Instant::now();
+                let inside = runner.particles_inside();
+                let sim = runner.sim();
+                let at = (sim.state().steps, sim.time());
+                let (counts, events) = watch.after_step(sim.model(), &sim.state().x, &inside, at);
+                stages.tangle += t.elapsed().as_secs_f64();
+                tangle.add(counts);
                 if let Some(series) = series.as_mut() {
-                    series.push(StepRow::of(runner.sim(), &r, stretch));
+                    series.push(StepRow::of(runner.sim(), &r, stretch, counts));
+                }
+                let mut stop = None;
+                for event in events {
+                    let words = event.describe(|k| solid_names.get(k).cloned().unwrap_or_else(|| format!("solid {k}")));
+                    let words = match event {
+                        cloth_core::TangleEvent::LastingCrossing { .. } if sim.model().self_collision().is_none() => {
+                            format!("{words} (the scene has no [self_collision])")
+                        }
+                        _ => words,
+                    };
+                    match event {
+                        cloth_core::TangleEvent::LastingCrossing { .. } => {
+                            tangle.lasting_crossing = Some(words.clone())
+                        }
+                        cloth_core::TangleEvent::ThroughSolid { .. } => tangle.through_solid = Some(words.clone()),
+                    }
+                    if strict {
+                        stop.get_or_insert(format!("tangled (--strict): {words}"));
+                    } else {
+                        eprintln!("{}: warning: {words}", scene_path.display());
+                    }
+                }
+                if stop.is_some() {
+                    error = stop;
+                    write_frame(runner.sim(), &mut stages, &mut solid_poses, &mut binary)?;
+                    bar.inc(1);
+                    break;
                 }
                 if let Runner::Coupled(run) = &runner
                     && let Some(heights) = garment_heights(run)
@@ -434,6 +488,7 @@ pub(crate) fn simulate_steps(
         released_contacts_total: contacts.released,
         narrow_phase_queries_total: contacts.queries,
         hash_builds_total: contacts.hash_builds,
+        tangle,
         crossings: (contacts.crossings > 0).then_some(CrossingSummary {
             steps: contacts.crossing_steps,
             meetings_total: contacts.crossings,
@@ -514,7 +569,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
     }
     let frames =
         args.frames.map(|every| FrameOutput { every, dir: args.out.join("frames"), binary: args.binary_frames });
-    let summary = simulate(&args.scene, &args.overrides, args.threads, frames, !args.quiet)?;
+    let summary = simulate(&args.scene, &args.overrides, args.threads, frames, !args.quiet, args.strict)?;
     let path = args.out.join("summary.json");
     std::fs::write(&path, serde_json::to_string_pretty(&summary)? + "\n")
         .with_context(|| format!("writing {}", path.display()))?;
@@ -600,7 +655,7 @@ pub fn time(scene: &Path, overrides: &[String], threads: usize, repeat: usize) -
     }
     let mut runs = Vec::with_capacity(repeat);
     for _ in 0..repeat {
-        let s = simulate(scene, overrides, threads, None, true)?;
+        let s = simulate(scene, overrides, threads, None, true, false)?;
         if let Some(e) = &s.error {
             bail!("{}: {e}", scene.display());
         }

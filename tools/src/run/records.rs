@@ -3,7 +3,7 @@
 //! (`solids.json`).
 
 use anyhow::{Context, Result};
-use cloth_core::{ClothModel, Simulation, StepReport};
+use cloth_core::{ClothModel, Simulation, StepReport, TangleCounts};
 use std::path::Path;
 
 /// Beside the OBJ frames: the solids of the scene as triangle meshes in
@@ -16,7 +16,8 @@ pub const SOLIDS_FILE: &str = "solids.json";
 pub const STEPS_FILE: &str = "steps.csv";
 
 /// One step of the series: its energies (empty for steps the energy
-/// monitor did not judge), largest stretch, CG iterations and contacts.
+/// monitor did not judge), largest stretch, CG iterations, contacts, and
+/// the cloth's crossings through itself and particles through a solid.
 #[derive(serde::Serialize)]
 pub(super) struct StepRow {
     step: u64,
@@ -27,10 +28,12 @@ pub(super) struct StepRow {
     max_stretch: f64,
     cg_iterations: usize,
     contacts: usize,
+    self_crossings: usize,
+    deep_in_solids: usize,
 }
 
 impl StepRow {
-    pub(super) fn of(sim: &Simulation, r: &StepReport, max_stretch: f64) -> Self {
+    pub(super) fn of(sim: &Simulation, r: &StepReport, max_stretch: f64, tangles: TangleCounts) -> Self {
         Self {
             step: sim.state().steps,
             time_s: sim.time(),
@@ -40,6 +43,8 @@ impl StepRow {
             max_stretch,
             cg_iterations: r.cg_iterations,
             contacts: r.contacts.contacts,
+            self_crossings: tangles.self_crossings,
+            deep_in_solids: tangles.deep_in_solids,
         }
     }
 }

@@ -124,3 +124,14 @@ impl ContactTotals {
         self.crossing_steps += u64::from(c.self_crossings > 0);
     }
 }
+
+impl crate::output::TangleSummary {
+    /// Counts the state after one step.
+    pub(super) fn add(&mut self, c: cloth_core::TangleCounts) {
+        self.self_crossings_max = self.self_crossings_max.max(c.self_crossings);
+        self.self_crossings_end = c.self_crossings;
+        self.self_crossing_steps += u64::from(c.self_crossings > 0);
+        self.deep_in_solids_max = self.deep_in_solids_max.max(c.deep_in_solids);
+        self.deep_in_solids_end = c.deep_in_solids;
+    }
+}

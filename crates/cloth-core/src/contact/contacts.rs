@@ -38,9 +38,11 @@
 // What a user of the library sees: the contacts a step reports, the
 // counters, and the contact laws.
 pub(crate) use super::contact_laws::*;
-pub use super::impact_zones::{MEETING_FRACTION, self_intersections};
+pub use super::crossings::{Crossing, CrossingCheck, self_intersections};
+pub use super::impact_zones::MEETING_FRACTION;
 pub use super::projection::Inside;
 pub use super::self_collision::MIN_SELF_GAP;
+pub use super::tangles::{LASTING_STEPS, TangleCounts, TangleEvent, TangleWatch};
 pub use super::types::{ContactStats, Contacts, FrictionMode, SelfContact, SolidContact};
 
 // The steps' drivers, for the integrators of this crate.

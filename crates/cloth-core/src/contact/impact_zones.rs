@@ -15,7 +15,7 @@ use super::contacts::{Contacts, CrossingBuffers};
 use super::self_collision::build_exclusions;
 use crate::colliders::SelfCollision;
 use crate::{ClothModel, Mat3, Vec3};
-use cloth_collide::{Aabb, BoxGrid, edge_edge_impact, point_triangle_impact, segment_crosses_triangle};
+use cloth_collide::{Aabb, BoxGrid, edge_edge_impact, point_triangle_impact};
 use nalgebra::Rotation3;
 use rayon::prelude::*;
 
@@ -324,48 +324,4 @@ fn union(parent: &mut [u32], a: u32, b: u32) -> bool {
         parent[ra.max(rb) as usize] = ra.min(rb);
     }
     ra != rb
-}
-
-/// Where the cloth at positions `x` passes through itself: every mesh
-/// edge that pierces a triangle it could collide with (not one whose
-/// corners are its ends or linked or sewn to them), as `(edge, triangle)`,
-/// sorted. A diagnostic for tests and tools: it allocates.
-pub fn self_intersections(model: &ClothModel, x: &[Vec3]) -> Vec<([u32; 2], u32)> {
-    let (mut ptr, mut excluded) = (Vec::new(), Vec::new());
-    build_exclusions(model, &mut ptr, &mut excluded);
-    let (triangles, edges) = (model.triangles(), mesh_edges(model.triangles()));
-    let box_of = |ids: &[u32]| Aabb::around(ids.iter().map(|&i| x[i as usize]), 0.0);
-    let tri_boxes: Vec<Aabb> = triangles.iter().map(|t| box_of(t)).collect();
-    let edge_boxes: Vec<Aabb> = edges.iter().map(|e| box_of(e)).collect();
-    let cell = BoxGrid::cell_for(tri_boxes.iter().chain(&edge_boxes), 1e-6, &mut Vec::new());
-    let (mut tri_grid, mut edge_grid) = (BoxGrid::default(), BoxGrid::default());
-    if tri_grid.build(tri_boxes, cell).is_err() || edge_grid.build(edge_boxes, cell).is_err() {
-        return Vec::new();
-    }
-    let mut pairs = Vec::new();
-    edge_grid.pairs(&tri_grid, 0..edge_grid.cells(), false, &mut pairs);
-    edge_grid.wide_pairs(&tri_grid, false, &mut pairs);
-    let mut out: Vec<([u32; 2], u32)> = pairs
-        .into_iter()
-        .filter(|&(e, t)| {
-            let [a, b] = edges[e as usize];
-            let never = &excluded[ptr[t as usize] as usize..ptr[t as usize + 1] as usize];
-            let [i, j, k] = triangles[t as usize].map(|i| x[i as usize]);
-            never.binary_search(&a).is_err()
-                && never.binary_search(&b).is_err()
-                && segment_crosses_triangle(x[a as usize], x[b as usize], i, j, k)
-        })
-        .map(|(e, t)| (edges[e as usize], t))
-        .collect();
-    out.sort_unstable();
-    out
-}
-
-/// The distinct edges of `triangles`, each `[a, b]` with `a < b`, sorted.
-fn mesh_edges(triangles: &[[u32; 3]]) -> Vec<[u32; 2]> {
-    let mut edges: Vec<[u32; 2]> =
-        triangles.iter().flat_map(|&[a, b, c]| [[a, b], [b, c], [c, a]]).map(|[a, b]| [a.min(b), a.max(b)]).collect();
-    edges.sort_unstable();
-    edges.dedup();
-    edges
 }

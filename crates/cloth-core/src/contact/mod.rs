@@ -7,6 +7,7 @@ pub(crate) mod contacts;
 
 mod active_set;
 pub mod contact_laws;
+mod crossings;
 mod detect;
 mod impact_zones;
 mod penalty;
@@ -16,4 +17,5 @@ mod scratch;
 mod self_collision;
 mod stage;
 mod surroundings;
+mod tangles;
 mod types;
