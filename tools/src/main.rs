@@ -11,6 +11,7 @@ mod study;
 mod svg;
 mod view;
 
+use bench::garments::Mannequin;
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -109,9 +110,10 @@ enum Command {
         /// `--set simulation.integrator=vbd`.
         #[arg(long = "set", global = true, value_name = "KEY=VALUE")]
         overrides: Vec<String>,
-        /// Name of the written files, `NAME.md` and `NAME.json`.
-        #[arg(long, global = true, default_value = "table1")]
-        name: String,
+        /// Name of the written files, `NAME.md` and `NAME.json` (default:
+        /// the benchmark's name).
+        #[arg(long, global = true)]
+        name: Option<String>,
     },
     /// The cloth as an FMI 3.0 co-simulation FMU.
     Fmu {
@@ -227,6 +229,24 @@ enum BenchKind {
     /// Choi & Ko's Table 1: garments on a walking character at the paper's
     /// particle counts, CPU s per 30 Hz frame beside the paper's.
     Table1,
+    /// Each Table-1 garment made finer (particle counts as multiples of
+    /// Table 1's) on both mannequins: peak stretch, depth inside a solid,
+    /// self-crossings, seams, ms per frame, and whether it holds.
+    Garments {
+        /// Multiples of the Table-1 particle counts, comma separated.
+        #[arg(long, value_delimiter = ',', default_values_t = [1.0, 2.0, 4.0])]
+        scale: Vec<f64>,
+        /// Mannequins, comma separated.
+        #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Mannequin::Primitives, Mannequin::Mesh])]
+        mannequin: Vec<Mannequin>,
+        /// Only these garments, comma separated (Table 1's names).
+        #[arg(long, value_delimiter = ',')]
+        garment: Vec<String>,
+        /// Stop a run after this much wall time, s; its row says the time
+        /// it reached (a tangled garment can bog down).
+        #[arg(long, value_name = "S")]
+        max_wall: Option<f64>,
+    },
 }
 
 #[derive(Subcommand)]
@@ -264,8 +284,28 @@ fn main() -> ExitCode {
             run::run(&run::RunArgs { scene, out, overrides, frames, binary_frames, threads, quiet, strict })
         }
         Command::Bench { bench: BenchKind::Table1, out, threads, repeat, duration, overrides, name } => {
+            let name = name.unwrap_or_else(|| "table1".into());
             bench::table1(&bench::BenchArgs { out, threads, repeat, duration_s: duration, overrides, name })
         }
+        Command::Bench {
+            bench: BenchKind::Garments { scale, mannequin, garment, max_wall },
+            out,
+            threads,
+            duration,
+            overrides,
+            name,
+            ..
+        } => bench::garments::garments(&bench::garments::GarmentsArgs {
+            out,
+            threads,
+            scales: scale,
+            mannequins: mannequin,
+            garments: garment,
+            duration_s: duration,
+            overrides,
+            name: name.unwrap_or_else(|| "garments".into()),
+            max_wall_s: max_wall,
+        }),
         Command::Fmu { fmu: FmuKind::Build { scene, out, overrides, library } } => {
             fmu::build(&scene, &overrides, library.as_deref(), &out)
         }

@@ -236,12 +236,20 @@ pub struct TangleSummary {
     pub deep_in_solids_max: usize,
     /// Such particles after the last step.
     pub deep_in_solids_end: usize,
+    /// The deepest a particle was inside a solid after any step, m.
+    pub deepest_in_solids_m: f64,
     /// The first crossing that lasted (`cloth_core::LASTING_STEPS` steps), in words.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub lasting_crossing: Option<String>,
     /// The first step that left cloth through a solid, in words.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub through_solid: Option<String>,
+    /// When the first lasting crossing began, s.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lasting_crossing_from_s: Option<f64>,
+    /// When cloth was first left through a solid, s.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub through_solid_at_s: Option<f64>,
 }
 
 /// How closed the seams are at the end of a run.

@@ -21,7 +21,7 @@
 
 use crate::bench::GARMENTS;
 use crate::output::write_vertices;
-use crate::run::simulate_steps;
+use crate::run::{SimulateOptions, simulate_steps};
 use anyhow::{Context, Result, bail};
 use cloth_collide::parse_obj_points;
 use cloth_core::Vec3;
@@ -238,15 +238,8 @@ fn stale_goldens(goldens: &Path, cases: &[Case]) -> Vec<String> {
 fn check(case: &Case, fixtures: &Path, goldens: &Path, args: &RegressArgs) -> Result<Checked> {
     let [json_path, obj_path] = golden_paths(goldens, &case.name);
     let golden = read_golden(&json_path, &obj_path)?;
-    let run = simulate_steps(
-        &fixtures.join(&case.scene),
-        &case.overrides,
-        args.threads,
-        None,
-        false,
-        Some(case.max_steps),
-        false,
-    );
+    let opts = SimulateOptions { threads: args.threads, max_steps: Some(case.max_steps), ..Default::default() };
+    let run = simulate_steps(&fixtures.join(&case.scene), &case.overrides, opts);
     let run = match run {
         Ok(run) => run,
         Err(e) => {

@@ -429,6 +429,54 @@ fn bench_table1_prints_the_garments_beside_the_paper() {
     assert!(md.contains("| skirt | 3456 | 17 (0) |"), "{md}");
 }
 
+/// `cloth bench garments` runs each chosen garment at each scale and
+/// mannequin and says whether it holds: the top at 0.1 s is still being
+/// sewn (its seams open), the skirt holds; refining keeps the seams sewn
+/// node to node.
+#[test]
+fn bench_garments_says_which_garments_hold() {
+    let out = out_dir("garments");
+    let status = cloth()
+        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+        .args(["bench", "garments", "--garment", "top,skirt", "--scale", "1,2", "--mannequin", "primitives"])
+        .args(["--duration", "0.1", "--out"])
+        .arg(&out)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let rows: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("garments.json")).unwrap()).unwrap();
+    let rows = rows.as_array().unwrap();
+    let got: Vec<(&str, f64, u64)> = rows
+        .iter()
+        .map(|r| (r["garment"].as_str().unwrap(), r["scale"].as_f64().unwrap(), r["particles"].as_u64().unwrap()))
+        .collect();
+    // The top's intervals times 1.5 at 2x (2.2 times the particles).
+    assert_eq!(got, [("top", 1.0, 2866), ("top", 2.0, 6296), ("skirt", 1.0, 3456), ("skirt", 2.0, 7776)]);
+    for top in &rows[..2] {
+        let [closed, all] = [0, 1].map(|k| top["seams_closed"][k].as_u64().unwrap());
+        assert!(closed < all && all > 0, "{top}");
+        assert!(top["fails"].as_array().unwrap().iter().any(|f| f == "seam open"), "{top}");
+    }
+    // Four seams of a strap's 7 nodes at 1x, of 10 at 2x: node to node.
+    assert_eq!(rows[0]["seams_closed"][1], 28);
+    assert_eq!(rows[1]["seams_closed"][1], 40);
+    for skirt in &rows[2..] {
+        assert_eq!(skirt["fails"].as_array().unwrap().len(), 0, "{skirt}");
+        assert!(skirt["peak_stretch"].as_f64().unwrap() < 1.15);
+    }
+    let md = std::fs::read_to_string(out.join("garments.md")).unwrap();
+    assert!(md.contains("| skirt | primitives | 2 | 7776 |"), "{md}");
+    let bad = cloth()
+        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+        .args(["bench", "garments", "--garment", "cape", "--out"])
+        .arg(out_dir("garments-bad"))
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--garment cape: no such garment"));
+}
+
 #[test]
 fn bench_table1_refuses_bad_options() {
     let refusals = [

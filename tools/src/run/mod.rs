@@ -239,18 +239,37 @@ pub(crate) struct FrameOutput {
     pub binary: bool,
 }
 
+/// How [`simulate`] runs a scene: threads, frames, a progress bar, and
+/// where it stops early.
+#[derive(Default)]
+pub(crate) struct SimulateOptions {
+    /// Worker threads (at least 1).
+    pub threads: usize,
+    /// Where and how frames are written (none: no frames).
+    pub frames: Option<FrameOutput>,
+    /// A progress bar on stderr.
+    pub progress: bool,
+    /// Stop after at most this many steps (the scene's own count otherwise).
+    pub max_steps: Option<u64>,
+    /// The first tangle is the error that ends the run, not a warning.
+    pub strict: bool,
+    /// Stop, as an error naming the time reached, once the run has taken
+    /// this much wall time, s (a bench's bound on a run that bogs down).
+    pub max_wall_s: Option<f64>,
+}
+
+impl SimulateOptions {
+    /// `threads` workers and a progress bar; nothing else.
+    pub(crate) fn with_progress(threads: usize) -> Self {
+        Self { threads, progress: true, ..Self::default() }
+    }
+}
+
 /// Runs a scene to its end (or its first error), writing frames as
-/// `frames` says; returns the summary (with `error` set when a step
+/// `opts.frames` says; returns the summary (with `error` set when a step
 /// failed).
-pub(crate) fn simulate(
-    scene_path: &Path,
-    overrides: &[String],
-    threads: usize,
-    frames: Option<FrameOutput>,
-    progress: bool,
-    strict: bool,
-) -> Result<Summary> {
-    simulate_steps(scene_path, overrides, threads, frames, progress, None, strict).map(|run| run.summary)
+pub(crate) fn simulate(scene_path: &Path, overrides: &[String], opts: SimulateOptions) -> Result<Summary> {
+    simulate_steps(scene_path, overrides, opts).map(|run| run.summary)
 }
 
 /// What [`simulate_steps`] ran to.
@@ -260,19 +279,11 @@ pub(crate) struct Simulated {
     pub final_x: Vec<Vec3>,
 }
 
-/// [`simulate`], stopping after at most `max_steps` steps when given (the
-/// scene's own count otherwise), and keeping the final positions. The
-/// first tangle of each kind is a warning, or with `strict` the error that
-/// ends the run.
-pub(crate) fn simulate_steps(
-    scene_path: &Path,
-    overrides: &[String],
-    threads: usize,
-    frames: Option<FrameOutput>,
-    progress: bool,
-    max_steps: Option<u64>,
-    strict: bool,
-) -> Result<Simulated> {
+/// [`simulate`], keeping the final positions. The first tangle of each
+/// kind is a warning, or with `opts.strict` the error that ends the run.
+pub(crate) fn simulate_steps(scene_path: &Path, overrides: &[String], opts: SimulateOptions) -> Result<Simulated> {
+    let SimulateOptions { threads, frames, progress, max_steps, strict, max_wall_s } = opts;
+    let started = Instant::now();
     if threads == 0 {
         bail!("--threads must be at least 1");
     }
@@ -389,16 +400,27 @@ pub(crate) fn simulate_steps(
                         _ => words,
                     };
                     match event {
-                        cloth_core::TangleEvent::LastingCrossing { .. } => {
-                            tangle.lasting_crossing = Some(words.clone())
+                        cloth_core::TangleEvent::LastingCrossing { since, .. } => {
+                            tangle.lasting_crossing = Some(words.clone());
+                            tangle.lasting_crossing_from_s = Some(since.1);
                         }
-                        cloth_core::TangleEvent::ThroughSolid { .. } => tangle.through_solid = Some(words.clone()),
+                        cloth_core::TangleEvent::ThroughSolid { at, .. } => {
+                            tangle.through_solid = Some(words.clone());
+                            tangle.through_solid_at_s = Some(at.1);
+                        }
                     }
                     if strict {
                         stop.get_or_insert(format!("tangled (--strict): {words}"));
                     } else {
                         eprintln!("{}: warning: {words}", scene_path.display());
                     }
+                }
+                if let Some(limit) = max_wall_s.filter(|&l| started.elapsed().as_secs_f64() > l) {
+                    stop.get_or_insert(format!(
+                        "stopped at t = {:.4} s (step {}): the run took more than its {limit} s of wall time",
+                        sim.time(),
+                        sim.state().steps
+                    ));
                 }
                 if stop.is_some() {
                     error = stop;
@@ -569,7 +591,14 @@ pub fn run(args: &RunArgs) -> Result<()> {
     }
     let frames =
         args.frames.map(|every| FrameOutput { every, dir: args.out.join("frames"), binary: args.binary_frames });
-    let summary = simulate(&args.scene, &args.overrides, args.threads, frames, !args.quiet, args.strict)?;
+    let opts = SimulateOptions {
+        threads: args.threads,
+        frames,
+        progress: !args.quiet,
+        strict: args.strict,
+        ..Default::default()
+    };
+    let summary = simulate(&args.scene, &args.overrides, opts)?;
     let path = args.out.join("summary.json");
     std::fs::write(&path, serde_json::to_string_pretty(&summary)? + "\n")
         .with_context(|| format!("writing {}", path.display()))?;
@@ -655,7 +684,7 @@ pub fn time(scene: &Path, overrides: &[String], threads: usize, repeat: usize) -
     }
     let mut runs = Vec::with_capacity(repeat);
     for _ in 0..repeat {
-        let s = simulate(scene, overrides, threads, None, true, false)?;
+        let s = simulate(scene, overrides, SimulateOptions::with_progress(threads))?;
         if let Some(e) = &s.error {
             bail!("{}: {e}", scene.display());
         }

@@ -133,5 +133,6 @@ impl crate::output::TangleSummary {
         self.self_crossing_steps += u64::from(c.self_crossings > 0);
         self.deep_in_solids_max = self.deep_in_solids_max.max(c.deep_in_solids);
         self.deep_in_solids_end = c.deep_in_solids;
+        self.deepest_in_solids_m = self.deepest_in_solids_m.max(c.deepest_in_solid_m);
     }
 }

@@ -13,13 +13,16 @@ use crate::{ClothModel, Vec3};
 pub const LASTING_STEPS: u64 = 5;
 
 /// What the state after one step holds.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct TangleCounts {
     /// Mesh edges through triangles of the cloth (stitched and adjacent
     /// elements left out).
     pub self_crossings: usize,
     /// Particles inside a solid deeper than the contact thickness.
     pub deep_in_solids: usize,
+    /// The deepest any particle is inside a solid, m (0: none inside;
+    /// particles allowed to start inside not counted until they come out).
+    pub deepest_in_solid_m: f64,
 }
 
 /// The first sign of a tangle of one kind.
@@ -143,8 +146,9 @@ impl TangleWatch {
         for (started, &depth) in self.started_inside.iter_mut().zip(&self.depth) {
             *started &= depth > thickness_m;
         }
-        let deep: Vec<&Inside> =
-            inside.iter().filter(|i| i.depth_m > thickness_m && !self.started_inside[i.particle]).collect();
+        let counted = || inside.iter().filter(|i| !self.started_inside[i.particle]);
+        let deepest_in_solid_m = counted().map(|i| i.depth_m).fold(0.0, f64::max);
+        let deep: Vec<&Inside> = counted().filter(|i| i.depth_m > thickness_m).collect();
         if !self.reported_solid && !deep.is_empty() {
             self.reported_solid = true;
             let deepest = deep.iter().max_by(|a, b| a.depth_m.total_cmp(&b.depth_m)).expect("not empty");
@@ -157,7 +161,7 @@ impl TangleWatch {
                 thickness_m,
             });
         }
-        (TangleCounts { self_crossings: self.open.len(), deep_in_solids: deep.len() }, events)
+        (TangleCounts { self_crossings: self.open.len(), deep_in_solids: deep.len(), deepest_in_solid_m }, events)
     }
 }
 

@@ -6,8 +6,10 @@
 //! Each garment of ours runs its scene at the paper's particle count on
 //! the walking mannequin and is printed beside the paper's row.
 
+pub mod garments;
+
 use crate::output::{StageWall, Summary};
-use crate::run::simulate;
+use crate::run::{SimulateOptions, simulate};
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -42,6 +44,10 @@ pub(crate) struct Garment {
     pub scene: &'static str,
     pub overrides: &'static [&'static str],
     paper: &'static [usize],
+    /// A garment read from an OBJ file: the same garment written finer,
+    /// as `(file, as the scene names it; the vertices of its held top
+    /// ring, 0..n)`, for `cloth bench garments`.
+    pub finer_objs: &'static [(&'static str, usize)],
 }
 
 /// The garments, each at twice its fixture's resolution (every panel's
@@ -121,43 +127,56 @@ pub(crate) const GARMENTS: [Garment; 8] = [
         scene: "fixtures/scenes/one-piece-walk.toml",
         overrides: &ONE_PIECE,
         paper: &[0, 1, 2],
+        finer_objs: &[],
     },
-    Garment { name: "top", scene: "fixtures/scenes/top-walk.toml", overrides: &TOP, paper: &[3] },
+    Garment { name: "top", scene: "fixtures/scenes/top-walk.toml", overrides: &TOP, paper: &[3], finer_objs: &[] },
     Garment {
         name: "skirt",
         scene: "fixtures/scenes/skirt-walk.toml",
         overrides: &["panels.0.particles=[96, 36]"],
         paper: &[4],
+        finer_objs: &[],
     },
     Garment {
         name: "pattern-dress",
         scene: "fixtures/scenes/pattern-dress-walk.toml",
         overrides: &PATTERN_DRESS,
         paper: &[0, 1, 2],
+        finer_objs: &[],
     },
     Garment {
         name: "pattern-skirt",
         scene: "fixtures/scenes/pattern-skirt-walk.toml",
         overrides: &PATTERN_SKIRT,
         paper: &[4],
+        finer_objs: &[],
     },
     Garment {
         name: "pattern-tshirt",
         scene: "fixtures/scenes/pattern-tshirt-walk.toml",
         overrides: &PATTERN_TSHIRT,
         paper: &[3],
+        finer_objs: &[],
     },
     Garment {
         name: "flared-skirt",
         scene: "fixtures/scenes/pattern-flared-skirt-walk.toml",
         overrides: &FLARED_SKIRT,
         paper: &[4],
+        finer_objs: &[],
     },
-    Garment { name: "obj-skirt", scene: "fixtures/scenes/obj-skirt-walk.toml", overrides: &OBJ_SKIRT, paper: &[4] },
+    Garment {
+        name: "obj-skirt",
+        scene: "fixtures/scenes/obj-skirt-walk.toml",
+        overrides: &OBJ_SKIRT,
+        paper: &[4],
+        // 144 x 54 and 192 x 71 vertices (`fixtures/meshes/make_tube_skirt.py`).
+        finer_objs: &[("../meshes/tube-skirt-7776.obj", 144), ("../meshes/tube-skirt-13632.obj", 192)],
+    },
 ];
 
 /// Frames of 30 Hz animation per simulated second.
-const FRAME_RATE_HZ: f64 = 30.0;
+pub(crate) const FRAME_RATE_HZ: f64 = 30.0;
 
 /// What one garment measured (the median run by wall time).
 #[derive(Debug, Serialize)]
@@ -264,11 +283,16 @@ pub fn table1(args: &BenchArgs) -> Result<()> {
         };
         rows.push(Table1Row { garment: garment.name, measured, paper, speedup });
     }
-    let md = markdown(&rows, args);
+    write_results(&markdown(&rows, args), &rows, &args.out, &args.name)
+}
+
+/// Prints a benchmark's table and writes it as `NAME.md`, its rows as
+/// `NAME.json`, in `out`.
+pub(crate) fn write_results(md: &str, rows: &impl Serialize, out: &Path, name: &str) -> Result<()> {
     print!("{md}");
-    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
-    std::fs::write(args.out.join(format!("{}.md", args.name)), &md)?;
-    std::fs::write(args.out.join(format!("{}.json", args.name)), serde_json::to_string_pretty(&rows)?)?;
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    std::fs::write(out.join(format!("{name}.md")), md)?;
+    std::fs::write(out.join(format!("{name}.json")), serde_json::to_string_pretty(rows)?)?;
     Ok(())
 }
 
@@ -280,7 +304,7 @@ fn measure(scene: &Path, overrides: &[&str], args: &BenchArgs) -> Result<Measure
     }
     let mut runs: Vec<Summary> = Vec::with_capacity(args.repeat);
     for _ in 0..args.repeat {
-        let s = simulate(scene, &set, args.threads, None, true, false)?;
+        let s = simulate(scene, &set, SimulateOptions::with_progress(args.threads))?;
         if let Some(e) = &s.error {
             bail!("{}: {e}", scene.display());
         }
@@ -357,7 +381,8 @@ fn markdown(rows: &[Table1Row], args: &BenchArgs) -> String {
         let t = m.stages_s_per_frame.scaled(1e3);
         md.push_str(&format!(
             "\n{}: `{}`, {} steps. A frame's wall time, ms: forces {:.1}, assembly {:.1}, solve {:.1}, \
-             update {:.1}, collision {:.1}, self-collision {:.1}, other (rig, rapier, coupling) {:.1}.\n",
+             update {:.1}, collision {:.1}, self-collision {:.1}, tangle check {:.1}, other (rig, rapier, \
+             coupling) {:.1}.\n",
             r.garment,
             m.scene,
             m.steps,
@@ -367,6 +392,7 @@ fn markdown(rows: &[Table1Row], args: &BenchArgs) -> String {
             t.update,
             t.collision,
             t.self_collision,
+            t.tangle,
             m.other_s_per_frame * 1e3
         ));
     }
