@@ -40,6 +40,14 @@ pub enum Mannequin {
 }
 
 impl Mannequin {
+    /// Its name on the command line and in the table.
+    fn name(self) -> &'static str {
+        match self {
+            Mannequin::Primitives => "primitives",
+            Mannequin::Mesh => "mesh",
+        }
+    }
+
     /// The override that puts a garment's scene on this mannequin.
     fn overrides(self) -> Vec<String> {
         match self {
@@ -78,7 +86,7 @@ impl GarmentsArgs {
         let mut c = format!(
             "cargo run --release -p cloth-tools -- bench garments --scale {} --mannequin {}",
             list(self.scales.iter().map(|s| s.to_string()).collect()),
-            list(self.mannequins.iter().map(|m| format!("{m:?}").to_lowercase()).collect()),
+            list(self.mannequins.iter().map(|m| m.name().to_string()).collect()),
         );
         if !self.garments.is_empty() {
             c += &format!(" --garment {}", self.garments.join(","));
@@ -168,9 +176,9 @@ pub fn garments(args: &GarmentsArgs) -> Result<()> {
             for &scale in &args.scales {
                 let row = run_one(garment, mannequin, scale, args)?;
                 eprintln!(
-                    "{} on {:?} at {scale}x: {} particles, {}",
+                    "{} on {} at {scale}x: {} particles, {}",
                     garment.name,
-                    mannequin,
+                    mannequin.name(),
                     row.particles,
                     if row.fails.is_empty() { "holds".to_string() } else { row.fails.join(", ") }
                 );
@@ -339,7 +347,7 @@ fn markdown(rows: &[GarmentRow], args: &GarmentsArgs) -> String {
         md.push_str(&format!(
             "| {} | {} | {} | {} | {:.3} | {:.2} | {} | {} / {} | {} | {} | {:.0} | {} |\n",
             r.garment,
-            format!("{:?}", r.mannequin).to_lowercase(),
+            r.mannequin.name(),
             r.scale,
             r.particles,
             r.peak_stretch,
@@ -358,9 +366,9 @@ fn markdown(rows: &[GarmentRow], args: &GarmentsArgs) -> String {
         md.push_str("\nStopped runs:\n\n");
         for r in stopped {
             md.push_str(&format!(
-                "- {} on {:?} at {}x: {}\n",
+                "- {} on {} at {}x: {}\n",
                 r.garment,
-                r.mannequin,
+                r.mannequin.name(),
                 r.scale,
                 r.error.as_deref().unwrap_or("")
             ));

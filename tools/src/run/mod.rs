@@ -14,7 +14,7 @@ use crate::output::{
 use anyhow::{Context, Result, bail};
 use cloth_core::Effect;
 use cloth_core::scene::{RunConfig, Scene, SceneError};
-use cloth_core::{ClothModel, Inside, Simulation, StepReport, TangleWatch, Vec3};
+use cloth_core::{ClothModel, Inside, Simulation, StepReport, TangleEvent, TangleWatch, Vec3};
 use cloth_rapier::scene::has_bodies;
 use cloth_rapier::{CoupledRun, CoupledScene, CouplingReport, Master, Momentum};
 use cloth_tools::frames::{FRAMES_FILE, FrameWriter};
@@ -392,23 +392,12 @@ pub(crate) fn simulate_steps(scene_path: &Path, overrides: &[String], opts: Simu
                 }
                 let mut stop = None;
                 for event in events {
-                    let words = event.describe(|k| solid_names.get(k).cloned().unwrap_or_else(|| format!("solid {k}")));
-                    let words = match event {
-                        cloth_core::TangleEvent::LastingCrossing { .. } if sim.model().self_collision().is_none() => {
-                            format!("{words} (the scene has no [self_collision])")
-                        }
-                        _ => words,
-                    };
-                    match event {
-                        cloth_core::TangleEvent::LastingCrossing { since, .. } => {
-                            tangle.lasting_crossing = Some(words.clone());
-                            tangle.lasting_crossing_from_s = Some(since.1);
-                        }
-                        cloth_core::TangleEvent::ThroughSolid { at, .. } => {
-                            tangle.through_solid = Some(words.clone());
-                            tangle.through_solid_at_s = Some(at.1);
-                        }
+                    let mut words =
+                        event.describe(|k| solid_names.get(k).cloned().unwrap_or_else(|| format!("solid {k}")));
+                    if matches!(event, TangleEvent::LastingCrossing { .. }) && sim.model().self_collision().is_none() {
+                        words += " (the scene has no [self_collision])";
                     }
+                    tangle.record(&event, &words);
                     if strict {
                         stop.get_or_insert(format!("tangled (--strict): {words}"));
                     } else {

@@ -135,4 +135,18 @@ impl crate::output::TangleSummary {
         self.deep_in_solids_end = c.deep_in_solids;
         self.deepest_in_solids_m = self.deepest_in_solids_m.max(c.deepest_in_solid_m);
     }
+
+    /// Keeps the first tangle of its kind, in `words` and its time.
+    pub(super) fn record(&mut self, event: &cloth_core::TangleEvent, words: &str) {
+        match *event {
+            cloth_core::TangleEvent::LastingCrossing { since, .. } => {
+                self.lasting_crossing = Some(words.to_string());
+                self.lasting_crossing_from_s = Some(since.1);
+            }
+            cloth_core::TangleEvent::ThroughSolid { at, .. } => {
+                self.through_solid = Some(words.to_string());
+                self.through_solid_at_s = Some(at.1);
+            }
+        }
+    }
 }
