@@ -232,7 +232,8 @@ fn nearest_obj(garment: &Garment, scale: f64) -> Option<&(&'static str, usize)> 
     })
 }
 
-/// One run; an error that keeps it from starting or stops it is its row's.
+/// One run. A garment scene that does not load stops the bench; a run
+/// that does not build or stops early is its row's.
 fn run_one(garment: &Garment, mannequin: Mannequin, scale: f64, args: &GarmentsArgs) -> Result<GarmentRow> {
     let scene = cloth_tools::in_checkout(garment.scene);
     let mut set = refined(garment, &scene, scale)?;
