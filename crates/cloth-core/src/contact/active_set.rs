@@ -42,7 +42,7 @@ pub(crate) fn add_penetrating(
     }
     let solids_next = bufs.next.at(model, &bufs.external, t + h);
     bufs.clearance.resize(x.len(), Clearance::UNKNOWN);
-    let (solid, first_entry) = (&bufs.solid, &bufs.first_entry);
+    let (solid, first_entry, held) = (&bufs.solid, &bufs.first_entry, &bufs.held);
     let limit = 0.5 * thickness;
     let all_lipschitz = colliders.iter().all(|c| c.shape.distance_is_lipschitz());
     // Clearing and scanning every particle's candidate each pass was most
@@ -52,7 +52,7 @@ pub(crate) fn add_penetrating(
         bufs.candidate.par_iter_mut().zip(bufs.clearance.par_iter_mut()).zip(bufs.has_candidate.par_iter_mut());
     candidates.enumerate().for_each(|(i, ((cand, clearance), has))| {
         *has = false;
-        if model.is_pinned(i) {
+        if model.is_pinned(i) || held.binary_search(&i).is_ok() {
             return;
         }
         // The one solid this particle already touches, if exactly one, or

@@ -161,12 +161,13 @@ pub(crate) fn detect_solid_contacts(
     let reach = thickness * (1.0 + CONTACT_MARGIN);
     let (colliders, masses) = (model.colliders(), model.masses());
     let (solids_now, solids_next) = (bufs.now.at(model, &bufs.external, t), bufs.next.at(model, &bufs.external, t + h));
+    let held = &bufs.held;
     let per_particle = bufs.candidate.par_iter_mut().zip(bufs.probe.par_iter_mut());
     let per_particle = per_particle.zip(bufs.clearance.par_iter_mut().zip(bufs.has_candidate.par_iter_mut()));
     per_particle.enumerate().for_each(|(i, ((cand, probe), (clearance, has)))| {
         *probe = (0.0, 0);
         *has = false;
-        if model.is_pinned(i) {
+        if held.binary_search(&i).is_ok() || model.is_pinned(i) {
             return;
         }
         let predicted = x[i] + (v[i] * 2.0 - v_prev[i]) * h;

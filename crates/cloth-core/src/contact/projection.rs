@@ -50,7 +50,8 @@ pub(crate) fn project_out(
         changed
     };
     if all {
-        for i in (0..x.len()).filter(|&i| !model.is_pinned(i)) {
+        let held = &bufs.held;
+        for i in (0..x.len()).filter(|&i| !model.is_pinned(i) && held.binary_search(&i).is_err()) {
             moved += usize::from(fix(i));
         }
     } else {
@@ -87,7 +88,7 @@ pub(crate) fn collide_after_step(
     bufs.candidate.resize(x.len(), [None; 2]);
     let (solids_now, solids_next) =
         (bufs.now.at(model, &bufs.external, t), bufs.next.at(model, &bufs.external, t_next));
-    let masses = model.masses();
+    let (masses, held) = (model.masses(), &bufs.held);
     // Particles are independent; the counters add and the depth is a
     // maximum, so the parallel reduction is exact in any order.
     let stats = new_x
@@ -99,7 +100,7 @@ pub(crate) fn collide_after_step(
         .map(|(i, ((xi, vi), cand))| {
             let mut stats = ContactStats::default();
             *cand = [None; 2];
-            if model.is_pinned(i) {
+            if model.is_pinned(i) || held.binary_search(&i).is_ok() {
                 return stats;
             }
             let mut slot = 0;

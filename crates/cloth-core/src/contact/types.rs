@@ -257,6 +257,9 @@ pub struct Contacts {
     pub(crate) next: SolidFrames,
     /// Motions of externally driven solids for the current step.
     pub(crate) external: Vec<Option<SolidMotion>>,
+    /// The particles held by hand this step ([`Control::hold`]), sorted:
+    /// prescribed as pins are, so no solid contact takes them over.
+    pub(crate) held: Vec<usize>,
     pub(crate) hash: Option<VoxelHash>,
     pub(crate) corners: Vec<[Vec3; 3]>,
     /// Broad-phase output, reused.
@@ -305,6 +308,8 @@ impl Contacts {
     pub(crate) fn set_external(&mut self, control: &Control) {
         self.external.clear();
         self.external.extend_from_slice(control.solid_motions());
+        self.held.clear();
+        self.held.extend(control.holds().iter().map(|&(i, _)| i));
         self.now.time = None;
         self.next.time = None;
     }
