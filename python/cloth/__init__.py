@@ -1,7 +1,10 @@
 """Cloth simulation from Python: the Rust simulator's scenes, builder,
-stepping and control, with NumPy arrays. See the README's "From Python".
+stepping and control, with NumPy arrays; coupled scenes with rapier bodies
+and URDF rigs (`World`); grasps. See docs/python.md.
 
-`cloth.sweep` runs scenes over parameter grids on a Ray cluster."""
+`cloth.envs` registers Gymnasium tasks (`cloth/Flatten-v0`, `cloth/Fold-v0`,
+`cloth/Drop-v0`); `cloth.sweep` runs scenes over parameter grids on a Ray
+cluster."""
 
 from ._cloth import (  # noqa: F401
     Builder,
@@ -12,6 +15,17 @@ from ._cloth import (  # noqa: F401
     Simulation,
     Snapshot,
     StepError,
+    World,
 )
 
-__all__ = ["Builder", "ControlError", "ModelError", "Scene", "SceneError", "Simulation", "Snapshot", "StepError"]
+__all__ = [
+    "Builder",
+    "ControlError",
+    "ModelError",
+    "Scene",
+    "SceneError",
+    "Simulation",
+    "Snapshot",
+    "StepError",
+    "World",
+]

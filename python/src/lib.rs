@@ -1,13 +1,19 @@
 //! The Python module `cloth`: scenes from TOML files, the model builder,
 //! stepping with the GIL released, positions and velocities as NumPy
-//! arrays, contacts and pin reactions, per-step control and snapshots.
+//! arrays, contacts and pin reactions, per-step control, grasps and
+//! snapshots; coupled scenes (rapier bodies, URDF rigs) as `World`.
 //! Errors are Python exceptions that name the file and field.
+
+mod grasp;
+mod threads;
+mod world;
 
 use cloth_core::scene::{Scene as SceneFile, SceneError as SceneFileError, SceneErrorKind};
 use cloth_core::{
     BodyPose, ClothModel, Edge, GridPanel, IntegratorKind, Material, ModelBuilder, ModelKind,
     Simulation as CoreSimulation, SolidMotion, SolverParams, Vec3,
 };
+use grasp::Grasps;
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2};
 use pyo3::create_exception;
@@ -23,7 +29,7 @@ create_exception!(cloth, StepError, PyRuntimeError, "A step failed: `.time_s` is
 
 /// A `SceneError` exception carrying `file`, `field` (None when the
 /// problem is not one field's) and `message`.
-fn scene_error(py: Python<'_>, file: &std::path::Path, kind: &SceneErrorKind) -> PyErr {
+pub(crate) fn scene_error(py: Python<'_>, file: &std::path::Path, kind: &SceneErrorKind) -> PyErr {
     let field = match kind {
         SceneErrorKind::Invalid { field, .. } => Some(field.clone()),
         SceneErrorKind::Override { arg, .. } => arg.split('=').next().map(str::to_string),
@@ -61,6 +67,22 @@ fn toml_value(value: &Bound<'_, PyAny>) -> PyResult<String> {
     Err(PyValueError::new_err(format!("override value {value}: a str (TOML text), number, bool or list of them")))
 }
 
+/// Overrides as `--set` arguments: from a dict of dotted keys to values
+/// or a list of `"key=value"` strings.
+pub(crate) fn override_args(overrides: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<String>> {
+    let mut sets = Vec::new();
+    if let Some(o) = overrides {
+        if let Ok(dict) = o.cast::<PyDict>() {
+            for (key, value) in dict.iter() {
+                sets.push(format!("{}={}", key.extract::<String>()?, toml_value(&value)?));
+            }
+        } else {
+            sets = o.extract::<Vec<String>>()?;
+        }
+    }
+    Ok(sets)
+}
+
 /// A scene file read with its overrides: what `cloth run` reads.
 #[pyclass(module = "cloth", frozen)]
 struct Scene {
@@ -76,18 +98,28 @@ impl Scene {
     #[staticmethod]
     #[pyo3(signature = (path, overrides = None))]
     fn from_toml(py: Python<'_>, path: PathBuf, overrides: Option<&Bound<'_, PyAny>>) -> PyResult<Self> {
-        let mut sets = Vec::new();
-        if let Some(o) = overrides {
-            if let Ok(dict) = o.cast::<PyDict>() {
-                for (key, value) in dict.iter() {
-                    sets.push(format!("{}={}", key.extract::<String>()?, toml_value(&value)?));
-                }
-            } else {
-                sets = o.extract::<Vec<String>>()?;
-            }
-        }
+        let sets = override_args(overrides)?;
         let scene = SceneFile::parse_file(&path, &sets).map_err(|e| scene_error(py, &e.file, &e.kind))?;
         Ok(Self { scene, file: path })
+    }
+
+    /// Reads a scene from TOML `text` with `overrides` (as `from_toml`);
+    /// relative paths in it resolve against `base_dir` (default: the
+    /// current directory), and errors name `name`.
+    #[staticmethod]
+    #[pyo3(signature = (text, overrides = None, base_dir = None, name = "<text>"))]
+    fn from_text(
+        py: Python<'_>,
+        text: &str,
+        overrides: Option<&Bound<'_, PyAny>>,
+        base_dir: Option<PathBuf>,
+        name: &str,
+    ) -> PyResult<Self> {
+        let sets = override_args(overrides)?;
+        let file = PathBuf::from(name);
+        let mut scene = SceneFile::parse(text, &sets).map_err(|kind| scene_error(py, &file, &kind))?;
+        scene.base_dir = base_dir.unwrap_or_default();
+        Ok(Self { scene, file })
     }
 
     /// The scene's time step, s.
@@ -102,10 +134,14 @@ impl Scene {
         self.scene.simulation.duration_s
     }
 
-    /// The simulation the scene describes, at t = 0.
-    fn simulation(&self, py: Python<'_>) -> PyResult<Simulation> {
+    /// The simulation the scene describes, at t = 0, stepping on `threads`
+    /// threads (default: rayon's, `RAYON_NUM_THREADS` or every core; the
+    /// results are the same bits for any count).
+    #[pyo3(signature = (threads = None))]
+    fn simulation(&self, py: Python<'_>, threads: Option<usize>) -> PyResult<Simulation> {
         let (model, cfg) = self.scene.build().map_err(|e| scene_error(py, &self.file, &e))?;
-        Ok(Simulation { sim: cfg.simulation(model), dt_s: cfg.dt_s })
+        let pool = threads::pool(threads)?;
+        Ok(Simulation { sim: cfg.simulation(model), dt_s: cfg.dt_s, grasps: Grasps::default(), pool })
     }
 }
 
@@ -206,9 +242,16 @@ impl Builder {
     /// A simulation of the model built so far, stepping with `integrator`
     /// (`"bdf2"` by default, Choi & Ko's; `"backward-euler"`, `"vbd"`, ...)
     /// at `dt_s` (s) by default, its linear solves to `rel_tol` (the
-    /// solver's default when not given).
-    #[pyo3(signature = (dt_s = 1.0 / 90.0, integrator = "bdf2", rel_tol = None))]
-    fn simulation(&self, dt_s: f64, integrator: &str, rel_tol: Option<f64>) -> PyResult<Simulation> {
+    /// solver's default when not given), on `threads` threads (default:
+    /// rayon's).
+    #[pyo3(signature = (dt_s = 1.0 / 90.0, integrator = "bdf2", rel_tol = None, threads = None))]
+    fn simulation(
+        &self,
+        dt_s: f64,
+        integrator: &str,
+        rel_tol: Option<f64>,
+        threads: Option<usize>,
+    ) -> PyResult<Simulation> {
         let model = self.inner.build().map_err(|e| ModelError::new_err(e.to_string()))?;
         let kind: IntegratorKind = named("integrator", integrator)?;
         if !(dt_s.is_finite() && dt_s > 0.0) {
@@ -219,7 +262,8 @@ impl Builder {
             solver.rel_tol = tol;
         }
         solver.validate().map_err(|e| ModelError::new_err(e.within("solver").to_string()))?;
-        Ok(Simulation { sim: CoreSimulation::new(model, kind, solver), dt_s })
+        let pool = threads::pool(threads)?;
+        Ok(Simulation { sim: CoreSimulation::new(model, kind, solver), dt_s, grasps: Grasps::default(), pool })
     }
 }
 
@@ -243,16 +287,29 @@ impl Snapshot {
 struct Simulation {
     sim: CoreSimulation,
     dt_s: f64,
+    grasps: Grasps,
+    pool: std::sync::Arc<rayon::ThreadPool>,
 }
 
 /// `rows` 3-vectors as an `(n, 3)` NumPy array.
-fn rows<'py>(py: Python<'py>, rows: impl ExactSizeIterator<Item = Vec3>) -> Bound<'py, PyArray2<f64>> {
+pub(crate) fn rows<'py>(py: Python<'py>, rows: impl ExactSizeIterator<Item = Vec3>) -> Bound<'py, PyArray2<f64>> {
     let n = rows.len();
     let flat: Vec<f64> = rows.flat_map(|p| [p.x, p.y, p.z]).collect();
     Array2::from_shape_vec((n, 3), flat).expect("3 values a row").into_pyarray(py)
 }
 
-fn control_error(e: impl std::fmt::Display) -> PyErr {
+/// The model's triangles as an `(m, 3)` array of particle indices.
+pub(crate) fn triangles<'py>(py: Python<'py>, model: &ClothModel) -> Bound<'py, PyArray2<i64>> {
+    let t = model.triangles();
+    let flat: Vec<i64> = t.iter().flat_map(|t| t.map(i64::from)).collect();
+    Array2::from_shape_vec((t.len(), 3), flat).expect("3 indices a row").into_pyarray(py)
+}
+
+pub(crate) fn grasp_error(e: grasp::GraspError) -> PyErr {
+    ControlError::new_err(e.to_string())
+}
+
+pub(crate) fn control_error(e: impl std::fmt::Display) -> PyErr {
     ControlError::new_err(e.to_string())
 }
 
@@ -267,14 +324,16 @@ impl Simulation {
         if !(h.is_finite() && h > 0.0) {
             return Err(PyValueError::new_err(format!("dt_s = {h}: must be finite and > 0")));
         }
-        let sim = &mut self.sim;
+        let (sim, pool) = (&mut self.sim, &self.pool);
         let failed = py.detach(|| {
-            for k in 0..n {
-                if let Err(e) = sim.step(h) {
-                    return Some((k, sim.time(), e.to_string()));
+            pool.install(|| {
+                for k in 0..n {
+                    if let Err(e) = sim.step(h) {
+                        return Some((k, sim.time(), e.to_string()));
+                    }
                 }
-            }
-            None
+                None
+            })
         });
         match failed {
             None => Ok(()),
@@ -403,6 +462,46 @@ impl Simulation {
         self.sim.set_solid_motion(index, motion).map_err(control_error)
     }
 
+    /// The cloth's triangles, an `(m, 3)` array of particle indices.
+    #[getter]
+    fn triangles<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<i64>> {
+        triangles(py, self.sim.model())
+    }
+
+    /// Grasps the free particles within `radius_m` (m) of `point` (m) with
+    /// a gripper at `point`; returns the grasp's id. Each particle keeps
+    /// its offset from the gripper. Raises `ControlError` when none is in
+    /// reach.
+    fn grasp(&mut self, point: [f64; 3], radius_m: f64) -> PyResult<usize> {
+        let at = (
+            grasp::Gripper::Point,
+            BodyPose { position: Vec3::from(point), rotation: nalgebra::UnitQuaternion::identity() },
+        );
+        self.grasps.grasp(&mut self.sim, Vec3::from(point), radius_m, at).map_err(grasp_error)
+    }
+
+    /// Moves grasp `id`'s gripper to `point` (m) by the end of the next step.
+    fn move_grasp(&mut self, id: usize, point: [f64; 3]) -> PyResult<()> {
+        self.grasps.move_to(&mut self.sim, id, Vec3::from(point)).map_err(grasp_error)
+    }
+
+    /// The mean force the cloth exerted on grasp `id`'s gripper over the
+    /// last step, N (a hanging cloth pulls it down).
+    fn grasp_force<'py>(&self, py: Python<'py>, id: usize) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let f = self.grasps.force(&self.sim, id).map_err(grasp_error)?;
+        Ok(vec![f.x, f.y, f.z].into_pyarray(py))
+    }
+
+    /// The particles grasp `id` holds.
+    fn grasp_particles(&self, id: usize) -> PyResult<Vec<usize>> {
+        Ok(self.grasps.get(id).map_err(grasp_error)?.particles.clone())
+    }
+
+    /// Lets grasp `id`'s particles go; they keep their velocities.
+    fn release(&mut self, id: usize) -> PyResult<()> {
+        self.grasps.release(&mut self.sim, id).map_err(grasp_error)
+    }
+
     /// The cloth's state now, to come back to with [`Simulation::restore`].
     fn snapshot(&self) -> Snapshot {
         Snapshot { state: self.sim.snapshot() }
@@ -421,6 +520,7 @@ fn _cloth(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Builder>()?;
     m.add_class::<Simulation>()?;
     m.add_class::<Snapshot>()?;
+    m.add_class::<world::World>()?;
     let py = m.py();
     m.add("SceneError", py.get_type::<SceneError>())?;
     m.add("ModelError", py.get_type::<ModelError>())?;

@@ -29,3 +29,12 @@ def test_the_drape_example_falls_flat_and_rests_on_the_ball(tmp_path):
     png = tmp_path / "height.png"
     subprocess.run([sys.executable, os.path.join(ROOT, "python", "examples", "drape_height.py"), str(png)], cwd=ROOT, check=True)
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_the_random_policy_loop_runs_episodes_to_their_time_limit():
+    import random_policy
+
+    results = random_policy.run("cloth/Fold-v0", episodes=2, seed=0, max_steps=10)
+    assert [steps for _, steps, _ in results] == [10, 10]
+    # The Fold reward is minus a distance: a random policy stays unfolded.
+    assert all(total < 0 and not success for total, _, success in results)

@@ -31,6 +31,7 @@ pub mod motion;
 mod names;
 pub mod rig;
 pub mod rig_scene;
+pub mod run_control;
 pub mod scene;
 pub mod unit;
 pub mod world;
@@ -40,6 +41,7 @@ pub use coupling::{CouplingReport, IteratedCoupling, Master, MonolithicCoupling}
 pub use rapier3d_f64;
 pub use rapier3d_f64::prelude::PhysicsWorld;
 pub use rig::{JointKind, JointValue, Rig, RigError, RigOptions, RigPose, UpAxis};
+pub use run_control::{ClothLoad, RunControlError};
 pub use scene::{CoupledRun, CoupledScene};
 pub use unit::RapierUnit;
 pub use world::{CollideWith, Momentum, WorldSnapshot, WorldSolid, bodies_momentum, import_colliders};

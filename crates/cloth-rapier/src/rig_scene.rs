@@ -156,6 +156,9 @@ pub struct SceneRig {
     pub options: RigOptions,
     /// The rig joints the motion drives (the others stay at rest), by name.
     pub driven: Vec<String>,
+    /// A pose set from outside ([`crate::CoupledRun::set_joint_positions`]),
+    /// replacing the motion from then on.
+    pub(crate) held_pose: Option<RigPose>,
 }
 
 /// What a scene's rig is, as `cloth validate` prints it.
@@ -233,14 +236,15 @@ impl RigSummary {
 }
 
 impl SceneRig {
-    /// The rig's pose at `t`, s.
+    /// The rig's pose at `t`, s
+    /// (the pose set from outside, once one is).
     pub fn pose_at(&self, t: f64) -> RigPose {
-        self.motion.pose_at(t)
+        self.held_pose.clone().unwrap_or_else(|| self.motion.pose_at(t))
     }
 
     /// Sends the link bodies to their poses at `t` (the end of the next step).
     pub fn drive(&mut self, world: &mut PhysicsWorld, t: f64) -> Result<(), crate::RigError> {
-        let pose = self.motion.pose_at(t);
+        let pose = self.pose_at(t);
         self.bodies.drive(&self.rig, world, &pose)
     }
 
@@ -352,7 +356,7 @@ impl RigSection {
         }
         let bodies = RigBodies::insert(&rig, world, &motion.pose_at(0.0), self.friction, &urdf)
             .map_err(|e| FieldError::new(field("urdf"), e.to_string()))?;
-        Ok(SceneRig { rig, bodies, motion, file: urdf, options, driven })
+        Ok(SceneRig { rig, bodies, motion, file: urdf, options, driven, held_pose: None })
     }
 }
 

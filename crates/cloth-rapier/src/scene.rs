@@ -272,6 +272,9 @@ pub struct SceneBody {
     /// Its `[[bodies]]` entry.
     pub spec: BodySpec,
     anchor: BodyPose,
+    /// A kinematic body's pose set from outside
+    /// ([`CoupledRun::set_kinematic_target`]), replacing its scripted motion.
+    pub(crate) target: Option<BodyPose>,
 }
 
 /// A built scene: the world, the cloth, and how to step them.
@@ -332,7 +335,7 @@ impl CoupledScene {
             }
             let (handle, anchor) =
                 add_body(&mut world, b, &self.scene.base_dir).map_err(|e| e.within(&format!("bodies[{k}]")))?;
-            bodies.push(SceneBody { name: b.name.clone(), handle, spec: b.clone(), anchor });
+            bodies.push(SceneBody { name: b.name.clone(), handle, spec: b.clone(), anchor, target: None });
         }
         let rig = match &self.rig {
             Some(section) => {
@@ -588,16 +591,24 @@ impl CoupledRun {
         let t_end = self.cloths[self.cloth].simulation().time() + h;
         for b in self.bodies.iter().filter(|b| b.spec.kind == BodyKind::Kinematic) {
             let spin = UnitQuaternion::from_scaled_axis(Vec3::from(b.spec.spin_deg_s.map(f64::to_radians)) * t_end);
-            let pose = BodyPose {
+            let pose = b.target.unwrap_or_else(|| BodyPose {
                 position: b.anchor.position + b.spec.motion.offset(t_end),
                 rotation: spin * b.anchor.rotation,
-            };
+            });
             let rb = &mut self.world.bodies[b.handle];
             rb.set_next_kinematic_position(pose_to_rapier(&pose));
         }
         if let Some(rig) = &mut self.rig {
             rig.drive(&mut self.world, t_end)?;
         }
-        self.cloths.step(&mut self.world, master)
+        let report = self.cloths.step(&mut self.world, master);
+        // Forces and torques set from outside last one step.
+        for b in &self.bodies {
+            if let Some(rb) = self.world.bodies.get_mut(b.handle) {
+                rb.reset_forces(false);
+                rb.reset_torques(false);
+            }
+        }
+        report
     }
 }

@@ -1,0 +1,241 @@
+"""The common part of the cloth tasks: a square cloth on a floor, one or
+two pickers moved by the action, observations, images and seeding."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+import cloth
+
+from .raster import Camera, render
+
+SCENE = """\
+[simulation]
+integrator = "bdf2"
+dt_s = {dt_s!r}
+duration_s = 1e6
+effects = ["gravity", "bending", "damping"]
+initial_jitter_m = 0.0005
+
+[solver]
+rel_tol = 1e-3
+max_iter = 300
+
+[material]
+areal_density_kg_m2 = 0.2
+tensile_stiffness_n_m = 200.0
+flexural_rigidity_n_m = 1e-5
+buckling_stiffness_n_m = 200.0
+damping_n_s_m = 0.02
+
+[[panels]]
+particles = [{n}, {n}]
+size_m = [{side_m!r}, {side_m!r}]
+origin_m = [{origin[0]!r}, {origin[1]!r}, {origin[2]!r}]
+u_axis = [1.0, 0.0, 0.0]
+v_axis = [{v_axis[0]!r}, {v_axis[1]!r}, {v_axis[2]!r}]
+
+[collision]
+thickness_m = {thickness_m!r}
+
+[[colliders]]
+shape = {{ kind = "half-space", normal = [0.0, 0.0, 1.0] }}
+friction = 0.5
+
+[self_collision]
+thickness_m = {self_thickness_m!r}
+"""
+
+
+class ClothTaskEnv(gym.Env):
+    """A square cloth of ``particles`` x ``particles`` nodes and side
+    ``side_m`` (m) on a floor at z = 0 (Choi & Ko's model, BDF2, contacts
+    with friction 0.5, self-collision), handled by ``pickers`` pickers.
+
+    Action: per picker ``[dx, dy, dz, pick]`` in [-1, 1]; the picker moves
+    by ``max_move_m`` times the first three, within a box of half-width
+    0.5 m and height 0.5 m above the floor. ``pick > 0`` grasps every free
+    particle within ``picker_radius_m`` of the picker (if it holds none)
+    and keeps them; ``pick <= 0`` lets them go. Held particles keep their
+    offsets from the picker.
+
+    One env step is ``substeps`` simulation steps of ``dt_s`` (s), the
+    pickers moving on straight lines over them: by default three steps of
+    1/90 s (Choi & Ko's step), 1/30 s in all. A cloth let fall into a heap
+    blew up in steps of 1/30 s and of 1/60 s; in steps of 1/90 s it did
+    not (docs/results/python-envs.md).
+
+    Observation (float32): with ``observation="positions"``, every
+    particle's position (m, row by row) then each picker's position and a
+    holding flag; with ``"keypoints"``, the four corners and the centre
+    instead of every particle.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 30}
+    #: Height of the cloth's particles above the floor at the start, m.
+    REST_HEIGHT_M = 0.005
+    #: Lower and upper corners of the pickers' box, m.
+    BOUNDS = (np.array([-0.5, -0.5, 0.0]), np.array([0.5, 0.5, 0.5]))
+
+    def __init__(
+        self,
+        particles: int = 25,
+        side_m: float = 0.4,
+        pickers: int = 2,
+        observation: str = "positions",
+        render_mode: str | None = None,
+        dt_s: float = 1.0 / 90.0,
+        substeps: int = 3,
+        max_move_m: float = 0.03,
+        picker_radius_m: float = 0.02,
+        threads: int | None = 1,
+        image_size: int = 128,
+    ):
+        if pickers not in (1, 2):
+            raise ValueError(f"pickers = {pickers}: one or two")
+        if observation not in ("positions", "keypoints"):
+            raise ValueError(f"observation = {observation!r}: 'positions' or 'keypoints'")
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode = {render_mode!r}: None or 'rgb_array'")
+        if particles < 3:
+            raise ValueError(f"particles = {particles}: at least 3 a side")
+        self.n, self.side_m, self.pickers = particles, side_m, pickers
+        self.observation, self.render_mode = observation, render_mode
+        self.dt_s, self.substeps, self.max_move_m = dt_s, substeps, max_move_m
+        self.picker_radius_m, self.threads = picker_radius_m, threads
+        self.spacing_m = side_m / (particles - 1)
+        self._scene = cloth.Scene.from_text(self.scene_text(), name=f"{type(self).__name__} scene")
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(4 * pickers,), dtype=np.float32)
+        points = particles * particles if observation == "positions" else 5
+        self.observation_space = spaces.Box(-np.inf, np.inf, shape=(3 * points + 4 * pickers,), dtype=np.float32)
+        self._camera = Camera(eye=(0.0, -0.8, 0.8), target=(0.0, 0.0, 0.0), width=image_size, height=image_size)
+        self.sim = None
+        self.picker_pos = np.zeros((pickers, 3))
+        self.grasps: list[int | None] = [None] * pickers
+
+    # -- scene -------------------------------------------------------------
+    def cloth_layout(self):
+        """Origin (m) and second axis of the cloth's panel at the start."""
+        half = self.side_m / 2
+        return (-half, -half, self.REST_HEIGHT_M), (0.0, 1.0, 0.0)
+
+    def scene_text(self) -> str:
+        origin, v_axis = self.cloth_layout()
+        # Plain floats: NumPy's repr is not TOML.
+        origin, v_axis = [float(c) for c in origin], [float(c) for c in v_axis]
+        return SCENE.format(
+            dt_s=float(self.dt_s),
+            n=int(self.n),
+            side_m=float(self.side_m),
+            origin=origin,
+            v_axis=v_axis,
+            thickness_m=0.004,
+            self_thickness_m=0.006,
+        )
+
+    def index(self, i: int, j: int) -> int:
+        """The particle at column ``i`` (along x) and row ``j``."""
+        return j * self.n + i
+
+    def corners(self):
+        n = self.n - 1
+        return [self.index(0, 0), self.index(n, 0), self.index(0, n), self.index(n, n)]
+
+    # -- the gymnasium interface ------------------------------------------
+    def reset(self, *, seed=None, options=None):
+        super().reset(seed=seed)
+        self.sim = self.episode_scene().simulation(threads=self.threads)
+        self.grasps = [None] * self.pickers
+        self.picker_pos = np.zeros((self.pickers, 3))
+        self.setup()
+        return self._obs(), self._info(self.measure()[1])
+
+    def step(self, action):
+        action = np.clip(np.asarray(action, dtype=np.float64).reshape(self.pickers, 4), -1.0, 1.0)
+        start = self.picker_pos.copy()
+        goal = np.clip(start + action[:, :3] * self.max_move_m, *self.BOUNDS)
+        truncated = False
+        info = {}
+        try:
+            for sub in range(1, self.substeps + 1):
+                # The pickers move on straight lines over the substeps;
+                # they grasp or let go at the first.
+                for k in range(self.pickers):
+                    to = start[k] + (goal[k] - start[k]) * sub / self.substeps
+                    self.move_picker(k, to, action[k, 3] > 0)
+                self.sim.step(1)
+        except cloth.StepError as e:
+            # A step that fails ends the episode; the cloth stays as it was.
+            truncated, info["error"] = True, str(e)
+        reward, success = self.measure()
+        return self._obs(), reward, False, truncated, {**self._info(success), **info}
+
+    def render(self):
+        if self.render_mode != "rgb_array" or self.sim is None:
+            return None
+        return render(
+            self._camera,
+            self.sim.positions,
+            self.sim.triangles,
+            markers=self.picker_pos,
+            target=self.target_points(),
+        )
+
+    # -- pickers -----------------------------------------------------------
+    def move_picker(self, k: int, to, pick: bool):
+        """Moves picker ``k`` to ``to`` (m), grasping or letting go by ``pick``."""
+        if pick and self.grasps[k] is None:
+            try:
+                self.grasps[k] = self.sim.grasp(list(self.picker_pos[k]), self.picker_radius_m)
+            except cloth.ControlError:
+                self.grasps[k] = None  # nothing within reach
+        elif not pick and self.grasps[k] is not None:
+            self.sim.release(self.grasps[k])
+            self.grasps[k] = None
+        if self.grasps[k] is not None:
+            self.sim.move_grasp(self.grasps[k], list(to))
+        self.picker_pos[k] = to
+
+    def steps_for(self, seconds: float) -> int:
+        """Simulation steps of ``dt_s`` in ``seconds`` (at least one)."""
+        return max(1, round(seconds / self.dt_s))
+
+    def settle(self, seconds: float):
+        """Lets the cloth go on for ``seconds`` with nothing changed."""
+        self.sim.step(self.steps_for(seconds))
+
+    # -- what a task fills in ----------------------------------------------
+    def episode_scene(self):
+        """The scene an episode starts from (drawn with ``self.np_random``)."""
+        return self._scene
+
+    def setup(self):
+        """Puts the cloth and pickers where the episode starts."""
+
+    def measure(self) -> tuple[float, bool]:
+        """The reward now and whether the task is done, measured once."""
+        raise NotImplementedError
+
+    def reward(self) -> float:
+        return self.measure()[0]
+
+    def success(self) -> bool:
+        return self.measure()[1]
+
+    def target_points(self):
+        """Points drawn on the floor in images (where the cloth should go)."""
+        return None
+
+    # -- observations ------------------------------------------------------
+    def _obs(self):
+        x = self.sim.positions
+        if self.observation == "keypoints":
+            x = x[self.corners() + [self.index(self.n // 2, self.n // 2)]]
+        held = np.array([[0.0 if g is None else 1.0] for g in self.grasps])
+        pickers = np.hstack([self.picker_pos, held])
+        return np.concatenate([x.ravel(), pickers.ravel()]).astype(np.float32)
+
+    def _info(self, success: bool):
+        return {"success": bool(success), "time_s": self.sim.time_s}

@@ -1,0 +1,59 @@
+"""Env steps per second, per core, of the cloth tasks: each task on one
+thread (the simulation's pool and NumPy's), 25 x 25 particles, a random
+policy and an idle one (pickers still, nothing held), the median of
+``--repeat`` runs of ``--steps`` steps. Prints a Markdown table.
+
+    python python/examples/env_speed.py [--steps 200] [--repeat 3]
+"""
+
+from __future__ import annotations
+
+import os
+
+# One core: NumPy's BLAS threads would spin beside the simulation's.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import statistics  # noqa: E402
+import time  # noqa: E402
+
+import gymnasium as gym  # noqa: E402
+import numpy as np  # noqa: E402
+
+import cloth.envs  # noqa: E402,F401
+
+TASKS = ["cloth/Flatten-v0", "cloth/Fold-v0", "cloth/Drop-v0"]
+
+
+def rate(task: str, policy: str, steps: int, seed: int) -> float:
+    """Env steps per second over ``steps`` steps after a reset (not timed)."""
+    env = gym.make(task, threads=1)
+    env.reset(seed=seed)
+    env.action_space.seed(seed)
+    idle = np.zeros(env.action_space.shape, dtype=np.float32)
+    idle[3::4] = -1.0
+    start = time.perf_counter()
+    for _ in range(steps):
+        action = env.action_space.sample() if policy == "random" else idle
+        _, _, terminated, truncated, _ = env.step(action)
+        if terminated or truncated:
+            env.reset()
+    return steps / (time.perf_counter() - start)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--steps", type=int, default=200)
+    parser.add_argument("--repeat", type=int, default=3)
+    args = parser.parse_args()
+    print("| task | policy | env steps/s (median) | runs |")
+    print("|---|---|---|---|")
+    for task in TASKS:
+        for policy in ("random", "idle"):
+            runs = [rate(task, policy, args.steps, seed) for seed in range(args.repeat)]
+            shown = ", ".join(f"{r:.0f}" for r in runs)
+            print(f"| {task} | {policy} | {statistics.median(runs):.0f} | {shown} |")
+
+
+if __name__ == "__main__":
+    main()

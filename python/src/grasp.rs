@@ -1,0 +1,141 @@
+//! Grasps: the particles within a radius of a point, held together by a
+//! gripper that moves (a kinematic point) or by a rigid body. Each particle
+//! keeps its offset from the gripper as it was when grasped, so the
+//! gripper holds a patch of cloth as it lay; it is held through
+//! [`cloth_core::Simulation::hold`], and the gripper feels the sum of the
+//! held particles' reactions.
+
+use cloth_core::{BodyPose, Simulation, Vec3};
+
+/// Why a grasp was refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub(crate) enum GraspError {
+    /// The point or radius is not a finite point and a radius > 0.
+    #[error("grasp at {point:?} with radius {radius_m} m: needs a finite point and a finite radius > 0")]
+    Invalid { point: [f64; 3], radius_m: f64 },
+    /// No free particle lies within the radius.
+    #[error("no free particle within {radius_m} m of {point:?} (pinned and already grasped ones do not count)")]
+    Nothing { point: [f64; 3], radius_m: f64 },
+    /// No grasp of that id is held.
+    #[error("grasp {id}: no such grasp is held")]
+    NoSuchGrasp { id: usize },
+    /// A target is not finite.
+    #[error("grasp {id}: target {point:?} is not finite")]
+    NonFinite { id: usize, point: [f64; 3] },
+    /// The grasp is on a body: it moves with it.
+    #[error("grasp {id} is on a body: it moves with the body")]
+    OnBody { id: usize },
+}
+
+/// What holds a grasp's particles.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Gripper {
+    /// A point moved from outside.
+    Point,
+    /// Body `index` of the scene (offsets in its frame).
+    Body(usize),
+}
+
+/// One grasp.
+#[derive(Debug, Clone)]
+pub(crate) struct Grasp {
+    pub(crate) particles: Vec<usize>,
+    /// Each particle's offset from the gripper: world axes for a point,
+    /// the body's frame for a body, m.
+    offsets: Vec<Vec3>,
+    pub(crate) gripper: Gripper,
+}
+
+/// The grasps of one simulation, by id (ids are not reused).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Grasps {
+    slots: Vec<Option<Grasp>>,
+}
+
+impl Grasps {
+    /// Grasps the free particles within `radius_m` of `point` (not pinned,
+    /// not held by another grasp) with `gripper`, whose pose now is `pose`
+    /// (the identity for a point gripper at `point`). Returns the id.
+    pub(crate) fn grasp(
+        &mut self,
+        sim: &mut Simulation,
+        point: Vec3,
+        radius_m: f64,
+        (gripper, pose): (Gripper, BodyPose),
+    ) -> Result<usize, GraspError> {
+        if !(point.iter().all(|c| c.is_finite()) && radius_m.is_finite() && radius_m > 0.0) {
+            return Err(GraspError::Invalid { point: point.into(), radius_m });
+        }
+        let model = sim.model().clone();
+        let x = &sim.state().x;
+        let free = |i: &usize| !model.is_pinned(*i) && !sim.control().is_held(*i);
+        let particles: Vec<usize> = (0..x.len()).filter(|&i| (x[i] - point).norm() <= radius_m).filter(free).collect();
+        if particles.is_empty() {
+            return Err(GraspError::Nothing { point: point.into(), radius_m });
+        }
+        let inverse = pose.rotation.inverse();
+        let offsets: Vec<Vec3> = particles.iter().map(|&i| inverse * (x[i] - pose.position)).collect();
+        for (&i, &offset) in particles.iter().zip(&offsets) {
+            // Free, finite and in range: checked above.
+            let _ = sim.hold(i, pose.position + pose.rotation * offset);
+        }
+        self.slots.push(Some(Grasp { particles, offsets, gripper }));
+        Ok(self.slots.len() - 1)
+    }
+
+    pub(crate) fn get(&self, id: usize) -> Result<&Grasp, GraspError> {
+        self.slots.get(id).and_then(Option::as_ref).ok_or(GraspError::NoSuchGrasp { id })
+    }
+
+    /// Moves point grasp `id` to `point` (m) by the end of the next step.
+    pub(crate) fn move_to(&mut self, sim: &mut Simulation, id: usize, point: Vec3) -> Result<(), GraspError> {
+        let g = self.slots.get_mut(id).and_then(Option::as_mut).ok_or(GraspError::NoSuchGrasp { id })?;
+        if !point.iter().all(|c| c.is_finite()) {
+            return Err(GraspError::NonFinite { id, point: point.into() });
+        }
+        if matches!(g.gripper, Gripper::Body(_)) {
+            return Err(GraspError::OnBody { id });
+        }
+        for (&i, &offset) in g.particles.iter().zip(&g.offsets) {
+            let _ = sim.hold(i, point + offset);
+        }
+        Ok(())
+    }
+
+    /// Sets the targets of every body grasp from its body's pose at the
+    /// end of the next step, `pose_of(body)`.
+    pub(crate) fn follow_bodies(&self, sim: &mut Simulation, pose_of: impl Fn(usize) -> BodyPose) {
+        for g in self.slots.iter().flatten() {
+            if let Gripper::Body(b) = g.gripper {
+                let pose = pose_of(b);
+                for (&i, &offset) in g.particles.iter().zip(&g.offsets) {
+                    let _ = sim.hold(i, pose.position + pose.rotation * offset);
+                }
+            }
+        }
+    }
+
+    /// The mean force the cloth exerted on grasp `id`'s gripper over the
+    /// last step, N, and the held particles' positions (for torques).
+    pub(crate) fn force(&self, sim: &Simulation, id: usize) -> Result<Vec3, GraspError> {
+        let g = self.get(id)?;
+        Ok(g.particles.iter().filter_map(|&i| sim.hold_reaction(i)).sum())
+    }
+
+    /// Lets grasp `id`'s particles go (they keep their velocities).
+    pub(crate) fn release(&mut self, sim: &mut Simulation, id: usize) -> Result<(), GraspError> {
+        let g = self.slots.get_mut(id).and_then(Option::take).ok_or(GraspError::NoSuchGrasp { id })?;
+        for i in g.particles {
+            sim.let_go(i);
+        }
+        Ok(())
+    }
+
+    /// The body grasps: `(body, particles)`.
+    pub(crate) fn on_bodies(&self) -> impl Iterator<Item = (usize, &[usize])> {
+        self.slots.iter().flatten().filter_map(|g| match g.gripper {
+            Gripper::Body(b) => Some((b, g.particles.as_slice())),
+            Gripper::Point => None,
+        })
+    }
+}

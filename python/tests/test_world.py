@@ -1,0 +1,107 @@
+"""Coupled scenes from Python (`cloth.World`), asserted through physics:
+a body resting in the cloth weighs on it, the posts carry the whole
+weight, forces and torques accelerate a body as Newton says, kinematic
+targets and joint positions are reached, and bad input raises errors that
+name what is wrong."""
+
+import os
+
+import numpy as np
+import pytest
+
+import cloth
+
+ROOT = os.path.join(os.path.dirname(__file__), "..", "..")
+HAMMOCK = os.path.join(ROOT, "fixtures", "scenes", "hammock.toml")
+HUMANOID = os.path.join(ROOT, "fixtures", "scenes", "humanoid-skirt.toml")
+UNDAMPED = {"bodies.2.linear_damping_1_s": 0.0, "bodies.2.angular_damping_1_s": 0.0}
+G = 9.81
+
+
+def test_a_ball_resting_in_the_hammock_weighs_on_it_and_the_posts_carry_all():
+    world = cloth.World.from_toml(HAMMOCK)
+    assert world.body_names == ["post-left", "post-right", "ball"]
+    ball = world.body_mass("ball")
+    weight = (world.masses.sum() + ball) * G
+    world.step(360)  # 4 s
+    speed = np.linalg.norm(world.body_velocity("ball")[0])
+    on_ball = world.cloth_force("ball")
+    # The cloth holds the ball up with its weight (measured 5.1e-4 off at 4 s).
+    assert on_ball["contacts"] > 0 and speed < 1e-3
+    assert abs(on_ball["force"][2] - ball * G) < 1e-3 * ball * G
+    # The cloth pulls the posts down with the weight of cloth and ball
+    # (measured 4.5e-4 off); the horizontal pulls cancel.
+    posts = world.cloth_force("post-left")["force"] + world.cloth_force("post-right")["force"]
+    assert abs(posts[2] + weight) < 1e-3 * weight
+    assert abs(posts[0]) < 1e-3 * weight and abs(posts[1]) < 1e-3 * weight
+
+
+def test_forces_and_torques_accelerate_a_body_for_one_step_each():
+    # Before the ball meets the cloth: three times its weight up for ten
+    # steps gives 2 g t up; a torque tau about z gives tau / I t (a solid
+    # ball, I = 2/5 m r^2). Then, without the force, it falls at g again.
+    world = cloth.World.from_toml(HAMMOCK, UNDAMPED)
+    h, m = world.dt_s, world.body_mass("ball")
+    inertia = 0.4 * m * 0.1**2
+    for _ in range(10):
+        world.apply_force("ball", [0.0, 0.0, 3 * m * G], torque=[0.0, 0.0, 1e-3])
+        world.step()
+    v, w = world.body_velocity("ball")
+    assert abs(v[2] - 2 * G * 10 * h) < 1e-12 and abs(w[2] - 1e-3 / inertia * 10 * h) < 1e-12
+    world.step()
+    v2, _ = world.body_velocity("ball")
+    assert abs((v2[2] - v[2]) + G * h) < 1e-12
+
+
+def test_a_kinematic_body_goes_to_its_target_and_stays():
+    world = cloth.World.from_toml(HAMMOCK, {"bodies.2.kind": '"kinematic"', **UNDAMPED})
+    world.set_kinematic_target("ball", [0.1, 0.2, 1.4], rotation=[0.0, 0.0, 0.3])
+    for _ in range(2):
+        world.step()
+        position, q = world.body_pose("ball")
+        assert np.allclose(position, [0.1, 0.2, 1.4], atol=1e-14)
+        # A turn of 0.3 rad about z: q = (0, 0, sin 0.15, cos 0.15).
+        assert np.allclose(q, [0.0, 0.0, np.sin(0.15), np.cos(0.15)], atol=1e-14)
+
+
+def quaternion_angle(a, b):
+    """The angle of the rotation taking unit quaternion a ([x, y, z, w]) to b."""
+    return 2 * np.arccos(min(1.0, abs(float(np.dot(a, b)))))
+
+
+def test_a_joint_set_from_outside_turns_its_child_link_by_that_angle():
+    world = cloth.World.from_toml(HUMANOID)
+    assert "L_Knee" in world.joint_positions() and "L_Calf" in world.link_names
+    world.step()
+    thigh0, calf0 = world.link_pose("L_Thigh")[1], world.link_pose("L_Calf")[1]
+    world.set_joint_positions({"L_Knee": 0.5})
+    world.step(3)
+    assert world.joint_positions()["L_Knee"] == 0.5
+    thigh1, calf1 = world.link_pose("L_Thigh")[1], world.link_pose("L_Calf")[1]
+    # The thigh stays (the character stands); the calf turns 0.5 rad.
+    assert quaternion_angle(thigh0, thigh1) < 1e-12
+    assert abs(quaternion_angle(calf0, calf1) - 0.5) < 1e-9
+
+
+def test_bad_input_to_a_world_names_what_is_wrong():
+    with pytest.raises(cloth.SceneError) as e:
+        cloth.World.from_toml(HAMMOCK, {"bodies.2.mass_kg": -1.0})
+    assert e.value.file.endswith("hammock.toml") and "bodies" in e.value.field
+    world = cloth.World.from_toml(HAMMOCK)
+    with pytest.raises(cloth.ControlError, match='no body named "box".*ball'):
+        world.apply_force("box", [0.0, 0.0, 1.0])
+    with pytest.raises(cloth.ControlError, match="fixed"):
+        world.apply_force("post-left", [0.0, 0.0, 1.0])
+    with pytest.raises(cloth.ControlError, match="not finite"):
+        world.apply_force("ball", [0.0, float("nan"), 1.0])
+    with pytest.raises(cloth.ControlError, match="kinematic"):
+        world.set_kinematic_target("ball", [0.0, 0.0, 1.0])
+    with pytest.raises(cloth.ControlError, match="no \\[rig\\]"):
+        world.set_joint_positions({"L_Knee": 0.1})
+    rig = cloth.World.from_toml(HUMANOID)
+    with pytest.raises(cloth.ControlError, match="no joint"):
+        rig.set_joint_positions({"Tail": 0.1})
+    with pytest.raises(cloth.ControlError, match="rotation"):
+        rig.set_joint_positions({"L_Knee": 0.1, "L_Hip": 0.2})
+    # Nothing was set: the knee keeps its value.
+    assert rig.joint_positions()["L_Knee"] == 0.0
