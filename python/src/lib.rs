@@ -305,6 +305,16 @@ pub(crate) fn triangles<'py>(py: Python<'py>, model: &ClothModel) -> Bound<'py, 
     Array2::from_shape_vec((t.len(), 3), flat).expect("3 indices a row").into_pyarray(py)
 }
 
+/// The outcome of `n` steps: `failed` is the step that failed (counted
+/// from 0), the time the cloth stayed at (s) and why, raised as
+/// `StepError` with `.time_s`.
+pub(crate) fn steps_taken(py: Python<'_>, n: usize, failed: Option<(usize, f64, String)>) -> PyResult<()> {
+    let Some((k, time_s, message)) = failed else { return Ok(()) };
+    let err = StepError::new_err(format!("step {} of {n} from t = {time_s} s: {message}", k + 1));
+    let _ = err.value(py).setattr("time_s", time_s);
+    Err(err)
+}
+
 pub(crate) fn grasp_error(e: grasp::GraspError) -> PyErr {
     ControlError::new_err(e.to_string())
 }
@@ -335,14 +345,7 @@ impl Simulation {
                 None
             })
         });
-        match failed {
-            None => Ok(()),
-            Some((k, time_s, message)) => {
-                let err = StepError::new_err(format!("step {} of {n} from t = {time_s} s: {message}", k + 1));
-                let _ = err.value(py).setattr("time_s", time_s);
-                Err(err)
-            }
-        }
+        steps_taken(py, n, failed)
     }
 
     /// Simulated time, s.

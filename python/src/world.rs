@@ -4,7 +4,7 @@
 //! and grasps by a point or a body.
 
 use crate::grasp::{Grasps, Gripper};
-use crate::{ControlError, StepError, control_error, grasp_error, override_args, rows, scene_error, triangles};
+use crate::{ControlError, control_error, grasp_error, override_args, rows, scene_error, triangles};
 use cloth_core::{BodyPose, Vec3};
 use cloth_rapier::rig::JointValue;
 use cloth_rapier::{CoupledRun, CoupledScene};
@@ -49,8 +49,10 @@ impl World {
     }
 
     /// Each body's pose at the end of the next step, as far as it is known
-    /// now: a kinematic body's target, a dynamic one's pose moved on by
-    /// its velocities over the step.
+    /// now: a kinematic body's target; a dynamic one moved on over the step
+    /// by its velocity and by gravity and the forces set for the step as
+    /// rapier's substeps integrate them ([`cloth_rapier::gravity_share`]),
+    /// without the step's contacts.
     fn predicted_pose(run: &CoupledRun, body: usize) -> BodyPose {
         let h = run.config.dt_s;
         let (pose, v, w) = run.body_state(body).unwrap_or((
@@ -60,6 +62,10 @@ impl World {
         ));
         let rb = &run.world.bodies[run.bodies[body].handle];
         let com = cloth_rapier::convert::vec_from_rapier(rb.center_of_mass());
+        let gravity = cloth_rapier::convert::vec_from_rapier(run.world.gravity) * rb.gravity_scale();
+        let force = cloth_rapier::convert::vec_from_rapier(rb.user_force());
+        let pushed = if rb.mass() > 0.0 { gravity + force / rb.mass() } else { Vec3::zeros() };
+        let v = v + pushed * (h * cloth_rapier::gravity_share(&run.world, rb));
         let turn = UnitQuaternion::from_scaled_axis(w * h);
         // The frame origin turns about the centre of mass as it moves.
         let position = com + v * h + turn * (pose.position - com);
@@ -131,14 +137,7 @@ impl World {
                 None
             })
         });
-        match failed {
-            None => Ok(()),
-            Some((k, time_s, message)) => {
-                let err = StepError::new_err(format!("step {} of {n} from t = {time_s} s: {message}", k + 1));
-                let _ = err.value(py).setattr("time_s", time_s);
-                Err(err)
-            }
-        }
+        crate::steps_taken(py, n, failed)
     }
 
     /// Simulated time, s.
@@ -337,6 +336,11 @@ impl World {
     /// The mean force the cloth exerted on grasp `id` over the last step, N.
     fn grasp_force<'py>(&self, py: Python<'py>, id: usize) -> PyResult<Bound<'py, PyArray1<f64>>> {
         Ok(array3(py, self.grasps.force(self.sim(), id).map_err(grasp_error)?))
+    }
+
+    /// The particles grasp `id` holds.
+    fn grasp_particles(&self, id: usize) -> PyResult<Vec<usize>> {
+        Ok(self.grasps.get(id).map_err(grasp_error)?.particles.clone())
     }
 
     /// Lets grasp `id`'s particles go.

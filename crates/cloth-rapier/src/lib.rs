@@ -38,6 +38,7 @@ pub mod world;
 
 pub use cloth_set::{Attachment, ClothBuilder, ClothHandle, ClothSet, CoupledCloth, CoupledSnapshot, CouplingError};
 pub use coupling::{CouplingReport, IteratedCoupling, Master, MonolithicCoupling};
+pub use monolithic::gravity_share;
 pub use rapier3d_f64;
 pub use rapier3d_f64::prelude::PhysicsWorld;
 pub use rig::{JointKind, JointValue, Rig, RigError, RigOptions, RigPose, UpAxis};

@@ -30,7 +30,7 @@ const LOCKED_SCALE: f64 = 1e6;
 /// one rapier step: rapier's `N` substeps each add `g h / N` to the
 /// velocity before moving the body, so the centre of mass moves by
 /// `h v0 + g h^2 (N + 1) / (2 N)`.
-pub(crate) fn gravity_share(world: &PhysicsWorld, rb: &RigidBody) -> f64 {
+pub fn gravity_share(world: &PhysicsWorld, rb: &RigidBody) -> f64 {
     let substeps = (world.integration_parameters.num_solver_iterations + rb.additional_solver_iterations()).max(1);
     let n = substeps as f64;
     (n + 1.0) / (2.0 * n)
