@@ -6,6 +6,7 @@
 //! held particles' reactions.
 
 use cloth_core::{BodyPose, Simulation, Vec3};
+use cloth_rapier::rapier3d_f64::prelude::RigidBodyHandle;
 
 /// Why a grasp was refused.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -32,8 +33,9 @@ pub(crate) enum GraspError {
 pub(crate) enum Gripper {
     /// A point moved from outside.
     Point,
-    /// Body `index` of the scene (offsets in its frame).
-    Body(usize),
+    /// A rapier body: a `[[bodies]]` entry or a rig link (offsets in its
+    /// frame).
+    Body(RigidBodyHandle),
 }
 
 /// One grasp.
@@ -104,7 +106,7 @@ impl Grasps {
 
     /// Sets the targets of every body grasp from its body's pose at the
     /// end of the next step, `pose_of(body)`.
-    pub(crate) fn follow_bodies(&self, sim: &mut Simulation, pose_of: impl Fn(usize) -> BodyPose) {
+    pub(crate) fn follow_bodies(&self, sim: &mut Simulation, pose_of: impl Fn(RigidBodyHandle) -> BodyPose) {
         for g in self.slots.iter().flatten() {
             if let Gripper::Body(b) = g.gripper {
                 let pose = pose_of(b);
@@ -132,7 +134,7 @@ impl Grasps {
     }
 
     /// The body grasps: `(body, particles)`.
-    pub(crate) fn on_bodies(&self) -> impl Iterator<Item = (usize, &[usize])> {
+    pub(crate) fn on_bodies(&self) -> impl Iterator<Item = (RigidBodyHandle, &[usize])> {
         self.slots.iter().flatten().filter_map(|g| match g.gripper {
             Gripper::Body(b) => Some((b, g.particles.as_slice())),
             Gripper::Point => None,

@@ -6,6 +6,8 @@
 use crate::grasp::{Grasps, Gripper};
 use crate::{ControlError, control_error, grasp_error, override_args, rows, scene_error, triangles};
 use cloth_core::{BodyPose, Vec3};
+use cloth_rapier::convert::{pose_from_rapier, vec_from_rapier};
+use cloth_rapier::rapier3d_f64::prelude::RigidBodyHandle;
 use cloth_rapier::rig::JointValue;
 use cloth_rapier::{CoupledRun, CoupledScene};
 use nalgebra::UnitQuaternion;
@@ -48,31 +50,75 @@ impl World {
         self.run.cloths[self.run.cloth].simulation()
     }
 
-    /// Each body's pose at the end of the next step, as far as it is known
-    /// now: a kinematic body's target; a dynamic one moved on over the step
-    /// by its velocity and by gravity and the forces set for the step as
-    /// rapier's substeps integrate them ([`cloth_rapier::gravity_share`]),
-    /// without the step's contacts.
-    fn predicted_pose(run: &CoupledRun, body: usize) -> BodyPose {
+    /// The rapier body a grasp can be on: `[[bodies]]` by name, then rig
+    /// links by name.
+    fn gripper_body(&self, name: &str) -> PyResult<RigidBodyHandle> {
+        if let Some(b) = self.run.bodies.iter().find(|b| b.name == name) {
+            return Ok(b.handle);
+        }
+        self.run.rig.as_ref().and_then(|r| r.body(name)).ok_or_else(|| {
+            let mut names: Vec<String> = self.run.bodies.iter().map(|b| b.name.clone()).collect();
+            names.extend(self.link_names());
+            ControlError::new_err(format!("no body or rig link named {name:?}; the scene has {names:?}"))
+        })
+    }
+
+    /// A body's pose at the end of the next step, as far as it is known
+    /// before the step: a kinematic body's (and rig link's) next pose,
+    /// which [`CoupledRun::pose_kinematics`] set; a dynamic one moved on
+    /// over the step by its velocity and by gravity and the forces set for
+    /// the step as rapier's substeps integrate them
+    /// ([`cloth_rapier::gravity_share`]), without the step's contacts.
+    fn predicted_pose(run: &CoupledRun, body: RigidBodyHandle) -> BodyPose {
+        let rb = &run.world.bodies[body];
+        if !rb.is_dynamic() {
+            return pose_from_rapier(rb.next_position());
+        }
         let h = run.config.dt_s;
-        let (pose, v, w) = run.body_state(body).unwrap_or((
-            BodyPose { position: Vec3::zeros(), rotation: UnitQuaternion::identity() },
-            Vec3::zeros(),
-            Vec3::zeros(),
-        ));
-        let rb = &run.world.bodies[run.bodies[body].handle];
-        let com = cloth_rapier::convert::vec_from_rapier(rb.center_of_mass());
-        let gravity = cloth_rapier::convert::vec_from_rapier(run.world.gravity) * rb.gravity_scale();
-        let force = cloth_rapier::convert::vec_from_rapier(rb.user_force());
-        let pushed = if rb.mass() > 0.0 { gravity + force / rb.mass() } else { Vec3::zeros() };
+        let pose = pose_from_rapier(rb.position());
+        let (v, w) = (vec_from_rapier(rb.linvel()), vec_from_rapier(rb.angvel()));
+        let com = vec_from_rapier(rb.center_of_mass());
+        let gravity = vec_from_rapier(run.world.gravity) * rb.gravity_scale();
+        let force = vec_from_rapier(rb.user_force());
+        let pushed = if rb.mass() > 0.0 { gravity + force / rb.mass() } else { gravity };
         let v = v + pushed * (h * cloth_rapier::gravity_share(&run.world, rb));
         let turn = UnitQuaternion::from_scaled_axis(w * h);
         // The frame origin turns about the centre of mass as it moves.
-        let position = com + v * h + turn * (pose.position - com);
-        match rb.next_position() {
-            next if rb.is_kinematic() => cloth_rapier::convert::pose_from_rapier(next),
-            _ => BodyPose { position, rotation: turn * pose.rotation },
+        BodyPose { position: com + v * h + turn * (pose.position - com), rotation: turn * pose.rotation }
+    }
+
+    /// One step: kinematic poses set, body grasps placed where their
+    /// bodies will be, the step, then each grasp's pull put on its body
+    /// for the next step (if dynamic: kinematic and fixed bodies and rig
+    /// links are not pushed).
+    fn step_once(run: &mut CoupledRun, grasps: &Grasps) -> Result<(), String> {
+        run.pose_kinematics().map_err(|e| e.to_string())?;
+        let handle = run.cloth;
+        let targets: Vec<(RigidBodyHandle, BodyPose)> =
+            grasps.on_bodies().map(|(b, _)| (b, Self::predicted_pose(run, b))).collect();
+        if let Some(cloth) = run.cloths.get_mut(handle) {
+            let pose_of = |b| targets.iter().find(|(h, _)| *h == b).map(|(_, p)| *p);
+            grasps.follow_bodies(cloth.simulation_mut(), |b| pose_of(b).expect("every grasped body predicted"));
         }
+        run.step().map_err(|e| e.to_string())?;
+        let sim = run.cloths[handle].simulation();
+        let mut pulls = Vec::new();
+        for (b, particles) in grasps.on_bodies() {
+            let Some(k) = run.bodies.iter().position(|s| s.handle == b) else { continue };
+            let com = vec_from_rapier(run.world.bodies[b].center_of_mass());
+            let (mut force, mut torque) = (Vec3::zeros(), Vec3::zeros());
+            for &i in particles {
+                let f = sim.hold_reaction(i).unwrap_or_default();
+                force += f;
+                torque += (sim.state().x[i] - com).cross(&f);
+            }
+            pulls.push((k, force, torque));
+        }
+        for (k, force, torque) in pulls {
+            // Refused for kinematic and fixed bodies: nothing there moves.
+            let _ = run.apply_force(k, force, torque);
+        }
+        Ok(())
     }
 }
 
@@ -105,33 +151,8 @@ impl World {
         let failed = py.detach(|| {
             pool.install(|| {
                 for k in 0..n {
-                    let handle = run.cloth;
-                    let poses: Vec<BodyPose> = (0..run.bodies.len()).map(|b| World::predicted_pose(run, b)).collect();
-                    if let Some(cloth) = run.cloths.get_mut(handle) {
-                        grasps.follow_bodies(cloth.simulation_mut(), |b| poses[b]);
-                    }
-                    if let Err(e) = run.step() {
-                        return Some((k, run.cloths[handle].simulation().time(), e.to_string()));
-                    }
-                    // The grasps' pull on their bodies, for the next step.
-                    let sim = run.cloths[handle].simulation();
-                    let pulls: Vec<(usize, Vec3, Vec3)> = grasps
-                        .on_bodies()
-                        .map(|(b, particles)| {
-                            let com = run.world.bodies[run.bodies[b].handle].center_of_mass();
-                            let com = cloth_rapier::convert::vec_from_rapier(com);
-                            let mut total = (Vec3::zeros(), Vec3::zeros());
-                            for &i in particles {
-                                let f = sim.hold_reaction(i).unwrap_or_default();
-                                total.0 += f;
-                                total.1 += (sim.state().x[i] - com).cross(&f);
-                            }
-                            (b, total.0, total.1)
-                        })
-                        .collect();
-                    for (b, force, torque) in pulls {
-                        // A grasp on a kinematic or fixed body pulls on nothing that moves.
-                        let _ = run.apply_force(b, force, torque);
+                    if let Err(e) = World::step_once(run, grasps) {
+                        return Some((k, run.cloths[run.cloth].simulation().time(), e));
                     }
                 }
                 None
@@ -206,7 +227,7 @@ impl World {
         let handle = rig.body(name).ok_or_else(|| {
             ControlError::new_err(format!("the rig has no link {name:?}; its links: {:?}", self.link_names()))
         })?;
-        Ok(pose_arrays(py, cloth_rapier::convert::pose_from_rapier(self.run.world.bodies[handle].position())))
+        Ok(pose_arrays(py, pose_from_rapier(self.run.world.bodies[handle].position())))
     }
 
     /// Body `name`'s mass, kg.
@@ -317,8 +338,8 @@ impl World {
         let gripper = match body {
             None => (Gripper::Point, BodyPose { position: p, rotation: UnitQuaternion::identity() }),
             Some(name) => {
-                let k = self.body_index(name)?;
-                (Gripper::Body(k), self.run.body_state(k).map_err(control_error)?.0)
+                let b = self.gripper_body(name)?;
+                (Gripper::Body(b), pose_from_rapier(self.run.world.bodies[b].position()))
             }
         };
         let handle = self.run.cloth;

@@ -584,9 +584,12 @@ impl CoupledRun {
         self.step_with(&master)
     }
 
-    /// Steps cloth and bodies once with `master`: kinematic bodies and the
-    /// rig's links are sent to their poses at the end of the step first.
-    pub fn step_with(&mut self, master: &Master) -> Result<CouplingReport, CouplingError> {
+    /// Sends the kinematic bodies and the rig's links to their poses at the
+    /// end of the next step (rapier's next kinematic positions), from their
+    /// scripted motions or the targets and joint values set from outside.
+    /// [`CoupledRun::step_with`] does this first; calling it before, to
+    /// read where they will be, changes nothing.
+    pub fn pose_kinematics(&mut self) -> Result<(), crate::RigError> {
         let h = self.config.dt_s;
         let t_end = self.cloths[self.cloth].simulation().time() + h;
         for b in self.bodies.iter().filter(|b| b.spec.kind == BodyKind::Kinematic) {
@@ -601,6 +604,14 @@ impl CoupledRun {
         if let Some(rig) = &mut self.rig {
             rig.drive(&mut self.world, t_end)?;
         }
+        Ok(())
+    }
+
+    /// Steps cloth and bodies once with `master`: kinematic bodies and the
+    /// rig's links are sent to their poses at the end of the step first
+    /// ([`CoupledRun::pose_kinematics`]).
+    pub fn step_with(&mut self, master: &Master) -> Result<CouplingReport, CouplingError> {
+        self.pose_kinematics()?;
         let report = self.cloths.step(&mut self.world, master);
         // Forces and torques set from outside last one step.
         for b in &self.bodies {
