@@ -141,7 +141,7 @@ impl Scene {
     fn simulation(&self, py: Python<'_>, threads: Option<usize>) -> PyResult<Simulation> {
         let (model, cfg) = self.scene.build().map_err(|e| scene_error(py, &self.file, &e))?;
         let pool = threads::pool(threads)?;
-        Ok(Simulation { sim: cfg.simulation(model), dt_s: cfg.dt_s, grasps: Grasps::default(), pool })
+        Ok(Simulation { sim: cfg.simulation(model), dt_s: cfg.dt_s, grasps: Grasps::default(), pool, last: None })
     }
 }
 
@@ -263,7 +263,13 @@ impl Builder {
         }
         solver.validate().map_err(|e| ModelError::new_err(e.within("solver").to_string()))?;
         let pool = threads::pool(threads)?;
-        Ok(Simulation { sim: CoreSimulation::new(model, kind, solver), dt_s, grasps: Grasps::default(), pool })
+        Ok(Simulation {
+            sim: CoreSimulation::new(model, kind, solver),
+            dt_s,
+            grasps: Grasps::default(),
+            pool,
+            last: None,
+        })
     }
 }
 
@@ -289,6 +295,8 @@ struct Simulation {
     dt_s: f64,
     grasps: Grasps,
     pool: std::sync::Arc<rayon::ThreadPool>,
+    /// The last step's report (`None` before the first).
+    last: Option<cloth_core::StepReport>,
 }
 
 /// `rows` 3-vectors as an `(n, 3)` NumPy array.
@@ -315,6 +323,36 @@ pub(crate) fn steps_taken(py: Python<'_>, n: usize, failed: Option<(usize, f64, 
     Err(err)
 }
 
+/// What a step reported, as a dict: `cg_iterations`, `converged`,
+/// `rel_residual`, `contacts` (cloth-solid, held this step),
+/// `self_contacts`, `self_crossings` (crossings the continuous test
+/// separated), `retaken` (the energy guard took it again) and `stages_s`
+/// (wall time per stage, s).
+pub(crate) fn report_dict<'py>(py: Python<'py>, r: &cloth_core::StepReport) -> PyResult<Bound<'py, PyDict>> {
+    let out = PyDict::new(py);
+    out.set_item("cg_iterations", r.cg_iterations)?;
+    out.set_item("converged", r.converged)?;
+    out.set_item("rel_residual", r.rel_residual)?;
+    out.set_item("contacts", r.contacts.contacts)?;
+    out.set_item("self_contacts", r.contacts.self_contacts)?;
+    out.set_item("self_crossings", r.contacts.self_crossings)?;
+    out.set_item("retaken", r.retaken_as_backward_euler || r.retaken_with_newton)?;
+    let stages = PyDict::new(py);
+    let t = &r.stages;
+    for (name, s) in [
+        ("forces", t.forces_s),
+        ("assembly", t.assembly_s),
+        ("solve", t.solve_s),
+        ("update", t.update_s),
+        ("collision", t.collision_s),
+        ("self_collision", t.self_collision_s),
+    ] {
+        stages.set_item(name, s)?;
+    }
+    out.set_item("stages_s", stages)?;
+    Ok(out)
+}
+
 pub(crate) fn grasp_error(e: grasp::GraspError) -> PyErr {
     ControlError::new_err(e.to_string())
 }
@@ -334,12 +372,13 @@ impl Simulation {
         if !(h.is_finite() && h > 0.0) {
             return Err(PyValueError::new_err(format!("dt_s = {h}: must be finite and > 0")));
         }
-        let (sim, pool) = (&mut self.sim, &self.pool);
+        let (sim, pool, last) = (&mut self.sim, &self.pool, &mut self.last);
         let failed = py.detach(|| {
             pool.install(|| {
                 for k in 0..n {
-                    if let Err(e) = sim.step(h) {
-                        return Some((k, sim.time(), e.to_string()));
+                    match sim.step(h) {
+                        Ok(report) => *last = Some(report),
+                        Err(e) => return Some((k, sim.time(), e.to_string())),
                     }
                 }
                 None
@@ -469,6 +508,12 @@ impl Simulation {
     #[getter]
     fn triangles<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<i64>> {
         triangles(py, self.sim.model())
+    }
+
+    /// What the last step reported (CG iterations, contacts, stage wall
+    /// times; see the guide), or `None` before the first step.
+    fn last_step<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        self.last.as_ref().map(|r| report_dict(py, r)).transpose()
     }
 
     /// Grasps the free particles within `radius_m` (m) of `point` (m) with

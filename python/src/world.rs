@@ -23,6 +23,8 @@ pub(crate) struct World {
     run: CoupledRun,
     grasps: Grasps,
     pool: std::sync::Arc<rayon::ThreadPool>,
+    /// The cloth's report of the last step (`None` before the first).
+    last: Option<cloth_core::StepReport>,
 }
 
 fn array3(py: Python<'_>, v: Vec3) -> Bound<'_, PyArray1<f64>> {
@@ -91,7 +93,7 @@ impl World {
     /// bodies will be, the step, then each grasp's pull put on its body
     /// for the next step (if dynamic: kinematic and fixed bodies and rig
     /// links are not pushed).
-    fn step_once(run: &mut CoupledRun, grasps: &Grasps) -> Result<(), String> {
+    fn step_once(run: &mut CoupledRun, grasps: &Grasps) -> Result<Option<cloth_core::StepReport>, String> {
         run.pose_kinematics().map_err(|e| e.to_string())?;
         let handle = run.cloth;
         let targets: Vec<(RigidBodyHandle, BodyPose)> =
@@ -100,7 +102,7 @@ impl World {
             let pose_of = |b| targets.iter().find(|(h, _)| *h == b).map(|(_, p)| *p);
             grasps.follow_bodies(cloth.simulation_mut(), |b| pose_of(b).expect("every grasped body predicted"));
         }
-        run.step().map_err(|e| e.to_string())?;
+        let report = run.step().map_err(|e| e.to_string())?.cloths.into_iter().next();
         let sim = run.cloths[handle].simulation();
         let mut pulls = Vec::new();
         for (b, particles) in grasps.on_bodies() {
@@ -118,7 +120,7 @@ impl World {
             // Refused for kinematic and fixed bodies: nothing there moves.
             let _ = run.apply_force(k, force, torque);
         }
-        Ok(())
+        Ok(report)
     }
 }
 
@@ -139,7 +141,7 @@ impl World {
         let sets = override_args(overrides)?;
         let scene = CoupledScene::load(&path, &sets).map_err(|e| scene_error(py, &e.file, &e.kind))?;
         let run = scene.build().map_err(|kind| scene_error(py, &path, &kind))?;
-        Ok(Self { run, grasps: Grasps::default(), pool: crate::threads::pool(threads)? })
+        Ok(Self { run, grasps: Grasps::default(), pool: crate::threads::pool(threads)?, last: None })
     }
 
     /// Takes `n` steps of the scene's `dt_s`, with the GIL released. Body
@@ -147,12 +149,13 @@ impl World {
     /// late. A step that fails raises `StepError` with `.time_s`.
     #[pyo3(signature = (n = 1))]
     fn step(&mut self, py: Python<'_>, n: usize) -> PyResult<()> {
-        let (run, grasps, pool) = (&mut self.run, &self.grasps, &self.pool);
+        let (run, grasps, pool, last) = (&mut self.run, &self.grasps, &self.pool, &mut self.last);
         let failed = py.detach(|| {
             pool.install(|| {
                 for k in 0..n {
-                    if let Err(e) = World::step_once(run, grasps) {
-                        return Some((k, run.cloths[run.cloth].simulation().time(), e));
+                    match World::step_once(run, grasps) {
+                        Ok(report) => *last = report,
+                        Err(e) => return Some((k, run.cloths[run.cloth].simulation().time(), e)),
                     }
                 }
                 None
@@ -201,6 +204,12 @@ impl World {
     #[getter]
     fn triangles<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<i64>> {
         triangles(py, self.sim().model())
+    }
+
+    /// What the cloth's last step reported (as `Simulation.last_step`),
+    /// or `None` before the first step.
+    fn last_step<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        self.last.as_ref().map(|r| crate::report_dict(py, r)).transpose()
     }
 
     /// The longest link over its rest length.

@@ -129,3 +129,43 @@ def test_the_readme_example_runs():
         os.chdir(here)
     assert names["x"].shape == (441, 3) and names["pull"].shape == (2, 3)
     assert names["pull"][:, 2].sum() < 0  # the cloth pulls the pins down
+
+
+def test_the_last_step_reports_its_solve_and_contacts():
+    # A hanging cloth: no report before a step, then a converged solve in
+    # some CG iterations and no contacts; the Fold task's cloth lying on
+    # its floor: every particle held (stuck by friction, so the solve
+    # has nothing left to iterate on).
+    import gymnasium as gym
+
+    import cloth.envs  # noqa: F401
+
+    sim = cloth.Scene.from_toml(HANG, SMALL).simulation(threads=1)
+    assert sim.last_step() is None
+    sim.step(10)
+    report = sim.last_step()
+    assert report["converged"] and report["cg_iterations"] > 0 and report["contacts"] == 0
+    assert not report["retaken"] and report["rel_residual"] < 1e-3
+    assert set(report["stages_s"]) == {"forces", "assembly", "solve", "update", "collision", "self_collision"}
+    assert all(0.0 <= t < 10.0 for t in report["stages_s"].values())
+    lying = gym.make("cloth/Fold-v0").unwrapped._scene.simulation(threads=1)
+    lying.step(10)
+    assert lying.last_step()["contacts"] == lying.particle_count
+
+
+def test_any_thread_count_gives_the_same_bits():
+    # The Fold task's cloth grasped by a corner and dragged: self-collision,
+    # floor contacts with friction and a hold, on one thread and on two.
+    import gymnasium as gym
+
+    import cloth.envs  # noqa: F401
+
+    def run(threads):
+        sim = gym.make("cloth/Fold-v0").unwrapped._scene.simulation(threads=threads)
+        grasp = sim.grasp(list(sim.positions[0]), 0.02)
+        for k in range(30):
+            sim.move_grasp(grasp, [-0.2 + 0.01 * k, -0.2, 0.005 + 0.004 * k])
+            sim.step()
+        return sim.positions.tobytes()
+
+    assert run(1) == run(2)
