@@ -112,3 +112,12 @@ def test_the_dropped_cloth_starts_held_and_falls_when_let_go():
     assert all(g is None for g in task.grasps)
     # In a heap on the floor after 2 s (measured 6.5 cm at the highest).
     assert task.sim.positions[:, 2].max() < 0.1
+
+
+@pytest.mark.parametrize(
+    "argument, value",
+    [("pickers", 3), ("observation", "pixels"), ("particles", 2), ("substeps", 0), ("dt_s", 0.0), ("max_move_m", float("nan"))],
+)
+def test_a_task_refuses_arguments_it_cannot_run_and_names_them(argument, value):
+    with pytest.raises(ValueError, match=argument):
+        gym.make("cloth/Fold-v0", **{argument: value})

@@ -101,6 +101,16 @@ class ClothTaskEnv(gym.Env):
             raise ValueError(f"render_mode = {render_mode!r}: None or 'rgb_array'")
         if particles < 3:
             raise ValueError(f"particles = {particles}: at least 3 a side")
+        if substeps < 1:
+            raise ValueError(f"substeps = {substeps}: at least 1")
+        for name, value in (
+            ("side_m", side_m),
+            ("dt_s", dt_s),
+            ("max_move_m", max_move_m),
+            ("picker_radius_m", picker_radius_m),
+        ):
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"{name} = {value}: must be finite and > 0")
         self.n, self.side_m, self.pickers = particles, side_m, pickers
         self.observation, self.render_mode = observation, render_mode
         self.dt_s, self.substeps, self.max_move_m = dt_s, substeps, max_move_m
