@@ -7,6 +7,7 @@
 
 use cloth_core::{BodyPose, Simulation, Vec3};
 use cloth_rapier::rapier3d_f64::prelude::RigidBodyHandle;
+use nalgebra::UnitQuaternion;
 
 /// Why a grasp was refused.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -48,6 +49,29 @@ pub(crate) struct Grasp {
     pub(crate) gripper: Gripper,
 }
 
+impl Grasp {
+    /// Holds the particles at their offsets from the gripper at `pose`, by
+    /// the end of the next step. The particles are free and the pose
+    /// finite (checked when grasped and moved): `hold` cannot refuse.
+    fn place(&self, sim: &mut Simulation, pose: &BodyPose) {
+        for (&i, &offset) in self.particles.iter().zip(&self.offsets) {
+            let _ = sim.hold(i, pose.position + pose.rotation * offset);
+        }
+    }
+
+    /// The mean force the cloth exerted on the gripper over the last step,
+    /// N, and its torque about `about` (m), N m.
+    pub(crate) fn pull(&self, sim: &Simulation, about: Vec3) -> (Vec3, Vec3) {
+        let mut total = (Vec3::zeros(), Vec3::zeros());
+        for &i in &self.particles {
+            let f = sim.hold_reaction(i).unwrap_or_default();
+            total.0 += f;
+            total.1 += (sim.state().x[i] - about).cross(&f);
+        }
+        total
+    }
+}
+
 /// The grasps of one simulation, by id (ids are not reused).
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Grasps {
@@ -77,11 +101,9 @@ impl Grasps {
         }
         let inverse = pose.rotation.inverse();
         let offsets: Vec<Vec3> = particles.iter().map(|&i| inverse * (x[i] - pose.position)).collect();
-        for (&i, &offset) in particles.iter().zip(&offsets) {
-            // Free, finite and in range: checked above.
-            let _ = sim.hold(i, pose.position + pose.rotation * offset);
-        }
-        self.slots.push(Some(Grasp { particles, offsets, gripper }));
+        let grasp = Grasp { particles, offsets, gripper };
+        grasp.place(sim, &pose);
+        self.slots.push(Some(grasp));
         Ok(self.slots.len() - 1)
     }
 
@@ -98,9 +120,7 @@ impl Grasps {
         if matches!(g.gripper, Gripper::Body(_)) {
             return Err(GraspError::OnBody { id });
         }
-        for (&i, &offset) in g.particles.iter().zip(&g.offsets) {
-            let _ = sim.hold(i, point + offset);
-        }
+        g.place(sim, &BodyPose { position: point, rotation: UnitQuaternion::identity() });
         Ok(())
     }
 
@@ -109,19 +129,15 @@ impl Grasps {
     pub(crate) fn follow_bodies(&self, sim: &mut Simulation, pose_of: impl Fn(RigidBodyHandle) -> BodyPose) {
         for g in self.slots.iter().flatten() {
             if let Gripper::Body(b) = g.gripper {
-                let pose = pose_of(b);
-                for (&i, &offset) in g.particles.iter().zip(&g.offsets) {
-                    let _ = sim.hold(i, pose.position + pose.rotation * offset);
-                }
+                g.place(sim, &pose_of(b));
             }
         }
     }
 
     /// The mean force the cloth exerted on grasp `id`'s gripper over the
-    /// last step, N, and the held particles' positions (for torques).
+    /// last step, N.
     pub(crate) fn force(&self, sim: &Simulation, id: usize) -> Result<Vec3, GraspError> {
-        let g = self.get(id)?;
-        Ok(g.particles.iter().filter_map(|&i| sim.hold_reaction(i)).sum())
+        Ok(self.get(id)?.pull(sim, Vec3::zeros()).0)
     }
 
     /// Lets grasp `id`'s particles go (they keep their velocities).
@@ -133,10 +149,10 @@ impl Grasps {
         Ok(())
     }
 
-    /// The body grasps: `(body, particles)`.
-    pub(crate) fn on_bodies(&self) -> impl Iterator<Item = (RigidBodyHandle, &[usize])> {
+    /// The body grasps, with their bodies.
+    pub(crate) fn on_bodies(&self) -> impl Iterator<Item = (RigidBodyHandle, &Grasp)> {
         self.slots.iter().flatten().filter_map(|g| match g.gripper {
-            Gripper::Body(b) => Some((b, g.particles.as_slice())),
+            Gripper::Body(b) => Some((b, g)),
             Gripper::Point => None,
         })
     }

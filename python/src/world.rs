@@ -105,15 +105,9 @@ impl World {
         let report = run.step().map_err(|e| e.to_string())?.cloths.into_iter().next();
         let sim = run.cloths[handle].simulation();
         let mut pulls = Vec::new();
-        for (b, particles) in grasps.on_bodies() {
+        for (b, grasp) in grasps.on_bodies() {
             let Some(k) = run.bodies.iter().position(|s| s.handle == b) else { continue };
-            let com = vec_from_rapier(run.world.bodies[b].center_of_mass());
-            let (mut force, mut torque) = (Vec3::zeros(), Vec3::zeros());
-            for &i in particles {
-                let f = sim.hold_reaction(i).unwrap_or_default();
-                force += f;
-                torque += (sim.state().x[i] - com).cross(&f);
-            }
+            let (force, torque) = grasp.pull(sim, vec_from_rapier(run.world.bodies[b].center_of_mass()));
             pulls.push((k, force, torque));
         }
         for (k, force, torque) in pulls {

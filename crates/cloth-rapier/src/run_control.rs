@@ -5,7 +5,7 @@
 
 use crate::convert::{pose_from_rapier, vec_from_rapier, vec_to_rapier};
 use crate::rig::{JointKind, JointValue};
-use crate::scene::{BodyKind, CoupledRun};
+use crate::scene::{BodyKind, CoupledRun, SceneBody};
 use cloth_core::{BodyPose, Vec3};
 
 /// Why an input to a [`CoupledRun`] was refused.
@@ -93,8 +93,12 @@ fn joint_kind_name(kind: &JointKind) -> &'static str {
 }
 
 impl CoupledRun {
+    fn scene_body(&self, index: usize) -> Result<&SceneBody, RunControlError> {
+        self.bodies.get(index).ok_or(RunControlError::NoSuchBody { index, count: self.bodies.len() })
+    }
+
     fn body_checked(&self, index: usize, kind: BodyKind, needs: &'static str) -> Result<usize, RunControlError> {
-        let b = self.bodies.get(index).ok_or(RunControlError::NoSuchBody { index, count: self.bodies.len() })?;
+        let b = self.scene_body(index)?;
         if b.spec.kind != kind {
             return Err(RunControlError::WrongBodyKind { name: b.name.clone(), kind: kind_name(b.spec.kind), needs });
         }
@@ -129,7 +133,7 @@ impl CoupledRun {
     /// Body `index`'s pose now (its frame origin, m, and rotation), and its
     /// linear (m/s, of the centre of mass) and angular (rad/s) velocity.
     pub fn body_state(&self, index: usize) -> Result<(BodyPose, Vec3, Vec3), RunControlError> {
-        let b = self.bodies.get(index).ok_or(RunControlError::NoSuchBody { index, count: self.bodies.len() })?;
+        let b = self.scene_body(index)?;
         let rb = &self.world.bodies[b.handle];
         Ok((pose_from_rapier(rb.position()), vec_from_rapier(rb.linvel()), vec_from_rapier(rb.angvel())))
     }
@@ -137,7 +141,7 @@ impl CoupledRun {
     /// What the cloth did to body `index` over the last step (zero before
     /// the first): its contacts' and attached pins' mean force and torque.
     pub fn cloth_load(&self, index: usize) -> Result<ClothLoad, RunControlError> {
-        let b = self.bodies.get(index).ok_or(RunControlError::NoSuchBody { index, count: self.bodies.len() })?;
+        let b = self.scene_body(index)?;
         let rb = &self.world.bodies[b.handle];
         let com = vec_from_rapier(rb.center_of_mass());
         let cloth = &self.cloths[self.cloth];

@@ -52,7 +52,7 @@ pub(crate) fn add_penetrating(
         bufs.candidate.par_iter_mut().zip(bufs.clearance.par_iter_mut()).zip(bufs.has_candidate.par_iter_mut());
     candidates.enumerate().for_each(|(i, ((cand, clearance), has))| {
         *has = false;
-        if model.is_pinned(i) || held.binary_search(&i).is_ok() {
+        if prescribed(model, held, i) {
             return;
         }
         // The one solid this particle already touches, if exactly one, or

@@ -167,7 +167,7 @@ pub(crate) fn detect_solid_contacts(
     per_particle.enumerate().for_each(|(i, ((cand, probe), (clearance, has)))| {
         *probe = (0.0, 0);
         *has = false;
-        if held.binary_search(&i).is_ok() || model.is_pinned(i) {
+        if prescribed(model, held, i) {
             return;
         }
         let predicted = x[i] + (v[i] * 2.0 - v_prev[i]) * h;
@@ -395,6 +395,13 @@ pub(crate) fn side_of(
     // How far `from` must move along each normal to reach each surface.
     let way_out = |s: &SurfacePoint| s.normal.dot(&(s.point - from));
     if swept.distance_m > 0.0 && way_out(&swept) < way_out(&fallback) { swept } else { fallback }
+}
+
+/// Whether particle `i` moves as prescribed this step, pinned by the
+/// model or held by hand (`held`, sorted: `Contacts::held`): solid
+/// contacts leave it to its path.
+pub(crate) fn prescribed(model: &ClothModel, held: &[usize], i: usize) -> bool {
+    model.is_pinned(i) || (!held.is_empty() && held.binary_search(&i).is_ok())
 }
 
 /// The entries of `contacts` (sorted by particle) that belong to one

@@ -51,7 +51,7 @@ pub(crate) fn project_out(
     };
     if all {
         let held = &bufs.held;
-        for i in (0..x.len()).filter(|&i| !model.is_pinned(i) && held.binary_search(&i).is_err()) {
+        for i in (0..x.len()).filter(|&i| !prescribed(model, held, i)) {
             moved += usize::from(fix(i));
         }
     } else {
@@ -100,7 +100,7 @@ pub(crate) fn collide_after_step(
         .map(|(i, ((xi, vi), cand))| {
             let mut stats = ContactStats::default();
             *cand = [None; 2];
-            if model.is_pinned(i) || held.binary_search(&i).is_ok() {
+            if prescribed(model, held, i) {
                 return stats;
             }
             let mut slot = 0;
