@@ -95,7 +95,7 @@ pub(crate) fn add_penetrating(
                 e.collider as usize != k && (-OPPOSED_COS..=PARALLEL_COS).contains(&e.normal.dot(&surface.normal))
             });
             if distinct {
-                let travel = travel_to_layer(x[i], &surface, (next, h), thickness, thickness);
+                let travel = travel_to_layer(x[i], (c, &surface), (next, h), thickness, thickness);
                 let found = contact(i, k, c, &surface, s.distance_m, travel, next);
                 nearest.get_or_insert_with(Nearest::new).offer(s.distance_m, found);
             }
@@ -161,16 +161,19 @@ pub(crate) fn normal_travel(d: f64, advance: f64, thickness: f64, reach: f64) ->
     target - d
 }
 
-/// [`normal_travel`] of particle `x` to the contact at `surface` of a
-/// solid posed as `next` at the end of a step of `h` s.
+/// [`normal_travel`] of particle `x` to the contact at `surface` of solid
+/// `c`, posed as `next` at the end of a step of `h` s. Only a solid that
+/// gives way to the cloth (a dynamic body's) is followed as it moves: a
+/// prescribed one takes no energy from a particle held still, and the
+/// garments on rigs keep the distance to where it ends.
 pub(crate) fn travel_to_layer(
     x: Vec3,
-    surface: &SurfacePoint,
+    (c, surface): (&crate::Collider, &SurfacePoint),
     (next, h): (&SolidPose, f64),
     thickness: f64,
     reach: f64,
 ) -> f64 {
-    let advance = h * surface.normal.dot(&next.velocity_at(surface.point));
+    let advance = if c.yielding { h * surface.normal.dot(&next.velocity_at(surface.point)) } else { 0.0 };
     normal_travel(surface.normal.dot(&(x - surface.point)), advance, thickness, reach)
 }
 
