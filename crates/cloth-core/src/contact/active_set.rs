@@ -5,7 +5,6 @@
 
 use super::contacts::*;
 use crate::{ClothModel, Vec3};
-use cloth_collide::SurfacePoint;
 use cloth_linalg::{BlockSparseMatrix, Constraint, ConstraintFilter};
 use rayon::prelude::*;
 
@@ -95,7 +94,7 @@ pub(crate) fn add_penetrating(
                 e.collider as usize != k && (-OPPOSED_COS..=PARALLEL_COS).contains(&e.normal.dot(&surface.normal))
             });
             if distinct {
-                let travel = travel_to_layer(x[i], (c, &surface), (next, h), thickness, thickness);
+                let travel = normal_travel(surface.normal.dot(&(x[i] - surface.point)), thickness, thickness);
                 let found = contact(i, k, c, &surface, s.distance_m, travel, next);
                 nearest.get_or_insert_with(Nearest::new).offer(s.distance_m, found);
             }
@@ -140,41 +139,17 @@ pub(crate) fn add_penetrating(
     added
 }
 
-/// The normal displacement over the step of a contact particle at
-/// distance `d` (m) from the solid's surface at `t + h`, the surface
-/// having advanced `advance` (m) along its normal over the step, so that
-/// the particle started `d + advance` from it. Measured at the start,
-/// particles closer than the thickness go to it, particles beyond `reach`
-/// land on it, and particles within `(thickness, reach]` keep their
-/// distance from the moving surface. Pulling those down to the thickness
-/// would take an attractive force, so they would be released and
-/// re-solved every step; holding them lets the cloth hover by at most the
-/// margin (0.25 mm for a 5 mm thickness).
-///
-/// Distances are taken at the start, against the surface as it moves: a
-/// particle held still while a body it carried rose away from it went on
-/// pushing the body, which gained energy no link gave up (a box resting on
-/// a trampoline held a 3 mm/s limit cycle this way).
-pub(crate) fn normal_travel(d: f64, advance: f64, thickness: f64, reach: f64) -> f64 {
-    let start = d + advance;
-    let target = if start > reach { thickness } else { start.max(thickness) };
+/// The normal displacement over the step of a contact particle now at
+/// distance `d` (m) from the solid's surface at `t + h`: particles closer
+/// than the thickness go to it, particles arriving from beyond `reach`
+/// land on it, and particles already within `(thickness, reach]` keep
+/// their distance. Pulling those down to the thickness would take an
+/// attractive force, so they would be released and re-solved every step;
+/// holding them lets the cloth hover by at most the margin (0.25 mm for
+/// a 5 mm thickness).
+pub(crate) fn normal_travel(d: f64, thickness: f64, reach: f64) -> f64 {
+    let target = if d > reach { thickness } else { d.max(thickness) };
     target - d
-}
-
-/// [`normal_travel`] of particle `x` to the contact at `surface` of solid
-/// `c`, posed as `next` at the end of a step of `h` s. Only a solid that
-/// gives way to the cloth (a dynamic body's) is followed as it moves: a
-/// prescribed one takes no energy from a particle held still, and the
-/// garments on rigs keep the distance to where it ends.
-pub(crate) fn travel_to_layer(
-    x: Vec3,
-    (c, surface): (&crate::Collider, &SurfacePoint),
-    (next, h): (&SolidPose, f64),
-    thickness: f64,
-    reach: f64,
-) -> f64 {
-    let advance = if c.yielding { h * surface.normal.dot(&next.velocity_at(surface.point)) } else { 0.0 };
-    normal_travel(surface.normal.dot(&(x - surface.point)), advance, thickness, reach)
 }
 
 /// Solves `[1 c; c 1] (a, b) = (p, q)` with `c = n . m`: the coefficients

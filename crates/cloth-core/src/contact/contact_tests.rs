@@ -678,31 +678,3 @@ fn a_partly_crossing_sheet_ends_untangled_and_far_particles_keep_their_step() {
     assert_eq!((after, left), (0, 0));
     assert!(kept >= 85, "only {kept} particles kept their step");
 }
-
-/// The layer's target moves with the solid: a particle hovering in the
-/// margin keeps its distance from a surface that rises away from it or
-/// comes at it (the constraint then carries it along, and a pulling one
-/// is released), a particle inside the layer goes to it, and one that
-/// started beyond reach lands on it; every end distance `d + travel` says
-/// so.
-#[test]
-fn the_layer_target_keeps_the_distance_from_the_moving_surface() {
-    let (thickness, reach) = (0.005, 0.00525);
-    let end = |d: f64, advance: f64| d + normal_travel(d, advance, thickness, reach);
-    // Hovering 0.1 mm over the layer at the start; the surface recedes
-    // 0.05 mm (the particle is 0.05 mm farther from where it ends).
-    let start = 0.0051;
-    assert!((end(start + 5e-5, -5e-5) - start).abs() < 1e-15);
-    // ... or advances 0.05 mm towards it.
-    assert!((end(start - 5e-5, 5e-5) - start).abs() < 1e-15);
-    // Still: the distance is kept, no push.
-    assert_eq!(normal_travel(start, 0.0, thickness, reach), 0.0);
-    // Inside the layer at the start: out to the thickness, also when the
-    // surface recedes from it.
-    assert!((end(0.004, 0.0) - thickness).abs() < 1e-15);
-    assert!((end(0.0045, -5e-4) - thickness).abs() < 1e-15);
-    // Beyond reach at the start, though the surface came within it: lands.
-    assert!((end(0.0052, 3e-4) - thickness).abs() < 1e-15);
-    // Arriving from beyond reach: lands on the layer.
-    assert!((end(0.02, 0.0) - thickness).abs() < 1e-15);
-}

@@ -195,7 +195,7 @@ pub(crate) fn detect_solid_contacts(
             if s.distance_m >= reach {
                 // Ending clear of the solid, it may still pass through it.
                 if let Some((past, entry)) = crossing(c, (next, h), x[i], predicted, reach, &mut queries) {
-                    let travel = travel_to_layer(x[i], (c, &entry), (next, h), thickness, reach);
+                    let travel = normal_travel(entry.normal.dot(&(x[i] - entry.point)), thickness, reach);
                     let found = contact(i, k, c, &entry, past.distance_m, travel, next);
                     nearest.get_or_insert_with(Nearest::new).offer(past.distance_m, found);
                 }
@@ -211,7 +211,7 @@ pub(crate) fn detect_solid_contacts(
             } else {
                 here.filter(|f| f.distance_m > 0.0).unwrap_or(s)
             };
-            let travel = travel_to_layer(x[i], (c, &surface), (next, h), thickness, reach);
+            let travel = normal_travel(surface.normal.dot(&(x[i] - surface.point)), thickness, reach);
             let found = contact(i, k, c, &surface, s.distance_m, travel, next);
             nearest.get_or_insert_with(Nearest::new).offer(s.distance_m, found);
         }
