@@ -62,4 +62,5 @@ group_tests! {
     tiny_and_huge_cloths_hold: "scales" covers "1 mm and 1 km cloths";
     coincident_particles_hold: "coincident particles" covers "coincident particles";
     coupled_balls_of_every_mass_ratio_hold: "coupled mass ratios" covers "coupled ball, mass ratios";
+    a_box_resting_on_cloth_comes_to_rest: "body resting on cloth" covers "box resting on a trampoline";
 }

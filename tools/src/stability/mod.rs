@@ -311,6 +311,7 @@ pub const GROUPS: &[Group] = &[
     Group { name: "scales", run: scales },
     Group { name: "coincident particles", run: |_| coincident_particles() },
     Group { name: "coupled mass ratios", run: coupled_mass_ratios },
+    Group { name: "body resting on cloth", run: resting_box },
 ];
 
 /// `cloth study stability`'s Markdown table.
