@@ -11,8 +11,10 @@
 //! varies one thing of one small base scene: a 1 m square of the hang
 //! fixture's cotton, 21 x 21 particles.
 
+mod bodies;
 mod cases;
 
+use bodies::*;
 use cases::*;
 use cloth_core::scene::{Scene, SceneErrorKind};
 use cloth_core::{EnergyBuffers, elastic_energy};
