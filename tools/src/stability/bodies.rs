@@ -115,26 +115,12 @@ pub(super) fn coupled_ball(scene: &str, case: Case) -> Row {
     let (start, mut in_play) = energy(&run);
     let (mut lowest, mut rise) = (start, 0.0f64);
     let mut p = Probe::new();
-    let mut failure = None;
-    for _ in 0..run.config.steps {
-        let t = Instant::now();
-        let result = run.step();
-        p.wall_s += t.elapsed().as_secs_f64();
-        match result {
-            Ok(report) => p.cg += report.cloths.iter().map(|c| c.cg_iterations as u64).sum::<u64>(),
-            Err(e) => {
-                failure = Some(e.to_string());
-                break;
-            }
-        }
-        p.steps += 1;
-        let sim = run.cloths[run.cloth].simulation();
-        p.worst_stretch = p.worst_stretch.max(sim.model().max_stretch_ratio(&sim.state().x));
-        let (e, moving) = energy(&run);
+    let failure = step_coupled(&mut run, &mut p, |run, _| {
+        let (e, moving) = energy(run);
         in_play = in_play.max(moving);
         lowest = lowest.min(e);
         rise = rise.max(e - lowest);
-    }
+    });
     // Relative to the energy in play: the most kinetic and elastic
     // energy the system held at once.
     let scale = in_play.max(f64::MIN_POSITIVE);
@@ -210,26 +196,41 @@ friction = 0.4
     };
     let body = run.bodies[0].handle;
     let window = (0.5 / run.config.dt_s).round() as u64;
-    let mut p = Probe::new();
-    let mut peak = 0.0f64;
+    let (steps, mut p, mut peak) = (run.config.steps, Probe::new(), 0.0f64);
+    let failure = step_coupled(&mut run, &mut p, |run, step| {
+        if step + window >= steps {
+            peak = peak.max(run.world.bodies[body].linvel().length());
+        }
+    });
+    if let Some(e) = failure {
+        return vec![case.row(Some(&p), Err(format!("stopped: {e}")))];
+    }
+    let m = format!("peak speed {peak:.1e} m/s");
+    let mut r = case.row(Some(&p), if peak < 1e-3 { Ok(m) } else { Err(m) });
+    r.integrator = format!("{}, monolithic master", r.integrator);
+    vec![r]
+}
+
+/// Steps `run` to its end, counting into `p` (wall time, CG iterations,
+/// steps, worst stretch) and calling `each(run, step)` after every step;
+/// the error that stopped it early, if one did.
+fn step_coupled(
+    run: &mut cloth_rapier::CoupledRun,
+    p: &mut Probe,
+    mut each: impl FnMut(&cloth_rapier::CoupledRun, u64),
+) -> Option<String> {
     for step in 0..run.config.steps {
         let t = Instant::now();
         let result = run.step();
         p.wall_s += t.elapsed().as_secs_f64();
         match result {
             Ok(report) => p.cg += report.cloths.iter().map(|c| c.cg_iterations as u64).sum::<u64>(),
-            Err(e) => return vec![case.row(Some(&p), Err(format!("stopped: {e}")))],
+            Err(e) => return Some(e.to_string()),
         }
         p.steps += 1;
         let sim = run.cloths[run.cloth].simulation();
         p.worst_stretch = p.worst_stretch.max(sim.model().max_stretch_ratio(&sim.state().x));
-        p.penetration = p.penetration.max(sim.max_penetration());
-        if step + window >= run.config.steps {
-            peak = peak.max(run.world.bodies[body].linvel().length());
-        }
+        each(run, step);
     }
-    let m = format!("peak speed {peak:.1e} m/s");
-    let mut r = case.row(Some(&p), if peak < 1e-3 { Ok(m) } else { Err(m) });
-    r.integrator = format!("{}, monolithic master", r.integrator);
-    vec![r]
+    None
 }
