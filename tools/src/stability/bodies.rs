@@ -98,10 +98,9 @@ master = "iterated"
 
 /// One run of [`coupled_mass_ratios`]'s scene.
 pub(super) fn coupled_ball(scene: &str, case: Case) -> Row {
-    let built = cloth_rapier::CoupledScene::parse(scene, &case.overrides).and_then(|s| s.build());
-    let mut run = match built {
+    let mut run = match case.coupled(scene) {
         Ok(run) => run,
-        Err(e) => return case.row(None, Err(format!("the scene does not build: {e}"))),
+        Err(e) => return case.row(None, Err(e)),
     };
     // (total, kinetic + elastic), J.
     let energy = |run: &cloth_rapier::CoupledRun| {
@@ -131,9 +130,7 @@ pub(super) fn coupled_ball(scene: &str, case: Case) -> Row {
             if rise <= 1e-4 * scale { Ok(m) } else { Err(m) }
         }
     };
-    let mut r = case.row(Some(&p), verdict);
-    r.integrator = format!("{}, {} master", r.integrator, case.value("coupling.master", "iterated"));
-    r
+    case.coupled_row(&p, verdict)
 }
 
 /// A heavy box resting on a stiff cloth held at its corners comes to rest:
@@ -188,11 +185,11 @@ friction = 0.4
         "2 kg on a 5 mm layer",
         "peak speed over the last 0.5 s of 10 s < 1 mm/s",
     )
+    .set("coupling.master", "\"monolithic\"")
     .known_defect(Some(LIMIT_CYCLE));
-    let built = cloth_rapier::CoupledScene::parse(SCENE, &[]).and_then(|s| s.build());
-    let mut run = match built {
+    let mut run = match case.coupled(SCENE) {
         Ok(run) => run,
-        Err(e) => return vec![case.row(None, Err(format!("the scene does not build: {e}")))],
+        Err(e) => return vec![case.row(None, Err(e))],
     };
     let body = run.bodies[0].handle;
     let window = (0.5 / run.config.dt_s).round() as u64;
@@ -202,13 +199,30 @@ friction = 0.4
             peak = peak.max(run.world.bodies[body].linvel().length());
         }
     });
-    if let Some(e) = failure {
-        return vec![case.row(Some(&p), Err(format!("stopped: {e}")))];
+    let verdict = match failure {
+        Some(e) => Err(format!("stopped: {e}")),
+        None => {
+            let m = format!("peak speed {peak:.1e} m/s");
+            if peak < 1e-3 { Ok(m) } else { Err(m) }
+        }
+    };
+    vec![case.coupled_row(&p, verdict)]
+}
+
+impl Case {
+    /// `scene` (a scene with rapier bodies) with this case's overrides,
+    /// built into a coupled run.
+    fn coupled(&self, scene: &str) -> Result<cloth_rapier::CoupledRun, String> {
+        let built = cloth_rapier::CoupledScene::parse(scene, &self.overrides).and_then(|s| s.build());
+        built.map_err(|e| format!("the scene does not build: {e}"))
     }
-    let m = format!("peak speed {peak:.1e} m/s");
-    let mut r = case.row(Some(&p), if peak < 1e-3 { Ok(m) } else { Err(m) });
-    r.integrator = format!("{}, monolithic master", r.integrator);
-    vec![r]
+
+    /// The row of a coupled run, its integrator naming the master.
+    fn coupled_row(&self, p: &Probe, verdict: Verdict) -> Row {
+        let mut r = self.row(Some(p), verdict);
+        r.integrator = format!("{}, {} master", r.integrator, self.value("coupling.master", "iterated"));
+        r
+    }
 }
 
 /// Steps `run` to its end, counting into `p` (wall time, CG iterations,
