@@ -148,6 +148,9 @@ impl BoxGrid {
     /// boxes are left to [`BoxGrid::wide_pairs`].
     pub fn pairs(&self, other: &BoxGrid, cells: std::ops::Range<usize>, same: bool, out: &mut Vec<(u32, u32)>) {
         for &(ci, first, end) in &self.runs[cells] {
+            // The runs of `other` in the 27 cells round this one, looked up
+            // once for all its boxes, when first needed.
+            let mut near = [NOT_LOOKED_UP; 27];
             for &(ref bi, i) in &self.grouped[first as usize..end as usize] {
                 // A box of `other` meeting this one has its smallest corner
                 // within [min - cell, max] on each axis.
@@ -163,7 +166,15 @@ impl BoxGrid {
                             if same && c < ci {
                                 continue;
                             }
-                            let Some((o_first, o_end)) = other.run_at(c) else { continue };
+                            let (o_first, o_end) = match neighbour(ci, c) {
+                                Some(n) => {
+                                    if near[n] == NOT_LOOKED_UP {
+                                        near[n] = other.run_at(c).unwrap_or((0, 0));
+                                    }
+                                    near[n]
+                                }
+                                None => other.run_at(c).unwrap_or((0, 0)),
+                            };
                             for &(ref bj, j) in &other.grouped[o_first..o_end] {
                                 if (!same || c != ci || i < j) && bi.overlaps(bj) {
                                     out.push(if same { (i.min(j), i.max(j)) } else { (i, j) });
@@ -222,6 +233,15 @@ impl BoxGrid {
         }
     }
 }
+
+/// A cell's place among the 27 round `centre` (x slowest), if it is one.
+fn neighbour(centre: [i64; 3], c: [i64; 3]) -> Option<usize> {
+    let d = [0, 1, 2].map(|k| c[k] - centre[k] + 1);
+    d.iter().all(|&d| (0..3).contains(&d)).then(|| (d[0] * 9 + d[1] * 3 + d[2]) as usize)
+}
+
+/// A run not yet looked up in [`BoxGrid::pairs`].
+const NOT_LOOKED_UP: (usize, usize) = (usize::MAX, usize::MAX);
 
 fn cell_of(p: Vec3, cell: f64) -> [i64; 3] {
     [0, 1, 2].map(|k| (p[k] / cell).floor() as i64)

@@ -263,7 +263,8 @@ impl VoxelHash {
             }
             let boxes = &boxes[..group.len()];
             let union = boxes[1..].iter().fold(boxes[0], |u, b| self.cell_box(u.lo.inf(&b.lo), u.hi.sup(&b.hi)));
-            if union.cells() > points {
+            let separate: f64 = boxes.iter().map(CellBox::cells).sum();
+            if union.cells() > points.min(separate) {
                 for (j, cell_box) in boxes.iter().enumerate() {
                     self.candidates_in(cell_box, (first + j) as u32, out);
                 }
@@ -316,7 +317,9 @@ impl VoxelHash {
 /// Triangles whose boxes [`VoxelHash::point_triangle_candidates_into`]
 /// walks together: consecutive triangles of a cloth share most of their
 /// voxels (a quad's two triangles have the same box), and a voxel probed
-/// once serves them all.
+/// once serves them all. A group whose union spans more voxels than its
+/// boxes do one by one (triangles far apart in the list) is walked box by
+/// box.
 const TRIANGLE_GROUP: usize = 8;
 
 /// An axis-aligned box (m) and the voxels it touches, `first..=last` on

@@ -3,6 +3,7 @@
 //! ends, or linked or sewn to them). A check of a state, not a force: a run
 //! counts its crossings each step to say when a garment tangles.
 
+use super::impact_zones::owned_features;
 use super::self_collision::build_exclusions;
 use crate::{ClothModel, Vec3};
 use cloth_collide::{Aabb, BoxGrid, segment_crosses_triangle};
@@ -14,20 +15,28 @@ const CELL_CHUNK: usize = 64;
 /// One crossing: the mesh edge `[a, b]` (`a < b`) through triangle `t`.
 pub type Crossing = ([u32; 2], u32);
 
+/// Scratch of one parallel chunk of cells: the triangle pairs whose boxes
+/// overlap and the crossings found among them.
+type CrossingChunk = (Vec<(u32, u32)>, Vec<Crossing>);
+
 /// Finds a model's self-crossings, step after step: what depends on the
-/// model alone (its edges, which corners never count against which
-/// triangle) is built once, and the broad phase's buffers are reused.
+/// model alone (which edges each triangle tests, which corners never count
+/// against which triangle) is built once, and the broad phase's buffers
+/// are reused.
+///
+/// The broad phase pairs triangles whose boxes overlap; each edge is tested
+/// from the one triangle that owns it (`owned_features`) against the other
+/// triangle of the pair. An edge's box lies in its owner's, so no crossing
+/// is missed, and each (edge, triangle) is tested once.
 #[derive(Debug, Clone)]
 pub struct CrossingCheck {
-    edges: Vec<[u32; 2]>,
+    owned: Vec<[u8; 2]>,
     excluded_ptr: Vec<u32>,
     excluded: Vec<u32>,
     triangle_boxes: Vec<Aabb>,
-    edge_boxes: Vec<Aabb>,
     extents: Vec<f64>,
-    triangle_grid: BoxGrid,
-    edge_grid: BoxGrid,
-    pairs: Vec<(u32, u32)>,
+    grid: BoxGrid,
+    chunks: Vec<CrossingChunk>,
     found: Vec<Crossing>,
 }
 
@@ -37,15 +46,13 @@ impl CrossingCheck {
         let (mut excluded_ptr, mut excluded) = (Vec::new(), Vec::new());
         build_exclusions(model, &mut excluded_ptr, &mut excluded);
         Self {
-            edges: mesh_edges(model.triangles()),
+            owned: owned_features(model.triangles(), model.particle_count()),
             excluded_ptr,
             excluded,
             triangle_boxes: Vec::new(),
-            edge_boxes: Vec::new(),
             extents: Vec::new(),
-            triangle_grid: BoxGrid::default(),
-            edge_grid: BoxGrid::default(),
-            pairs: Vec::new(),
+            grid: BoxGrid::default(),
+            chunks: Vec::new(),
             found: Vec::new(),
         }
     }
@@ -58,40 +65,48 @@ impl CrossingCheck {
         let box_of = |ids: &[u32]| Aabb::around(ids.iter().map(|&i| x[i as usize]), 0.0);
         self.triangle_boxes.clear();
         self.triangle_boxes.extend(triangles.iter().map(|t| box_of(t)));
-        self.edge_boxes.clear();
-        self.edge_boxes.extend(self.edges.iter().map(|e| box_of(e)));
-        let cell = BoxGrid::cell_for(self.triangle_boxes.iter().chain(&self.edge_boxes), 1e-6, &mut self.extents);
-        let built = self.triangle_grid.build(self.triangle_boxes.iter().copied(), cell).is_ok()
-            && self.edge_grid.build(self.edge_boxes.iter().copied(), cell).is_ok();
-        if !built {
+        let cell = BoxGrid::cell_for(&self.triangle_boxes, 1e-6, &mut self.extents);
+        if self.grid.build(self.triangle_boxes.iter().copied(), cell).is_err() {
             return &self.found;
         }
-        let (edges, ptr, excluded) = (&self.edges, &self.excluded_ptr, &self.excluded);
-        let crosses = |&(e, t): &(u32, u32)| {
-            let [a, b] = edges[e as usize];
-            let never = &excluded[ptr[t as usize] as usize..ptr[t as usize + 1] as usize];
-            let [i, j, k] = triangles[t as usize].map(|i| x[i as usize]);
-            never.binary_search(&a).is_err()
-                && never.binary_search(&b).is_err()
-                && segment_crosses_triangle(x[a as usize], x[b as usize], i, j, k)
+        let (owned, ptr, excluded, boxes) = (&self.owned, &self.excluded_ptr, &self.excluded, &self.triangle_boxes);
+        // The edges that triangle `s` owns, tested against triangle `t`.
+        let crossings = |s: usize, t: usize, out: &mut Vec<Crossing>| {
+            let never = &excluded[ptr[t] as usize..ptr[t + 1] as usize];
+            let [i, j, k] = triangles[t].map(|i| x[i as usize]);
+            for e in (0..3).filter(|&e| owned[s][1] & (1 << e) != 0) {
+                let (a, b) = (triangles[s][e], triangles[s][(e + 1) % 3]);
+                // Lower end first, as the crossing names it: the test's
+                // rounding depends on the direction.
+                let edge @ [a, b] = [a.min(b), a.max(b)];
+                if box_of(&edge).overlaps(&boxes[t])
+                    && never.binary_search(&a).is_err()
+                    && never.binary_search(&b).is_err()
+                    && segment_crosses_triangle(x[a as usize], x[b as usize], i, j, k)
+                {
+                    out.push((edge, t as u32));
+                }
+            }
         };
-        let crossing = |&(e, t): &(u32, u32)| (edges[e as usize], t);
-        // The cells in parallel chunks; the result is sorted, so the same
-        // for any thread count.
-        let (edge_grid, triangle_grid) = (&self.edge_grid, &self.triangle_grid);
-        let cells = edge_grid.cells();
-        let chunks: Vec<Vec<Crossing>> = (0..cells.div_ceil(CELL_CHUNK))
-            .into_par_iter()
-            .map(|c| {
-                let mut pairs = Vec::new();
-                edge_grid.pairs(triangle_grid, c * CELL_CHUNK..((c + 1) * CELL_CHUNK).min(cells), false, &mut pairs);
-                pairs.iter().filter(|p| crosses(p)).map(crossing).collect()
-            })
-            .collect();
-        self.found.extend(chunks.into_iter().flatten());
-        self.pairs.clear();
-        edge_grid.wide_pairs(triangle_grid, false, &mut self.pairs);
-        self.found.extend(self.pairs.iter().filter(|p| crosses(p)).map(crossing));
+        // The cells in parallel chunks (the last for the wide boxes); the
+        // result is sorted, so the same for any thread count.
+        let (grid, cells) = (&self.grid, self.grid.cells());
+        let chunks = cells.div_ceil(CELL_CHUNK) + 1;
+        self.chunks.resize_with(chunks, Default::default);
+        self.chunks.par_iter_mut().enumerate().for_each(|(c, (pairs, found))| {
+            pairs.clear();
+            found.clear();
+            if c < chunks - 1 {
+                grid.pairs(grid, c * CELL_CHUNK..((c + 1) * CELL_CHUNK).min(cells), true, pairs);
+            } else {
+                grid.wide_pairs(grid, true, pairs);
+            }
+            for &(s, t) in pairs.iter() {
+                crossings(s as usize, t as usize, found);
+                crossings(t as usize, s as usize, found);
+            }
+        });
+        self.found.extend(self.chunks.iter().flat_map(|(_, found)| found));
         self.found.sort_unstable();
         &self.found
     }
@@ -102,13 +117,4 @@ impl CrossingCheck {
 /// checks every step keeps).
 pub fn self_intersections(model: &ClothModel, x: &[Vec3]) -> Vec<Crossing> {
     CrossingCheck::new(model).find(model, x).to_vec()
-}
-
-/// The distinct edges of `triangles`, each `[a, b]` with `a < b`, sorted.
-fn mesh_edges(triangles: &[[u32; 3]]) -> Vec<[u32; 2]> {
-    let mut edges: Vec<[u32; 2]> =
-        triangles.iter().flat_map(|&[a, b, c]| [[a, b], [b, c], [c, a]]).map(|[a, b]| [a.min(b), a.max(b)]).collect();
-    edges.sort_unstable();
-    edges.dedup();
-    edges
 }

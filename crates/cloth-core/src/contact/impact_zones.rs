@@ -226,7 +226,7 @@ fn find_meetings(
 /// For each triangle, the corners (bit k: corner k) and edges (bit k: from
 /// corner k to the next) it owns: each vertex and each edge belongs to the
 /// first triangle that has it.
-fn owned_features(triangles: &[[u32; 3]], particles: usize) -> Vec<[u8; 2]> {
+pub(crate) fn owned_features(triangles: &[[u32; 3]], particles: usize) -> Vec<[u8; 2]> {
     let mut vertex_owner = vec![u32::MAX; particles];
     let mut edge_owner = std::collections::BTreeMap::new();
     let mut owned = vec![[0u8; 2]; triangles.len()];

@@ -203,12 +203,17 @@ pub(crate) fn point_triangle_contacts(
     if bufs.excluded_ptr.len() != triangles.len() + 1 {
         build_exclusions(model, &mut bufs.excluded_ptr, &mut bufs.excluded);
     }
+    if bufs.triangle_order.len() != triangles.len() {
+        bufs.triangle_order = search_order(model, radius);
+    }
+    let order = &bufs.triangle_order;
     bufs.corners.clear();
-    bufs.corners.extend(triangles.iter().map(|t| t.map(|k| x[k as usize])));
+    bufs.corners.extend(order.iter().map(|&t| triangles[t as usize].map(|k| x[k as usize])));
     let (excluded_ptr, excluded) = (&bufs.excluded_ptr, &bufs.excluded);
-    // Triangles in fixed chunks, in parallel; each chunk keeps its own
-    // buffers (reused across steps) and the chunks are merged in order, so
-    // the result does not depend on the number of threads.
+    // Triangles in fixed chunks of the search order, in parallel; each
+    // chunk keeps its own buffers (reused across steps). The pairs found
+    // are put back in triangle order below, so the result does not depend
+    // on the number of threads or on the search order.
     let chunks = triangles.len().div_ceil(TRIANGLE_CHUNK);
     bufs.triangle_chunks.resize_with(chunks, Default::default);
     let corners = &bufs.corners;
@@ -220,13 +225,14 @@ pub(crate) fn point_triangle_contacts(
             return;
         }
         for &(p, t_local) in candidates.iter() {
-            let t = first + t_local as usize;
+            let at = first + t_local as usize;
+            let t = order[at] as usize;
             let (p, tri) = (p as usize, triangles[t]);
             let never = &excluded[excluded_ptr[t] as usize..excluded_ptr[t + 1] as usize];
             if never.binary_search(&(p as u32)).is_ok() {
                 continue;
             }
-            let [a, b, c] = corners[t];
+            let [a, b, c] = corners[at];
             let (q, w) = closest_point_on_triangle(x[p], a, b, c);
             let d = (x[p] - q).norm();
             let at_vertex = w.iter().any(|&wk| wk > 1.0 - 1e-9);
@@ -241,27 +247,27 @@ pub(crate) fn point_triangle_contacts(
             } else {
                 continue;
             };
-            found.push(SelfContact {
-                particle: p as u32,
-                others: tri,
-                weights: w,
-                direction,
-                distance_m: d,
-                repels: false,
-            });
+            let contact =
+                SelfContact { particle: p as u32, others: tri, weights: w, direction, distance_m: d, repels: false };
+            found.push((t as u32, contact));
         }
     });
+    // Triangle order; a triangle's pairs stay in the order of its own
+    // search (they are contiguous in one chunk), so the sort's key is the
+    // triangle and the place in the concatenation.
+    bufs.triangle_found.clear();
+    let found = bufs.triangle_chunks.iter().flat_map(|(_, found)| found);
+    bufs.triangle_found.extend(found.enumerate().map(|(k, &(t, contact))| (t, k as u32, contact)));
+    bufs.triangle_found.sort_unstable_by_key(|&(t, k, _)| (t, k));
     bufs.nearest.clear();
     bufs.nearest.resize(x.len(), u32::MAX);
-    for (_, found) in &bufs.triangle_chunks {
-        for contact in found {
-            let p = contact.particle as usize;
-            let nearest = bufs.nearest[p] as usize;
-            if bufs.self_pairs.get(nearest).is_none_or(|old| contact.distance_m < old.distance_m) {
-                bufs.nearest[p] = bufs.self_pairs.len() as u32;
-            }
-            bufs.self_pairs.push(*contact);
+    for (_, _, contact) in &bufs.triangle_found {
+        let p = contact.particle as usize;
+        let nearest = bufs.nearest[p] as usize;
+        if bufs.self_pairs.get(nearest).is_none_or(|old| contact.distance_m < old.distance_m) {
+            bufs.nearest[p] = bufs.self_pairs.len() as u32;
         }
+        bufs.self_pairs.push(*contact);
     }
     for &k in bufs.nearest.iter().filter(|&&k| k != u32::MAX) {
         bufs.self_pairs[k as usize].repels = true;
@@ -297,6 +303,37 @@ pub(crate) fn build_exclusions(model: &ClothModel, ptr: &mut Vec<u32>, list: &mu
         list.truncate(unique);
         ptr.push(list.len() as u32);
     }
+}
+
+/// The order in which the particle-triangle search visits `model`'s
+/// triangles: by the Morton code of their rest centroids on a grid of
+/// `cell` (m), then by index. Consecutive triangles are then neighbours,
+/// so [`VoxelHash::point_triangle_candidates_into`] walks one box for a
+/// group of them; a pattern mesh's own order scatters them over a piece.
+pub(crate) fn search_order(model: &ClothModel, cell: f64) -> Vec<u32> {
+    let rest = model.rest_positions();
+    let centroid = |t: &[u32; 3]| t.iter().map(|&k| rest[k as usize]).sum::<Vec3>() / 3.0;
+    let lo = model.triangles().iter().map(centroid).fold(Vec3::repeat(f64::INFINITY), |a, c| a.inf(&c));
+    let code = |t: &[u32; 3]| {
+        let q = (centroid(t) - lo) / cell;
+        morton([0, 1, 2].map(|k| (q[k].max(0.0) as u64).min((1 << 21) - 1)))
+    };
+    let mut order: Vec<(u64, u32)> = model.triangles().iter().enumerate().map(|(i, t)| (code(t), i as u32)).collect();
+    order.sort_unstable();
+    order.into_iter().map(|(_, i)| i).collect()
+}
+
+/// Interleaves the low 21 bits of three coordinates (x lowest).
+fn morton(c: [u64; 3]) -> u64 {
+    let spread = |mut v: u64| {
+        v &= (1 << 21) - 1;
+        v = (v | (v << 32)) & 0x001f_0000_0000_ffff;
+        v = (v | (v << 16)) & 0x001f_0000_ff00_00ff;
+        v = (v | (v << 8)) & 0x100f_00f0_0f00_f00f;
+        v = (v | (v << 4)) & 0x10c3_0c30_c30c_30c3;
+        (v | (v << 2)) & 0x1249_2492_4924_9249
+    };
+    spread(c[0]) | (spread(c[1]) << 1) | (spread(c[2]) << 2)
 }
 
 /// Triangles per parallel chunk of the particle-triangle search.

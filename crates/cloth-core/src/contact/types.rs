@@ -157,8 +157,9 @@ pub struct SelfContact {
 }
 
 /// Scratch of one chunk of the particle-triangle search: broad-phase
-/// candidates `(particle, triangle within the chunk)` and the pairs found.
-pub(crate) type TriangleChunk = (Vec<(u32, u32)>, Vec<SelfContact>);
+/// candidates `(particle, triangle within the chunk)` and the pairs found
+/// with their triangle.
+pub(crate) type TriangleChunk = (Vec<(u32, u32)>, Vec<(u32, SelfContact)>);
 
 /// What collision handling did in one step.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -268,6 +269,11 @@ pub struct Contacts {
     pub(crate) pair_chunks: Vec<Vec<(u32, u32)>>,
     /// Per chunk of triangles: broad-phase candidates and the pairs found.
     pub(crate) triangle_chunks: Vec<TriangleChunk>,
+    /// The pairs of all chunks as `(triangle, place, pair)`, sorted.
+    pub(crate) triangle_found: Vec<(u32, u32, SelfContact)>,
+    /// The particle-triangle search's order of the triangles, built once
+    /// per model (`search_order`).
+    pub(crate) triangle_order: Vec<u32>,
     /// CSR, built once per model: for each triangle, the sorted particles
     /// it never repels (its corners and every particle linked to one).
     pub(crate) excluded_ptr: Vec<u32>,
