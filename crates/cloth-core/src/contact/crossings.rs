@@ -4,7 +4,7 @@
 //! counts its crossings each step to say when a garment tangles.
 
 use super::impact_zones::owned_features;
-use super::self_collision::build_exclusions;
+use super::self_collision::{build_exclusions, excluded_by_corner};
 use crate::{ClothModel, Vec3};
 use cloth_collide::{Aabb, BoxGrid, segment_crosses_triangle};
 use rayon::prelude::*;
@@ -31,6 +31,11 @@ type CrossingChunk = (Vec<(u32, u32)>, Vec<Crossing>);
 #[derive(Debug, Clone)]
 pub struct CrossingCheck {
     owned: Vec<[u8; 2]>,
+    /// Whether each triangle's corners are all excluded (see
+    /// `build_exclusions`) by each of its corners: then an edge of a
+    /// triangle meeting `t` at a corner has its ends excluded by `t`, and
+    /// triangles that share a corner are not tested.
+    edges_linked: bool,
     excluded_ptr: Vec<u32>,
     excluded: Vec<u32>,
     triangle_boxes: Vec<Aabb>,
@@ -47,6 +52,10 @@ impl CrossingCheck {
         build_exclusions(model, &mut excluded_ptr, &mut excluded);
         Self {
             owned: owned_features(model.triangles(), model.particle_count()),
+            edges_linked: model
+                .triangles()
+                .iter()
+                .all(|t| t.iter().all(|&v| t.iter().all(|&q| excluded_by_corner(model, v as usize, q as usize)))),
             excluded_ptr,
             excluded,
             triangle_boxes: Vec::new(),
@@ -55,6 +64,14 @@ impl CrossingCheck {
             chunks: Vec::new(),
             found: Vec::new(),
         }
+    }
+
+    /// The check that tests triangles sharing a corner too, as for a mesh
+    /// whose edges are not all linked.
+    #[cfg(test)]
+    pub(crate) fn testing_adjacent(mut self) -> Self {
+        self.edges_linked = false;
+        self
     }
 
     /// The crossings of `model` (the one this check was made for) at
@@ -79,10 +96,12 @@ impl CrossingCheck {
                 // Lower end first, as the crossing names it: the test's
                 // rounding depends on the direction.
                 let edge @ [a, b] = [a.min(b), a.max(b)];
+                // The geometry first: it rejects most pairs (an edge with
+                // an end on the triangle at once), the exclusions few.
                 if box_of(&edge).overlaps(&boxes[t])
+                    && segment_crosses_triangle(x[a as usize], x[b as usize], i, j, k)
                     && never.binary_search(&a).is_err()
                     && never.binary_search(&b).is_err()
-                    && segment_crosses_triangle(x[a as usize], x[b as usize], i, j, k)
                 {
                     out.push((edge, t as u32));
                 }
@@ -90,7 +109,7 @@ impl CrossingCheck {
         };
         // The cells in parallel chunks (the last for the wide boxes); the
         // result is sorted, so the same for any thread count.
-        let (grid, cells) = (&self.grid, self.grid.cells());
+        let (grid, cells, skip_adjacent) = (&self.grid, self.grid.cells(), self.edges_linked);
         let chunks = cells.div_ceil(CELL_CHUNK) + 1;
         self.chunks.resize_with(chunks, Default::default);
         self.chunks.par_iter_mut().enumerate().for_each(|(c, (pairs, found))| {
@@ -102,6 +121,9 @@ impl CrossingCheck {
                 grid.wide_pairs(grid, true, pairs);
             }
             for &(s, t) in pairs.iter() {
+                if skip_adjacent && triangles[s as usize].iter().any(|v| triangles[t as usize].contains(v)) {
+                    continue;
+                }
                 crossings(s as usize, t as usize, found);
                 crossings(t as usize, s as usize, found);
             }
