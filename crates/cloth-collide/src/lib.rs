@@ -29,7 +29,7 @@ pub use collider::{BodyPose, ShapeError, ShapeSpec, SolidShape, SurfacePoint};
 pub use gltf_mesh::{GltfError, parse_gltf, read_gltf};
 pub use obj::{ObjError, SurfaceMesh, parse_obj, parse_obj_points};
 pub use triangle::closest_point_on_triangle;
-pub use voxel_hash::{BroadPhaseError, VoxelHash};
+pub use voxel_hash::{BroadPhaseError, TRIANGLE_GROUP, VoxelHash};
 
 /// A 3-vector of `f64`.
 pub type Vec3 = nalgebra::Vector3<f64>;

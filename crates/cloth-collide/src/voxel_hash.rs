@@ -320,7 +320,7 @@ impl VoxelHash {
 /// once serves them all. A group whose union spans more voxels than its
 /// boxes do one by one (triangles far apart in the list) is walked box by
 /// box.
-const TRIANGLE_GROUP: usize = 8;
+pub const TRIANGLE_GROUP: usize = 8;
 
 /// An axis-aligned box (m) and the voxels it touches, `first..=last` on
 /// each axis.

@@ -6,7 +6,7 @@ use super::contacts::*;
 use crate::colliders::SelfCollision;
 use crate::laws::{self, pair_stiffness};
 use crate::{ClothModel, Mat3, Vec3};
-use cloth_collide::{VoxelHash, closest_point_on_triangle};
+use cloth_collide::{TRIANGLE_GROUP, VoxelHash, closest_point_on_triangle};
 use rayon::prelude::*;
 
 /// Finds self-collision pairs at positions `x` into `bufs.self_pairs` and
@@ -315,11 +315,20 @@ pub(crate) fn excluded_by_corner(model: &ClothModel, corner: usize, q: usize) ->
 }
 
 /// The order in which the particle-triangle search visits `model`'s
-/// triangles: by the Morton code of their rest centroids on a grid of
-/// `cell` (m), then by index. Consecutive triangles are then neighbours,
-/// so [`VoxelHash::point_triangle_candidates_into`] walks one box for a
-/// group of them; a pattern mesh's own order scatters them over a piece.
+/// triangles, with cells and margins of `cell` (m): the model's own
+/// order or the Morton order of the rest centroids ([`morton_order`]),
+/// whichever walks fewer voxels at rest ([`walk_cost`]). A pattern
+/// mesh lists its triangles scattered over a piece, and the Morton order
+/// brings neighbours together; a grid's rows are already together.
 pub(crate) fn search_order(model: &ClothModel, cell: f64) -> Vec<u32> {
+    let listed: Vec<u32> = (0..model.triangles().len() as u32).collect();
+    let morton = morton_order(model, cell);
+    if walk_cost(model, &morton, cell) < walk_cost(model, &listed, cell) { morton } else { listed }
+}
+
+/// `model`'s triangles by the Morton code of their rest centroids on a
+/// grid of `cell` (m), then by index.
+pub(crate) fn morton_order(model: &ClothModel, cell: f64) -> Vec<u32> {
     let rest = model.rest_positions();
     let centroid = |t: &[u32; 3]| t.iter().map(|&k| rest[k as usize]).sum::<Vec3>() / 3.0;
     let lo = model.triangles().iter().map(centroid).fold(Vec3::repeat(f64::INFINITY), |a, c| a.inf(&c));
@@ -330,6 +339,27 @@ pub(crate) fn search_order(model: &ClothModel, cell: f64) -> Vec<u32> {
     let mut order: Vec<(u64, u32)> = model.triangles().iter().enumerate().map(|(i, t)| (code(t), i as u32)).collect();
     order.sort_unstable();
     order.into_iter().map(|(_, i)| i).collect()
+}
+
+/// The voxels the particle-triangle search walks at rest for triangles
+/// in `order`, with cells and margins of `cell` (m): each run of 8
+/// ([`TRIANGLE_GROUP`]) walked as one box or box by box, whichever
+/// touches fewer (as
+/// [`VoxelHash::point_triangle_candidates_into`] does).
+pub(crate) fn walk_cost(model: &ClothModel, order: &[u32], cell: f64) -> f64 {
+    let rest = model.rest_positions();
+    let cells =
+        |(lo, hi): (Vec3, Vec3)| (0..3).map(|k| (hi[k] / cell).floor() - (lo[k] / cell).floor() + 1.0).product::<f64>();
+    let grown = |t: u32| {
+        let [a, b, c] = model.triangles()[t as usize].map(|k| rest[k as usize]);
+        (a.inf(&b).inf(&c).add_scalar(-cell), a.sup(&b).sup(&c).add_scalar(cell))
+    };
+    let run_cost = |run: &[u32]| {
+        let union = run.iter().map(|&t| grown(t)).reduce(|(lo, hi), (l, h)| (lo.inf(&l), hi.sup(&h)));
+        let apart: f64 = run.iter().map(|&t| cells(grown(t))).sum();
+        union.map_or(0.0, |u| cells(u).min(apart))
+    };
+    order.chunks(TRIANGLE_GROUP).map(run_cost).sum()
 }
 
 /// Interleaves the low 21 bits of three coordinates (x lowest).
