@@ -60,7 +60,8 @@ enum Command {
         strict: bool,
     },
     /// Run a scene several times and print a Markdown row of median timings
-    /// (Choi & Ko Table-1 style: ms per step, CG iterations, stage split).
+    /// (Choi & Ko Table-1 style: ms per step, CG iterations, stage split,
+    /// and the run's tangle watch, which is outside the step).
     Time {
         /// Scene file (TOML).
         scene: PathBuf,

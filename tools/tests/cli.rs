@@ -219,11 +219,17 @@ fn time_prints_a_table_row_of_medians() {
     let text = String::from_utf8_lossy(&out.stdout);
     let row = text.lines().last().unwrap();
     let cells: Vec<&str> = row.split('|').map(str::trim).collect();
-    // | scene | particles | threads | steps | CG/step | ms/step | forces | assembly | solve |
+    // | scene | particles | threads | steps | CG/step | ms/step | forces | assembly | solve | ...
     assert_eq!(cells[2], "49", "{row}");
     assert_eq!(cells[3], "2", "{row}");
     assert_eq!(cells[4], "9", "{row}");
     assert!(cells[6].parse::<f64>().unwrap() > 0.0, "{row}");
+    // Eight stage columns after ms/step, the last two update and the
+    // tangle watch, and the header names as many.
+    let header = text.lines().find(|l| l.contains("tangle watch")).expect("a header");
+    assert_eq!(header.split('|').count(), row.split('|').count(), "{header}\n{row}");
+    assert_eq!(cells.len(), 15, "{row}");
+    assert!(cells[12..14].iter().all(|c| c.parse::<f64>().is_ok_and(|t| t >= 0.0)), "{row}");
 }
 
 #[test]

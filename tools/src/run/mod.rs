@@ -687,11 +687,11 @@ pub fn time(scene: &Path, overrides: &[String], threads: usize, repeat: usize) -
     let s = &runs[0];
     let per_step = |stage: f64| stage / s.steps.max(1) as f64 * 1e3;
     println!(
-        "| scene | particles | threads | steps | CG/step | ms/step (median of {repeat}) | forces | assembly | solve | collision | self-collision |"
+        "| scene | particles | threads | steps | CG/step | ms/step (median of {repeat}) | forces | assembly | solve | collision | self-collision | update | tangle watch |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     println!(
-        "| {} {} | {} | {} | {} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
+        "| {} {} | {} | {} | {} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
         scene.file_name().map_or_else(|| scene.display().to_string(), |n| n.to_string_lossy().into_owned()),
         overrides.join(" "),
         s.particles,
@@ -704,6 +704,8 @@ pub fn time(scene: &Path, overrides: &[String], threads: usize, repeat: usize) -
         per_step(median(&|r| r.stage_wall_s.solve)),
         per_step(median(&|r| r.stage_wall_s.collision)),
         per_step(median(&|r| r.stage_wall_s.self_collision)),
+        per_step(median(&|r| r.stage_wall_s.update)),
+        per_step(median(&|r| r.stage_wall_s.tangle)),
     );
     Ok(())
 }
