@@ -4,7 +4,7 @@
 //! counts its crossings each step to say when a garment tangles.
 
 use super::impact_zones::owned_features;
-use super::self_collision::{build_exclusions, excluded_by_corner};
+use super::self_collision::build_exclusions;
 use crate::{ClothModel, Vec3};
 use cloth_collide::{Aabb, BoxGrid, segment_crosses_triangle};
 use rayon::prelude::*;
@@ -31,11 +31,12 @@ type CrossingChunk = (Vec<(u32, u32)>, Vec<Crossing>);
 #[derive(Debug, Clone)]
 pub struct CrossingCheck {
     owned: Vec<[u8; 2]>,
-    /// Whether each triangle's corners are all excluded (see
-    /// `build_exclusions`) by each of its corners: then an edge of a
-    /// triangle meeting `t` at a corner has its ends excluded by `t`, and
-    /// triangles that share a corner are not tested.
-    edges_linked: bool,
+    /// Whether every triangle excludes (see `build_exclusions`) all the
+    /// corners of each triangle it shares a corner with: then no edge of
+    /// such a neighbour can count against it, and triangles that share a
+    /// corner are not tested (every model links its mesh edges, so this
+    /// holds for all of them).
+    skip_adjacent: bool,
     excluded_ptr: Vec<u32>,
     excluded: Vec<u32>,
     triangle_boxes: Vec<Aabb>,
@@ -50,12 +51,15 @@ impl CrossingCheck {
     pub fn new(model: &ClothModel) -> Self {
         let (mut excluded_ptr, mut excluded) = (Vec::new(), Vec::new());
         build_exclusions(model, &mut excluded_ptr, &mut excluded);
+        let triangles = model.triangles();
+        let skip_adjacent = triangles.iter().enumerate().all(|(t, corners)| {
+            let never = &excluded[excluded_ptr[t] as usize..excluded_ptr[t + 1] as usize];
+            let neighbours = corners.iter().flat_map(|&v| model.particle_triangles(v as usize));
+            neighbours.flat_map(|&s| triangles[s as usize]).all(|c| never.binary_search(&c).is_ok())
+        });
         Self {
-            owned: owned_features(model.triangles(), model.particle_count()),
-            edges_linked: model
-                .triangles()
-                .iter()
-                .all(|t| t.iter().all(|&v| t.iter().all(|&q| excluded_by_corner(model, v as usize, q as usize)))),
+            owned: owned_features(triangles, model.particle_count()),
+            skip_adjacent,
             excluded_ptr,
             excluded,
             triangle_boxes: Vec::new(),
@@ -66,11 +70,17 @@ impl CrossingCheck {
         }
     }
 
+    /// Whether triangles that share a corner are left untested.
+    #[cfg(test)]
+    pub(crate) fn skips_adjacent(&self) -> bool {
+        self.skip_adjacent
+    }
+
     /// The check that tests triangles sharing a corner too, as for a mesh
     /// whose edges are not all linked.
     #[cfg(test)]
     pub(crate) fn testing_adjacent(mut self) -> Self {
-        self.edges_linked = false;
+        self.skip_adjacent = false;
         self
     }
 
@@ -109,7 +119,7 @@ impl CrossingCheck {
         };
         // The cells in parallel chunks (the last for the wide boxes); the
         // result is sorted, so the same for any thread count.
-        let (grid, cells, skip_adjacent) = (&self.grid, self.grid.cells(), self.edges_linked);
+        let (grid, cells, skip_adjacent) = (&self.grid, self.grid.cells(), self.skip_adjacent);
         let chunks = cells.div_ceil(CELL_CHUNK) + 1;
         self.chunks.resize_with(chunks, Default::default);
         self.chunks.par_iter_mut().enumerate().for_each(|(c, (pairs, found))| {

@@ -305,15 +305,6 @@ pub(crate) fn build_exclusions(model: &ClothModel, ptr: &mut Vec<u32>, list: &mu
     }
 }
 
-/// Whether particle `q` is among those [`build_exclusions`] lists for a
-/// triangle with corner `corner`: a particle sewn to it (or the corner
-/// itself when it is sewn to none), or one linked to such a particle.
-pub(crate) fn excluded_by_corner(model: &ClothModel, corner: usize, q: usize) -> bool {
-    let (group, alone) = (model.sewn_with(corner), [corner as u32]);
-    let members = if group.is_empty() { &alone[..] } else { group };
-    members.iter().any(|&m| m as usize == q || model.incidence(m as usize).iter().any(|inc| inc.other as usize == q))
-}
-
 /// The order in which the particle-triangle search visits `model`'s
 /// triangles, with cells and margins of `cell` (m): the model's own
 /// order or the Morton order of the rest centroids ([`morton_order`]),
