@@ -272,6 +272,10 @@ pub struct NewtonSummary {
     pub automatic_steps: u64,
     /// The end of the first of them, s (none: never).
     pub engaged_at_s: Option<f64>,
+    /// Steps that took Newton iterations alone because their single
+    /// linearised step misjudged a link's tension
+    /// (`solver.newton.auto_step_trigger`: a solid striking the cloth).
+    pub struck_steps: u64,
     /// Newton corrections after each step's first linear solve.
     pub corrections_total: u64,
     pub corrections_max: usize,

@@ -11,6 +11,8 @@ pub(super) struct NewtonTotals {
     /// Steps whose iterations the run engaged itself, and when it did, s.
     pub(super) automatic: u64,
     pub(super) engaged_at_s: Option<f64>,
+    /// Steps that took them alone, their linear step misjudging a tension.
+    pub(super) struck: u64,
     pub(super) corrections: u64,
     pub(super) corrections_max: usize,
     pub(super) backtracks: u64,
@@ -26,6 +28,7 @@ impl NewtonTotals {
             self.automatic += 1;
             self.engaged_at_s.get_or_insert(t_s);
         }
+        self.struck += u64::from(r.struck);
         self.corrections += r.corrections as u64;
         self.corrections_max = self.corrections_max.max(r.corrections);
         self.backtracks += r.backtracks as u64;
@@ -37,6 +40,7 @@ impl NewtonTotals {
         (self.steps > 0).then(|| NewtonSummary {
             automatic_steps: self.automatic,
             engaged_at_s: self.engaged_at_s,
+            struck_steps: self.struck,
             corrections_total: self.corrections,
             corrections_max: self.corrections_max,
             corrections_mean: self.corrections as f64 / self.steps as f64,

@@ -120,7 +120,8 @@ pub const AUTO_NEWTON_MIN_K_H2_M: f64 = 3e4;
 #[serde(deny_unknown_fields, default)]
 pub struct NewtonParams {
     /// Most linear solves per step: 1 (default) is Choi & Ko's and Baraff
-    /// & Witkin's single linearised step; more adds Newton corrections
+    /// & Witkin's single linearised step (with Newton iterations where it
+    /// misjudges: [`NewtonParams::auto_trigger`]); more adds Newton corrections
     /// with a line search on the incremental potential, solids then acting
     /// as penalties and their friction as a dissipation potential (see
     /// [`NewtonReport`](crate::NewtonReport)).
@@ -137,17 +138,27 @@ pub struct NewtonParams {
     /// single linearised step, bit for bit. 0 (default): Newton on every
     /// step. The fixtures' worst steps at 1/90 s: `docs/solvers.md`.
     pub trigger: f64,
-    /// With `iterations = 1`: a step large for the material by its
-    /// `k_s h^2 / m` ([`AUTO_NEWTON_MIN_K_H2_M`]) whose single linearised
-    /// step misjudged some link's tension by more than this share of
-    /// `k_s L` (measured at 1/90 s the fixtures' worst step is 0.45; a
-    /// hanging cloth at h = 1 s reaches 86) engages Newton: from it on the
-    /// run takes Newton iterations ([`NewtonParams::auto_iterations`] of
-    /// them) on every step (`newton_engaged` ([`crate::Simulation::integrator_memory`])). 0: never.
-    /// Default 0.5.
+    /// With `iterations = 1`: a step whose single linearised step
+    /// misjudged some link's tension by more than this share of `k_s L`
+    /// takes Newton iterations ([`NewtonParams::auto_iterations`] of them).
+    /// - A step large for the material by its `k_s h^2 / m`
+    ///   ([`AUTO_NEWTON_MIN_K_H2_M`]; a hanging cloth at h = 1 s is off by
+    ///   86) engages them for the rest of the run (`newton_engaged`
+    ///   ([`crate::Simulation::integrator_memory`])).
+    /// - Any other step takes them alone when the misjudged link has an
+    ///   end in contact with a solid; the others stay the single step,
+    ///   bit for bit. Such a step is a solid striking the cloth by a good
+    ///   part of a link length in one step: a link at rest has no
+    ///   sideways stiffness in the linear step, so the struck particles
+    ///   move alone and stretch their links by `sqrt(1 + (v h / L)^2)`,
+    ///   more on finer meshes (`docs/results/garments-primitives.md`).
+    ///   Not on steps with bodies in the solve: Newton's solids are
+    ///   penalties, which give a body no impulse.
+    ///
+    /// 0: never. Default 0.5.
     pub auto_trigger: f64,
-    /// The Newton iterations a run takes once [`NewtonParams::auto_trigger`]
-    /// engaged them. Default 10.
+    /// The Newton iterations of a step [`NewtonParams::auto_trigger`]
+    /// picks. Default 10.
     pub auto_iterations: usize,
 }
 

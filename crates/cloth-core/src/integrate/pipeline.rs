@@ -19,7 +19,7 @@ use super::timer::{Stage, StageTimer};
 use crate::constraints::apply_strain_limit;
 use crate::contacts::{Contacts, project_out, restart_history_at_contacts};
 use crate::control::Control;
-use crate::{ClothModel, ClothState, SolverParams, StepError, StepReport};
+use crate::{ClothModel, ClothState, SolverParams, StepError, StepReport, StrainLimit};
 
 /// Everything a step reads and writes, borrowed from the simulation.
 pub(crate) struct Parts<'a> {
@@ -70,6 +70,10 @@ pub(crate) fn step(parts: Parts<'_>, h: f64) -> Result<StepReport, StepError> {
     report.stages = timer.times();
     Ok(report)
 }
+
+/// Deformation-constraint passes between two projections out of solids
+/// in a step's finish: at 5, a garment's 50 passes take up to ten turns.
+const PASSES_PER_PROJECTION: usize = 5;
 
 /// Fails on a step the simulation cannot take: a step size that is not a
 /// positive number, a state that does not fit the model, bodies or
@@ -163,10 +167,25 @@ fn finish(
     if let Some(limit) = model.strain_limit() {
         let ClothState { x, v, x_prev, time_s, stitches_closed, .. } = state;
         let held = |i| control.is_held(i);
-        report.strain_corrections = apply_strain_limit(model, &limit, held, stitches_closed, (x, v), h).corrections;
-        // The corrections may move particles into solids: move them out.
-        if !model.colliders().is_empty() {
-            report.contacts.projected += project_out(model, x_prev, (*time_s - h, h), contacts, true, x, v);
+        if model.colliders().is_empty() {
+            report.strain_corrections = apply_strain_limit(model, &limit, held, stitches_closed, (x, v), h).corrections;
+        } else {
+            // The corrections may move particles into solids, and moving
+            // them out stretches their links again: a few passes, then the
+            // projection, in turns, so that both hold where the cloth
+            // wraps a solid's edge (docs/results/garments-primitives.md).
+            let mut passes_left = limit.passes;
+            while passes_left > 0 {
+                let round = StrainLimit { passes: passes_left.min(PASSES_PER_PROJECTION), ..limit };
+                let done = apply_strain_limit(model, &round, held, stitches_closed, (x, v), h);
+                passes_left -= done.passes;
+                report.strain_corrections += done.corrections;
+                let moved = project_out(model, x_prev, (*time_s - h, h), contacts, true, x, v);
+                report.contacts.projected += moved;
+                if done.settled && moved == 0 {
+                    break;
+                }
+            }
         }
     }
     // After every correction of the step (the projection above sweeps from

@@ -92,6 +92,10 @@ pub struct NewtonReport {
     /// Whether the iterations ran because the run's steps are large for
     /// its material ([`NewtonParams::auto_trigger`](crate::NewtonParams::auto_trigger)), not because asked.
     pub automatic: bool,
+    /// Whether the iterations ran on this step alone because its single
+    /// linearised step misjudged a link's tension
+    /// ([`NewtonParams::auto_trigger`](crate::NewtonParams::auto_trigger)), not because asked.
+    pub struck: bool,
 }
 
 /// Why a step failed. The state is left as it was before the step.

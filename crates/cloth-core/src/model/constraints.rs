@@ -19,6 +19,9 @@ pub struct StrainLimitReport {
     pub passes: usize,
     /// Link corrections made over all passes.
     pub corrections: usize,
+    /// Whether the last pass found nothing to correct: every link within
+    /// its limit and every closed stitch closed.
+    pub settled: bool,
 }
 
 /// Applies `limit` to positions `x` in place, closed stitch by stitch and
@@ -78,6 +81,7 @@ pub fn apply_strain_limit(
         }
         report.corrections += corrected;
         if corrected == 0 {
+            report.settled = true;
             break;
         }
     }

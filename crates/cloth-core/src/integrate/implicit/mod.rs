@@ -311,7 +311,7 @@ impl Implicit {
         let newton = &solver.newton;
         let auto_solver =
             SolverParams { newton: NewtonParams { iterations: newton.auto_iterations, ..*newton }, ..*solver };
-        let inputs = if plan.automatic { StepInputs { solver: &auto_solver, ..inputs } } else { inputs };
+        let inputs = if plan.automatic || plan.struck { StepInputs { solver: &auto_solver, ..inputs } } else { inputs };
         if plan.escalate {
             if rules.friction_in_solve {
                 // Newton smooths friction into its potential from scratch.
@@ -333,6 +333,7 @@ impl Implicit {
                 residual_m: out.residual_m,
                 converged: out.converged,
                 automatic: plan.automatic,
+                struck: plan.struck,
             });
         }
         timer.time(Stage::Update, || new_state(inputs, &mut ws, force_coefficient, plan.escalate));
@@ -415,31 +416,45 @@ fn constrain_start<S: Linearised>(step: StepInputs<'_, S>, ws: &mut Workspace<'_
     ws.out.bodies.prepare(model, multigrid, control.bodies(), |p| paths.position(p, state.time_s + h), factors);
 }
 
-/// Whether Newton iterations follow the single linearised step, and
-/// whether because the run's steps are large for its material.
+/// Whether Newton iterations follow the single linearised step, and why
+/// when not asked for: the run's steps are large for the material, or
+/// this step alone misjudged a tension.
 #[derive(Debug, Clone, Copy)]
 struct NewtonPlan {
     escalate: bool,
     automatic: bool,
+    struck: bool,
 }
 
 /// The Newton decision after the single linearised step. Asked for
 /// (`iterations > 1`): on every step, or with a `trigger` only on steps
 /// whose linearisation misjudged some link's tension by more. Not asked
-/// for: engaged for the rest of the run once a step large for the
-/// material by `k h^2 / m` misjudged a tension by more than
-/// `auto_trigger` (checked only on such steps: a pass over the links on
-/// every step cost 5-10% of a light scene's).
+/// for: for the rest of the run once a step large for the material by
+/// `k h^2 / m` misjudged one by more than `auto_trigger`; on any other
+/// step alone if a link with an end on a solid was misjudged by more (a
+/// solid struck the cloth) and no bodies are in the solve. The measure
+/// is one parallel pass over the links.
 fn newton_plan<S: Linearised>(step: StepInputs<'_, S>, ws: &mut Workspace<'_>, engaged: bool) -> NewtonPlan {
-    let StepInputs { scheme, model, state, h, solver, .. } = step;
+    let StepInputs { scheme, model, state, control, h, solver, .. } = step;
     let newton = &solver.newton;
-    let mut misjudged = || newton::worst_tension_error(scheme, model, state, h, ws);
+    let touched = !ws.contacts.solid.is_empty();
+    let mut misjudged = |struck| newton::worst_tension_error(scheme, (model, state), h, ws, struck);
+    let plan = |escalate, automatic, struck| NewtonPlan { escalate, automatic, struck };
     if newton.iterations > 1 {
-        return NewtonPlan { escalate: newton.trigger <= 0.0 || misjudged() > newton.trigger, automatic: false };
+        return plan(newton.trigger <= 0.0 || misjudged(false) > newton.trigger, false, false);
     }
-    let large = h * h * model.stiffest_per_mass() > crate::AUTO_NEWTON_MIN_K_H2_M;
-    let engaged = engaged || (newton.auto_trigger > 0.0 && large && misjudged() > newton.auto_trigger);
-    NewtonPlan { escalate: engaged, automatic: engaged }
+    if engaged {
+        return plan(true, true, false);
+    }
+    if newton.auto_trigger <= 0.0 {
+        return plan(false, false, false);
+    }
+    if h * h * model.stiffest_per_mass() > crate::AUTO_NEWTON_MIN_K_H2_M {
+        let engage = misjudged(false) > newton.auto_trigger;
+        return plan(engage, engage, false);
+    }
+    let struck = control.bodies().is_empty() && touched && misjudged(true) > newton.auto_trigger;
+    plan(struck, false, struck)
 }
 
 /// The pins' reactions (their rows of the unfiltered residual; after

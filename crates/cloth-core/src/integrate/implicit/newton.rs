@@ -239,20 +239,24 @@ const LINK_CHUNK: usize = 1024;
 /// The worst error of the single linearised step's tension over its
 /// result `ws.s.unknown` (its end positions left in `ws.out.x`), as a share
 /// of `k_s L`
-/// ([`tension_linearisation_error`] of every stretch link). Used by
-/// [`crate::NewtonParams::trigger`].
+/// ([`tension_linearisation_error`] of every stretch link, or with
+/// `struck` of the links with an end in contact with a solid). Used by
+/// [`crate::NewtonParams::trigger`] and [`crate::NewtonParams::auto_trigger`].
 pub(crate) fn worst_tension_error<S: Linearised>(
     scheme: &S,
-    model: &ClothModel,
-    state: &ClothState,
+    (model, state): (&ClothModel, &ClothState),
     h: f64,
     ws: &mut Workspace<'_>,
+    struck: bool,
 ) -> f64 {
     use rayon::prelude::*;
     for i in 0..state.len() {
         ws.out.x[i] = scheme.advance(state, &ws.s.aux, h, i, ws.s.unknown[i]).0;
     }
     let (x, new_x) = (&state.x, &ws.out.x);
+    // The solid contacts are sorted by particle.
+    let solid = &ws.contacts.solid;
+    let touching = |p: usize| solid.binary_search_by_key(&(p as u32), |c| c.particle).is_ok();
     // Checked on every step when the run may engage Newton on its own
     // (`NewtonParams::auto_trigger`): in parallel, and the maximum does not
     // depend on the order.
@@ -262,6 +266,7 @@ pub(crate) fn worst_tension_error<S: Linearised>(
         .map(|links| {
             links
                 .iter()
+                .filter(|l| !struck || touching(l.i as usize) || touching(l.j as usize))
                 .map(|l| {
                     let (i, j) = (l.i as usize, l.j as usize);
                     tension_linearisation_error(l, (x[i], x[j]), (new_x[i], new_x[j]))
