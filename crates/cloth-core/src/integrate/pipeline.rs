@@ -167,24 +167,22 @@ fn finish(
     if let Some(limit) = model.strain_limit() {
         let ClothState { x, v, x_prev, time_s, stitches_closed, .. } = state;
         let held = |i| control.is_held(i);
-        if model.colliders().is_empty() {
-            report.strain_corrections = apply_strain_limit(model, &limit, held, stitches_closed, (x, v), h).corrections;
-        } else {
-            // The corrections may move particles into solids, and moving
-            // them out stretches their links again: a few passes, then the
-            // projection, in turns, so that both hold where the cloth
-            // wraps a solid's edge (docs/results/garments-primitives.md).
-            let mut passes_left = limit.passes;
-            while passes_left > 0 {
-                let round = StrainLimit { passes: passes_left.min(PASSES_PER_PROJECTION), ..limit };
-                let done = apply_strain_limit(model, &round, held, stitches_closed, (x, v), h);
-                passes_left -= done.passes;
-                report.strain_corrections += done.corrections;
-                let moved = project_out(model, x_prev, (*time_s - h, h), contacts, true, x, v);
-                report.contacts.projected += moved;
-                if done.settled && moved == 0 {
-                    break;
-                }
+        // The corrections may move particles into solids, and moving them
+        // out stretches their links again: a few passes, then the
+        // projection, in turns, so that both hold where the cloth wraps a
+        // solid's edge (docs/results/garments-primitives.md). Without
+        // solids the turns are the passes in one run.
+        let solids = !model.colliders().is_empty();
+        let mut passes_left = limit.passes;
+        while passes_left > 0 {
+            let round = StrainLimit { passes: passes_left.min(PASSES_PER_PROJECTION), ..limit };
+            let done = apply_strain_limit(model, &round, held, stitches_closed, (x, v), h);
+            passes_left -= done.passes;
+            report.strain_corrections += done.corrections;
+            let moved = if solids { project_out(model, x_prev, (*time_s - h, h), contacts, true, x, v) } else { 0 };
+            report.contacts.projected += moved;
+            if done.settled && moved == 0 {
+                break;
             }
         }
     }

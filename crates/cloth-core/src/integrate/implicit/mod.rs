@@ -432,16 +432,16 @@ struct NewtonPlan {
 /// for: for the rest of the run once a step large for the material by
 /// `k h^2 / m` misjudged one by more than `auto_trigger`; on any other
 /// step alone if a link with an end on a solid was misjudged by more (a
-/// solid struck the cloth) and no bodies are in the solve. The measure
-/// is one parallel pass over the links.
+/// solid struck the cloth) and no bodies are in the solve. The measures
+/// are a parallel pass over the links, and for a strike a pass over the
+/// contacts' links.
 fn newton_plan<S: Linearised>(step: StepInputs<'_, S>, ws: &mut Workspace<'_>, engaged: bool) -> NewtonPlan {
     let StepInputs { scheme, model, state, control, h, solver, .. } = step;
     let newton = &solver.newton;
-    let touched = !ws.contacts.solid.is_empty();
-    let mut misjudged = |struck| newton::worst_tension_error(scheme, (model, state), h, ws, struck);
+    let mut misjudged = || newton::worst_tension_error(scheme, model, state, h, ws);
     let plan = |escalate, automatic, struck| NewtonPlan { escalate, automatic, struck };
     if newton.iterations > 1 {
-        return plan(newton.trigger <= 0.0 || misjudged(false) > newton.trigger, false, false);
+        return plan(newton.trigger <= 0.0 || misjudged() > newton.trigger, false, false);
     }
     if engaged {
         return plan(true, true, false);
@@ -450,10 +450,11 @@ fn newton_plan<S: Linearised>(step: StepInputs<'_, S>, ws: &mut Workspace<'_>, e
         return plan(false, false, false);
     }
     if h * h * model.stiffest_per_mass() > crate::AUTO_NEWTON_MIN_K_H2_M {
-        let engage = misjudged(false) > newton.auto_trigger;
+        let engage = misjudged() > newton.auto_trigger;
         return plan(engage, engage, false);
     }
-    let struck = control.bodies().is_empty() && touched && misjudged(true) > newton.auto_trigger;
+    let struck = control.bodies().is_empty()
+        && newton::worst_struck_tension_error(scheme, (model, state), h, ws) > newton.auto_trigger;
     plan(struck, false, struck)
 }
 

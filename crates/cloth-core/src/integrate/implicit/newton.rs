@@ -239,24 +239,20 @@ const LINK_CHUNK: usize = 1024;
 /// The worst error of the single linearised step's tension over its
 /// result `ws.s.unknown` (its end positions left in `ws.out.x`), as a share
 /// of `k_s L`
-/// ([`tension_linearisation_error`] of every stretch link, or with
-/// `struck` of the links with an end in contact with a solid). Used by
+/// ([`tension_linearisation_error`] of every stretch link). Used by
 /// [`crate::NewtonParams::trigger`] and [`crate::NewtonParams::auto_trigger`].
 pub(crate) fn worst_tension_error<S: Linearised>(
     scheme: &S,
-    (model, state): (&ClothModel, &ClothState),
+    model: &ClothModel,
+    state: &ClothState,
     h: f64,
     ws: &mut Workspace<'_>,
-    struck: bool,
 ) -> f64 {
     use rayon::prelude::*;
     for i in 0..state.len() {
         ws.out.x[i] = scheme.advance(state, &ws.s.aux, h, i, ws.s.unknown[i]).0;
     }
     let (x, new_x) = (&state.x, &ws.out.x);
-    // The solid contacts are sorted by particle.
-    let solid = &ws.contacts.solid;
-    let touching = |p: usize| solid.binary_search_by_key(&(p as u32), |c| c.particle).is_ok();
     // Checked on every step when the run may engage Newton on its own
     // (`NewtonParams::auto_trigger`): in parallel, and the maximum does not
     // depend on the order.
@@ -266,7 +262,6 @@ pub(crate) fn worst_tension_error<S: Linearised>(
         .map(|links| {
             links
                 .iter()
-                .filter(|l| !struck || touching(l.i as usize) || touching(l.j as usize))
                 .map(|l| {
                     let (i, j) = (l.i as usize, l.j as usize);
                     tension_linearisation_error(l, (x[i], x[j]), (new_x[i], new_x[j]))
@@ -274,6 +269,30 @@ pub(crate) fn worst_tension_error<S: Linearised>(
                 .fold(0.0, f64::max)
         })
         .reduce(|| 0.0, f64::max)
+}
+
+/// The worst [`tension_linearisation_error`] of the single linearised
+/// step over the stretch links with an end in contact with a solid: a
+/// solid striking the cloth ([`crate::NewtonParams::auto_trigger`]). Only
+/// those links are visited, through each contact particle's incidence;
+/// a link with both ends in contact counts twice, which a maximum ignores.
+pub(crate) fn worst_struck_tension_error<S: Linearised>(
+    scheme: &S,
+    (model, state): (&ClothModel, &ClothState),
+    h: f64,
+    ws: &Workspace<'_>,
+) -> f64 {
+    let links = model.stretch_links();
+    let end = |i: usize| scheme.advance(state, &ws.s.aux, h, i, ws.s.unknown[i]).0;
+    let mut worst = 0.0f64;
+    for c in &ws.contacts.solid {
+        for inc in model.incidence(c.particle as usize) {
+            let Some(l) = links.get(inc.link as usize) else { continue };
+            let (i, j) = (l.i as usize, l.j as usize);
+            worst = worst.max(tension_linearisation_error(l, (state.x[i], state.x[j]), (end(i), end(j))));
+        }
+    }
+    worst
 }
 
 /// How wrong a linear step's tension of link `l` is after its ends moved
