@@ -1,5 +1,5 @@
-//! Garments made finer (`cloth bench garments`): those that hold at twice
-//! their Table-1 particle count keep holding. The 4x runs are the bench's
+//! Garments made finer (`cloth bench garments`): those that hold at the
+//! paper's counts and at twice their Table-1 count keep holding. The 4x runs are the bench's
 //! (`docs/results/garments-primitives.md`, which also lists the garments
 //! that do not hold yet).
 
@@ -8,21 +8,16 @@ mod common;
 use common::cloth;
 use std::path::Path;
 
-/// The pattern skirt (7,056 particles), the pattern T-shirt (4,479) and
-/// the OBJ skirt (7,776) walk the 3 s on the primitives mannequin at 2x:
-/// peak stretch under 1.15, no particle deeper inside a solid than the
-/// contact thickness, no lasting crossing, seams closed. The first two
-/// hold by the automatic Newton step on the steps a leg strikes them
-/// (`solver.newton.auto_trigger`); with the single linearised step they
-/// tangle (peak stretch 4.1 and 10.2).
-#[test]
-#[ignore = "slow tier: cargo test --release -- --ignored"]
-fn garments_hold_at_twice_their_table1_count() {
-    let out = std::env::temp_dir().join(format!("cloth-garments-2x-{}", std::process::id()));
+/// Runs `cloth bench garments` on the primitives mannequin, once each,
+/// for `garments` at `scale`, and checks that each holds with the given
+/// particle count: peak stretch under 1.15, no particle deeper inside a
+/// solid than the contact thickness, no lasting crossing, seams closed.
+fn garments_hold(garments: &str, scale: &str, particles: &[u64]) {
+    let out = std::env::temp_dir().join(format!("cloth-garments-{scale}x-{}", std::process::id()));
     let o = cloth()
         .current_dir(Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/..")))
-        .args(["bench", "garments", "--garment", "pattern-skirt,pattern-tshirt,obj-skirt"])
-        .args(["--scale", "2", "--repeat", "1"])
+        .args(["bench", "garments", "--garment", garments])
+        .args(["--scale", scale, "--repeat", "1"])
         .args(["--mannequin", "primitives", "--out"])
         .arg(&out)
         .output()
@@ -31,15 +26,38 @@ fn garments_hold_at_twice_their_table1_count() {
     let rows: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("garments.json")).unwrap()).unwrap();
     let rows = rows.as_array().unwrap();
-    assert_eq!(rows.len(), 3);
-    for (r, particles) in rows.iter().zip([7056, 4479, 7776]) {
-        assert_eq!(r["particles"], particles, "{r}");
+    assert_eq!(rows.len(), particles.len());
+    for (r, &count) in rows.iter().zip(particles) {
+        assert_eq!(r["particles"], count, "{r}");
         assert!((r["sim_time_s"].as_f64().unwrap() - 3.0).abs() < 1e-6, "{r}");
         assert_eq!(r["fails"].as_array().unwrap().len(), 0, "{r}");
-        // Measured 1.104, 1.109 and 1.146.
         assert!(r["peak_stretch"].as_f64().unwrap() < 1.15, "{r}");
         assert_eq!(r["deep_in_solids_max"], 0, "{r}");
         assert!(r["lasting_crossing"].is_null(), "{r}");
     }
     std::fs::remove_dir_all(&out).ok();
+}
+
+/// The pattern skirt (7,056 particles) and the OBJ skirt (7,776) walk the
+/// 3 s on the primitives mannequin at twice their Table-1 counts and hold
+/// (peak stretch measured 1.104 and 1.146). The pattern skirt holds by the
+/// automatic Newton step on the steps a leg strikes it
+/// (`solver.newton.auto_trigger`); with the single linearised step it
+/// tangles (peak stretch 4.1).
+#[test]
+#[ignore = "slow tier: cargo test --release -- --ignored"]
+fn garments_hold_at_twice_their_table1_count() {
+    garments_hold("pattern-skirt,obj-skirt", "2", &[7056, 7776]);
+}
+
+/// The T-shirt (3,411 particles) and the flared skirt (3,482) at Table 1's
+/// counts, the paper's or finer, hold (peak stretch 1.100 each). The
+/// flared skirt there kept a crossing between the knees while the impact
+/// zones did not see what the deformation constraints moved, missed edges
+/// of triangles round one vertex, and left meetings where a leg pushed
+/// both layers.
+#[test]
+#[ignore = "slow tier: cargo test --release -- --ignored"]
+fn garments_hold_at_the_papers_counts() {
+    garments_hold("pattern-tshirt,flared-skirt", "1", &[3411, 3482]);
 }

@@ -420,8 +420,8 @@ mod tests {
     /// garment read from its finer file.
     #[test]
     fn finer_pattern_and_obj_garments_have_about_the_asked_count() {
-        assert_eq!(particles("pattern-tshirt", 1.0), 2314);
-        let ratio = particles("pattern-tshirt", 4.0) as f64 / 2314.0;
+        assert_eq!(particles("pattern-tshirt", 1.0), 3411);
+        let ratio = particles("pattern-tshirt", 4.0) as f64 / 3411.0;
         assert!((3.6..4.4).contains(&ratio), "{ratio}");
         assert_eq!(particles("obj-skirt", 2.0), 7776);
         assert_eq!(particles("obj-skirt", 4.0), 13632);

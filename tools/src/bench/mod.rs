@@ -91,23 +91,21 @@ const PATTERN_DRESS: [&str; 6] = [
     "meshes.4.pattern.edge_length_m=0.021",
     "meshes.5.pattern.edge_length_m=0.021",
 ];
-/// The T-shirt and the flared skirt at the finest meshes on which they
-/// walk untangled (`docs/garments.md`): the T-shirt's pieces at 0.85 of
-/// their edge lengths (2314 particles; at 0.8, 2594, the projection out
-/// of the torso pushes layers through each other at an armhole), the
-/// flared skirt's gores at 2.1 cm (2738; at 1.87 cm, the paper's count,
-/// it tangles between the knees).
+/// The T-shirt and the flared skirt at the paper's counts or finer: the
+/// T-shirt's pieces at 0.69 of their fixture's edge lengths (3411
+/// particles; the paper's top had 3396), the flared skirt's gores at
+/// 1.86 cm (3482; the paper's skirt had 3456).
 const PATTERN_TSHIRT: [&str; 6] = [
-    "meshes.0.pattern.edge_length_m=0.02125",
-    "meshes.1.pattern.edge_length_m=0.02125",
-    "meshes.2.pattern.edge_length_m=0.0187",
-    "meshes.3.pattern.edge_length_m=0.0187",
-    "meshes.4.pattern.edge_length_m=0.017",
-    "meshes.5.pattern.edge_length_m=0.017",
+    "meshes.0.pattern.edge_length_m=0.01725",
+    "meshes.1.pattern.edge_length_m=0.01725",
+    "meshes.2.pattern.edge_length_m=0.01518",
+    "meshes.3.pattern.edge_length_m=0.01518",
+    "meshes.4.pattern.edge_length_m=0.0138",
+    "meshes.5.pattern.edge_length_m=0.0138",
 ];
 const FLARED_SKIRT: [&str; 4] = [
-    "meshes.0.pattern.edge_length_m=0.021",
-    "meshes.1.pattern.edge_length_m=0.021",
+    "meshes.0.pattern.edge_length_m=0.0186",
+    "meshes.1.pattern.edge_length_m=0.0186",
     DEFORMATION_CONSTRAINTS[0],
     DEFORMATION_CONSTRAINTS[1],
 ];

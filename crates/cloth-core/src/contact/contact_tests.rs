@@ -765,3 +765,88 @@ fn the_search_order_walks_the_fewest_voxels() {
     assert!(m < 0.23 * s && l < 0.28 * s, "{m} and {l} of {s}");
     assert_eq!(cost(&search_order(&model, cell)), m.min(l));
 }
+
+/// The continuous test finds the point-triangle and edge-edge pairs that
+/// meet between two states of crumpled sheets as testing every pair
+/// does: when every particle moves (the grid holds all triangles), when
+/// one in twelve does (moving triangles against resting ones), and when
+/// an edge is carried through another edge of a triangle round one of its
+/// vertices (`ring_edge_pairs`; the grid skips such triangle pairs).
+#[test]
+fn the_continuous_test_finds_every_meeting_of_a_dense_and_a_sparse_motion() {
+    let model = stacked_sheets((10, 0.1), (8, 0.08), 0.004, [0.01, 0.01]);
+    let sc = *model.self_collision().unwrap();
+    let eta = MEETING_FRACTION * sc.thickness_m;
+    let mut seed = 5u64;
+    let mut rand = || {
+        seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    let mut jiggle = |size: f64| Vec3::new(size * rand(), size * rand(), size * rand());
+    let x0: Vec<Vec3> = model.rest_positions().iter().map(|p| p + jiggle(0.02)).collect();
+    let dense: Vec<Vec3> = x0.iter().map(|p| p + jiggle(0.04)).collect();
+    let sparse: Vec<Vec3> =
+        x0.iter().enumerate().map(|(i, p)| if i % 12 == 0 { p + jiggle(0.04) } else { *p }).collect();
+    let triangles = model.triangles();
+    let mut edges: Vec<[u32; 2]> =
+        triangles.iter().flat_map(|&[a, b, c]| [[a, b], [b, c], [c, a]]).map(|[a, b]| [a.min(b), a.max(b)]).collect();
+    edges.sort_unstable();
+    edges.dedup();
+    let mut bufs = Contacts::default();
+    build_exclusions(&model, &mut bufs.excluded_ptr, &mut bufs.excluded);
+    bufs.crossings.owned = owned_features(triangles, model.particle_count());
+    bufs.crossings.ring = ring_edge_pairs(&model, &bufs.crossings.owned);
+    // One edge of a vertex's ring carried through another (ends a, b moved
+    // twice the way from its middle to the other's).
+    let [a, b, c, d] = bufs.crossings.ring[0];
+    let mut ring = x0.clone();
+    let across = x0[c as usize] + x0[d as usize] - x0[a as usize] - x0[b as usize];
+    ring[a as usize] += across;
+    ring[b as usize] += across;
+    for (x1, expected) in [(&dense, 600), (&sparse, 75), (&ring, 1)] {
+        find_meetings(&model, sc.voxel_m, eta, &x0, x1, (&bufs.excluded_ptr, &bufs.excluded), &mut bufs.crossings);
+        let mut found: Vec<[u32; 4]> = bufs.crossings.meetings.iter().map(|m| sorted(*m)).collect();
+        found.sort_unstable();
+        let sparse_motion = bufs.crossings.moving.len() * 4 < triangles.len();
+        let common = if sparse_motion {
+            Vec3::zeros()
+        } else {
+            x0.iter().zip(x1.iter()).map(|(a, b)| b - a).sum::<Vec3>() / x0.len() as f64
+        };
+        let path = |i: u32| [x0[i as usize], x1[i as usize] - common];
+        let mut every = Vec::new();
+        for (t, &[a, b, c]) in triangles.iter().enumerate() {
+            let never = &bufs.excluded[bufs.excluded_ptr[t] as usize..bufs.excluded_ptr[t + 1] as usize];
+            for p in
+                (0..model.particle_count() as u32).filter(|p| ![a, b, c].contains(p) && never.binary_search(p).is_err())
+            {
+                if cloth_collide::point_triangle_impact(path(p), path(a), path(b), path(c), eta).is_some() {
+                    every.push(sorted([p, a, b, c]));
+                }
+            }
+        }
+        let near = |p: u32, q: u32| model.never_repel(p as usize, q as usize);
+        for (k, &[a, b]) in edges.iter().enumerate() {
+            for &[c, d] in &edges[k + 1..] {
+                let apart = a != c && a != d && b != c && b != d;
+                if apart
+                    && !(near(a, c) || near(a, d) || near(b, c) || near(b, d))
+                    && cloth_collide::edge_edge_impact(path(a), path(b), path(c), path(d), eta).is_some()
+                {
+                    every.push(sorted([a, b, c, d]));
+                }
+            }
+        }
+        every.sort_unstable();
+        eprintln!("sparse {sparse_motion}: {} meetings", every.len());
+        assert_eq!(sparse_motion, !std::ptr::eq(x1, &dense));
+        assert!(every.len() >= expected, "the motion should meet often: {} meetings", every.len());
+        assert_eq!(found, every);
+    }
+    assert!(bufs.crossings.meetings.contains(&[a, b, c, d]), "the ring's edges should meet");
+}
+
+fn sorted(mut quad: [u32; 4]) -> [u32; 4] {
+    quad.sort_unstable();
+    quad
+}

@@ -24,6 +24,10 @@ use rayon::prelude::*;
 /// while the separation keeps touching pairs at `MIN_SELF_GAP` thicknesses.
 pub const MEETING_FRACTION: f64 = 1e-3;
 
+/// The motion is sparse, and the broad phase pairs only moving triangles
+/// with all, when fewer than one triangle in this many moves.
+const SPARSE_SHARE: usize = 4;
+
 /// Rounds of zone merging in one step before the crossings left are
 /// reported (`ContactStats::crossings_left`).
 const ZONE_ROUNDS: usize = 64;
@@ -76,6 +80,7 @@ pub(crate) fn untangle_step(
     let cb = &mut bufs.crossings;
     if cb.owned.len() != model.triangles().len() {
         cb.owned = owned_features(model.triangles(), model.particle_count());
+        cb.ring = ring_edge_pairs(model, &cb.owned);
     }
     let found = |cb: &mut CrossingBuffers, x1: &[Vec3]| {
         find_meetings(model, sc.voxel_m, eta, x0, x1, (&bufs.excluded_ptr, &bufs.excluded), cb)
@@ -121,9 +126,9 @@ pub(crate) fn untangle_step(
 /// (`owned_features`), so every vertex-triangle and edge-edge pair is
 /// tested once (a vertex's box lies in its owner's, so no pair is missed).
 /// Triangles that share a vertex are skipped: their vertex-triangle pairs
-/// are linked, and their edge pairs lie within one vertex's ring, which
-/// the repulsion leaves alone too.
-fn find_meetings(
+/// are linked, and the edge pairs they own that may cross are listed once
+/// per model (`ring_edge_pairs`) and tested after the grid's.
+pub(crate) fn find_meetings(
     model: &ClothModel,
     min_cell: f64,
     eta: f64,
@@ -133,10 +138,26 @@ fn find_meetings(
     cb: &mut CrossingBuffers,
 ) {
     let triangles = model.triangles();
+    // A motion of a few particles (the deformation constraints' corrections):
+    // only pairs with a moving triangle can meet anew, and the grid pairs
+    // those alone.
+    cb.moving.clear();
+    cb.resting.clear();
+    for (t, corners) in triangles.iter().enumerate() {
+        let list =
+            if corners.iter().any(|&i| x1[i as usize] != x0[i as usize]) { &mut cb.moving } else { &mut cb.resting };
+        list.push(t as u32);
+    }
+    let sparse = cb.moving.len() * SPARSE_SHARE < triangles.len();
     // Meetings do not change under a motion common to all particles: take
     // out the mean displacement, so the swept boxes shrink to the motion
-    // of the cloth's parts relative to each other.
-    let common = x0.iter().zip(x1).map(|(a, b)| b - a).sum::<Vec3>() / x0.len().max(1) as f64;
+    // of the cloth's parts relative to each other (not from a few moving
+    // ones, which would set the resting ones in motion).
+    let common = if sparse {
+        Vec3::zeros()
+    } else {
+        x0.iter().zip(x1).map(|(a, b)| b - a).sum::<Vec3>() / x0.len().max(1) as f64
+    };
     let path = |i: u32| [x0[i as usize], x1[i as usize] - common];
     cb.meetings.clear();
     cb.boxes.clear();
@@ -151,11 +172,22 @@ fn find_meetings(
         (Aabb::around(t.iter().map(|&i| x0[i as usize]), 0.0), c, r)
     }));
     let cell = BoxGrid::cell_for(&cb.boxes, min_cell, &mut cb.extents);
-    // Positions are finite here: the step checked them.
-    if cb.grid.build(cb.boxes.iter().copied(), cell).is_err() {
+    // Positions are finite here: the step checked them. Sparse: the grid
+    // holds the moving triangles and `rest_grid` the others; the pairs are
+    // those of two moving ones and of a moving and a resting one.
+    let built = if sparse {
+        let boxes = &cb.boxes;
+        cb.grid
+            .build(cb.moving.iter().map(|&t| boxes[t as usize]), cell)
+            .and_then(|()| cb.rest_grid.build(cb.resting.iter().map(|&t| boxes[t as usize]), cell))
+    } else {
+        cb.grid.build(cb.boxes.iter().copied(), cell)
+    };
+    if built.is_err() {
         return;
     }
-    let (grid, owned, starts) = (&cb.grid, &cb.owned, &cb.starts);
+    let (grid, rest_grid, owned, starts) = (&cb.grid, &cb.rest_grid, &cb.owned, &cb.starts);
+    let (moving, resting) = (&cb.moving, &cb.resting);
     // Two triangles' points close in by at most `r_s + r_t + |c_s - c_t|`
     // over the step: pairs farther apart at the start cannot meet.
     let can_meet = |s: usize, t: usize| {
@@ -173,8 +205,8 @@ fn find_meetings(
             && point_triangle_impact(path(p), path(a), path(b), path(c), eta).is_some())
         .then_some([p, a, b, c])
     };
+    let near = |p: u32, q: u32| model.never_repel(p as usize, q as usize);
     let edge_edge = |[a, b]: [u32; 2], [c, d]: [u32; 2]| {
-        let near = |p: u32, q: u32| model.never_repel(p as usize, q as usize);
         (a != c
             && a != d
             && b != c
@@ -205,22 +237,75 @@ fn find_meetings(
     cb.chunks.par_iter_mut().enumerate().for_each(|(k, (candidates, found))| {
         found.clear();
         candidates.clear();
+        let cells = k * CELL_CHUNK..((k + 1) * CELL_CHUNK).min(grid.cells());
         if k < chunks - 1 {
-            grid.pairs(grid, k * CELL_CHUNK..((k + 1) * CELL_CHUNK).min(grid.cells()), true, candidates);
+            grid.pairs(grid, cells.clone(), true, candidates);
         } else {
             grid.wide_pairs(grid, true, candidates);
         }
+        if sparse {
+            let among_moving = candidates.len();
+            if k < chunks - 1 {
+                grid.pairs(rest_grid, cells, false, candidates);
+            } else {
+                grid.wide_pairs(rest_grid, false, candidates);
+            }
+            for (i, (s, t)) in candidates.iter_mut().enumerate() {
+                (*s, *t) =
+                    (moving[*s as usize], if i < among_moving { moving[*t as usize] } else { resting[*t as usize] });
+            }
+        }
         for &(s, t) in candidates.iter() {
             let (s, t) = (s as usize, t as usize);
-            // Triangles round one vertex: their vertex-triangle pairs are
-            // all linked, and their edge pairs lie in one vertex's ring.
-            let adjacent = triangles[s].iter().any(|v| triangles[t].contains(v));
-            if !adjacent && can_meet(s, t) {
+            if !can_meet(s, t) {
+                continue;
+            }
+            // Triangles round one vertex: their pairs are `cb.ring`'s.
+            if !triangles[s].iter().any(|v| triangles[t].contains(v)) {
                 pair(s, t, found);
             }
         }
     });
     cb.meetings.extend(cb.chunks.iter().flat_map(|(_, found)| found));
+    let ring_meets = |&[a, b, c, d]: &[u32; 4]| {
+        let (e, f) = (path(a).into_iter().chain(path(b)), path(c).into_iter().chain(path(d)));
+        Aabb::around(e, eta).overlaps(&Aabb::around(f, eta))
+            && edge_edge_impact(path(a), path(b), path(c), path(d), eta).is_some()
+    };
+    cb.meetings.extend(cb.ring.iter().filter(|p| ring_meets(p)));
+}
+
+/// The edge pairs that triangles round one vertex own (`owned`) and that
+/// may cross: no corner shared, no end linked to an end of the other. The
+/// broad phase skips triangles that share a vertex, whose vertex-triangle
+/// pairs are all linked; a fold of a vertex's ring can still pass one of
+/// these edges through the other.
+pub(crate) fn ring_edge_pairs(model: &ClothModel, owned: &[[u8; 2]]) -> Vec<[u32; 4]> {
+    let triangles = model.triangles();
+    let edge = |t: usize, k: usize| [triangles[t][k], triangles[t][(k + 1) % 3]];
+    let near = |p: u32, q: u32| model.never_repel(p as usize, q as usize);
+    let mut pairs = Vec::new();
+    for (s, corners) in triangles.iter().enumerate() {
+        let mut round: Vec<usize> =
+            corners.iter().flat_map(|&v| model.particle_triangles(v as usize)).map(|&t| t as usize).collect();
+        round.sort_unstable();
+        round.dedup();
+        for t in round.into_iter().filter(|&t| t > s) {
+            if triangles[t].iter().filter(|v| corners.contains(v)).count() != 1 {
+                continue;
+            }
+            for ks in (0..3).filter(|&k| owned[s][1] & (1 << k) != 0) {
+                for kt in (0..3).filter(|&k| owned[t][1] & (1 << k) != 0) {
+                    let ([a, b], [c, d]) = (edge(s, ks), edge(t, kt));
+                    let apart = a != c && a != d && b != c && b != d;
+                    if apart && !(near(a, c) || near(a, d) || near(b, c) || near(b, d)) {
+                        pairs.push([a, b, c, d]);
+                    }
+                }
+            }
+        }
+    }
+    pairs
 }
 
 /// For each triangle, the corners (bit k: corner k) and edges (bit k: from

@@ -49,6 +49,8 @@ pub(crate) type MeetingChunk = (Vec<(u32, u32)>, Vec<[u32; 4]>);
 pub(crate) struct CrossingBuffers {
     /// Per triangle, the vertices and edges it tests (`owned_features`).
     pub(crate) owned: Vec<[u8; 2]>,
+    /// Edge pairs owned by triangles round one vertex (`ring_edge_pairs`).
+    pub(crate) ring: Vec<[u32; 4]>,
     /// The triangles' swept boxes, and their grid.
     pub(crate) boxes: Vec<Aabb>,
     /// Per triangle, its box at the start of the step, its corners' mean
@@ -56,6 +58,11 @@ pub(crate) struct CrossingBuffers {
     pub(crate) starts: Vec<(Aabb, Vec3, f64)>,
     pub(crate) extents: Vec<f64>,
     pub(crate) grid: BoxGrid,
+    /// Triangles with a corner that moves, and those without (`find_meetings`).
+    pub(crate) moving: Vec<u32>,
+    pub(crate) resting: Vec<u32>,
+    /// The resting triangles' grid, when few move.
+    pub(crate) rest_grid: BoxGrid,
     /// Per chunk: broad-phase candidates and the meetings found.
     pub(crate) chunks: Vec<MeetingChunk>,
     /// The particles of each meeting of the current round.
@@ -71,6 +78,8 @@ pub(crate) struct CrossingBuffers {
     pub(crate) held: Vec<bool>,
     /// Positions before the last projection out of the solids.
     pub(crate) before: Vec<Vec3>,
+    /// The step's end before the deformation constraints corrected it.
+    pub(crate) uncorrected: Vec<Vec3>,
 }
 
 /// A solid's surface near a particle, linearised at the closest point

@@ -9,9 +9,10 @@
 
 use super::contacts::*;
 use super::surroundings::{plane_force, surroundings};
+use crate::colliders::SelfCollision;
 use crate::integrate::step::{ContactHandling, Step, StepOutput};
 use crate::integrate::timer::{Stage, StageTimer};
-use crate::{StepError, Vec3};
+use crate::{ClothModel, StepError, Vec3};
 use rayon::prelude::*;
 
 /// Rounds of impact zones and projection out of the solids after a step
@@ -218,25 +219,112 @@ impl Contacts {
             // and carry what they would cross with them, then the solids
             // project again, a few rounds.
             if let Some(sc) = continuous.filter(|_| self.stats.projected > 0) {
-                for _ in 0..PROJECTION_ROUNDS {
-                    let lap = timer.start();
-                    self.crossings.hold_projected(&out.x);
-                    let (met, left) = untangle_step(model, sc, &state.x, tau, &mut out.x, &mut out.v, self);
-                    timer.stop(lap, Stage::SelfCollision);
-                    (self.stats.self_crossings, self.stats.crossings_left) = (self.stats.self_crossings + met, left);
-                    if met == 0 {
-                        break;
-                    }
-                    self.crossings.before_projection(&out.x);
-                    let again = project_out(model, &state.x, times, self, true, &mut out.x, &mut out.v);
-                    self.stats.projected += again;
-                    if again == 0 {
-                        break;
-                    }
-                }
+                self.untangle_holding_projected(
+                    model,
+                    sc,
+                    (&state.x, &state.x),
+                    times,
+                    tau,
+                    (&mut out.x, &mut out.v),
+                    timer,
+                );
             }
         }
         self.stats.contacts = self.solid.iter().filter(|c| c.active).count();
+    }
+
+    /// Impact zones along the motion from `from` to `x`, the particles a
+    /// projection pushed held, then the projection out of the solids
+    /// (`start`: the step's start), in rounds until nothing meets or
+    /// nothing is pushed; then, if meetings are left, zones free of the
+    /// solids.
+    #[allow(clippy::too_many_arguments)]
+    fn untangle_holding_projected(
+        &mut self,
+        model: &ClothModel,
+        sc: &SelfCollision,
+        (from, start): (&[Vec3], &[Vec3]),
+        times: (f64, f64),
+        tau: f64,
+        (x, v): (&mut [Vec3], &mut [Vec3]),
+        timer: &mut StageTimer,
+    ) {
+        for _ in 0..PROJECTION_ROUNDS {
+            self.crossings.hold_projected(x);
+            let lap = timer.start();
+            let (met, left) = untangle_step(model, sc, from, tau, x, v, self);
+            timer.stop(lap, Stage::SelfCollision);
+            (self.stats.self_crossings, self.stats.crossings_left) = (self.stats.self_crossings + met, left);
+            if met == 0 || model.colliders().is_empty() {
+                break;
+            }
+            self.crossings.before_projection(x);
+            let again = project_out(model, start, times, self, true, x, v);
+            self.stats.projected += again;
+            if again == 0 {
+                break;
+            }
+        }
+        // Held particles on both sides of a meeting (two layers pinched
+        // between solids) can leave it crossing: then zones move free of
+        // the solids. A particle left inside a solid's layer is pushed out
+        // by the next step's contacts; a crossing is undone by nothing.
+        if self.stats.crossings_left > 0 {
+            self.crossings.start_step(x.len());
+            let lap = timer.start();
+            let (met, left) = untangle_step(model, sc, from, tau, x, v, self);
+            timer.stop(lap, Stage::SelfCollision);
+            (self.stats.self_crossings, self.stats.crossings_left) = (self.stats.self_crossings + met, left);
+        }
+    }
+
+    /// Before the deformation constraints correct the step's end `x`: with
+    /// continuous self-collision, remembers it, none held.
+    pub(crate) fn before_corrections(&mut self, model: &ClothModel, x: &[Vec3]) {
+        if model.self_collision().is_some_and(|sc| sc.continuous) {
+            self.crossings.start_step(x.len());
+            self.crossings.uncorrected.clear();
+            self.crossings.uncorrected.extend_from_slice(x);
+        }
+    }
+
+    /// The projection out of the solids between the constraints' passes
+    /// (`start`: the step's start, `times`: its time and length, s); the
+    /// particles it moves are held by the impact zones that follow, and
+    /// counted. Returns how many it moved.
+    pub(crate) fn project_corrected(
+        &mut self,
+        model: &ClothModel,
+        start: &[Vec3],
+        times: (f64, f64),
+        x: &mut [Vec3],
+        v: &mut [Vec3],
+    ) -> usize {
+        self.crossings.before_projection(x);
+        let moved = project_out(model, start, times, self, true, x, v);
+        self.crossings.hold_projected(x);
+        self.stats.projected += moved;
+        moved
+    }
+
+    /// After the deformation constraints: nothing passes through the cloth
+    /// along the motion they gave it (from `before_corrections`' positions
+    /// to `x`), as after the solve. A link shortened through another layer
+    /// leaves a crossing that the next step's continuous test cannot see,
+    /// since that step starts with it. Returns the meetings found.
+    pub(crate) fn untangle_corrections(
+        &mut self,
+        model: &ClothModel,
+        (start, times): (&[Vec3], (f64, f64)),
+        (x, v): (&mut [Vec3], &mut [Vec3]),
+        timer: &mut StageTimer,
+    ) -> usize {
+        let Some(sc) = model.self_collision().filter(|sc| sc.continuous) else { return 0 };
+        let from = std::mem::take(&mut self.crossings.uncorrected);
+        let before = self.stats.self_crossings;
+        self.untangle_holding_projected(model, sc, (&from, start), times, times.1, (x, v), timer);
+        self.crossings.uncorrected = from;
+        self.stats.self_crossings - before
     }
 
     /// The response of the integrators whose contacts are penalties: the

@@ -17,7 +17,7 @@ use super::loads::Loads;
 use super::step::{Attempt, Capabilities, ContactHandling, Integrator, Step, StepOutput};
 use super::timer::{Stage, StageTimer};
 use crate::constraints::apply_strain_limit;
-use crate::contacts::{Contacts, project_out, restart_history_at_contacts};
+use crate::contacts::{Contacts, restart_history_at_contacts};
 use crate::control::Control;
 use crate::{ClothModel, ClothState, SolverParams, StepError, StepReport, StrainLimit};
 
@@ -65,7 +65,7 @@ pub(crate) fn step(parts: Parts<'_>, h: f64) -> Result<StepReport, StepError> {
     timer.time(Stage::Update, || commit(state, out, h));
     integrator.committed(&report);
     let lap = timer.start();
-    finish(model, control, caps, state, contacts, &mut report, h);
+    finish(model, control, caps, state, contacts, &mut report, h, &mut timer);
     timer.stop(lap, Stage::Update);
     report.stages = timer.times();
     Ok(report)
@@ -74,6 +74,11 @@ pub(crate) fn step(parts: Parts<'_>, h: f64) -> Result<StepReport, StepError> {
 /// Deformation-constraint passes between two projections out of solids
 /// in a step's finish: at 5, a garment's 50 passes take up to ten turns.
 const PASSES_PER_PROJECTION: usize = 5;
+
+/// Checks for crossings of what the deformation constraints moved in a
+/// step's finish, each after a turn of passes: impact zones that moved
+/// cloth leave its links stretched, which the next turn's passes take up.
+const CORRECTION_CHECKS: usize = 3;
 
 /// Fails on a step the simulation cannot take: a step size that is not a
 /// positive number, a state that does not fit the model, bodies or
@@ -155,6 +160,7 @@ fn commit(state: &mut ClothState, out: &mut StepOutput, h: f64) {
 /// The end of every step, whatever the integrator: Provot's deformation
 /// constraints (and the projection out of solids they may need), the
 /// restart of the history at held contacts, and the stitches that close.
+#[allow(clippy::too_many_arguments)]
 fn finish(
     model: &ClothModel,
     control: &Control,
@@ -163,28 +169,41 @@ fn finish(
     contacts: &mut Contacts,
     report: &mut StepReport,
     h: f64,
+    timer: &mut StageTimer,
 ) {
     if let Some(limit) = model.strain_limit() {
         let ClothState { x, v, x_prev, time_s, stitches_closed, .. } = state;
         let held = |i| control.is_held(i);
+        let times = (*time_s - h, h);
         // The corrections may move particles into solids, and moving them
         // out stretches their links again: a few passes, then the
         // projection, in turns, so that both hold where the cloth wraps a
         // solid's edge (docs/results/garments-primitives.md). Without
-        // solids the turns are the passes in one run.
+        // solids the turns are the passes in one run. What they moved is
+        // then checked for crossings; where impact zones moved the cloth,
+        // the passes left go on, a few checks at most.
         let solids = !model.colliders().is_empty();
         let mut passes_left = limit.passes;
-        while passes_left > 0 {
-            let round = StrainLimit { passes: passes_left.min(PASSES_PER_PROJECTION), ..limit };
-            let done = apply_strain_limit(model, &round, held, stitches_closed, (x, v), h);
-            passes_left -= done.passes;
-            report.strain_corrections += done.corrections;
-            let moved = if solids { project_out(model, x_prev, (*time_s - h, h), contacts, true, x, v) } else { 0 };
-            report.contacts.projected += moved;
-            if done.settled && moved == 0 {
+        for check in 1..=CORRECTION_CHECKS {
+            contacts.before_corrections(model, x);
+            let mut corrected = false;
+            while passes_left > 0 {
+                let round = StrainLimit { passes: passes_left.min(PASSES_PER_PROJECTION), ..limit };
+                let done = apply_strain_limit(model, &round, held, stitches_closed, (x, v), h);
+                passes_left -= done.passes;
+                report.strain_corrections += done.corrections;
+                let moved = if solids { contacts.project_corrected(model, x_prev, times, x, v) } else { 0 };
+                corrected |= done.corrections > 0 || moved > 0;
+                if done.settled && moved == 0 {
+                    break;
+                }
+            }
+            let zones_moved = corrected && contacts.untangle_corrections(model, (x_prev, times), (x, v), timer) > 0;
+            if !zones_moved || passes_left == 0 || check == CORRECTION_CHECKS {
                 break;
             }
         }
+        report.contacts = contacts.stats();
     }
     // After every correction of the step (the projection above sweeps from
     // `x_prev`, the start of the step); not after Newton iterations, whose
