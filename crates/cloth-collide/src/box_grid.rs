@@ -211,6 +211,22 @@ impl BoxGrid {
         }
     }
 
+    /// Calls `f` with each box of this grid that overlaps `b` (any size),
+    /// cell by cell, then the wide ones: a fixed order.
+    pub fn for_each_overlapping(&self, b: &Aabb, mut f: impl FnMut(u32)) {
+        let lo = cell_of(b.min.add_scalar(-self.cell), self.cell);
+        let hi = cell_of(b.max, self.cell);
+        for x in lo[0]..=hi[0] {
+            for y in lo[1]..=hi[1] {
+                for z in lo[2]..=hi[2] {
+                    let (first, end) = self.run_at([x, y, z]).unwrap_or((0, 0));
+                    self.grouped[first..end].iter().filter(|(bj, _)| b.overlaps(bj)).for_each(|&(_, j)| f(j));
+                }
+            }
+        }
+        self.wide.iter().filter(|&&j| b.overlaps(&self.boxes[j as usize])).for_each(|&j| f(j));
+    }
+
     /// The range in `sorted` of the boxes registered in cell `c`.
     fn run_at(&self, c: [i64; 3]) -> Option<(usize, usize)> {
         let k = key(c);
@@ -262,8 +278,8 @@ mod tests {
     use super::*;
 
     /// The grid finds exactly the overlapping pairs that a comparison of
-    /// every pair finds, between two sets and within one, small and wide
-    /// boxes alike.
+    /// every pair finds, between two sets and within one, and for one box
+    /// against a set, small and wide boxes alike.
     #[test]
     fn finds_the_overlaps_of_every_pair() {
         let mut seed = 3u64;
@@ -300,6 +316,14 @@ mod tests {
                 }
             }
             assert_eq!(found, expected, "same = {same}");
+        }
+        // One box at a time, small or wide: the grid's boxes it overlaps.
+        for q in &b {
+            let mut found = Vec::new();
+            ga.for_each_overlapping(q, |j| found.push(j));
+            found.sort_unstable();
+            let expected: Vec<u32> = (0..a.len() as u32).filter(|&i| a[i as usize].overlaps(q)).collect();
+            assert_eq!(found, expected);
         }
         assert!(ga.build([], 0.0).is_err());
         let bad = Aabb::around([Vec3::new(f64::NAN, 0.0, 0.0)], 0.0);

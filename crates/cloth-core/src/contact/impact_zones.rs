@@ -28,6 +28,9 @@ pub const MEETING_FRACTION: f64 = 1e-3;
 /// with all, when fewer than one triangle in this many moves.
 const SPARSE_SHARE: usize = 4;
 
+/// Resting triangles per parallel chunk of a sparse motion's broad phase.
+const REST_CHUNK: usize = 512;
+
 /// Rounds of zone merging in one step before the crossings left are
 /// reported (`ContactStats::crossings_left`).
 const ZONE_ROUNDS: usize = 64;
@@ -173,20 +176,18 @@ pub(crate) fn find_meetings(
     }));
     let cell = BoxGrid::cell_for(&cb.boxes, min_cell, &mut cb.extents);
     // Positions are finite here: the step checked them. Sparse: the grid
-    // holds the moving triangles and `rest_grid` the others; the pairs are
-    // those of two moving ones and of a moving and a resting one.
+    // holds the moving triangles; the pairs are those of two moving ones
+    // and of a moving one with each resting one it overlaps.
     let built = if sparse {
         let boxes = &cb.boxes;
-        cb.grid
-            .build(cb.moving.iter().map(|&t| boxes[t as usize]), cell)
-            .and_then(|()| cb.rest_grid.build(cb.resting.iter().map(|&t| boxes[t as usize]), cell))
+        cb.grid.build(cb.moving.iter().map(|&t| boxes[t as usize]), cell)
     } else {
         cb.grid.build(cb.boxes.iter().copied(), cell)
     };
     if built.is_err() {
         return;
     }
-    let (grid, rest_grid, owned, starts) = (&cb.grid, &cb.rest_grid, &cb.owned, &cb.starts);
+    let (grid, owned, starts, boxes) = (&cb.grid, &cb.owned, &cb.starts, &cb.boxes);
     let (moving, resting) = (&cb.moving, &cb.resting);
     // Two triangles' points close in by at most `r_s + r_t + |c_s - c_t|`
     // over the step: pairs farther apart at the start cannot meet.
@@ -232,27 +233,28 @@ pub(crate) fn find_meetings(
             }
         }
     };
-    let chunks = grid.cells().div_ceil(CELL_CHUNK) + 1;
+    // Chunks of occupied cells, one for the wide boxes, then (sparse)
+    // chunks of resting triangles.
+    let cell_chunks = grid.cells().div_ceil(CELL_CHUNK) + 1;
+    let rest_chunks = if sparse { resting.len().div_ceil(REST_CHUNK) } else { 0 };
+    let chunks = cell_chunks + rest_chunks;
     cb.chunks.resize_with(chunks, Default::default);
     cb.chunks.par_iter_mut().enumerate().for_each(|(k, (candidates, found))| {
         found.clear();
         candidates.clear();
-        let cells = k * CELL_CHUNK..((k + 1) * CELL_CHUNK).min(grid.cells());
-        if k < chunks - 1 {
-            grid.pairs(grid, cells.clone(), true, candidates);
-        } else {
+        if k < cell_chunks - 1 {
+            grid.pairs(grid, k * CELL_CHUNK..((k + 1) * CELL_CHUNK).min(grid.cells()), true, candidates);
+        } else if k == cell_chunks - 1 {
             grid.wide_pairs(grid, true, candidates);
         }
-        if sparse {
-            let among_moving = candidates.len();
-            if k < chunks - 1 {
-                grid.pairs(rest_grid, cells, false, candidates);
-            } else {
-                grid.wide_pairs(rest_grid, false, candidates);
+        if sparse && k < cell_chunks {
+            for (s, t) in candidates.iter_mut() {
+                (*s, *t) = (moving[*s as usize], moving[*t as usize]);
             }
-            for (i, (s, t)) in candidates.iter_mut().enumerate() {
-                (*s, *t) =
-                    (moving[*s as usize], if i < among_moving { moving[*t as usize] } else { resting[*t as usize] });
+        } else if sparse {
+            let first = (k - cell_chunks) * REST_CHUNK;
+            for &r in &resting[first..(first + REST_CHUNK).min(resting.len())] {
+                grid.for_each_overlapping(&boxes[r as usize], |m| candidates.push((moving[m as usize], r)));
             }
         }
         for &(s, t) in candidates.iter() {

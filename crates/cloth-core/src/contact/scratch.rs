@@ -61,8 +61,6 @@ pub(crate) struct CrossingBuffers {
     /// Triangles with a corner that moves, and those without (`find_meetings`).
     pub(crate) moving: Vec<u32>,
     pub(crate) resting: Vec<u32>,
-    /// The resting triangles' grid, when few move.
-    pub(crate) rest_grid: BoxGrid,
     /// Per chunk: broad-phase candidates and the meetings found.
     pub(crate) chunks: Vec<MeetingChunk>,
     /// The particles of each meeting of the current round.
