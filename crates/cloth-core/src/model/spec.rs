@@ -287,7 +287,9 @@ impl BendingLaw {
 pub struct StrainLimit {
     /// Largest allowed strain `tau_c` (dimensionless; Provot: 0.1).
     pub max_strain: f64,
-    /// Most passes over the links per step.
+    /// Most passes over the links per step (with continuous
+    /// self-collision, a few more where impact zones moved the corrected
+    /// cloth: `docs/contacts.md`).
     pub passes: usize,
 }
 
