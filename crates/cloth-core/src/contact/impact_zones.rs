@@ -206,14 +206,11 @@ pub(crate) fn find_meetings(
             && point_triangle_impact(path(p), path(a), path(b), path(c), eta).is_some())
         .then_some([p, a, b, c])
     };
-    let near = |p: u32, q: u32| model.never_repel(p as usize, q as usize);
-    let edge_edge = |[a, b]: [u32; 2], [c, d]: [u32; 2]| {
-        (a != c
-            && a != d
-            && b != c
-            && b != d
+    // The cheap test first; most pairs that reach the costly one are not linked.
+    let edge_edge = |e @ [a, b]: [u32; 2], f @ [c, d]: [u32; 2]| {
+        (!share_an_end(e, f)
             && edge_edge_impact(path(a), path(b), path(c), path(d), eta).is_some()
-            && !(near(a, c) || near(a, d) || near(b, c) || near(b, d)))
+            && !ends_linked(model, e, f))
         .then_some([a, b, c, d])
     };
     let edge = |t: usize, k: usize| [triangles[t][k], triangles[t][(k + 1) % 3]];
@@ -285,7 +282,6 @@ pub(crate) fn find_meetings(
 pub(crate) fn ring_edge_pairs(model: &ClothModel, owned: &[[u8; 2]]) -> Vec<[u32; 4]> {
     let triangles = model.triangles();
     let edge = |t: usize, k: usize| [triangles[t][k], triangles[t][(k + 1) % 3]];
-    let near = |p: u32, q: u32| model.never_repel(p as usize, q as usize);
     let mut pairs = Vec::new();
     for (s, corners) in triangles.iter().enumerate() {
         let mut round: Vec<usize> =
@@ -298,9 +294,8 @@ pub(crate) fn ring_edge_pairs(model: &ClothModel, owned: &[[u8; 2]]) -> Vec<[u32
             }
             for ks in (0..3).filter(|&k| owned[s][1] & (1 << k) != 0) {
                 for kt in (0..3).filter(|&k| owned[t][1] & (1 << k) != 0) {
-                    let ([a, b], [c, d]) = (edge(s, ks), edge(t, kt));
-                    let apart = a != c && a != d && b != c && b != d;
-                    if apart && !(near(a, c) || near(a, d) || near(b, c) || near(b, d)) {
+                    let (e @ [a, b], f @ [c, d]) = (edge(s, ks), edge(t, kt));
+                    if !share_an_end(e, f) && !ends_linked(model, e, f) {
                         pairs.push([a, b, c, d]);
                     }
                 }
@@ -308,6 +303,18 @@ pub(crate) fn ring_edge_pairs(model: &ClothModel, owned: &[[u8; 2]]) -> Vec<[u32
         }
     }
     pairs
+}
+
+/// Whether edges `[a, b]` and `[c, d]` have an end in common.
+fn share_an_end([a, b]: [u32; 2], [c, d]: [u32; 2]) -> bool {
+    a == c || a == d || b == c || b == d
+}
+
+/// Whether an end of one edge never repels an end of the other (linked or
+/// sewn: [`ClothModel::never_repel`]); the continuous test skips them.
+fn ends_linked(model: &ClothModel, [a, b]: [u32; 2], [c, d]: [u32; 2]) -> bool {
+    let near = |p: u32, q: u32| model.never_repel(p as usize, q as usize);
+    near(a, c) || near(a, d) || near(b, c) || near(b, d)
 }
 
 /// For each triangle, the corners (bit k: corner k) and edges (bit k: from

@@ -195,11 +195,8 @@ impl Contacts {
             let pairs = &self.self_pairs;
             self.stats.self_separations = separate_self_contacts(model, sc, pairs, tau, &mut out.x, &mut out.v);
             if sc.continuous {
-                let lap = timer.start();
                 self.crossings.start_step(out.x.len());
-                (self.stats.self_crossings, self.stats.crossings_left) =
-                    untangle_step(model, sc, &state.x, tau, &mut out.x, &mut out.v, self);
-                timer.stop(lap, Stage::SelfCollision);
+                self.untangle_counted(model, sc, &state.x, tau, (&mut out.x, &mut out.v), timer);
             }
         }
         if !model.colliders().is_empty() {
@@ -233,11 +230,31 @@ impl Contacts {
         self.stats.contacts = self.solid.iter().filter(|c| c.active).count();
     }
 
+    /// The continuous test and impact zones along the motion from `from` to
+    /// `x` (`untangle_step`), timed as self-collision: the meetings found
+    /// add to the step's count, those left replace it. Returns the
+    /// meetings found.
+    fn untangle_counted(
+        &mut self,
+        model: &ClothModel,
+        sc: &SelfCollision,
+        from: &[Vec3],
+        tau: f64,
+        (x, v): (&mut [Vec3], &mut [Vec3]),
+        timer: &mut StageTimer,
+    ) -> usize {
+        let lap = timer.start();
+        let (met, left) = untangle_step(model, sc, from, tau, x, v, self);
+        timer.stop(lap, Stage::SelfCollision);
+        (self.stats.self_crossings, self.stats.crossings_left) = (self.stats.self_crossings + met, left);
+        met
+    }
+
     /// Impact zones along the motion from `from` to `x`, the particles a
     /// projection pushed held, then the projection out of the solids
     /// (`start`: the step's start), in rounds until nothing meets or
     /// nothing is pushed; then, if meetings are left, zones free of the
-    /// solids.
+    /// solids. Returns the meetings found.
     #[allow(clippy::too_many_arguments)]
     fn untangle_holding_projected(
         &mut self,
@@ -248,13 +265,12 @@ impl Contacts {
         tau: f64,
         (x, v): (&mut [Vec3], &mut [Vec3]),
         timer: &mut StageTimer,
-    ) {
+    ) -> usize {
+        let mut found = 0;
         for _ in 0..PROJECTION_ROUNDS {
             self.crossings.hold_projected(x);
-            let lap = timer.start();
-            let (met, left) = untangle_step(model, sc, from, tau, x, v, self);
-            timer.stop(lap, Stage::SelfCollision);
-            (self.stats.self_crossings, self.stats.crossings_left) = (self.stats.self_crossings + met, left);
+            let met = self.untangle_counted(model, sc, from, tau, (&mut *x, &mut *v), timer);
+            found += met;
             if met == 0 || model.colliders().is_empty() {
                 break;
             }
@@ -271,11 +287,9 @@ impl Contacts {
         // by the next step's contacts; a crossing is undone by nothing.
         if self.stats.crossings_left > 0 {
             self.crossings.start_step(x.len());
-            let lap = timer.start();
-            let (met, left) = untangle_step(model, sc, from, tau, x, v, self);
-            timer.stop(lap, Stage::SelfCollision);
-            (self.stats.self_crossings, self.stats.crossings_left) = (self.stats.self_crossings + met, left);
+            found += self.untangle_counted(model, sc, from, tau, (x, v), timer);
         }
+        found
     }
 
     /// Before the deformation constraints correct the step's end `x`: with
@@ -321,10 +335,9 @@ impl Contacts {
     ) -> usize {
         let Some(sc) = model.self_collision().filter(|sc| sc.continuous) else { return 0 };
         let from = std::mem::take(&mut self.crossings.uncorrected);
-        let before = self.stats.self_crossings;
-        self.untangle_holding_projected(model, sc, (&from, start), times, times.1, (x, v), timer);
+        let found = self.untangle_holding_projected(model, sc, (&from, start), times, times.1, (x, v), timer);
         self.crossings.uncorrected = from;
-        self.stats.self_crossings - before
+        found
     }
 
     /// The response of the integrators whose contacts are penalties: the
@@ -351,11 +364,8 @@ impl Contacts {
         self.stats.contacts = self.solid.len();
         timer.stop(lap, Stage::Update);
         if let Some(sc) = model.self_collision().filter(|sc| sc.continuous) {
-            let lap = timer.start();
             self.crossings.start_step(out.x.len());
-            (self.stats.self_crossings, self.stats.crossings_left) =
-                untangle_step(model, sc, &state.x, h, &mut out.x, &mut out.v, self);
-            timer.stop(lap, Stage::SelfCollision);
+            self.untangle_counted(model, sc, &state.x, h, (&mut out.x, &mut out.v), timer);
         }
     }
 
