@@ -52,7 +52,7 @@ pub use contacts::{
 };
 pub use control::{Control, ControlError, SolidImpulse, SolidMotion};
 pub use elements::{BendHinge, BendTriple, CurvatureElement, ElementSet, MembraneElement};
-pub use energy::{EnergyReport, GAIN_TOLERANCE};
+pub use energy::{BODY_GAIN_TOLERANCE, EnergyReport, GAIN_TOLERANCE};
 pub use field_error::FieldError;
 pub use forces::{EnergyBuffers, elastic_energy, forces_into, potential_energy, total_forces};
 pub use integrate::bodies::{BodyError, BodyInSolve};

@@ -193,6 +193,13 @@ impl ConstraintFilter {
         }
     }
 
+    /// Sets every prescribed value to zero and keeps the constraints: the
+    /// filter of a correction to an unknown that already meets them (a
+    /// Newton correction keeps the constrained components where they are).
+    pub fn zero_prescribed(&mut self) {
+        self.entries.iter_mut().for_each(|e| e.z = Vec3::zeros());
+    }
+
     /// Iterates over `(particle, projector, prescribed part)` of the constrained particles.
     pub fn iter(&self) -> impl Iterator<Item = (usize, &Mat3, &Vec3)> {
         self.entries.iter().map(|e| (e.index, &e.s, &e.z))
@@ -202,6 +209,17 @@ impl ConstraintFilter {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_zeroed_filter_keeps_its_constraints() {
+        let mut f = ConstraintFilter::new(3);
+        f.set(0, Constraint::OneDirection { normal: Vec3::z() }, Vec3::new(1.0, 2.0, 3.0)).unwrap();
+        f.set(2, Constraint::Fixed, Vec3::new(4.0, 5.0, 6.0)).unwrap();
+        let before: Vec<Mat3> = (0..3).map(|i| f.projector(i)).collect();
+        f.zero_prescribed();
+        assert!((0..3).all(|i| f.projector(i) == before[i] && f.prescribed(i) == Vec3::zeros()));
+        assert_eq!(f.constrained_count(), 2);
+    }
 
     #[test]
     fn projectors_have_the_right_rank() {

@@ -620,3 +620,29 @@ fn the_search_order_walks_the_fewest_voxels() {
 
 #[path = "crossing_tests.rs"]
 mod crossings;
+
+/// A contact in the margin of a body drawing away does no work on the
+/// pair: the particle ends the step at the distance it started from
+/// (`d + approach` from the surface at the step's end), not where it was
+/// (`d`, which holding it still would keep while pushing the body on).
+/// Coming closer, or closer than the thickness, it is treated as against
+/// any solid.
+#[test]
+fn a_particle_follows_a_body_that_draws_away_in_the_margin() {
+    let (thickness, reach) = (5e-3, 5.25e-3);
+    for (start_gap, approach) in [(5.1e-3f64, -2e-3), (5.2e-3, -1e-5), (5.25e-3, -0.5e-3)] {
+        // The gap to the surface's end position of a particle left still.
+        let d = start_gap - approach;
+        let end_gap = d + yielding_normal_travel(d, approach, thickness, reach);
+        assert!((end_gap - start_gap).abs() < 1e-15, "gap {start_gap} -> {end_gap}");
+        // A mutant that keeps the particle still moves it apart.
+        assert!((d + normal_travel(d, thickness, reach) - start_gap).abs() > 5e-6);
+    }
+    // Drawing away from a particle inside the layer: it ends on the layer.
+    let d = 3e-3f64 + 1e-3;
+    assert!((d + yielding_normal_travel(d, -1e-3, thickness, reach) - thickness).abs() < 1e-15);
+    // Coming closer: as for a solid that does not give way.
+    for (d, approach) in [(5.1e-3, 1e-3), (2e-3, 4e-3), (9e-3, 0.0)] {
+        assert_eq!(yielding_normal_travel(d, approach, thickness, reach), normal_travel(d, thickness, reach));
+    }
+}

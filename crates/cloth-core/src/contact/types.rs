@@ -258,6 +258,9 @@ pub struct Contacts {
     pub(crate) next: SolidFrames,
     /// Motions of externally driven solids for the current step.
     pub(crate) external: Vec<Option<SolidMotion>>,
+    /// Per model solid, the mass of the body in the solve that it belongs
+    /// to this step (kg), 0 for a solid that is no such body's.
+    pub(crate) body_mass: Vec<f64>,
     /// The particles held by hand this step ([`Control::hold`]), sorted:
     /// prescribed as pins are, so no solid contact takes them over.
     pub(crate) held: Vec<usize>,
@@ -314,6 +317,15 @@ impl Contacts {
     pub(crate) fn set_external(&mut self, control: &Control) {
         self.external.clear();
         self.external.extend_from_slice(control.solid_motions());
+        self.body_mass.clear();
+        self.body_mass.resize(self.external.len(), 0.0);
+        for b in control.bodies() {
+            for &s in &b.solids {
+                if let Some(m) = self.body_mass.get_mut(s) {
+                    *m = b.mass_kg;
+                }
+            }
+        }
         self.held.clear();
         self.held.extend(control.holds().iter().map(|&(i, _)| i));
         self.now.time = None;

@@ -63,6 +63,10 @@ pub(crate) struct BodyBuffers {
     com: Vec<Vec3>,
     /// Each body's load from its guess's head start, `-K g ahead`.
     ahead: Vec<Vector6<f64>>,
+    /// Each body's mass block `K` in the cloth's units.
+    mass_block: Vec<Matrix6<f64>>,
+    /// Scratch of [`BodyBuffers::correct`]: each body's unknown before.
+    y_before: Vec<Vector6<f64>>,
     /// The body of each model solid, or `NO_BODY`.
     solid_body: Vec<usize>,
     /// `(body, particle, lever)` of every pin on a body.
@@ -101,6 +105,7 @@ impl BodyBuffers {
         self.com.clear();
         self.inverse_mass.clear();
         self.ahead.clear();
+        self.mass_block.clear();
         self.solid_body.clear();
         self.solid_body.resize(model.colliders().len(), NO_BODY);
         self.unknown_per_velocity = h / position_per_unknown;
@@ -111,6 +116,7 @@ impl BodyBuffers {
             m.fixed_view_mut::<3, 3>(0, 0).copy_from(&(Mat3::identity() * (b.mass_kg * scale)));
             m.fixed_view_mut::<3, 3>(3, 3).copy_from(&(b.inertia_kg_m2 * scale));
             self.coupling.add_body(m);
+            self.mass_block.push(m);
             // `M (dq + ahead) = -h J^T f` in the cloth's units.
             let ahead = Vector6::new(
                 b.ahead_m_s.x,
@@ -267,11 +273,43 @@ impl BodyBuffers {
         x: &mut [Vec3],
     ) -> Result<cloth_linalg::PcgInfo, cloth_linalg::PcgError> {
         let result = self.solver.solve(a, b, filter, &self.coupling, params, (x, &mut self.y));
+        self.set_velocity_change();
+        result
+    }
+
+    /// A Newton correction of the coupled solve, after [`Self::link`]:
+    /// `dx` (the cloth's) and each body's `dy` such that the body row
+    /// holds at `y + dy`, `K (y + dy) = -sum G^T (A dx - b) + l` with `b`
+    /// the residual's negative at the iterate. `filter` prescribes zero
+    /// (`ConstraintFilter::zero_prescribed`): the links keep their
+    /// particles on the body, which moves by `G dy`.
+    pub(crate) fn correct(
+        &mut self,
+        a: &cloth_linalg::BlockSparseMatrix,
+        b: &[Vec3],
+        filter: &ConstraintFilter,
+        params: &cloth_linalg::PcgParams,
+        dx: &mut [Vec3],
+    ) -> Result<cloth_linalg::PcgInfo, cloth_linalg::PcgError> {
+        self.y_before.clone_from(&self.y);
+        for (k, (m, y)) in self.mass_block.iter().zip(&self.y).enumerate() {
+            self.coupling.add_load(k, -(m * y));
+        }
+        self.y.iter_mut().for_each(|y| *y = Vector6::zeros());
+        let result = self.solver.solve(a, b, filter, &self.coupling, params, (dx, &mut self.y));
+        for (y, before) in self.y.iter_mut().zip(&self.y_before) {
+            *y += before;
+        }
+        self.set_velocity_change();
+        result
+    }
+
+    /// `velocity_change` from the bodies' unknowns.
+    fn set_velocity_change(&mut self) {
         let g = self.unknown_per_velocity;
         for (out, y) in self.velocity_change.iter_mut().zip(&self.y) {
             *out = (Vec3::new(y[0], y[1], y[2]) / g, Vec3::new(y[3], y[4], y[5]) / g);
         }
-        result
     }
 
     /// Moves the bodies' solids to where the solve took them: each

@@ -128,10 +128,48 @@ pub(crate) fn iterate<S: Linearised>(
     loads: &SystemLoads,
     timer: &mut StageTimer,
 ) -> Result<NewtonOutcome, StepError> {
-    let mut nb = ws.s.newton.take().unwrap_or_else(|| NewtonBuffers::new(step.model));
-    let result = iterate_with(step, ws, loads, &mut nb, timer);
+    with_buffers(step.model, ws, |ws, nb| iterate_with(step, ws, loads, nb, timer))
+}
+
+/// Runs `f` with the workspace's Newton buffers (made on first use).
+pub(super) fn with_buffers<T>(
+    model: &ClothModel,
+    ws: &mut Workspace<'_>,
+    f: impl FnOnce(&mut Workspace<'_>, &mut NewtonBuffers) -> T,
+) -> T {
+    let mut nb = ws.s.newton.take().unwrap_or_else(|| NewtonBuffers::new(model));
+    let result = f(ws, &mut nb);
     ws.s.newton = Some(nb);
     result
+}
+
+/// The iterate's loads that the step carries besides the links: the
+/// step's external forces, self-collision stiffness and (with
+/// `squeeze_friction`) squeezed particles' friction damping.
+pub(super) fn copy_loads(ws: &Workspace<'_>, nb: &mut NewtonBuffers, loads: &SystemLoads, squeeze_friction: bool) {
+    copy_or_zero(loads.external.then_some(&ws.s.external), &mut nb.external);
+    copy_or_zero(squeeze_friction.then_some(&ws.contacts.friction_damping), &mut nb.damping);
+    copy_or_zero(loads.self_collision.then_some(&ws.contacts.self_stiffness), &mut nb.stiffness);
+}
+
+/// Assembles the system at the iterate in `nb` (its right-hand side is
+/// `-r`), with the loads in `nb`; the times go to `timer`.
+pub(super) fn assemble_iterate<S: Linearised>(
+    step: StepInputs<'_, S>,
+    ws: &mut Workspace<'_>,
+    nb: &NewtonBuffers,
+    timer: &mut StageTimer,
+) {
+    let StepInputs { scheme, model, state, h, .. } = step;
+    let terms = SystemTerms {
+        external: Some(&nb.external),
+        diag_stiffness: Some(&nb.stiffness),
+        diag_damping: Some(&nb.damping),
+        ..scheme.newton_terms(h, &nb.v, &nb.y, &state.stitches_closed)
+    };
+    let t = assemble(model, &nb.x, &terms, &mut ws.s.system);
+    timer.add(Stage::Forces, t.links_s);
+    timer.add(Stage::Assembly, t.gather_s);
 }
 
 fn iterate_with<S: Linearised>(
@@ -162,9 +200,7 @@ fn iterate_with<S: Linearised>(
     nb.u.copy_from_slice(&ws.s.unknown);
     for solves in 1.. {
         advance_iterate(scheme, state, ws, h, nb);
-        copy_or_zero(loads.external.then_some(&ws.s.external), &mut nb.external);
-        copy_or_zero(squeeze_friction.then_some(&ws.contacts.friction_damping), &mut nb.damping);
-        copy_or_zero(loads.self_collision.then_some(&ws.contacts.self_stiffness), &mut nb.stiffness);
+        copy_loads(ws, nb, loads, squeeze_friction);
         if colliders {
             penalty_contacts(model, &state.x, &nb.x, (state.time_s, h), ws.contacts);
             if refresh {
@@ -178,15 +214,7 @@ fn iterate_with<S: Linearised>(
             let loads = (&mut nb.external[..], &mut nb.stiffness[..], &mut nb.damping[..]);
             add_contact_loads(model, h, &mut ws.contacts.solid, &nb.v, normal, loads);
         }
-        let terms = SystemTerms {
-            external: Some(&nb.external),
-            diag_stiffness: Some(&nb.stiffness),
-            diag_damping: Some(&nb.damping),
-            ..scheme.newton_terms(h, &nb.v, &nb.y, &state.stitches_closed)
-        };
-        let t = assemble(model, &nb.x, &terms, &mut ws.s.system);
-        timer.add(Stage::Forces, t.links_s);
-        timer.add(Stage::Assembly, t.gather_s);
+        assemble_iterate(step, ws, nb, timer);
         out.evaluations += 1;
         constrain_pins(model, state, control, h, &mut ws.s.filter, |_, _| Vec3::zeros());
         out.residual_m = residual_distance(ws, a);
@@ -363,7 +391,13 @@ fn copy_or_zero<T: Copy + Default>(from: Option<&Vec<T>>, to: &mut [T]) {
 }
 
 /// Positions, velocities and the mass term of the iterate `nb.u`.
-fn advance_iterate<S: Linearised>(scheme: &S, state: &ClothState, ws: &Workspace<'_>, h: f64, nb: &mut NewtonBuffers) {
+pub(super) fn advance_iterate<S: Linearised>(
+    scheme: &S,
+    state: &ClothState,
+    ws: &Workspace<'_>,
+    h: f64,
+    nb: &mut NewtonBuffers,
+) {
     for i in 0..state.len() {
         (nb.x[i], nb.v[i]) = scheme.advance(state, &ws.s.aux, h, i, nb.u[i]);
         nb.y[i] = scheme.newton_mass_term(&ws.s.aux2, i, nb.u[i]);
@@ -372,7 +406,7 @@ fn advance_iterate<S: Linearised>(scheme: &S, state: &ClothState, ws: &Workspace
 
 /// `max_i |A_ii^-1 S_i r_i| a` with `r = -rhs` of the assembly at the
 /// iterate and `A_ii` the matrix's diagonal block, m.
-fn residual_distance(ws: &Workspace<'_>, a: f64) -> f64 {
+pub(super) fn residual_distance(ws: &Workspace<'_>, a: f64) -> f64 {
     (0..ws.s.system.rhs.len())
         .map(|i| {
             let r =

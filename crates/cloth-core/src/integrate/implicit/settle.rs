@@ -34,8 +34,11 @@ pub(crate) struct ContactRules {
 }
 
 impl ContactRules {
-    pub(crate) fn new(model: &ClothModel, solver: &SolverParams) -> Self {
-        let friction_in_solve = solver.newton.iterations <= 1 || solver.newton.trigger > 0.0;
+    /// The rules for `solver`'s settings; `carried`: Newton corrections
+    /// that carry bodies follow (`body_newton`), which keep the linearised
+    /// step's contact constraints and so its friction in the solve.
+    pub(crate) fn new(model: &ClothModel, solver: &SolverParams, carried: bool) -> Self {
+        let friction_in_solve = carried || solver.newton.iterations <= 1 || solver.newton.trigger > 0.0;
         let rough_solves =
             solver.contacts.settling_iterations > 0 && !model.colliders().is_empty() && friction_in_solve;
         Self { friction_in_solve, rough_solves }

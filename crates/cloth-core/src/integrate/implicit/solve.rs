@@ -18,11 +18,37 @@ pub(crate) fn solve(
     state: &ClothState,
     solver: &SolverParams,
 ) -> Result<(StepReport, f64), StepError> {
+    solve_as(ws, state, solver, false)
+}
+
+/// [`solve`] for a Newton correction of the step with bodies in the
+/// solve (see `BodyBuffers::correct`): the filter prescribes zero, and the
+/// bodies' unknowns grow by theirs.
+pub(crate) fn solve_correction(
+    ws: &mut Workspace<'_>,
+    state: &ClothState,
+    solver: &SolverParams,
+) -> Result<(StepReport, f64), StepError> {
+    solve_as(ws, state, solver, true)
+}
+
+fn solve_as(
+    ws: &mut Workspace<'_>,
+    state: &ClothState,
+    solver: &SolverParams,
+    correction: bool,
+) -> Result<(StepReport, f64), StepError> {
     let t0 = Instant::now();
     let s = &mut *ws.s;
     let result = if ws.out.bodies.active() {
-        ws.out.bodies.link(&s.filter, &ws.contacts.solid, state.len());
-        ws.out.bodies.solve(&s.system.matrix, &s.system.rhs, &s.filter, &solver.pcg(), &mut s.unknown)
+        let bodies = &mut ws.out.bodies;
+        bodies.link(&s.filter, &ws.contacts.solid, state.len());
+        let (a, b, filter, params) = (&s.system.matrix, &s.system.rhs, &s.filter, &solver.pcg());
+        if correction {
+            bodies.correct(a, b, filter, params, &mut s.unknown)
+        } else {
+            bodies.solve(a, b, filter, params, &mut s.unknown)
+        }
     } else {
         s.pcg.solve_in_place(&mut s.system.matrix, &s.system.rhs, &s.filter, &solver.pcg(), &mut s.unknown)
     };
