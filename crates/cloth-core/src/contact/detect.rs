@@ -214,7 +214,9 @@ pub(crate) fn detect_solid_contacts(
             let gap = surface.normal.dot(&(x[i] - surface.point));
             // A body that outweighs the particle is followed; the particle
             // carries a lighter one (a ball of 1e-3 the cloth's mass,
-            // followed, was flung with 1.6e-2 of the energy in play).
+            // followed, was flung with 1.6e-2 of the energy in play). The
+            // same rule as `BodyBuffers::outweighs`, whose bodies are not
+            // yet prepared when contacts are detected.
             let followed = body_mass.get(k).is_some_and(|&m| m > masses[i]);
             let travel = if followed {
                 let approach = h * next.velocity_at(surface.point).dot(&surface.normal);
@@ -399,10 +401,7 @@ pub(crate) fn side_of(
         // solid, on the far side of it now.
         let moved = next.velocity_at(from) * h;
         if moved.norm() > side.distance_m {
-            if c.shape.first_entry(next.pose(), from + moved, from).is_some() {
-                *queries += 2;
-                return c.shape.closest(next.pose(), from + moved);
-            }
+            let entered = c.shape.first_entry(next.pose(), from + moved, from).is_some();
             // A particle on the plane of a body's face that slides past it
             // (a cloth particle under a box's edge as the box lands) is
             // not met by that face but by the one that advances on it.
@@ -410,11 +409,11 @@ pub(crate) fn side_of(
             // a landing box's rim stretched their links by 2.4 J that no
             // work put in. Only faces sliding within `SLIDING_COS` of
             // parallel: beside a ball, the closest point is the one met.
-            let sliding = side.normal.dot(&moved).abs() <= SLIDING_COS * moved.norm();
-            if c.yielding && sliding {
+            let sliding = c.yielding && side.normal.dot(&moved).abs() <= SLIDING_COS * moved.norm();
+            if entered || sliding {
                 let swept = c.shape.closest(next.pose(), from + moved);
                 *queries += 2;
-                if swept.normal.dot(&moved) > 0.0 && swept.distance_m > 0.0 {
+                if entered || (swept.normal.dot(&moved) > 0.0 && swept.distance_m > 0.0) {
                     return swept;
                 }
             }

@@ -19,12 +19,14 @@
 //! [`crate::NewtonParams::tolerance_m`] or after the step's Newton
 //! iterations.
 
-use super::newton::{NewtonOutcome, advance_iterate, assemble_iterate, copy_loads, residual_distance, with_buffers};
+use super::newton::{
+    NewtonOutcome, advance_iterate, assemble_iterate, copy_loads, residual_distance, solve_direction, with_buffers,
+};
 use super::scheme::Linearised;
 use super::solve::solve_correction;
 use super::workspace::{NewtonBuffers, StepInputs, SystemLoads, Workspace};
 use crate::contacts::read_contact_forces;
-use crate::integrate::timer::{Stage, StageTimer};
+use crate::integrate::timer::StageTimer;
 use crate::{StepError, Vec3};
 
 /// Newton corrections from the settled coupled solve in `ws.s.unknown`
@@ -63,11 +65,7 @@ fn corrections<S: Linearised>(
         if out.converged || solves >= solver.newton.iterations {
             break;
         }
-        ws.s.unknown.iter_mut().for_each(|p| *p = Vec3::zeros());
-        let (r, s) = solve_correction(ws, state, solver)?;
-        timer.add(Stage::Solve, s);
-        (out.cg_iterations, out.cg_converged) = (out.cg_iterations + r.cg_iterations, out.cg_converged & r.converged);
-        out.corrections += 1;
+        solve_direction(ws, state, solver, &mut out, timer, solve_correction)?;
         for (u, p) in nb.u.iter_mut().zip(&ws.s.unknown) {
             *u += p;
         }

@@ -66,7 +66,7 @@ use crate::forces::{EnergyBuffers, elastic_energy};
 use crate::integrate::timer::{Stage, StageTimer};
 use crate::system::SystemTerms;
 use crate::system::{SystemBuffers, assemble};
-use crate::{ClothModel, ClothState, Mat3, StepError, Vec3};
+use crate::{ClothModel, ClothState, Mat3, SolverParams, StepError, StepReport, Vec3};
 
 /// Armijo's sufficient-decrease constant.
 const ARMIJO: f64 = 1e-4;
@@ -141,6 +141,28 @@ pub(super) fn with_buffers<T>(
     let result = f(ws, &mut nb);
     ws.s.newton = Some(nb);
     result
+}
+
+/// A linear solve's signature: the filtered solve, or a correction that
+/// carries bodies (`solve::solve_correction`).
+pub(super) type Solve = fn(&mut Workspace<'_>, &ClothState, &SolverParams) -> Result<(StepReport, f64), StepError>;
+
+/// One Newton direction into `ws.s.unknown`, from zero, by `solve`: its
+/// CG iterations and convergence go to `out`, its time to `timer`.
+pub(super) fn solve_direction(
+    ws: &mut Workspace<'_>,
+    state: &ClothState,
+    solver: &SolverParams,
+    out: &mut NewtonOutcome,
+    timer: &mut StageTimer,
+    solve: Solve,
+) -> Result<(), StepError> {
+    ws.s.unknown.iter_mut().for_each(|p| *p = Vec3::zeros());
+    let (r, s) = solve(ws, state, solver)?;
+    timer.add(Stage::Solve, s);
+    (out.cg_iterations, out.cg_converged) = (out.cg_iterations + r.cg_iterations, out.cg_converged & r.converged);
+    out.corrections += 1;
+    Ok(())
 }
 
 /// The iterate's loads that the step carries besides the links: the
@@ -230,11 +252,7 @@ fn iterate_with<S: Linearised>(
         if out.converged || solves >= solver.newton.iterations {
             break;
         }
-        ws.s.unknown.iter_mut().for_each(|p| *p = Vec3::zeros());
-        let (r, s) = solve(ws, state, solver)?;
-        timer.add(Stage::Solve, s);
-        (out.cg_iterations, out.cg_converged) = (out.cg_iterations + r.cg_iterations, out.cg_converged & r.converged);
-        out.corrections += 1;
+        solve_direction(ws, state, solver, &mut out, timer, solve)?;
         if colliders {
             penalty_watch(model, &nb.x, &ws.s.unknown, a, state.time_s + h, ws.contacts);
         }
