@@ -373,14 +373,9 @@ fn contact_penalty_force_is_minus_the_energy_derivative() {
     assert_eq!(contact_penalty(0.006, e, k), (0.0, 0.0));
 }
 
-/// A contact pass skips only the queries that would have found nothing:
-/// a sheet lowered pass by pass onto a ball, a rotated box, a spinning
-/// capsule and a mesh pillow (whose distance is not Lipschitz: always
-/// queried) gets the same contacts, in the same order, as passes that
-/// query every solid for every particle; and most particles are
-/// skipped once the first pass has measured them.
-#[test]
-fn contact_passes_skip_only_particles_clear_of_every_solid() {
+/// A 20 x 20 sheet 13 cm over a ball, a tilted box, a spinning capsule
+/// and a mesh pillow.
+fn sheet_over_four_solids() -> ClothModel {
     use crate::{ColliderSpec, PinMotion, ShapeSpec};
     let solid = |shape, position_m, rotation_deg, spin_deg_s| ColliderSpec {
         shape,
@@ -421,7 +416,18 @@ fn contact_passes_skip_only_particles_clear_of_every_solid() {
         },
         ..ModelSpec::default()
     };
-    let model = ClothModel::build(&spec).unwrap();
+    ClothModel::build(&spec).unwrap()
+}
+
+/// A contact pass skips only the queries that would have found nothing:
+/// a sheet lowered pass by pass onto a ball, a rotated box, a spinning
+/// capsule and a mesh pillow (whose distance is not Lipschitz: always
+/// queried) gets the same contacts, in the same order, as passes that
+/// query every solid for every particle; and most particles are
+/// skipped once the first pass has measured them.
+#[test]
+fn contact_passes_skip_only_particles_clear_of_every_solid() {
+    let model = sheet_over_four_solids();
     let state = crate::ClothState::at_rest(&model);
     let (n, h) = (model.particle_count(), 0.01);
     let (mut cached, mut fresh) = (Contacts::default(), Contacts::default());
@@ -645,4 +651,39 @@ fn a_particle_follows_a_body_that_draws_away_in_the_margin() {
     for (d, approach) in [(5.1e-3, 1e-3), (2e-3, 4e-3), (9e-3, 0.0)] {
         assert_eq!(yielding_normal_travel(d, approach, thickness, reach), normal_travel(d, thickness, reach));
     }
+}
+
+/// The finish's projection with its memo (a particle left where the last
+/// projection put it, and not moved by it, is skipped) moves the cloth
+/// bit for bit as the projection of every particle does, round after
+/// round of a sheet sinking into four solids a third of it at a time.
+#[test]
+fn the_finish_projection_skips_only_particles_it_would_leave_alone() {
+    let model = sheet_over_four_solids();
+    let state = crate::ClothState::at_rest(&model);
+    let (n, h) = (model.particle_count(), 0.01);
+    let (mut memo, mut every) = (Contacts::default(), Contacts::default());
+    memo.projection_memo.set_active(true);
+    let (mut xa, mut va) = (state.x.clone(), state.v.clone());
+    let (mut xb, mut vb) = (state.x.clone(), state.v.clone());
+    let (mut moved, mut skipped) = (0, 0);
+    for round in 1..=12 {
+        for i in (0..n).filter(|i| i % 3 == round % 3) {
+            let step =
+                Vec3::new(0.0, 0.0, -0.03) + Vec3::new(i as f64, (3 * i + round) as f64, 1.0).map(f64::sin) * 0.002;
+            xa[i] += step;
+            xb[i] += step;
+        }
+        let looked = memo.projection_memo.at.clone();
+        let a = project_out(&model, &state.x, (0.0, h), &mut memo, true, &mut xa, &mut va);
+        let b = project_out(&model, &state.x, (0.0, h), &mut every, true, &mut xb, &mut vb);
+        assert_eq!(a, b, "round {round}");
+        let bits = |p: &[Vec3]| p.iter().flat_map(|q| q.iter().map(|c| c.to_bits())).collect::<Vec<_>>();
+        assert_eq!((bits(&xa), bits(&va)), (bits(&xb), bits(&vb)), "round {round}");
+        moved += a;
+        skipped += looked.iter().zip(&memo.projection_memo.at).filter(|(l, m)| l == m).count();
+    }
+    // Measured: 148 projections; 2,933 of the 4,800 particle looks skipped.
+    assert!(moved > 120, "the sheet sinks into the solids: {moved} projections");
+    assert!(skipped > 2700, "{skipped} of {} particle projections skipped", 12 * n);
 }

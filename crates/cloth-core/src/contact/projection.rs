@@ -27,39 +27,74 @@ pub(crate) fn project_out(
 ) -> usize {
     let thickness = model.contact_thickness();
     let solids_next = bufs.next.at(model, &bufs.external, t + h);
-    let mut moved = 0;
-    let mut fix = |i: usize| {
+    // One particle's projection: reads and moves only that particle.
+    let fix = |i: usize, xi: &mut Vec3, vi: &mut Vec3| {
         let mut changed = false;
         for (c, next) in model.colliders().iter().zip(solids_next) {
-            let Some((_, surface)) =
-                reach_surface(c, (next, h), x[i], new_x[i], (0.5 * thickness, false), &mut 0).within()
+            let Some((_, surface)) = reach_surface(c, (next, h), x[i], *xi, (0.5 * thickness, false), &mut 0).within()
             else {
                 continue;
             };
             let n = surface.normal;
-            let gap = n.dot(&(new_x[i] - surface.point));
+            let gap = n.dot(&(*xi - surface.point));
             if gap < thickness {
-                new_x[i] += n * (thickness - gap);
-                let inward = n.dot(&(new_v[i] - next.velocity_at(surface.point)));
+                *xi += n * (thickness - gap);
+                let inward = n.dot(&(*vi - next.velocity_at(surface.point)));
                 if inward < 0.0 {
-                    new_v[i] -= n * inward;
+                    *vi -= n * inward;
                 }
                 changed = true;
             }
         }
-        changed
+        usize::from(changed)
     };
-    if all {
+    if all && bufs.projection_memo.active {
+        // In the finish, with the memo of the last projection: a particle
+        // it left as it was and that has not moved since is skipped.
+        let (held, memo) = (&bufs.held, &mut bufs.projection_memo);
+        let n = new_x.len();
+        memo.at.resize(n, Vec3::zeros());
+        memo.pushed.resize(n, false);
+        let valid = memo.valid;
+        let moved = new_x
+            .par_iter_mut()
+            .zip(new_v.par_iter_mut())
+            .zip(memo.at.par_iter_mut().zip(memo.pushed.par_iter_mut()))
+            .enumerate()
+            .with_min_len(ROW_CHUNK)
+            .filter(|(i, _)| !prescribed(model, held, *i))
+            .map(|(i, ((xi, vi), (at, pushed)))| {
+                let same = valid && !*pushed && xi.iter().zip(at.iter()).all(|(a, b)| a.to_bits() == b.to_bits());
+                if same {
+                    return 0;
+                }
+                let m = fix(i, xi, vi);
+                (*at, *pushed) = (*xi, m > 0);
+                m
+            })
+            .sum();
+        memo.valid = true;
+        moved
+    } else if all {
+        // Particles are independent and the count is a sum of integers:
+        // the same in any order, so in parallel.
         let held = &bufs.held;
-        for i in (0..x.len()).filter(|&i| !prescribed(model, held, i)) {
-            moved += usize::from(fix(i));
-        }
+        new_x
+            .par_iter_mut()
+            .zip(new_v.par_iter_mut())
+            .enumerate()
+            .with_min_len(ROW_CHUNK)
+            .filter(|(i, _)| !prescribed(model, held, *i))
+            .map(|(i, (xi, vi))| fix(i, xi, vi))
+            .sum()
     } else {
+        let mut moved = 0;
         for c in bufs.solid.iter().filter(|c| !c.active) {
-            moved += usize::from(fix(c.particle as usize));
+            let i = c.particle as usize;
+            moved += fix(i, &mut new_x[i], &mut new_v[i]);
         }
+        moved
     }
-    moved
 }
 
 /// Collision response for integrators without an assembled matrix (the

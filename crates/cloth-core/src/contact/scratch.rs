@@ -109,3 +109,28 @@ pub(crate) struct Surroundings {
     /// Radius of the ball, m (infinite with no solid near).
     pub radius_m: f64,
 }
+
+/// What the projection out of the solids last saw in the step's finish,
+/// where it runs between every few constraint passes against the same
+/// solids and the same step start: a particle whose position has not
+/// changed since and that it did not move then would come out the same,
+/// so it is not looked at again.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct ProjectionMemo {
+    /// Whether the finish is under way (the memo may be used).
+    pub(crate) active: bool,
+    /// Whether `at` and `pushed` hold the last projection's outcome.
+    pub(crate) valid: bool,
+    /// Each particle's position after the last projection, m.
+    pub(crate) at: Vec<Vec3>,
+    /// Whether the last projection moved it.
+    pub(crate) pushed: Vec<bool>,
+}
+
+impl ProjectionMemo {
+    /// Starts (`true`) or ends a step's finish; either forgets.
+    pub(crate) fn set_active(&mut self, active: bool) {
+        self.active = active;
+        self.valid = false;
+    }
+}

@@ -283,6 +283,11 @@ pub struct Contacts {
     pub(crate) excluded: Vec<u32>,
     /// Scratch of the continuous self-collision test.
     pub(crate) crossings: CrossingBuffers,
+    /// The projection's last outcome in the step's finish.
+    pub(crate) projection_memo: ProjectionMemo,
+    /// Scratch of the deformation constraints' passes in the finish: a
+    /// bit per stretch link that may need a correction.
+    pub(crate) strain_dirty: Vec<u64>,
     /// Self-collision forces, N.
     pub(crate) self_force: Vec<Vec3>,
     /// Self-collision stiffness on the diagonal, `-df_i/dx_i`, N/m.

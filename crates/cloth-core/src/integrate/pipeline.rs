@@ -16,7 +16,7 @@
 use super::loads::Loads;
 use super::step::{Attempt, Capabilities, ContactHandling, Integrator, Step, StepOutput};
 use super::timer::{Stage, StageTimer};
-use crate::constraints::apply_strain_limit;
+use crate::constraints::apply_strain_limit_with;
 use crate::contacts::{Contacts, restart_history_at_contacts};
 use crate::control::Control;
 use crate::{ClothModel, ClothState, SolverParams, StepError, StepReport, StrainLimit};
@@ -190,13 +190,15 @@ fn finish(
         // more passes follow (`PASSES_AFTER_ZONES` at least), a few checks
         // at most.
         let solids = !model.colliders().is_empty();
+        contacts.projection_memo.set_active(true);
         let mut passes_left = limit.passes;
         for check in 1..=CORRECTION_CHECKS {
             contacts.before_corrections(model, x);
             let mut corrected = false;
             while passes_left > 0 {
                 let round = StrainLimit { passes: passes_left.min(PASSES_PER_PROJECTION), ..limit };
-                let done = apply_strain_limit(model, &round, held, stitches_closed, (x, v), h);
+                let dirty = &mut contacts.strain_dirty;
+                let done = apply_strain_limit_with(model, &round, held, stitches_closed, (x, v), h, dirty);
                 passes_left -= done.passes;
                 report.strain_corrections += done.corrections;
                 let moved = if solids { contacts.project_corrected(model, x_prev, times, x, v) } else { 0 };
@@ -213,6 +215,7 @@ fn finish(
             // rims; those passes are owed even when the budget ran out.
             passes_left = passes_left.max(PASSES_AFTER_ZONES);
         }
+        contacts.projection_memo.set_active(false);
         report.contacts = contacts.stats();
     }
     // After every correction of the step (the projection above sweeps from
