@@ -57,20 +57,27 @@ pub(crate) struct Garment {
 /// and straps (1.08 cm cells) make 2866 (the paper's top, 3396, had
 /// sleeves), the one-piece's 5458 (the paper's, 5579-5608).
 const TOP: [&str; 3] = ["panels.0.particles=[96, 23]", "panels.1.particles=[47, 7]", "panels.2.particles=[47, 7]"];
-const ONE_PIECE: [&str; 4] = [
+const ONE_PIECE: [&str; 6] = [
     "panels.0.particles=[96, 23]",
     "panels.1.particles=[47, 7]",
     "panels.2.particles=[47, 7]",
     "panels.3.particles=[96, 27]",
+    DEFORMATION_CONSTRAINTS[0],
+    DEFORMATION_CONSTRAINTS[1],
 ];
-/// Provot's deformation constraints for the skirts, as the T-shirt's and
-/// the dress's fixtures have them (10%, 50 passes): without them the
-/// pattern skirt's layers lock where the legs pinch its front (peak 1.58
-/// on the primitives, 3.39 on the triangle-mesh mannequin), and the flared
-/// skirt at 2738 particles peaks at 1.55 with a seam 5 mm open. Their
-/// fixtures leave them out: at 3.5 cm the constraints, which follow the
-/// self-collision response, bring the pattern skirt's layers to 2.9 mm of
-/// each other (4.6 mm without).
+/// Provot's deformation constraints for the skirts and the one-piece, as
+/// the T-shirt's, the dress's and the top's fixtures have them (10%, 50
+/// passes): without them the pattern skirt's layers lock where the legs
+/// pinch its front (peak 1.58 on the primitives, 3.39 on the
+/// triangle-mesh mannequin), the flared skirt at 2738 particles peaks at
+/// 1.55 with a seam 5 mm open, and the shins striking the one-piece's hem
+/// stretch it 1.47 times (3.1 at twice the count). Their fixtures leave
+/// them out: at 3.5 cm the constraints, which follow the self-collision
+/// response, bring the pattern skirt's layers to 2.9 mm of each other
+/// (4.6 mm without); at the one-piece fixture's count the tube's lower
+/// edge, which the skirt's seam draws down over the pelvis box (whose
+/// outline is 23% longer than the edge), cannot stretch over it and a
+/// seam stays 22 mm open.
 const DEFORMATION_CONSTRAINTS: [&str; 2] =
     ["simulation.effects=[\"gravity\", \"bending\", \"damping\", \"strain-limit\"]", "constraints.passes=50"];
 /// The pattern garments, meshed finer than their fixtures to the paper's
