@@ -48,14 +48,16 @@ pub(crate) fn project_out(
         }
         usize::from(changed)
     };
-    if all && bufs.projection_memo.active {
-        // In the finish, with the memo of the last projection: a particle
-        // it left as it was and that has not moved since is skipped.
+    if all {
+        // Particles are independent and the count is a sum of integers:
+        // the same in any order, so in parallel. In the finish the memo of
+        // the last projection skips a particle it left as it was and that
+        // has not moved since.
         let (held, memo) = (&bufs.held, &mut bufs.projection_memo);
         let n = new_x.len();
         memo.at.resize(n, Vec3::zeros());
         memo.pushed.resize(n, false);
-        let valid = memo.valid;
+        let valid = memo.active && memo.valid;
         let moved = new_x
             .par_iter_mut()
             .zip(new_v.par_iter_mut())
@@ -73,20 +75,8 @@ pub(crate) fn project_out(
                 m
             })
             .sum();
-        memo.valid = true;
+        memo.valid = memo.active;
         moved
-    } else if all {
-        // Particles are independent and the count is a sum of integers:
-        // the same in any order, so in parallel.
-        let held = &bufs.held;
-        new_x
-            .par_iter_mut()
-            .zip(new_v.par_iter_mut())
-            .enumerate()
-            .with_min_len(ROW_CHUNK)
-            .filter(|(i, _)| !prescribed(model, held, *i))
-            .map(|(i, (xi, vi))| fix(i, xi, vi))
-            .sum()
     } else {
         let mut moved = 0;
         for c in bufs.solid.iter().filter(|c| !c.active) {
