@@ -83,6 +83,7 @@
 //! [constraints]                # optional; used with the "strain-limit" effect
 //! max_strain = 0.1
 //! passes = 10
+//! projections = 0              # fast projections before the passes (0: passes alone)
 //!
 //! [collision]                  # optional; cloth-solid contact settings
 //! thickness_m = 0.005          # distance kept from solid surfaces, m

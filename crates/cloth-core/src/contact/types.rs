@@ -288,6 +288,8 @@ pub struct Contacts {
     /// Scratch of the deformation constraints' passes in the finish: a
     /// bit per stretch link that may need a correction.
     pub(crate) strain_dirty: Vec<u64>,
+    /// Scratch of the deformation constraints' fast projection.
+    pub(crate) strain_projection: crate::model::fast_projection::ProjectionScratch,
     /// Self-collision forces, N.
     pub(crate) self_force: Vec<Vec3>,
     /// Self-collision stiffness on the diagonal, `-df_i/dx_i`, N/m.

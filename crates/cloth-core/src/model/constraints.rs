@@ -7,10 +7,15 @@
 //! lets it gape by its load over its stiffness. Pinned and held particles
 //! never move.
 
+use crate::model::fast_projection::{Bounds, ProjectionReport, ProjectionScratch, fast_projection};
 use crate::{ClothModel, StrainLimit, Vec3};
 
 /// A closed stitch this short is left as it is, m: rounding, not a gap.
 const STITCH_SLACK_M: f64 = 1e-12;
+/// A link this far over its limit, relative, is left as it is: rounding
+/// keeps a link just set to its limit from being corrected again (and so
+/// from burning every pass).
+const LINK_SLACK: f64 = 1e-12;
 
 /// What one application did.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -33,6 +38,8 @@ pub struct StrainLimitReport {
 /// is open. Velocities get the same correction divided by `h`, so `v`
 /// stays consistent with the corrected motion. Pinned particles never
 /// move, nor those `held` says are held (see [`crate::Control::is_held`]).
+/// With `limit.projections > 0`, that many fast projections
+/// (Goldenthal et al. 2007) come first: every violated link at once.
 pub fn apply_strain_limit(
     model: &ClothModel,
     limit: &StrainLimit,
@@ -41,7 +48,29 @@ pub fn apply_strain_limit(
     (x, v): (&mut [Vec3], &mut [Vec3]),
     h: f64,
 ) -> StrainLimitReport {
+    project_strain_limit(model, limit, &held, stitches_closed, (x, v), h, &mut ProjectionScratch::default());
     apply_strain_limit_with(model, limit, held, stitches_closed, (x, v), h, &mut Vec::new())
+}
+
+/// `limit.projections` fast projections of the links over `limit` and
+/// the open closed stitches, moving neither pinned particles nor those
+/// `held` says are held; velocities get each move over `h`.
+pub(crate) fn project_strain_limit(
+    model: &ClothModel,
+    limit: &StrainLimit,
+    held: &impl Fn(usize) -> bool,
+    stitches_closed: &[bool],
+    (x, v): (&mut [Vec3], &mut [Vec3]),
+    h: f64,
+    scratch: &mut ProjectionScratch,
+) -> ProjectionReport {
+    if limit.projections == 0 {
+        return ProjectionReport::default();
+    }
+    let bounds =
+        Bounds { stretch: 1.0 + limit.max_strain, slack: LINK_SLACK, stitch_slack_m: STITCH_SLACK_M, stitches_closed };
+    let free = |q: usize| !model.is_pinned(q) && !held(q);
+    fast_projection(model, &bounds, free, (x, v), h, limit.projections, scratch)
 }
 
 /// [`apply_strain_limit`] with its scratch: one bit per stretch link,
@@ -124,9 +153,7 @@ pub(crate) fn apply_strain_limit_with(
                 from = bit + 1;
                 let l = &links[word * 64 + bit];
                 let (max_len, ends) = (stretch * l.rest, [l.i as usize, l.j as usize]);
-                // A relative slack of 1e-12 keeps rounding from re-correcting
-                // a link just set to its limit (and so from burning every pass).
-                if shorten(x, v, ends, max_len, max_len * (1.0 + 1e-12)) {
+                if shorten(x, v, ends, max_len, max_len * (1.0 + LINK_SLACK)) {
                     corrected += 1;
                     ends.iter().for_each(|&p| touch(dirty, p));
                 }
@@ -223,7 +250,7 @@ mod tests {
         let mut dirty = Vec::new();
         let mut settled_at = None;
         for passes in [1, 2, 5, 20, 2000] {
-            let limit = StrainLimit { max_strain: 0.1, passes };
+            let limit = StrainLimit { max_strain: 0.1, passes, projections: 0 };
             let (mut xa, mut va) = (x0.clone(), v0.clone());
             let (mut xb, mut vb) = (x0.clone(), v0.clone());
             let full = full_passes(&model, &limit, held, (&mut xa, &mut va), h);

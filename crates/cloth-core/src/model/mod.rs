@@ -16,6 +16,7 @@ pub(crate) mod constraints;
 mod effects;
 pub mod element_laws;
 pub(crate) mod elements;
+pub(crate) mod fast_projection;
 pub(crate) mod forces;
 pub(crate) mod keyframes;
 pub mod laws;

@@ -281,7 +281,9 @@ impl BendingLaw {
 /// shortened back to that length by moving its free ends (split equally
 /// when both are free, never moving pinned ones), in link order, after
 /// every closed stitch is shut the same way, for up to `passes` passes or
-/// until none is too long or open.
+/// until none is too long or open. With `projections > 0`, fast
+/// projections of every violated link at once (Goldenthal et al. 2007)
+/// come before the passes.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct StrainLimit {
@@ -291,10 +293,16 @@ pub struct StrainLimit {
     /// self-collision, a few more where impact zones moved the corrected
     /// cloth: `docs/contacts.md`).
     pub passes: usize,
+    /// Most fast projections before each run of passes (0: Provot's
+    /// passes alone). A pass moves a correction one link along, so a
+    /// chain of over-long links needs of the order of its length squared
+    /// in passes; a projection corrects them all together (see
+    /// `docs/garments.md`).
+    pub projections: usize,
 }
 
 impl Default for StrainLimit {
     fn default() -> Self {
-        Self { max_strain: 0.1, passes: 10 }
+        Self { max_strain: 0.1, passes: 10, projections: 0 }
     }
 }
