@@ -329,8 +329,9 @@ mod tests {
     }
 
     /// A strip of 41 x 2 particles held at one end and stretched to 1.4
-    /// times its length: ten of Provot's passes leave it above 1.38 (a
-    /// correction travels a link a pass), ten projections bring every link
+    /// times its length: after ten of Provot's passes its worst link is at
+    /// 1.44 (a correction travels a link a pass, pushing the excess onto
+    /// the next), ten projections bring every link
     /// to within 3e-6 of its limit (1.1). The held end stays, and the
     /// velocities change by the moves over the step.
     #[test]
@@ -345,7 +346,7 @@ mod tests {
         let (mut xp, mut vp) = (stretched.clone(), v0.clone());
         apply_strain_limit_with(&model, &limit, held, &[], (&mut xp, &mut vp), h, &mut Vec::new());
         let passes = model.max_stretch_ratio(&xp);
-        assert!(passes > 1.38, "after 10 passes: {passes}");
+        assert!(passes > 1.44, "after 10 passes: {passes}");
 
         let (mut x, mut v) = (stretched.clone(), v0.clone());
         let free = |i: usize| !held(i);
