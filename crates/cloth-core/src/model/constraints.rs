@@ -52,6 +52,12 @@ pub fn apply_strain_limit(
     apply_strain_limit_with(model, limit, held, stitches_closed, (x, v), h, &mut Vec::new())
 }
 
+/// Whether the constraints may move particle `q`: neither pinned nor
+/// held (see [`crate::Control::is_held`]).
+fn movable(model: &ClothModel, held: &impl Fn(usize) -> bool, q: usize) -> bool {
+    !model.is_pinned(q) && !held(q)
+}
+
 /// `limit.projections` fast projections of the links over `limit` and
 /// the open closed stitches, moving neither pinned particles nor those
 /// `held` says are held; velocities get each move over `h`.
@@ -69,8 +75,7 @@ pub(crate) fn project_strain_limit(
     }
     let bounds =
         Bounds { stretch: 1.0 + limit.max_strain, slack: LINK_SLACK, stitch_slack_m: STITCH_SLACK_M, stitches_closed };
-    let free = |q: usize| !model.is_pinned(q) && !held(q);
-    fast_projection(model, &bounds, free, (x, v), h, limit.projections, scratch)
+    fast_projection(model, &bounds, |q| movable(model, held, q), (x, v), h, limit.projections, scratch)
 }
 
 /// [`apply_strain_limit`] with its scratch: one bit per stretch link,
@@ -105,7 +110,7 @@ pub(crate) fn apply_strain_limit_with(
         }
     };
     let stretch = 1.0 + limit.max_strain;
-    let free = |q: usize| !model.is_pinned(q) && !held(q);
+    let free = |q: usize| movable(model, &held, q);
     // Moves the ends of the pair `i`, `j` to `max_len` apart along their
     // line when they are further apart than `slack`; whether it did.
     let shorten = |x: &mut [Vec3], v: &mut [Vec3], [i, j]: [usize; 2], max_len: f64, slack: f64| {

@@ -37,7 +37,7 @@ const CG_TOLERANCE: f64 = 1e-3;
 /// Most conjugate-gradient iterations per projection.
 const CG_MAX: usize = 200;
 /// Most halvings of a projection's update before it is given up.
-pub(crate) const MAX_HALVINGS: usize = 4;
+const MAX_HALVINGS: usize = 4;
 
 /// Which constraints a projection bounds, and how tightly.
 #[derive(Debug, Clone, Copy)]
@@ -195,7 +195,6 @@ pub(crate) struct ProjectionReport {
 /// on positions `x`; velocities `v` change by each move over `h` (s), as
 /// after Provot's passes. `free(i)` says whether particle `i` may move.
 /// Stops when nothing is violated or an update cannot lower the violation.
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn fast_projection(
     model: &ClothModel,
     bounds: &Bounds<'_>,
