@@ -49,7 +49,8 @@ pub(crate) fn detect_self_contacts(
     // A pair is kept when it could close the gap to the thickness within
     // the step: its distance is below the thickness (with some slack for
     // accelerations) plus what the two particles travel at their speeds.
-    let reach = |d: f64, speed: f64| d < SELF_SLACK * th + h * speed;
+    let reach_m = |speed: f64| SELF_SLACK * th + h * speed;
+    let reach = |d: f64, speed: f64| d < reach_m(speed);
     // The cell table in fixed chunks, in parallel; the union sorted, so
     // the pairs do not depend on the number of threads.
     let slot_chunks = hash.table_slots().div_ceil(SLOT_CHUNK);
@@ -85,8 +86,8 @@ pub(crate) fn detect_self_contacts(
         });
     }
     if sc.point_triangle {
-        point_triangle_contacts(model, radius, x, &hash, bufs, |p, tri, d| {
-            reach(d, v[p].norm() + tri.iter().map(|&c| v[c as usize].norm()).fold(0.0, f64::max))
+        point_triangle_contacts(model, radius, x, &hash, bufs, |p, tri| {
+            reach_m(v[p].norm() + tri.iter().map(|&c| v[c as usize].norm()).fold(0.0, f64::max))
         });
     }
     bufs.hash = Some(hash);
@@ -187,7 +188,8 @@ pub(crate) fn separate_self_contacts(
 }
 
 /// Particle-triangle pairs within `radius` (see `detect_self_contacts`)
-/// kept when `keep(particle, triangle, distance)`; each particle's nearest
+/// kept when their distance is below `reach(particle, triangle)` (m);
+/// each particle's nearest
 /// triangle repels it (one force per particle: a particle over an edge
 /// would otherwise be pushed by both triangles), all are kept apart after
 /// the step.
@@ -197,7 +199,7 @@ pub(crate) fn point_triangle_contacts(
     x: &[Vec3],
     hash: &VoxelHash,
     bufs: &mut Contacts,
-    keep: impl Fn(usize, [u32; 3], f64) -> bool + Sync,
+    reach: impl Fn(usize, [u32; 3]) -> f64 + Sync,
 ) {
     let triangles = model.triangles();
     if bufs.excluded_ptr.len() != triangles.len() + 1 {
@@ -233,10 +235,14 @@ pub(crate) fn point_triangle_contacts(
                 continue;
             }
             let [a, b, c] = corners[at];
+            let limit = reach(p, tri);
+            if beyond(x[p], [a, b, c], limit.min(radius)) {
+                continue;
+            }
             let (q, w) = closest_point_on_triangle(x[p], a, b, c);
             let d = (x[p] - q).norm();
             let at_vertex = w.iter().any(|&wk| wk > 1.0 - 1e-9);
-            if d >= radius || at_vertex || !keep(p, tri, d) {
+            if d >= radius || at_vertex || d >= limit {
                 continue;
             }
             let normal = (b - a).cross(&(c - a));
@@ -272,6 +278,35 @@ pub(crate) fn point_triangle_contacts(
     for &k in bufs.nearest.iter().filter(|&&k| k != u32::MAX) {
         bufs.self_pairs[k as usize].repels = true;
     }
+}
+
+/// Whether `p` is surely farther than `limit` (m) from the triangle
+/// `corners`, by a lower bound on its distance that costs a few
+/// comparisons: the distance to the triangle's box, and to its plane
+/// when the triangle is not a sliver. The voxel search reaches as far as
+/// the fastest particle could close in the step; most of its candidates
+/// are beyond their own pair's reach, and this spares them the exact
+/// test. The bound is taken with a relative slack far above roundoff, so
+/// a pair it drops is one the exact test would drop too.
+fn beyond(p: Vec3, [a, b, c]: [Vec3; 3], limit: f64) -> bool {
+    const SLACK: f64 = 1.0 + 1e-6;
+    let lo = a.inf(&b).inf(&c);
+    let hi = a.sup(&b).sup(&c);
+    let outside = (lo - p).sup(&(p - hi)).sup(&Vec3::zeros());
+    let bound_sq = limit * limit * SLACK;
+    if outside.norm_squared() > bound_sq {
+        return true;
+    }
+    let (e0, e1) = (b - a, c - a);
+    let normal = e0.cross(&e1);
+    let normal_sq = normal.norm_squared();
+    // Not a sliver at `a` (the sine of the angle there above 1e-3): the
+    // normal is then known to a relative 1e-12.
+    if normal_sq <= 1e-6 * e0.norm_squared() * e1.norm_squared() {
+        return false;
+    }
+    let height = (p - a).dot(&normal);
+    height * height > bound_sq * normal_sq
 }
 
 /// For each triangle, the sorted particles it never repels: its corners
@@ -372,3 +407,47 @@ pub(crate) const TRIANGLE_CHUNK: usize = 256;
 /// Slots of the spatial hash's cell table per parallel task of the point
 /// pairs (the table has two to four slots a particle).
 pub(crate) const SLOT_CHUNK: usize = 1024;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The cheap bound drops a particle-triangle pair only when the exact
+    /// distance is beyond the limit too, slivers and points in the plane
+    /// included; and it drops nearly every pair that is far.
+    #[test]
+    fn the_cheap_bound_never_drops_a_pair_within_reach() {
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let mut rand = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut dropped, mut far) = (0, 0);
+        for k in 0..200_000 {
+            let r: [f64; 9] = std::array::from_fn(|_| rand());
+            let (a, b) = (Vec3::new(r[0], r[1], r[2]) * 0.02, Vec3::new(r[3], r[4], r[5]) * 0.02);
+            let third = Vec3::new(r[6], r[7], r[8]) * 0.02;
+            // Every fourth triangle is a sliver: its third corner on the
+            // line through the other two, nudged off it.
+            let c = if k % 4 == 0 { a + (b - a) * (2.0 * rand() - 0.5) + third * 1e-7 } else { third };
+            // Every third point lies in the triangle's plane.
+            let p = if k % 3 == 0 {
+                a + (b - a) * (3.0 * rand() - 1.0) + (c - a) * (3.0 * rand() - 1.0)
+            } else {
+                Vec3::new(rand(), rand(), rand()) * 0.06 - Vec3::repeat(0.02)
+            };
+            let limit = 0.002 + 0.01 * rand();
+            let (q, _) = closest_point_on_triangle(p, a, b, c);
+            let d = (p - q).norm();
+            if beyond(p, [a, b, c], limit) {
+                assert!(d >= limit, "dropped a pair at {d} m within {limit} m: p {p:?}, [{a:?}, {b:?}, {c:?}]");
+                dropped += 1;
+            }
+            far += usize::from(d >= limit * 1.1);
+        }
+        // Measured: 156,059 dropped against 158,179 beyond 1.1 times the limit.
+        assert!(dropped * 100 > far * 95, "the bound dropped {dropped} of {far} far pairs");
+    }
+}
