@@ -3,7 +3,7 @@ thread (the simulation's pool and NumPy's), 25 x 25 particles, a random
 policy and an idle one (pickers still, nothing held), the median of
 ``--repeat`` runs of ``--steps`` steps. Prints a Markdown table.
 
-    python python/examples/env_speed.py [--steps 200] [--repeat 3]
+    python python/examples/env_speed.py [--steps 200] [--repeat 3] [--dt-s 0.0333 --substeps 1]
 """
 
 from __future__ import annotations
@@ -25,9 +25,10 @@ import cloth.envs  # noqa: E402,F401
 TASKS = ["cloth/Flatten-v0", "cloth/Fold-v0", "cloth/Drop-v0"]
 
 
-def rate(task: str, policy: str, steps: int, seed: int) -> float:
-    """Env steps per second over ``steps`` steps after a reset (not timed)."""
-    env = gym.make(task, threads=1)
+def rate(task: str, policy: str, steps: int, seed: int, **step_size) -> float:
+    """Env steps per second over ``steps`` steps after a reset (not timed);
+    ``step_size``: ``dt_s`` and ``substeps`` when not the task's own."""
+    env = gym.make(task, threads=1, **step_size)
     env.reset(seed=seed)
     env.action_space.seed(seed)
     idle = np.zeros(env.action_space.shape, dtype=np.float32)
@@ -45,12 +46,15 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--steps", type=int, default=200)
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--dt-s", type=float, help="simulation step, s (default: the task's, 1/90)")
+    parser.add_argument("--substeps", type=int, help="simulation steps an env step (default: the task's, 3)")
     args = parser.parse_args()
+    step_size = {k: v for k, v in (("dt_s", args.dt_s), ("substeps", args.substeps)) if v is not None}
     print("| task | policy | env steps/s (median) | runs |")
     print("|---|---|---|---|")
     for task in TASKS:
         for policy in ("random", "idle"):
-            runs = [rate(task, policy, args.steps, seed) for seed in range(args.repeat)]
+            runs = [rate(task, policy, args.steps, seed, **step_size) for seed in range(args.repeat)]
             shown = ", ".join(f"{r:.0f}" for r in runs)
             print(f"| {task} | {policy} | {statistics.median(runs):.0f} | {shown} |")
 

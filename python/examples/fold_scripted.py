@@ -3,7 +3,7 @@ of the cloth's left edge, grasp them, turn them over the middle onto the
 right corners, let go and wait. Prints the fold distance
 and whether the task counts it a success.
 
-    python python/examples/fold_scripted.py [--seed 0] [--save fold.png]
+    python python/examples/fold_scripted.py [--seed 0] [--save fold.png] [--dt-s 0.0333 --substeps 1]
 """
 
 from __future__ import annotations
@@ -62,8 +62,11 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--save", help="write the last frame as a PNG (needs matplotlib)")
+    parser.add_argument("--dt-s", type=float, help="simulation step, s (default: the task's, 1/90)")
+    parser.add_argument("--substeps", type=int, help="simulation steps an env step (default: the task's, 3)")
     args = parser.parse_args()
-    env = gym.make("cloth/Fold-v0", render_mode="rgb_array")
+    step_size = {k: v for k, v in (("dt_s", args.dt_s), ("substeps", args.substeps)) if v is not None}
+    env = gym.make("cloth/Fold-v0", render_mode="rgb_array", **step_size)
     reward, info = fold(env, args.seed)
     print(f"fold distance {-reward:.4f} m, success {info['success']}")
     if args.save:
