@@ -8,8 +8,8 @@
 //! its elements in a fixed order, as for links.
 
 use crate::element_laws::{
-    ElementForces, TriangleRest, bend_hinge_into, bend_triple_forces, bend_triple_into, curvature_bending_into,
-    membrane_triangle_into,
+    ElementForces, TriangleRest, bend_hinge_into, bend_triple_energy, bend_triple_forces, bend_triple_into,
+    curvature_bending_into, membrane_triangle_into,
 };
 use crate::{Mat3, Vec3};
 use cloth_linalg::{BlockPattern, ROW_CHUNK};
@@ -192,13 +192,28 @@ impl<const K: usize> Default for ElementRhs<K> {
 struct KindBuffers<const K: usize> {
     rhs: Vec<ElementRhs<K>>,
     blocks: Vec<[[Mat3; K]; K]>,
+    /// Each element's energy from [`energy_only`], J.
+    energies: Vec<f64>,
 }
 
 impl<const K: usize> KindBuffers<K> {
     /// For `len` elements; their Hessian blocks only `with_hessians`.
     fn new(len: usize, with_hessians: bool) -> Self {
         let blocks = if with_hessians { len } else { 0 };
-        Self { rhs: vec![ElementRhs::default(); len], blocks: vec![[[Mat3::zeros(); K]; K]; blocks] }
+        Self {
+            rhs: vec![ElementRhs::default(); len],
+            blocks: vec![[[Mat3::zeros(); K]; K]; blocks],
+            energies: vec![0.0; len],
+        }
+    }
+
+    /// `energy(e)` of every element, in parallel, summed in element order
+    /// as [`KindBuffers::energy`] sums an evaluation's, J.
+    fn energy_only<E: Sync>(&mut self, elems: &[E], energy: impl Fn(&E) -> f64 + Sync) -> f64 {
+        self.energies.par_iter_mut().zip(elems.par_iter()).with_min_len(ROW_CHUNK).for_each(|(out, e)| {
+            *out = energy(e);
+        });
+        self.energies.iter().copied().sum()
     }
 
     /// Evaluates `law(e, hessian)` for every element `e` with corners
@@ -533,6 +548,24 @@ pub(crate) fn vertex_energy(set: &ElementSet, x: &[Vec3], i: usize, xi: Vec3) ->
         };
     }
     energy
+}
+
+/// Total element energy at `x`, J: bit for bit what [`evaluate`] then
+/// [`energy`] give, without the forces (the bending triples skip their
+/// gradients and the arc law's derivatives: what an energy monitor and a
+/// line search need).
+pub(crate) fn energy_only(set: &ElementSet, x: &[Vec3], bufs: &mut ElementBuffers) -> f64 {
+    let at = |nodes: &[u32; 3]| nodes.map(|p| x[p as usize]);
+    let membranes =
+        bufs.membranes.energy_only(&set.membranes, |m| membrane_triangle_into(at(&m.nodes), &m.rest, None).energy);
+    let curvatures = bufs.curvatures.energy_only(&set.curvatures, |e| {
+        curvature_bending_into(e.nodes.map(|p| x[p as usize]), e.rest_angles, &e.stiffness, None).energy
+    });
+    let triples = bufs.triples.energy_only(&set.triples, |t| bend_triple_energy(at(&t.nodes), t.rest, t.k_b));
+    let at4 = |nodes: &[u32; 4]| nodes.map(|p| x[p as usize]);
+    let hinges =
+        bufs.hinges.energy_only(&set.hinges, |h| bend_hinge_into(at4(&h.nodes), h.w, h.rest, h.k_b, None).energy);
+    membranes + curvatures + triples + hinges
 }
 
 /// Total element energy of the last [`evaluate`], J.

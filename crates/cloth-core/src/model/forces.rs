@@ -41,12 +41,7 @@ pub fn elastic_energy(model: &ClothModel, x: &[Vec3], stitches_closed: &[bool], 
     });
     let links: f64 = bufs.link.iter().sum();
     let set = model.elements();
-    let internal = if set.is_empty() {
-        links
-    } else {
-        elements::evaluate(set, x, 0.0, 1.0, None, &mut bufs.elements);
-        links + elements::energy(&bufs.elements)
-    };
+    let internal = if set.is_empty() { links } else { links + elements::energy_only(set, x, &mut bufs.elements) };
     internal + extra_energy(model, x, stitches_closed)
 }
 

@@ -142,24 +142,41 @@ pub fn inverse_sinc(s: f64) -> f64 {
 ///
 /// `d`, `rest` in m; `k_b` (flexural rigidity of the link) in N m^2.
 pub fn buckling_arc(d: f64, rest: f64, k_b: f64) -> ScalarLaw {
-    if d >= rest {
+    let Some(t) = arc_half_angle(d, rest) else {
         return ScalarLaw::default();
-    }
-    let s = ((rest - d) / rest).min(1.0);
-    let t = inverse_sinc(s); // t = kappa L / 2
-    let kappa = 2.0 * t / rest;
+    };
+    let energy = arc_energy(t, rest, k_b);
     let g = cos_minus_sinc(t);
     let l2 = rest * rest;
     if t < 1e-6 {
-        return ScalarLaw { energy: 0.5 * k_b * rest * kappa * kappa, ..buckling_arc_onset(rest, k_b) };
+        return ScalarLaw { energy, ..buckling_arc_onset(rest, k_b) };
     }
     // phi = (4 k_b / L^2) t^2 / g, and with dd/dt = L g / t:
     // dphi/dd = (4 k_b / L^3) t^2 (3 g + t sin t) / g^3.
     ScalarLaw {
-        energy: 0.5 * k_b * rest * kappa * kappa,
+        energy,
         phi: 4.0 * k_b / l2 * t * t / g,
         dphi: 4.0 * k_b / (l2 * rest) * t * t * three_g_plus_t_sin(t) / (g * g * g),
     }
+}
+
+/// [`buckling_arc`]'s energy alone, J, bit for bit: an energy monitor or
+/// a line search needs no force, and skips the force's and the
+/// stiffness's trigonometric functions.
+pub fn buckling_arc_energy(d: f64, rest: f64, k_b: f64) -> f64 {
+    arc_half_angle(d, rest).map_or(0.0, |t| arc_energy(t, rest, k_b))
+}
+
+/// The arc's half angle `t = kappa L / 2` at chord `d < L` (m), from
+/// `sinc(t) = d / L`; `None` for `d >= L`.
+fn arc_half_angle(d: f64, rest: f64) -> Option<f64> {
+    (d < rest).then(|| inverse_sinc(((rest - d) / rest).min(1.0)))
+}
+
+/// `E = k_b L kappa^2 / 2` with `kappa = 2 t / L`, J.
+fn arc_energy(t: f64, rest: f64, k_b: f64) -> f64 {
+    let kappa = 2.0 * t / rest;
+    0.5 * k_b * rest * kappa * kappa
 }
 
 /// The limits of [`buckling_arc`] as `d -> L` from below (zero energy):

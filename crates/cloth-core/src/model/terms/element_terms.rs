@@ -26,9 +26,7 @@ impl ForceTerm for Elements {
     /// Allocates its scratch: for tests and line searches, not the step.
     fn energy(&self, at: &At<'_>) -> f64 {
         let set = at.model.elements();
-        let mut bufs = ElementBuffers::forces_only(set);
-        elements::evaluate(set, at.x, 0.0, 1.0, None, &mut bufs);
-        elements::energy(&bufs)
+        elements::energy_only(set, at.x, &mut ElementBuffers::forces_only(set))
     }
 
     fn add_forces(&self, at: &At<'_>, scratch: &mut ForceBuffers, out: &mut [Vec3]) {
