@@ -8,8 +8,8 @@
 //! its elements in a fixed order, as for links.
 
 use crate::element_laws::{
-    ElementForces, TriangleRest, bend_hinge_into, bend_triple_energy, bend_triple_forces, bend_triple_into,
-    curvature_bending_into, membrane_triangle_into,
+    ElementForces, TriangleRest, bend_hinge_energy, bend_hinge_into, bend_triple_energy, bend_triple_forces,
+    bend_triple_into, curvature_bending_into, membrane_triangle_into,
 };
 use crate::{Mat3, Vec3};
 use cloth_linalg::{BlockPattern, ROW_CHUNK};
@@ -563,8 +563,7 @@ pub(crate) fn energy_only(set: &ElementSet, x: &[Vec3], bufs: &mut ElementBuffer
     });
     let triples = bufs.triples.energy_only(&set.triples, |t| bend_triple_energy(at(&t.nodes), t.rest, t.k_b));
     let at4 = |nodes: &[u32; 4]| nodes.map(|p| x[p as usize]);
-    let hinges =
-        bufs.hinges.energy_only(&set.hinges, |h| bend_hinge_into(at4(&h.nodes), h.w, h.rest, h.k_b, None).energy);
+    let hinges = bufs.hinges.energy_only(&set.hinges, |h| bend_hinge_energy(at4(&h.nodes), h.w, h.rest, h.k_b));
     membranes + curvatures + triples + hinges
 }
 
