@@ -192,28 +192,13 @@ impl<const K: usize> Default for ElementRhs<K> {
 struct KindBuffers<const K: usize> {
     rhs: Vec<ElementRhs<K>>,
     blocks: Vec<[[Mat3; K]; K]>,
-    /// Each element's energy from [`energy_only`], J.
-    energies: Vec<f64>,
 }
 
 impl<const K: usize> KindBuffers<K> {
     /// For `len` elements; their Hessian blocks only `with_hessians`.
     fn new(len: usize, with_hessians: bool) -> Self {
         let blocks = if with_hessians { len } else { 0 };
-        Self {
-            rhs: vec![ElementRhs::default(); len],
-            blocks: vec![[[Mat3::zeros(); K]; K]; blocks],
-            energies: vec![0.0; len],
-        }
-    }
-
-    /// `energy(e)` of every element, in parallel, summed in element order
-    /// as [`KindBuffers::energy`] sums an evaluation's, J.
-    fn energy_only<E: Sync>(&mut self, elems: &[E], energy: impl Fn(&E) -> f64 + Sync) -> f64 {
-        self.energies.par_iter_mut().zip(elems.par_iter()).with_min_len(ROW_CHUNK).for_each(|(out, e)| {
-            *out = energy(e);
-        });
-        self.energies.iter().copied().sum()
+        Self { rhs: vec![ElementRhs::default(); len], blocks: vec![[[Mat3::zeros(); K]; K]; blocks] }
     }
 
     /// Evaluates `law(e, hessian)` for every element `e` with corners
@@ -538,32 +523,62 @@ pub(crate) fn vertex_energy(set: &ElementSet, x: &[Vec3], i: usize, xi: Vec3) ->
             Kind::Triple => {
                 let t = &set.triples[e];
                 let p = t.nodes.map(|p| if p as usize == i { xi } else { x[p as usize] });
-                bend_triple_into(p, t.rest, t.k_b, None).energy
+                bend_triple_energy(p, t.rest, t.k_b)
             }
             Kind::Hinge => {
                 let h = &set.hinges[e];
                 let p = h.nodes.map(|p| if p as usize == i { xi } else { x[p as usize] });
-                bend_hinge_into(p, h.w, h.rest, h.k_b, None).energy
+                bend_hinge_energy(p, h.w, h.rest, h.k_b)
             }
         };
     }
     energy
 }
 
+/// Each element's energy, by kind, for [`energy_only`], J: what the
+/// energy monitor keeps instead of an evaluation's forces and blocks.
+#[derive(Debug, Clone, Default)]
+pub struct ElementEnergies {
+    membranes: Vec<f64>,
+    curvatures: Vec<f64>,
+    triples: Vec<f64>,
+    hinges: Vec<f64>,
+}
+
+impl ElementEnergies {
+    /// Buffers for `set`.
+    pub fn new(set: &ElementSet) -> Self {
+        Self {
+            membranes: vec![0.0; set.membranes.len()],
+            curvatures: vec![0.0; set.curvatures.len()],
+            triples: vec![0.0; set.triples.len()],
+            hinges: vec![0.0; set.hinges.len()],
+        }
+    }
+}
+
+/// `energy(e)` of every element into `out`, in parallel, summed in
+/// element order as an evaluation's energies are, J.
+fn kind_energy<E: Sync>(out: &mut [f64], elems: &[E], energy: impl Fn(&E) -> f64 + Sync) -> f64 {
+    out.par_iter_mut().zip(elems.par_iter()).with_min_len(ROW_CHUNK).for_each(|(out, e)| *out = energy(e));
+    out.iter().copied().sum()
+}
+
 /// Total element energy at `x`, J: bit for bit what [`evaluate`] then
-/// [`energy`] give, without the forces (the bending triples skip their
-/// gradients and the arc law's derivatives: what an energy monitor and a
-/// line search need).
-pub(crate) fn energy_only(set: &ElementSet, x: &[Vec3], bufs: &mut ElementBuffers) -> f64 {
+/// [`energy`] give, without the forces (the bending triples and hinges
+/// skip their gradients and the arc law's derivatives: what an energy
+/// monitor and a line search need).
+pub(crate) fn energy_only(set: &ElementSet, x: &[Vec3], bufs: &mut ElementEnergies) -> f64 {
     let at = |nodes: &[u32; 3]| nodes.map(|p| x[p as usize]);
-    let membranes =
-        bufs.membranes.energy_only(&set.membranes, |m| membrane_triangle_into(at(&m.nodes), &m.rest, None).energy);
-    let curvatures = bufs.curvatures.energy_only(&set.curvatures, |e| {
+    let membranes = kind_energy(&mut bufs.membranes, &set.membranes, |m| {
+        membrane_triangle_into(at(&m.nodes), &m.rest, None).energy
+    });
+    let curvatures = kind_energy(&mut bufs.curvatures, &set.curvatures, |e| {
         curvature_bending_into(e.nodes.map(|p| x[p as usize]), e.rest_angles, &e.stiffness, None).energy
     });
-    let triples = bufs.triples.energy_only(&set.triples, |t| bend_triple_energy(at(&t.nodes), t.rest, t.k_b));
+    let triples = kind_energy(&mut bufs.triples, &set.triples, |t| bend_triple_energy(at(&t.nodes), t.rest, t.k_b));
     let at4 = |nodes: &[u32; 4]| nodes.map(|p| x[p as usize]);
-    let hinges = bufs.hinges.energy_only(&set.hinges, |h| bend_hinge_energy(at4(&h.nodes), h.w, h.rest, h.k_b));
+    let hinges = kind_energy(&mut bufs.hinges, &set.hinges, |h| bend_hinge_energy(at4(&h.nodes), h.w, h.rest, h.k_b));
     membranes + curvatures + triples + hinges
 }
 

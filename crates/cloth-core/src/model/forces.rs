@@ -9,7 +9,7 @@
 //! whose order depends on scheduling, so results are bit-identical for any
 //! thread count.
 
-use crate::elements::{self, ElementBuffers};
+use crate::elements::{self, ElementEnergies};
 use crate::terms::ForceBuffers;
 use crate::terms::link_energy;
 use crate::{ClothModel, Vec3};
@@ -20,13 +20,13 @@ use rayon::prelude::*;
 #[derive(Debug, Clone)]
 pub struct EnergyBuffers {
     link: Vec<f64>,
-    elements: ElementBuffers,
+    elements: ElementEnergies,
 }
 
 impl EnergyBuffers {
     /// Buffers for `model`.
     pub fn new(model: &ClothModel) -> Self {
-        Self { link: vec![0.0; model.link_count()], elements: ElementBuffers::forces_only(model.elements()) }
+        Self { link: vec![0.0; model.link_count()], elements: ElementEnergies::new(model.elements()) }
     }
 }
 

@@ -3,7 +3,7 @@
 //! [`crate::element_laws`]).
 
 use super::{At, ForceTerm, TermAssembly, TermScratch, VertexBlock};
-use crate::elements::{self, ElementBuffers};
+use crate::elements::{self, ElementBuffers, ElementEnergies};
 use crate::model::assembly::{Row, SystemTerms};
 use crate::terms::ForceBuffers;
 use crate::{ClothModel, Vec3};
@@ -26,7 +26,7 @@ impl ForceTerm for Elements {
     /// Allocates its scratch: for tests and line searches, not the step.
     fn energy(&self, at: &At<'_>) -> f64 {
         let set = at.model.elements();
-        elements::energy_only(set, at.x, &mut ElementBuffers::forces_only(set))
+        elements::energy_only(set, at.x, &mut ElementEnergies::new(set))
     }
 
     fn add_forces(&self, at: &At<'_>, scratch: &mut ForceBuffers, out: &mut [Vec3]) {
