@@ -14,14 +14,15 @@ import gymnasium as gym
 import numpy as np
 
 import cloth.envs  # noqa: F401  (registers the tasks)
+import step_size
 
 #: Env steps the pickers hold the cloth before letting go.
 HELD = (0, 1, 3)
 
 
-def episode(seed: int, held: int, **step_size) -> str | None:
+def episode(seed: int, held: int, **size) -> str | None:
     """One episode to its time limit; the error of a failed step, if any."""
-    env = gym.make("cloth/Drop-v0", threads=1, **step_size)
+    env = gym.make("cloth/Drop-v0", threads=1, **size)
     env.reset(seed=seed)
     hold = np.zeros(env.action_space.shape, dtype=np.float32)
     hold[3::4] = 1.0
@@ -39,14 +40,13 @@ def episode(seed: int, held: int, **step_size) -> str | None:
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seeds", type=int, default=10)
-    parser.add_argument("--dt-s", type=float, help="simulation step, s (default: the task's, 1/90)")
-    parser.add_argument("--substeps", type=int, help="simulation steps an env step (default: the task's, 3)")
+    step_size.add_arguments(parser)
     args = parser.parse_args()
-    step_size = {k: v for k, v in (("dt_s", args.dt_s), ("substeps", args.substeps)) if v is not None}
+    size = step_size.kwargs(args)
     failed = 0
     for seed in range(args.seeds):
         for held in HELD:
-            error = episode(seed, held, **step_size)
+            error = episode(seed, held, **size)
             if error is not None:
                 failed += 1
                 print(f"seed {seed}, held {held} steps: {error}")

@@ -21,14 +21,15 @@ import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
 
 import cloth.envs  # noqa: E402,F401
+import step_size  # noqa: E402
 
 TASKS = ["cloth/Flatten-v0", "cloth/Fold-v0", "cloth/Drop-v0"]
 
 
-def rate(task: str, policy: str, steps: int, seed: int, **step_size) -> float:
+def rate(task: str, policy: str, steps: int, seed: int, **size) -> float:
     """Env steps per second over ``steps`` steps after a reset (not timed);
-    ``step_size``: ``dt_s`` and ``substeps`` when not the task's own."""
-    env = gym.make(task, threads=1, **step_size)
+    ``size``: ``dt_s`` and ``substeps`` when not the task's own."""
+    env = gym.make(task, threads=1, **size)
     env.reset(seed=seed)
     env.action_space.seed(seed)
     idle = np.zeros(env.action_space.shape, dtype=np.float32)
@@ -46,15 +47,14 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--steps", type=int, default=200)
     parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--dt-s", type=float, help="simulation step, s (default: the task's, 1/90)")
-    parser.add_argument("--substeps", type=int, help="simulation steps an env step (default: the task's, 3)")
+    step_size.add_arguments(parser)
     args = parser.parse_args()
-    step_size = {k: v for k, v in (("dt_s", args.dt_s), ("substeps", args.substeps)) if v is not None}
+    size = step_size.kwargs(args)
     print("| task | policy | env steps/s (median) | runs |")
     print("|---|---|---|---|")
     for task in TASKS:
         for policy in ("random", "idle"):
-            runs = [rate(task, policy, args.steps, seed, **step_size) for seed in range(args.repeat)]
+            runs = [rate(task, policy, args.steps, seed, **size) for seed in range(args.repeat)]
             shown = ", ".join(f"{r:.0f}" for r in runs)
             print(f"| {task} | {policy} | {statistics.median(runs):.0f} | {shown} |")
 

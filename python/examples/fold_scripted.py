@@ -14,6 +14,7 @@ import gymnasium as gym
 import numpy as np
 
 import cloth.envs  # noqa: F401  (registers the tasks)
+import step_size
 
 
 def towards(env, goals, pick):
@@ -62,11 +63,10 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--save", help="write the last frame as a PNG (needs matplotlib)")
-    parser.add_argument("--dt-s", type=float, help="simulation step, s (default: the task's, 1/90)")
-    parser.add_argument("--substeps", type=int, help="simulation steps an env step (default: the task's, 3)")
+    step_size.add_arguments(parser)
     args = parser.parse_args()
-    step_size = {k: v for k, v in (("dt_s", args.dt_s), ("substeps", args.substeps)) if v is not None}
-    env = gym.make("cloth/Fold-v0", render_mode="rgb_array", **step_size)
+    size = step_size.kwargs(args)
+    env = gym.make("cloth/Fold-v0", render_mode="rgb_array", **size)
     reward, info = fold(env, args.seed)
     print(f"fold distance {-reward:.4f} m, success {info['success']}")
     if args.save:
