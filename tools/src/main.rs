@@ -54,8 +54,9 @@ enum Command {
         #[arg(long)]
         quiet: bool,
         /// Stop with an error at the first tangle (a crossing of the cloth
-        /// through itself that lasts, or cloth pushed through a solid)
-        /// instead of warning.
+        /// through itself that lasts, or cloth pushed through a solid), or
+        /// at the first link the deformation constraints leave past their
+        /// limit, instead of warning.
         #[arg(long)]
         strict: bool,
     },

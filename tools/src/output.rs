@@ -191,6 +191,10 @@ pub struct Summary {
     pub crossings: Option<CrossingSummary>,
     /// Whether the cloth tangled: through itself or through a solid.
     pub tangle: TangleSummary,
+    /// Whether the deformation constraints held their limit (scenes with
+    /// the `strain-limit` effect).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub strain_limit: Option<StrainLimitSummary>,
     /// The error that stopped the run, if any.
     pub error: Option<String>,
     /// What looked wrong before the first step (a character of an
@@ -250,6 +254,27 @@ pub struct TangleSummary {
     /// When cloth was first left through a solid, s.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub through_solid_at_s: Option<f64>,
+}
+
+/// Whether the deformation constraints held their limit, from the state
+/// after each step (`cloth_core::over_stretched`): links
+/// left past `1 + max_strain` times their rest length by more than
+/// `cloth_core::OVER_LIMIT_TOLERANCE` of it.
+#[derive(Debug, Default, Serialize)]
+pub struct StrainLimitSummary {
+    /// The limit's length over the rest length, `1 + max_strain`.
+    pub limit_ratio: f64,
+    /// Steps after which a link was past the limit.
+    pub steps_over: u64,
+    /// The longest a link was over its rest length after such a step (the
+    /// limit when none was past it).
+    pub worst_ratio: f64,
+    /// The first step that left a link past the limit, in words.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub first_over: Option<String>,
+    /// When that was, s.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub first_over_at_s: Option<f64>,
 }
 
 /// How closed the seams are at the end of a run.

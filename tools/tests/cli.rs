@@ -635,3 +635,67 @@ fn a_tangling_scene_is_flagged_and_strict_mode_stops_it() {
         std::fs::remove_dir_all(dir).ok();
     }
 }
+
+/// A hanging sheet too soft for one pass of its deformation constraints
+/// a step (20 N/m, 10% limit; measured: a link at 1.130 of its rest
+/// length after step 11, 2.41 at worst) is reported: a warning naming the
+/// time, the link and the passes, `summary.json`'s `strain_limit` counts
+/// and words, `steps.csv`'s corrections a step. With `--strict` the run
+/// stops there with a non-zero exit. The sheet at 200 N/m with 50 passes
+/// stays within the limit (1.1015 at worst) and is not reported.
+#[test]
+fn a_link_left_past_the_strain_limit_is_reported_and_strict_mode_stops_it() {
+    let hang = scene("hang.toml");
+    let sheet = [
+        "simulation.effects=[\"gravity\", \"bending\", \"damping\", \"strain-limit\"]",
+        "constraints.max_strain=0.1",
+        "panels.0.particles=[21, 21]",
+        "pins.0.nodes=[[0, 20], [20, 20]]",
+        "simulation.duration_s=1.0",
+    ];
+    let soft = ["constraints.passes=1", "material.tensile_stiffness_n_m=20"];
+    let run = |name: &str, sets: &[&str], extra: &[&str]| {
+        let out = out_dir(name);
+        let mut cmd = cloth();
+        cmd.args(["run", hang.to_str().unwrap(), "--quiet", "--frames", "10", "--out"]).arg(&out).args(extra);
+        for s in sheet.iter().chain(sets) {
+            cmd.args(["--set", s]);
+        }
+        let o = cmd.output().unwrap();
+        let s: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+        let steps = std::fs::read_to_string(out.join("frames/steps.csv")).ok();
+        std::fs::remove_dir_all(&out).ok();
+        (o.status.success(), String::from_utf8_lossy(&o.stderr).into_owned(), s, steps)
+    };
+    let (ok, err, s, steps) = run("over-stretched", &soft, &[]);
+    assert!(ok, "{err}");
+    assert!(
+        err.contains("hang.toml: warning: the deformation constraints left a link past their limit at t = "),
+        "{err}"
+    );
+    assert!(err.contains("(step ") && err.contains("the limit 1.100 (constraints.passes = 1)"), "{err}");
+    let limit = &s["strain_limit"];
+    assert_eq!(limit["limit_ratio"], 1.1, "{limit}");
+    assert!(limit["steps_over"].as_u64().unwrap() > 10, "{limit}");
+    assert_eq!(limit["worst_ratio"], s["peak_stretch_ratio"], "{limit}");
+    assert!(limit["worst_ratio"].as_f64().unwrap() > 1.5, "{limit}");
+    assert!(limit["first_over"].as_str().is_some_and(|w| w.contains("link ")), "{limit}");
+    let steps = steps.expect("steps.csv");
+    let header: Vec<&str> = steps.lines().next().unwrap().split(',').collect();
+    let column = header.iter().position(|h| *h == "strain_corrections").expect("a corrections column");
+    let corrections: u64 =
+        steps.lines().skip(1).map(|l| l.split(',').nth(column).unwrap().parse::<u64>().unwrap()).sum();
+    assert!(corrections > 0, "one pass a step corrects links");
+
+    let (ok, err, s, _) = run("over-stretched-strict", &soft, &["--strict"]);
+    assert!(!ok, "--strict must fail on a link past the limit: {err}");
+    assert!(err.contains("over-stretched (--strict): the deformation constraints left a link"), "{err}");
+    assert!(s["error"].as_str().is_some_and(|e| e.contains("--strict")), "{}", s["error"]);
+    assert!(s["steps"].as_u64().unwrap() < 90, "stopped at the first link past the limit");
+
+    let (ok, err, s, _) = run("within-limit", &[], &["--strict"]);
+    assert!(ok && !err.contains("warning"), "{err}");
+    assert_eq!(s["strain_limit"]["steps_over"], 0, "{}", s["strain_limit"]);
+    assert!(s["strain_limit"].get("first_over").is_none(), "{}", s["strain_limit"]);
+}

@@ -46,6 +46,7 @@ pub use cloth_mesh::{MeshEdge, MeshHinge, MeshTopology};
 pub use colliders::{
     Collider, ColliderSpec, CollisionSpec, DEFAULT_THICKNESS_M, SelfCollision, SelfCollisionSpec, rotation_from_degrees,
 };
+pub use constraints::{OVER_LIMIT_TOLERANCE, OverStretch, over_stretched};
 pub use contacts::{
     ContactStats, Contacts, Crossing, CrossingCheck, FrictionMode, Inside, LASTING_STEPS, MEETING_FRACTION,
     MIN_SELF_GAP, SelfContact, SolidContact, TangleCounts, TangleEvent, TangleWatch, self_intersections,

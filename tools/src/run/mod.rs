@@ -8,13 +8,14 @@ use records::{SolidPoses, StepRow, write_steps};
 use totals::{ContactTotals, EnergyTotals, NewtonTotals};
 
 use crate::output::{
-    BodySummary, CouplingSummary, CrossingSummary, GarmentHeights, SeamSummary, StageWall, Summary, TangleSummary,
-    write_obj,
+    BodySummary, CouplingSummary, CrossingSummary, GarmentHeights, SeamSummary, StageWall, StrainLimitSummary, Summary,
+    TangleSummary, write_obj,
 };
 use anyhow::{Context, Result, bail};
 use cloth_core::Effect;
 use cloth_core::scene::{RunConfig, Scene, SceneError};
 use cloth_core::{ClothModel, Inside, Simulation, StepReport, TangleEvent, TangleWatch, Vec3};
+use cloth_core::{OVER_LIMIT_TOLERANCE, over_stretched};
 use cloth_rapier::scene::has_bodies;
 use cloth_rapier::{CoupledRun, CoupledScene, CouplingReport, Master, Momentum};
 use cloth_tools::frames::{FRAMES_FILE, FrameWriter};
@@ -31,8 +32,9 @@ pub struct RunArgs {
     pub binary_frames: bool,
     pub threads: usize,
     pub quiet: bool,
-    /// A tangle (a lasting crossing, cloth through a solid) stops the run
-    /// with an error instead of a warning.
+    /// A tangle (a lasting crossing, cloth through a solid) or a link left
+    /// past the deformation constraints' limit stops the run with an error
+    /// instead of a warning.
     pub strict: bool,
 }
 
@@ -251,7 +253,8 @@ pub(crate) struct SimulateOptions {
     pub progress: bool,
     /// Stop after at most this many steps (the scene's own count otherwise).
     pub max_steps: Option<u64>,
-    /// The first tangle is the error that ends the run, not a warning.
+    /// The first tangle, or the first link left past the deformation
+    /// constraints' limit, is the error that ends the run, not a warning.
     pub strict: bool,
     /// Stop, as an error naming the time reached, once the run has taken
     /// this much wall time, s (a bench's bound on a run that bogs down).
@@ -323,6 +326,8 @@ pub(crate) fn simulate_steps(scene_path: &Path, overrides: &[String], opts: Simu
     let mut garment: Option<GarmentHeights> = None;
     let mut watch = TangleWatch::new(runner.sim().model(), &runner.particles_inside());
     let mut tangle = TangleSummary::default();
+    let limit = runner.sim().model().strain_limit();
+    let mut strain = limit.map(|l| StrainLimitSummary::new(l.max_strain));
     let solid_names = runner.solid_names();
     let mut error = None;
     let wall = Instant::now();
@@ -391,6 +396,17 @@ pub(crate) fn simulate_steps(scene_path: &Path, overrides: &[String], opts: Simu
                     series.push(StepRow::of(runner.sim(), &r, stretch, counts));
                 }
                 let mut stop = None;
+                if let (Some(strain), Some(limit)) = (strain.as_mut(), limit) {
+                    let past = stretch > strain.limit_ratio * (1.0 + OVER_LIMIT_TOLERANCE);
+                    let over = if past { over_stretched(sim.model(), &sim.state().x) } else { None };
+                    if let Some(words) = strain.add(over, at, limit.passes) {
+                        if strict {
+                            stop.get_or_insert(format!("over-stretched (--strict): {words}"));
+                        } else {
+                            eprintln!("{}: warning: {words}", scene_path.display());
+                        }
+                    }
+                }
                 for event in events {
                     let mut words =
                         event.describe(|k| solid_names.get(k).cloned().unwrap_or_else(|| format!("solid {k}")));
@@ -500,6 +516,7 @@ pub(crate) fn simulate_steps(scene_path: &Path, overrides: &[String], opts: Simu
         narrow_phase_queries_total: contacts.queries,
         hash_builds_total: contacts.hash_builds,
         tangle,
+        strain_limit: strain,
         crossings: (contacts.crossings > 0).then_some(CrossingSummary {
             steps: contacts.crossing_steps,
             meetings_total: contacts.crossings,

@@ -16,8 +16,9 @@ pub const SOLIDS_FILE: &str = "solids.json";
 pub const STEPS_FILE: &str = "steps.csv";
 
 /// One step of the series: its energies (empty for steps the energy
-/// monitor did not judge), largest stretch, CG iterations, contacts, and
-/// the cloth's crossings through itself and particles through a solid.
+/// monitor did not judge), largest stretch, CG iterations, contacts, the
+/// cloth's crossings through itself and particles through a solid, and
+/// the deformation constraints' link corrections.
 #[derive(serde::Serialize)]
 pub(super) struct StepRow {
     step: u64,
@@ -30,6 +31,7 @@ pub(super) struct StepRow {
     contacts: usize,
     self_crossings: usize,
     deep_in_solids: usize,
+    strain_corrections: usize,
 }
 
 impl StepRow {
@@ -45,6 +47,7 @@ impl StepRow {
             contacts: r.contacts.contacts,
             self_crossings: tangles.self_crossings,
             deep_in_solids: tangles.deep_in_solids,
+            strain_corrections: r.strain_corrections,
         }
     }
 }

@@ -154,3 +154,36 @@ impl crate::output::TangleSummary {
         }
     }
 }
+
+impl crate::output::StrainLimitSummary {
+    /// The watch for a model with deformation constraints of this
+    /// `max_strain` (dimensionless).
+    pub(super) fn new(max_strain: f64) -> Self {
+        Self { limit_ratio: 1.0 + max_strain, worst_ratio: 1.0 + max_strain, ..Self::default() }
+    }
+
+    /// Counts the state after the step `at` (its number and time, s) with
+    /// the link `over` past the limit, if any; returns the words of the
+    /// first such step of the run, once. `passes` is the scene's
+    /// `constraints.passes`.
+    pub(super) fn add(
+        &mut self,
+        over: Option<cloth_core::OverStretch>,
+        (step, time_s): (u64, f64),
+        passes: usize,
+    ) -> Option<String> {
+        let over = over?;
+        self.steps_over += 1;
+        self.worst_ratio = self.worst_ratio.max(over.ratio);
+        if self.first_over.is_some() {
+            return None;
+        }
+        let words = format!(
+            "the deformation constraints left a link past their limit at t = {time_s:.4} s (step {step}): \
+             link {}-{} at {:.3} times its rest length, the limit {:.3} (constraints.passes = {passes})",
+            over.link[0], over.link[1], over.ratio, over.limit_ratio
+        );
+        (self.first_over, self.first_over_at_s) = (Some(words.clone()), Some(time_s));
+        Some(words)
+    }
+}

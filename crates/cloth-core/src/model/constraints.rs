@@ -29,6 +29,36 @@ pub struct StrainLimitReport {
     pub settled: bool,
 }
 
+/// How far past the deformation constraints' limit, as a share of the
+/// limit's length, a link may be after a step before a run reports it:
+/// 1% (a link of the 10% limit reported beyond 1.111 times its rest
+/// length). Where the passes settle, links end within `1e-12` of the limit.
+pub const OVER_LIMIT_TOLERANCE: f64 = 0.01;
+
+/// A link the deformation constraints left longer than their limit allows
+/// (see [`over_stretched`]): where the passes ran out, or solids, pins or
+/// impact zones held its ends apart.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OverStretch {
+    /// The link's particles.
+    pub link: [usize; 2],
+    /// Its length over its rest length.
+    pub ratio: f64,
+    /// The limit's length over the rest length, `1 + max_strain`.
+    pub limit_ratio: f64,
+}
+
+/// The most stretched link at positions `x` when it is longer than
+/// `(1 + max_strain)` times its rest length by more than
+/// [`OVER_LIMIT_TOLERANCE`] of that; `None` when it is not, or when
+/// `model` has no deformation constraints. The same link for any thread
+/// count ([`ClothModel::most_stretched`]).
+pub fn over_stretched(model: &ClothModel, x: &[Vec3]) -> Option<OverStretch> {
+    let limit_ratio = 1.0 + model.strain_limit()?.max_strain;
+    let (ratio, i, j) = model.most_stretched(x)?;
+    (ratio > limit_ratio * (1.0 + OVER_LIMIT_TOLERANCE)).then_some(OverStretch { link: [i, j], ratio, limit_ratio })
+}
+
 /// Applies `limit` to positions `x` in place, closed stitch by stitch and
 /// then link by link in model order (Gauss-Seidel, deterministic; links
 /// last: where the passes run out, the stretch is what they bound). Each
@@ -267,5 +297,48 @@ mod tests {
         }
         // The budgets cover a run that settles after several passes.
         assert!(settled_at.is_some_and(|p| p > 5), "settled after {settled_at:?} passes");
+    }
+
+    /// A strip with the limit on reports its longest link once it is past
+    /// the limit by more than the tolerance, and only then: at the limit
+    /// and just inside the tolerance nothing; without the constraints
+    /// nothing, however stretched. The link named is the stretched one.
+    #[test]
+    fn over_stretched_names_the_link_past_the_limit() {
+        let strip = |strain_limit| {
+            ClothModel::build(&ModelSpec {
+                panels: vec![GridPanel {
+                    particles: [5, 2],
+                    size_m: [0.4, 0.1],
+                    origin_m: [0.0, 0.0, 0.0],
+                    u_axis: [1.0, 0.0, 0.0],
+                    v_axis: [0.0, 1.0, 0.0],
+                    wrap_u: false,
+                }],
+                strain_limit,
+                ..ModelSpec::default()
+            })
+            .unwrap()
+        };
+        let model = strip(Some(StrainLimit { max_strain: 0.1, passes: 1, projections: 0 }));
+        // Particles 2 and 3 (a 0.1 m link along the strip) pulled apart:
+        // the link between them takes the stretch `s`.
+        let pulled = |s: f64| -> Vec<Vec3> {
+            let mut x = model.rest_positions().to_vec();
+            for (k, p) in x.iter_mut().enumerate() {
+                if k % 5 >= 3 {
+                    p.x += 0.1 * (s - 1.0);
+                }
+            }
+            x
+        };
+        let edge = 1.1 * (1.0 + OVER_LIMIT_TOLERANCE);
+        assert_eq!(over_stretched(&model, &pulled(1.1)), None);
+        assert_eq!(over_stretched(&model, &pulled(edge * (1.0 - 1e-9))), None);
+        let over = over_stretched(&model, &pulled(1.2)).expect("a link at 1.2 is past the limit");
+        assert_eq!(over.link, [2, 3]);
+        assert!((over.ratio - 1.2).abs() < 1e-12 && (over.limit_ratio - 1.1).abs() < 1e-15, "{over:?}");
+        assert!(over_stretched(&model, &pulled(edge * (1.0 + 1e-9))).is_some());
+        assert_eq!(over_stretched(&strip(None), &pulled(3.0)), None);
     }
 }
