@@ -257,9 +257,8 @@ pub struct TangleSummary {
 }
 
 /// Whether the deformation constraints held their limit, from the state
-/// after each step (`cloth_core::over_stretched`): links
-/// left past `1 + max_strain` times their rest length by more than
-/// `cloth_core::OVER_LIMIT_TOLERANCE` of it.
+/// after each step (`cloth_core::over_stretched`): links left longer than
+/// `StrainLimit::reported_ratio` times their rest length.
 #[derive(Debug, Default, Serialize)]
 pub struct StrainLimitSummary {
     /// The limit's length over the rest length, `1 + max_strain`.

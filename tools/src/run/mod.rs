@@ -13,9 +13,9 @@ use crate::output::{
 };
 use anyhow::{Context, Result, bail};
 use cloth_core::Effect;
+use cloth_core::over_stretched;
 use cloth_core::scene::{RunConfig, Scene, SceneError};
 use cloth_core::{ClothModel, Inside, Simulation, StepReport, TangleEvent, TangleWatch, Vec3};
-use cloth_core::{OVER_LIMIT_TOLERANCE, over_stretched};
 use cloth_rapier::scene::has_bodies;
 use cloth_rapier::{CoupledRun, CoupledScene, CouplingReport, Master, Momentum};
 use cloth_tools::frames::{FRAMES_FILE, FrameWriter};
@@ -327,7 +327,7 @@ pub(crate) fn simulate_steps(scene_path: &Path, overrides: &[String], opts: Simu
     let mut watch = TangleWatch::new(runner.sim().model(), &runner.particles_inside());
     let mut tangle = TangleSummary::default();
     let limit = runner.sim().model().strain_limit();
-    let mut strain = limit.map(|l| StrainLimitSummary::new(l.max_strain));
+    let mut strain = limit.as_ref().map(StrainLimitSummary::new);
     let solid_names = runner.solid_names();
     let mut error = None;
     let wall = Instant::now();
@@ -397,7 +397,8 @@ pub(crate) fn simulate_steps(scene_path: &Path, overrides: &[String], opts: Simu
                 }
                 let mut stop = None;
                 if let (Some(strain), Some(limit)) = (strain.as_mut(), limit) {
-                    let past = stretch > strain.limit_ratio * (1.0 + OVER_LIMIT_TOLERANCE);
+                    // The maximum is at hand: the link is looked for only past the limit.
+                    let past = stretch > limit.reported_ratio();
                     let over = if past { over_stretched(sim.model(), &sim.state().x) } else { None };
                     if let Some(words) = strain.add(over, at, limit.passes) {
                         if strict {

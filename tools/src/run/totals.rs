@@ -156,10 +156,9 @@ impl crate::output::TangleSummary {
 }
 
 impl crate::output::StrainLimitSummary {
-    /// The watch for a model with deformation constraints of this
-    /// `max_strain` (dimensionless).
-    pub(super) fn new(max_strain: f64) -> Self {
-        Self { limit_ratio: 1.0 + max_strain, worst_ratio: 1.0 + max_strain, ..Self::default() }
+    /// The watch for a model with these deformation constraints.
+    pub(super) fn new(limit: &cloth_core::StrainLimit) -> Self {
+        Self { limit_ratio: limit.limit_ratio(), worst_ratio: limit.limit_ratio(), ..Self::default() }
     }
 
     /// Counts the state after the step `at` (its number and time, s) with

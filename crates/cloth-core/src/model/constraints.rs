@@ -48,15 +48,29 @@ pub struct OverStretch {
     pub limit_ratio: f64,
 }
 
+impl StrainLimit {
+    /// The longest a link may be over its rest length, `1 + max_strain`.
+    pub fn limit_ratio(&self) -> f64 {
+        1.0 + self.max_strain
+    }
+
+    /// The length over rest length beyond which a run reports a link as
+    /// past the limit ([`over_stretched`]): the limit ratio times
+    /// `1 + OVER_LIMIT_TOLERANCE`.
+    pub fn reported_ratio(&self) -> f64 {
+        self.limit_ratio() * (1.0 + OVER_LIMIT_TOLERANCE)
+    }
+}
+
 /// The most stretched link at positions `x` when it is longer than
-/// `(1 + max_strain)` times its rest length by more than
-/// [`OVER_LIMIT_TOLERANCE`] of that; `None` when it is not, or when
-/// `model` has no deformation constraints. The same link for any thread
-/// count ([`ClothModel::most_stretched`]).
+/// [`StrainLimit::reported_ratio`] times its rest length; `None` when it
+/// is not, or when `model` has no deformation constraints. The same link
+/// for any thread count ([`ClothModel::most_stretched`]).
 pub fn over_stretched(model: &ClothModel, x: &[Vec3]) -> Option<OverStretch> {
-    let limit_ratio = 1.0 + model.strain_limit()?.max_strain;
+    let limit = model.strain_limit()?;
     let (ratio, i, j) = model.most_stretched(x)?;
-    (ratio > limit_ratio * (1.0 + OVER_LIMIT_TOLERANCE)).then_some(OverStretch { link: [i, j], ratio, limit_ratio })
+    let limit_ratio = limit.limit_ratio();
+    (ratio > limit.reported_ratio()).then_some(OverStretch { link: [i, j], ratio, limit_ratio })
 }
 
 /// Applies `limit` to positions `x` in place, closed stitch by stitch and
@@ -104,7 +118,7 @@ pub(crate) fn project_strain_limit(
         return ProjectionReport::default();
     }
     let bounds =
-        Bounds { stretch: 1.0 + limit.max_strain, slack: LINK_SLACK, stitch_slack_m: STITCH_SLACK_M, stitches_closed };
+        Bounds { stretch: limit.limit_ratio(), slack: LINK_SLACK, stitch_slack_m: STITCH_SLACK_M, stitches_closed };
     fast_projection(model, &bounds, |q| movable(model, held, q), (x, v), h, limit.projections, scratch)
 }
 
@@ -139,7 +153,7 @@ pub(crate) fn apply_strain_limit_with(
             }
         }
     };
-    let stretch = 1.0 + limit.max_strain;
+    let stretch = limit.limit_ratio();
     let free = |q: usize| movable(model, &held, q);
     // Moves the ends of the pair `i`, `j` to `max_len` apart along their
     // line when they are further apart than `slack`; whether it did.
