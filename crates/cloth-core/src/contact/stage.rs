@@ -8,12 +8,20 @@
 //! solids at the step's end.
 
 use super::contacts::*;
+use super::detect::reach_surface;
 use super::surroundings::{plane_force, surroundings};
 use crate::colliders::SelfCollision;
 use crate::integrate::step::{ContactHandling, Step, StepOutput};
 use crate::integrate::timer::{Stage, StageTimer};
+use crate::model::fast_projection::SolidBound;
 use crate::{ClothModel, StepError, Vec3};
+use cloth_linalg::ROW_CHUNK;
 use rayon::prelude::*;
+
+/// Solids within this many contact thicknesses of a particle in a step's
+/// finish bound its moves in the deformation constraints' fast
+/// projections: those it may reach while they move it.
+const SOLID_BOUND_REACH: f64 = 2.0;
 
 /// Rounds of impact zones and projection out of the solids after a step
 /// whose projection pushed cloth (see [`Contacts::respond_to_solve`]).
@@ -300,6 +308,37 @@ impl Contacts {
             self.crossings.uncorrected.clear();
             self.crossings.uncorrected.extend_from_slice(x);
         }
+    }
+
+    /// The solids within [`SOLID_BOUND_REACH`] thicknesses of each
+    /// particle at positions `x` (the end of a step of `h` from `t`,
+    /// started at `start`), as the bounds the deformation constraints'
+    /// fast projection keeps the particles in: the tangent plane at the
+    /// closest point, on the side the particle came from (as the
+    /// projection out of the solids takes it), moved out by the thickness.
+    /// In particle order, then the model's order of solids.
+    pub(crate) fn find_solid_bounds(&mut self, model: &ClothModel, start: &[Vec3], (t, h): (f64, f64), x: &[Vec3]) {
+        let thickness = model.contact_thickness();
+        let solids = self.next.at(model, &self.external, t + h);
+        let held = &self.held;
+        self.bound_chunks.resize_with(x.len().div_ceil(ROW_CHUNK), Vec::new);
+        self.bound_chunks.par_iter_mut().enumerate().for_each(|(k, bounds)| {
+            bounds.clear();
+            for i in (k * ROW_CHUNK..(k + 1) * ROW_CHUNK).take_while(|&i| i < x.len()) {
+                if prescribed(model, held, i) {
+                    continue;
+                }
+                for (c, next) in model.colliders().iter().zip(solids) {
+                    let limit = (SOLID_BOUND_REACH * thickness, false);
+                    if let Some((_, s)) = reach_surface(c, (next, h), start[i], x[i], limit, &mut 0).within() {
+                        let (particle, normal) = (i as u32, s.normal);
+                        bounds.push(SolidBound { particle, normal, offset_m: normal.dot(&s.point) + thickness });
+                    }
+                }
+            }
+        });
+        self.solid_bounds.clear();
+        self.solid_bounds.extend(self.bound_chunks.iter().flatten());
     }
 
     /// The projection out of the solids between the constraints' passes

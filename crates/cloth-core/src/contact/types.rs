@@ -288,6 +288,11 @@ pub struct Contacts {
     /// Scratch of the deformation constraints' passes in the finish: a
     /// bit per stretch link that may need a correction.
     pub(crate) strain_dirty: Vec<u64>,
+    /// The solids near the particles in a step's finish, as the
+    /// deformation constraints' fast projection keeps them out of them;
+    /// found by chunks of particles.
+    pub(crate) solid_bounds: Vec<crate::model::fast_projection::SolidBound>,
+    pub(crate) bound_chunks: Vec<Vec<crate::model::fast_projection::SolidBound>>,
     /// Scratch of the deformation constraints' fast projection.
     pub(crate) strain_projection: crate::model::fast_projection::ProjectionScratch,
     /// Self-collision forces, N.

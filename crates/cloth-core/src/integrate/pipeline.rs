@@ -196,6 +196,13 @@ fn finish(
         let solids = !model.colliders().is_empty();
         contacts.projection_memo.set_active(true);
         let mut passes_left = limit.passes;
+        // The fast projections keep particles out of the solids near them
+        // at the finish's start: one solve for both, where the projection
+        // out of the solids after them would stretch what they shortened.
+        contacts.solid_bounds.clear();
+        if limit.projections > 0 && solids {
+            contacts.find_solid_bounds(model, x_prev, times, x);
+        }
         for check in 1..=CORRECTION_CHECKS {
             contacts.before_corrections(model, x);
             let mut corrected = false;
@@ -203,7 +210,8 @@ fn finish(
                 let round = StrainLimit { passes: passes_left.min(PASSES_PER_PROJECTION), ..limit };
                 if check == 1 {
                     let scratch = &mut contacts.strain_projection;
-                    project_strain_limit(model, &limit, &held, stitches_closed, (x, v), h, scratch);
+                    let bounds = &contacts.solid_bounds;
+                    project_strain_limit(model, &limit, &held, (stitches_closed, bounds), (x, v), h, scratch);
                 }
                 let dirty = &mut contacts.strain_dirty;
                 let done = apply_strain_limit_with(model, &round, held, stitches_closed, (x, v), h, dirty);

@@ -7,7 +7,7 @@
 //! lets it gape by its load over its stiffness. Pinned and held particles
 //! never move.
 
-use crate::model::fast_projection::{Bounds, ProjectionReport, ProjectionScratch, fast_projection};
+use crate::model::fast_projection::{Bounds, ProjectionReport, ProjectionScratch, SolidBound, fast_projection};
 use crate::{ClothModel, StrainLimit, Vec3};
 
 /// A closed stitch this short is left as it is, m: rounding, not a gap.
@@ -92,7 +92,7 @@ pub fn apply_strain_limit(
     (x, v): (&mut [Vec3], &mut [Vec3]),
     h: f64,
 ) -> StrainLimitReport {
-    project_strain_limit(model, limit, &held, stitches_closed, (x, v), h, &mut ProjectionScratch::default());
+    project_strain_limit(model, limit, &held, (stitches_closed, &[]), (x, v), h, &mut ProjectionScratch::default());
     apply_strain_limit_with(model, limit, held, stitches_closed, (x, v), h, &mut Vec::new())
 }
 
@@ -103,13 +103,14 @@ fn movable(model: &ClothModel, held: &impl Fn(usize) -> bool, q: usize) -> bool 
 }
 
 /// `limit.projections` fast projections of the links over `limit` and
-/// the open closed stitches, moving neither pinned particles nor those
+/// the open closed stitches, keeping particles within the bounds of the
+/// solids near them (`solids`), moving neither pinned particles nor those
 /// `held` says are held; velocities get each move over `h`.
 pub(crate) fn project_strain_limit(
     model: &ClothModel,
     limit: &StrainLimit,
     held: &impl Fn(usize) -> bool,
-    stitches_closed: &[bool],
+    (stitches_closed, solids): (&[bool], &[SolidBound]),
     (x, v): (&mut [Vec3], &mut [Vec3]),
     h: f64,
     scratch: &mut ProjectionScratch,
@@ -117,8 +118,13 @@ pub(crate) fn project_strain_limit(
     if limit.projections == 0 {
         return ProjectionReport::default();
     }
-    let bounds =
-        Bounds { stretch: limit.limit_ratio(), slack: LINK_SLACK, stitch_slack_m: STITCH_SLACK_M, stitches_closed };
+    let bounds = Bounds {
+        stretch: limit.limit_ratio(),
+        slack: LINK_SLACK,
+        stitch_slack_m: STITCH_SLACK_M,
+        stitches_closed,
+        solids,
+    };
     fast_projection(model, &bounds, |q| movable(model, held, q), (x, v), h, limit.projections, scratch)
 }
 

@@ -296,7 +296,8 @@ pub struct StrainLimit {
     /// Most fast projections before each run of passes (0: Provot's
     /// passes alone). A pass moves a correction one link along, so a
     /// chain of over-long links needs of the order of its length squared
-    /// in passes; a projection corrects them all together (see
+    /// in passes; a projection corrects them all together, keeping the
+    /// particles out of the solids near them in the same solve (see
     /// `docs/garments.md`).
     pub projections: usize,
 }
