@@ -319,17 +319,17 @@ impl Contacts {
     /// In particle order, then the model's order of solids.
     pub(crate) fn find_solid_bounds(&mut self, model: &ClothModel, start: &[Vec3], (t, h): (f64, f64), x: &[Vec3]) {
         let thickness = model.contact_thickness();
+        let limit = (SOLID_BOUND_REACH * thickness, false);
         let solids = self.next.at(model, &self.external, t + h);
         let held = &self.held;
         self.bound_chunks.resize_with(x.len().div_ceil(ROW_CHUNK), Vec::new);
         self.bound_chunks.par_iter_mut().enumerate().for_each(|(k, bounds)| {
             bounds.clear();
-            for i in (k * ROW_CHUNK..(k + 1) * ROW_CHUNK).take_while(|&i| i < x.len()) {
+            for i in k * ROW_CHUNK..((k + 1) * ROW_CHUNK).min(x.len()) {
                 if prescribed(model, held, i) {
                     continue;
                 }
                 for (c, next) in model.colliders().iter().zip(solids) {
-                    let limit = (SOLID_BOUND_REACH * thickness, false);
                     if let Some((_, s)) = reach_surface(c, (next, h), start[i], x[i], limit, &mut 0).within() {
                         let (particle, normal) = (i as u32, s.normal);
                         bounds.push(SolidBound { particle, normal, offset_m: normal.dot(&s.point) + thickness });
