@@ -10,6 +10,7 @@
 mod block_sparse;
 mod cg;
 mod coupled;
+mod couplings;
 mod filter;
 mod graph_aggregation;
 mod multigrid;
@@ -20,6 +21,7 @@ mod precond;
 pub use block_sparse::{BlockPattern, BlockSparseMatrix, PatternError};
 pub use cg::{CgScratch, cg_fixed_iterations};
 pub use coupled::{CoupledPcg, RigidCoupling, RigidLink};
+pub use couplings::{Coupling, Couplings};
 pub use filter::{Constraint, ConstraintFilter, FilterError};
 pub use graph_aggregation::{GraphAggregation, graph_aggregation};
 pub use multigrid::{Aggregation, Cycle, K_CYCLE_MIN_NODES, Multigrid, MultigridError, SMOOTHED_MIN_NODES};

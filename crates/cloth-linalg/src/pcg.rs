@@ -16,7 +16,7 @@
 //! as the head start it is, not as a harder problem.
 
 use crate::{
-    BlockSparseMatrix, ConstraintFilter, Mat3, Preconditioner, PreconditionerKind, Vec3,
+    BlockSparseMatrix, ConstraintFilter, Couplings, Mat3, Preconditioner, PreconditionerKind, Vec3,
     par::{ROW_CHUNK, chunk_count, dot_with},
 };
 use rayon::prelude::*;
@@ -123,6 +123,8 @@ pub struct Pcg {
     saved_blocks: Vec<Vec<(usize, Mat3)>>,
     /// What [`Pcg::solve_in_place`] last built the multigrid hierarchy from.
     hierarchy: HierarchySource,
+    /// Couplings the operator adds to the matrix (none by default).
+    couplings: Couplings,
 }
 
 /// What a multigrid hierarchy was last built from: the unfiltered
@@ -183,6 +185,13 @@ impl Pcg {
         let mut p = Self::default();
         p.resize(n);
         p
+    }
+
+    /// The couplings every solve adds to its matrix's off-diagonal blocks
+    /// until changed ([`Couplings`]): fill them before a solve, clear them
+    /// for a plain one.
+    pub fn couplings_mut(&mut self) -> &mut Couplings {
+        &mut self.couplings
     }
 
     fn resize(&mut self, n: usize) {
@@ -299,6 +308,10 @@ impl Pcg {
         filter.impose(z_only);
         filter.impose(x);
         a.residual_pair(b, (&self.c, x), (&mut self.s, &mut self.r));
+        if !self.couplings.is_empty() {
+            self.couplings.add_off_diagonal(&self.c, -1.0, &mut self.s);
+            self.couplings.add_off_diagonal(x, -1.0, &mut self.r);
+        }
         filter.project(&mut self.s);
         let ref_sq = dot_with(&self.s, &self.s, &mut self.partials);
         if !ref_sq.is_finite() {
@@ -353,7 +366,10 @@ impl Pcg {
             }
             iterations += 1;
             // c = S c, so c.(S A c) = c.(A c): the dot fuses with the product.
-            let curvature = a.mul_vec_dot(&self.c, &mut self.q, &mut self.partials);
+            let mut curvature = a.mul_vec_dot(&self.c, &mut self.q, &mut self.partials);
+            if !self.couplings.is_empty() {
+                curvature += self.couplings.add_off_diagonal(&self.c, 1.0, &mut self.q);
+            }
             filter.project(&mut self.q);
             if !curvature.is_finite() {
                 return Err(PcgError::NonFinite { iteration: iterations });

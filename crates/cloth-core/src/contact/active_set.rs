@@ -6,6 +6,33 @@
 use super::contacts::*;
 use crate::{ClothModel, Vec3};
 use cloth_linalg::{BlockSparseMatrix, Constraint, ConstraintFilter};
+
+/// The rows of a solved system, `(A x)_i`, as the constraint forces are
+/// read from them.
+pub(crate) trait SystemRows: Sync {
+    /// Row `i` of `A x`.
+    fn row_times(&self, i: usize, x: &[Vec3]) -> Vec3;
+}
+
+impl SystemRows for BlockSparseMatrix {
+    fn row_times(&self, i: usize, x: &[Vec3]) -> Vec3 {
+        BlockSparseMatrix::row_times(self, i, x)
+    }
+}
+
+/// A matrix with couplings outside its pattern ([`cloth_linalg::Couplings`]):
+/// their product `E x` with the solution the rows are read at, taken
+/// once after the solve.
+pub(crate) struct CoupledRows<'a> {
+    pub(crate) matrix: &'a BlockSparseMatrix,
+    pub(crate) coupled: &'a [Vec3],
+}
+
+impl SystemRows for CoupledRows<'_> {
+    fn row_times(&self, i: usize, x: &[Vec3]) -> Vec3 {
+        self.matrix.row_times(i, x) + self.coupled[i]
+    }
+}
 use rayon::prelude::*;
 
 /// After a solve: a particle whose new position `new_x` ends closer than
@@ -305,7 +332,7 @@ pub(crate) const REVERSAL_SLIP_M: f64 = 1e-6;
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn stick_or_slide(
     contacts: &mut [SolidContact],
-    matrix: &BlockSparseMatrix,
+    matrix: &impl SystemRows,
     rhs: &mut [Vec3],
     (unknown, force_coefficient): (&[Vec3], f64),
     x: &[Vec3],
@@ -376,7 +403,7 @@ pub(crate) fn stick_or_slide(
 #[allow(clippy::type_complexity)]
 fn read_normal_forces(
     group: &mut [SolidContact],
-    matrix: &BlockSparseMatrix,
+    matrix: &impl SystemRows,
     rhs: &[Vec3],
     unknown: &[Vec3],
     force_coefficient: f64,
@@ -406,7 +433,7 @@ fn read_normal_forces(
 /// when the contact passes ended on a solve whose forces no pass read.
 pub(crate) fn read_contact_forces(
     contacts: &mut [SolidContact],
-    matrix: &BlockSparseMatrix,
+    matrix: &impl SystemRows,
     rhs: &[Vec3],
     (unknown, force_coefficient): (&[Vec3], f64),
     chosen: impl Fn(&SolidContact) -> bool,
@@ -449,7 +476,7 @@ pub(crate) const MAX_REVIVALS: u8 = 2;
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn release_pulling(
     contacts: &mut [SolidContact],
-    matrix: &BlockSparseMatrix,
+    matrix: &impl SystemRows,
     rhs: &[Vec3],
     unknown: &[Vec3],
     force_coefficient: f64,

@@ -7,6 +7,7 @@ use crate::colliders::SelfCollision;
 use crate::laws::{self, pair_stiffness};
 use crate::{ClothModel, Mat3, Vec3};
 use cloth_collide::{TRIANGLE_GROUP, VoxelHash, closest_point_on_triangle};
+use cloth_linalg::Coupling;
 use rayon::prelude::*;
 
 /// Finds self-collision pairs at positions `x` into `bufs.self_pairs` and
@@ -95,6 +96,7 @@ pub(crate) fn detect_self_contacts(
     bufs.self_stiffness.resize(n, Mat3::zeros());
     bufs.self_force.iter_mut().for_each(|f| *f = Vec3::zeros());
     bufs.self_stiffness.iter_mut().for_each(|k| *k = Mat3::zeros());
+    bufs.self_couplings.clear();
     for c in bufs.self_pairs.iter().filter(|c| c.repels) {
         let law = laws::repulsion(c.distance_m, th, sc.stiffness_n_m);
         // phi < 0: the particle is pushed along `direction`, the other side back.
@@ -108,6 +110,16 @@ pub(crate) fn detect_self_contacts(
                 bufs.self_force[o as usize] -= f * w;
                 bufs.self_stiffness[o as usize] += block * (w * w);
             }
+        }
+        if law.dphi != 0.0 {
+            let [o1, o2, o3] = c.others;
+            let [w1, w2, w3] = c.weights;
+            bufs.self_couplings.push(Coupling {
+                nodes: [c.particle, o1, o2, o3],
+                weights: [1.0, -w1, -w2, -w3],
+                direction: c.direction,
+                stiffness: law.dphi,
+            });
         }
     }
     let touching = bufs.self_pairs.iter().filter(|c| c.repels && c.distance_m < th).count();

@@ -299,6 +299,9 @@ pub struct Contacts {
     pub(crate) self_force: Vec<Vec3>,
     /// Self-collision stiffness on the diagonal, `-df_i/dx_i`, N/m.
     pub(crate) self_stiffness: Vec<Mat3>,
+    /// The same contacts' stiffness between their particles, N/m: the
+    /// blocks off the diagonal, which the solve adds to the matrix.
+    pub(crate) self_couplings: cloth_linalg::Couplings,
     /// Friction of squeezed particles as damping on the diagonal,
     /// `-df_i/dv_i`, N s/m (`linearise_squeeze_friction`).
     pub(crate) friction_damping: Vec<Mat3>,

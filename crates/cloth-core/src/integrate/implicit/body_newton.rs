@@ -57,7 +57,7 @@ fn corrections<S: Linearised>(
     nb.u.copy_from_slice(&ws.s.unknown);
     for solves in 1.. {
         advance_iterate(scheme, state, ws, h, nb);
-        copy_loads(ws, nb, loads, loads.squeeze_friction);
+        copy_loads(ws, nb, loads, loads.squeeze_friction, &state.x);
         assemble_iterate(step, ws, nb, timer);
         out.evaluations += 1;
         out.residual_m = residual_distance(ws, a);

@@ -33,7 +33,7 @@ use crate::{Mat3, NewtonParams, NewtonReport, SolverParams, StepError, StepRepor
 use cloth_linalg::PreconditionerKind;
 use scheme::Bdf2Scheme;
 use settle::{ContactRules, settle_contacts, stick_frictional};
-use solve::with_loads;
+use solve::{couple_self_contacts, with_loads};
 use workspace::{Scratch, StepInputs, SystemLoads, Workspace};
 
 /// Backward Euler (Baraff & Witkin 1998, Eq. 16):
@@ -300,6 +300,7 @@ impl Implicit {
         let terms = with_loads(scheme.terms(state, &s.aux, &s.aux2, h), &s.external, contacts, &system_loads);
         s.force_coefficient = terms.force;
         let timing = assemble(model, &state.x, &terms, &mut s.system);
+        couple_self_contacts(&terms, contacts, system_loads.self_collision, s.pcg.couplings_mut(), &mut s.system.rhs);
         timer.add(Stage::Forces, timing.links_s);
         timer.add(Stage::Assembly, timing.gather_s);
         s.energy_before = energy::mechanical_with(model, &state.x, &state.v, s.system.elastic_energy());
@@ -513,8 +514,11 @@ fn new_state<S: Linearised>(step: StepInputs<'_, S>, ws: &mut Workspace<'_>, for
     let s = &*ws.s;
     let forces = ws.out.pin_forces_mut(pins.count());
     for (i, f) in pins.particles().zip(forces) {
-        let residual =
-            if newton { -s.system.rhs[i] } else { s.system.matrix.row_times(i, &s.unknown) - s.system.rhs[i] };
+        let residual = if newton {
+            -s.system.rhs[i]
+        } else {
+            s.system.matrix.row_times(i, &s.unknown) + s.coupled[i] - s.system.rhs[i]
+        };
         *f = residual / force_coefficient;
     }
     for i in 0..state.len() {

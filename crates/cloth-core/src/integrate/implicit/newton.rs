@@ -67,6 +67,7 @@ use crate::integrate::timer::{Stage, StageTimer};
 use crate::system::SystemTerms;
 use crate::system::{SystemBuffers, assemble};
 use crate::{ClothModel, ClothState, Mat3, SolverParams, StepError, StepReport, Vec3};
+use cloth_linalg::Couplings;
 
 /// Armijo's sufficient-decrease constant.
 const ARMIJO: f64 = 1e-4;
@@ -168,10 +169,29 @@ pub(super) fn solve_direction(
 /// The iterate's loads that the step carries besides the links: the
 /// step's external forces, self-collision stiffness and (with
 /// `squeeze_friction`) squeezed particles' friction damping.
-pub(super) fn copy_loads(ws: &Workspace<'_>, nb: &mut NewtonBuffers, loads: &SystemLoads, squeeze_friction: bool) {
+/// Self-collision acts as the linear spring of the step's start,
+/// `f(x) = f_0 - K (x - x_0)` (`K` its diagonal blocks and couplings), as
+/// in the linearised solve: held at `f_0` over the corrections, a contact
+/// pushed with its full start force through the step and threw a sheet
+/// that landed on another off it.
+pub(super) fn copy_loads(
+    ws: &Workspace<'_>,
+    nb: &mut NewtonBuffers,
+    loads: &SystemLoads,
+    squeeze_friction: bool,
+    x0: &[Vec3],
+) {
     copy_or_zero(loads.external.then_some(&ws.s.external), &mut nb.external);
     copy_or_zero(squeeze_friction.then_some(&ws.contacts.friction_damping), &mut nb.damping);
     copy_or_zero(loads.self_collision.then_some(&ws.contacts.self_stiffness), &mut nb.stiffness);
+    if loads.self_collision {
+        for (i, f) in nb.external.iter_mut().enumerate() {
+            *f -= ws.contacts.self_stiffness[i] * (nb.x[i] - x0[i]);
+        }
+        let couplings = &ws.contacts.self_couplings;
+        couplings.add_off_diagonal(&nb.x, -1.0, &mut nb.external);
+        couplings.add_off_diagonal(x0, 1.0, &mut nb.external);
+    }
 }
 
 /// Assembles the system at the iterate in `nb` (its right-hand side is
@@ -222,7 +242,7 @@ fn iterate_with<S: Linearised>(
     nb.u.copy_from_slice(&ws.s.unknown);
     for solves in 1.. {
         advance_iterate(scheme, state, ws, h, nb);
-        copy_loads(ws, nb, loads, squeeze_friction);
+        copy_loads(ws, nb, loads, squeeze_friction, &state.x);
         if colliders {
             penalty_contacts(model, &state.x, &nb.x, (state.time_s, h), ws.contacts);
             if refresh {
@@ -260,6 +280,11 @@ fn iterate_with<S: Linearised>(
             external: loads.external.then_some(&ws.s.external[..]),
             friction: squeeze_friction.then_some(&ws.contacts.friction_damping[..]),
             contacts: colliders.then_some((&ws.contacts.solid[..], &ws.contacts.watch[..])),
+            self_contacts: loads.self_collision.then_some((
+                &ws.contacts.self_stiffness[..],
+                &ws.contacts.self_couplings,
+                &state.x[..],
+            )),
             h,
             stitches_closed: &state.stitches_closed,
         };
@@ -477,6 +502,10 @@ struct Extra<'a> {
     friction: Option<&'a [Mat3]>,
     /// The iterate's contacts and the watched solids (`penalty_watch`).
     contacts: Option<(&'a [SolidContact], &'a [SolidContact])>,
+    /// Self-collision's stiffness, diagonal blocks (N/m) and couplings,
+    /// about the step's start positions (m): its energy
+    /// `-f_0.d + d^T K d / 2`, `d = x - x_0` (`f_0` is in `external`).
+    self_contacts: Option<(&'a [Mat3], &'a Couplings, &'a [Vec3])>,
     h: f64,
     stitches_closed: &'a [bool],
 }
@@ -509,6 +538,16 @@ impl<'a> Line<'a> {
             let (drag, cp) = (model.drag(i), extra.friction.map_or(Vec3::zeros(), |c| c[i] * p[i]));
             q1 += c_f * (drag * v[i].dot(&p[i]) + v[i].dot(&cp));
             q2 += 0.5 * c_f * b * (drag * p[i].norm_squared() + p[i].dot(&cp));
+        }
+        if let Some((diag, couplings, x0)) = extra.self_contacts {
+            // Positions move by `a alpha p`: c_f (K d).p and c_f a p^T K p / 2.
+            for i in 0..p.len() {
+                let kp = diag[i] * p[i];
+                q1 += c_f * kp.dot(&(x[i] - x0[i]));
+                q2 += 0.5 * c_f * a * kp.dot(&p[i]);
+            }
+            q1 += c_f * (couplings.bilinear(p, x) - couplings.bilinear(p, x0));
+            q2 += 0.5 * c_f * a * couplings.bilinear(p, p);
         }
         // Link dampers `k_d (e.(v_j - v_i))^2`, directions frozen at the iterate.
         for l in model.stretch_links().iter().filter(|l| l.k_d > 0.0) {
@@ -709,6 +748,7 @@ mod tests {
                 external: Some(&external),
                 friction: Some(&friction),
                 contacts: Some((&solids, &[])),
+                self_contacts: None,
                 h,
                 stitches_closed: &[],
             };

@@ -14,7 +14,7 @@ use super::scheme::Linearised;
 use super::solve::{add_solve, solve};
 use super::workspace::{StepInputs, Workspace};
 use crate::contacts::{
-    FrictionMode, MAX_REVIVALS, SolidContact, add_penetrating, constrain_contacts, read_contact_forces,
+    CoupledRows, FrictionMode, MAX_REVIVALS, SolidContact, add_penetrating, constrain_contacts, read_contact_forces,
     release_pulling, stick_frictional_contacts, stick_or_slide,
 };
 use crate::integrate::timer::{Stage, StageTimer};
@@ -164,7 +164,8 @@ pub(crate) fn settle_contacts<S: Linearised>(
     let last = solver.contacts.max_passes;
     let passes = if model.colliders().is_empty() { 0 } else { last + 1 };
     for pass in 0..passes {
-        let (matrix, rhs) = (&ws.s.system.matrix, &ws.s.system.rhs);
+        let matrix = &CoupledRows { matrix: &ws.s.system.matrix, coupled: &ws.s.coupled };
+        let rhs = &ws.s.system.rhs;
         let (contacts, unknown) = (&mut ws.contacts.solid, &ws.s.unknown);
         let masses = model.masses();
         let bodies = &ws.out.bodies;
@@ -176,7 +177,8 @@ pub(crate) fn settle_contacts<S: Linearised>(
         }
         let (contacts, rhs, solved) =
             (&mut ws.contacts.solid, &mut ws.s.system.rhs, (&ws.s.unknown[..], force_coefficient));
-        let (matrix, filter) = (&ws.s.system.matrix, &mut ws.s.filter);
+        let matrix = &CoupledRows { matrix: &ws.s.system.matrix, coupled: &ws.s.coupled };
+        let filter = &mut ws.s.filter;
         let slid = stick_or_slide(contacts, matrix, rhs, solved, &state.x, &ws.out.x, filter, value);
         let bodies = &ws.out.bodies;
         let movable = |c: &SolidContact| bodies.holds(c);

@@ -7,7 +7,7 @@ use crate::contacts::Contacts;
 use crate::control::{Control, PinPaths};
 use crate::system::SystemTerms;
 use crate::{ClothModel, ClothState, SolverParams, StepError, StepReport, Vec3};
-use cloth_linalg::{Constraint, ConstraintFilter, PcgError};
+use cloth_linalg::{Constraint, ConstraintFilter, Coupling, Couplings, PcgError};
 use std::time::Instant;
 
 /// One filtered PCG solve of the assembled system into `ws.s.unknown`,
@@ -52,6 +52,11 @@ fn solve_as(
     } else {
         s.pcg.solve_in_place(&mut s.system.matrix, &s.system.rhs, &s.filter, &solver.pcg(), &mut s.unknown)
     };
+    // The bodies' solve takes the matrix alone.
+    s.coupled.iter_mut().for_each(|y| *y = Vec3::zeros());
+    if !ws.out.bodies.active() {
+        s.pcg.couplings_mut().add_off_diagonal(&s.unknown, 1.0, &mut s.coupled);
+    }
     let elapsed = t0.elapsed().as_secs_f64();
     let fail = |source| StepError::Solver { step: state.steps + 1, time_s: state.time_s, source };
     let report = match result {
@@ -138,4 +143,32 @@ pub(crate) fn with_loads<'a>(
     terms.diag_stiffness = loads.self_collision.then_some(&contacts.self_stiffness[..]);
     terms.diag_damping = loads.squeeze_friction.then_some(&contacts.friction_damping[..]);
     terms
+}
+
+/// The self-collision contacts' stiffness between their particles, which
+/// the assembled matrix (a fixed pattern, the contacts' diagonal blocks
+/// alone) cannot hold: added to the solver's operator, scaled as the
+/// matrix's stiffness (`c_x`), and, where the scheme's right-hand side
+/// carries `a_k K w_k`, to it. Without it each particle of a contact saw
+/// the contact as a spring to a fixed point: a contact of four free
+/// particles moved its gap by up to four times its overlap in one step,
+/// and layers pressed together rang (a sheet resting on another on the
+/// floor was thrown off).
+pub(crate) fn couple_self_contacts(
+    terms: &SystemTerms<'_>,
+    contacts: &Contacts,
+    on: bool,
+    couplings: &mut Couplings,
+    rhs: &mut [Vec3],
+) {
+    couplings.clear();
+    if !on {
+        return;
+    }
+    for c in contacts.self_couplings.terms() {
+        couplings.push(Coupling { stiffness: c.stiffness * terms.c_x, ..*c });
+    }
+    if let Some((a, w)) = terms.k_times {
+        contacts.self_couplings.add_off_diagonal(w, -a, rhs);
+    }
 }

@@ -30,6 +30,9 @@ pub(crate) struct Scratch {
     pub(crate) pcg: Pcg,
     pub(crate) filter: ConstraintFilter,
     pub(crate) unknown: Vec<Vec3>,
+    /// The solver's couplings times `unknown` after the last solve
+    /// (zero when it had none): the part of `(A + E) x` off the matrix.
+    pub(crate) coupled: Vec<Vec3>,
     pub(crate) aux: Vec<Vec3>,
     pub(crate) aux2: Vec<Vec3>,
     /// Newton iterations' buffers (allocated on first use).
@@ -60,6 +63,7 @@ impl Scratch {
             pcg,
             filter: ConstraintFilter::new(n),
             unknown: vec![Vec3::zeros(); n],
+            coupled: vec![Vec3::zeros(); n],
             aux: vec![Vec3::zeros(); n],
             aux2: vec![Vec3::zeros(); n],
             newton: None,
