@@ -48,7 +48,8 @@ def move(world, base, start, end, seconds):
 
 def lift(scene=SCENE, hold_s=3.0):
     """Runs the pick-up; returns the world, the grasp id and the gripper's
-    pull (N) averaged over the last half second of the hold."""
+    pull (N) averaged over the last 1.5 s of the hold (about one swing of
+    the hanging cloth, whose pull still swings by some 10%)."""
     world = cloth.World.from_toml(scene)
     world.step()
     base = world.link_pose("base")[0]
@@ -65,7 +66,7 @@ def lift(scene=SCENE, hold_s=3.0):
     for _ in range(round(hold_s / world.dt_s)):
         world.step()
         pulls.append(world.grasp_force(grasp))
-    return world, grasp, np.mean(pulls[-round(0.5 / world.dt_s) :], axis=0)
+    return world, grasp, np.mean(pulls[-round(1.5 / world.dt_s) :], axis=0)
 
 
 def main():

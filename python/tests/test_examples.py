@@ -52,11 +52,12 @@ def test_the_robot_lifts_the_cloth_by_a_corner_and_carries_its_weight():
     gripper = world.link_pose("gripper")[0]
     assert np.abs(gripper - [0.0, 0.0, 0.75]).max() < 1e-12
     # The cloth hangs clear of the floor (measured 0.186 m) and the gripper
-    # carries its weight: 0.84% off, the last half second of a 3 s hold
-    # (the cloth still swings: the sideways pull is 6% of the weight).
+    # carries its weight: 0.45% off over the last 1.5 s of a 3 s hold,
+    # about one swing (the cloth still swings, its pull by some 10% with a
+    # period of about 1.2 s; the sideways pull averages 2.5% of the weight).
     weight = world.masses.sum() * 9.81
     assert world.positions[:, 2].min() > 0.15
-    assert abs(pull[2] + weight) < 0.02 * weight and np.hypot(pull[0], pull[1]) < 0.1 * weight
+    assert abs(pull[2] + weight) < 0.01 * weight and np.hypot(pull[0], pull[1]) < 0.04 * weight
 
 
 def test_a_heap_dropped_in_steps_of_a_thirtieth_of_a_second_does_not_fail():
