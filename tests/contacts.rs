@@ -721,9 +721,9 @@ fn a_rising_ball_pushes_one_sheet_into_another_without_crossing() {
     assert!(inside <= 0.0, "a particle {inside} m inside the ball");
 }
 
-/// A 0.4 m square of 25 x 25 particles let go hanging edge-down 0.5 m
-/// over the floor (the Drop task's cloth, 0.5 mm of jitter) falls into a
-/// heap of folded layers, and the heap comes to rest. A self-collision
+/// `heap.toml`: a 0.4 m square of 25 x 25 particles let go hanging
+/// edge-down 0.5 m over the floor (the Drop task's cloth, 0.5 mm of
+/// jitter) falls into a heap of folded layers, and the heap comes to rest. A self-collision
 /// contact ties a particle to another or to a triangle's three corners,
 /// `k g g^T` over the four; with only each particle's own diagonal
 /// block `w^2 k` in the step's matrix, a stiff contact's linearised step
@@ -734,52 +734,12 @@ fn a_rising_ball_pushes_one_sheet_into_another_without_crossing() {
 /// floor's 4 mm.
 #[test]
 fn a_cloth_dropped_in_a_heap_comes_to_rest() {
-    let floor = cloth_core::ColliderSpec {
-        shape: cloth_core::ShapeSpec::HalfSpace { normal: [0.0, 0.0, 1.0] },
-        position_m: [0.0; 3],
-        rotation_deg: [0.0; 3],
-        friction: 0.5,
-        motion: cloth_core::PinMotion::Fixed,
-        spin_deg_s: [0.0; 3],
-    };
-    let spec = cloth_core::ModelSpec {
-        panels: vec![cloth_core::GridPanel {
-            particles: [25, 25],
-            size_m: [0.4, 0.4],
-            origin_m: [-0.2, 0.0, 0.5],
-            u_axis: [1.0, 0.0, 0.0],
-            v_axis: [0.0, 0.0, -1.0],
-            wrap_u: false,
-        }],
-        material: cloth_core::Material { areal_density_kg_m2: 0.2, ..cloth_core::Material::default() },
-        collision: cloth_core::CollisionSpec {
-            colliders: vec![floor],
-            thickness_m: Some(0.004),
-            self_collision: Some(cloth_core::SelfCollisionSpec {
-                thickness_m: 0.006,
-                stiffness_n_m: None,
-                point_triangle: true,
-                continuous: true,
-            }),
-            ..cloth_core::CollisionSpec::default()
-        },
-        effects: cloth_core::Effects {
-            gravity: Some(Vec3::new(0.0, 0.0, -9.81)),
-            bending: true,
-            damping: true,
-            ..cloth_core::Effects::default()
-        },
-        ..cloth_core::ModelSpec::default()
-    };
-    let model = cloth_core::ClothModel::build(&spec).unwrap();
-    // The task's solver: CG to 1e-3.
-    let solver = cloth_core::SolverParams { rel_tol: 1e-3, max_iter: 300, ..Default::default() };
-    let mut sim = Simulation::builder(model).solver(solver).initial_jitter(0.0005).build();
-    let h = 1.0 / 90.0;
+    let (mut sim, cfg) = simulation("heap.toml", &[]);
+    let h = cfg.dt_s;
     let mut fastest = 0.0;
-    for step in 0..360 {
+    for step in 0..cfg.steps {
         sim.step(h).unwrap();
-        if step >= 333 {
+        if step + 27 >= cfg.steps {
             fastest = sim.state().v.iter().map(|v| v.norm()).fold(fastest, f64::max);
         }
     }

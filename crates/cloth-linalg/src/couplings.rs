@@ -77,21 +77,20 @@ impl Couplings {
         let mut dot = 0.0;
         for c in &self.terms {
             let k = factor * c.stiffness;
-            let along = |j: usize| c.direction.dot(&p[c.nodes[j] as usize]);
-            let mut gap = 0.0;
-            let mut own_sq = 0.0;
+            // Each node's share of the gap, g_j u.p_j (0 for a node outside).
+            let mut share = [0.0; 4];
             for j in 0..4 {
                 if c.weights[j] != 0.0 {
-                    let a = c.weights[j] * along(j);
-                    gap += a;
-                    own_sq += a * a;
+                    share[j] = c.weights[j] * c.direction.dot(&p[c.nodes[j] as usize]);
                 }
             }
+            let gap: f64 = share.iter().sum();
+            let own_sq: f64 = share.iter().map(|a| a * a).sum();
             // (E p)_i = k g_i u (sum_{j != i} g_j u.p_j).
             for j in 0..4 {
                 let g = c.weights[j];
                 if g != 0.0 {
-                    out[c.nodes[j] as usize] += c.direction * (k * g * (gap - g * along(j)));
+                    out[c.nodes[j] as usize] += c.direction * (k * g * (gap - share[j]));
                 }
             }
             dot += k * (gap * gap - own_sq);

@@ -6,6 +6,7 @@
 use super::contacts::*;
 use crate::{ClothModel, Vec3};
 use cloth_linalg::{BlockSparseMatrix, Constraint, ConstraintFilter};
+use rayon::prelude::*;
 
 /// The rows of a solved system, `(A x)_i`, as the constraint forces are
 /// read from them.
@@ -33,7 +34,6 @@ impl SystemRows for CoupledRows<'_> {
         self.matrix.row_times(i, x) + self.coupled[i]
     }
 }
-use rayon::prelude::*;
 
 /// After a solve: a particle whose new position `new_x` ends closer than
 /// half the thickness to a solid at `t_next` becomes a contact if it was

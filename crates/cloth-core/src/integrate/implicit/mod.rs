@@ -25,7 +25,9 @@ pub(crate) use solve::constrain_pins;
 use super::state::IntegratorMemory;
 use super::step::{Attempt, Capabilities, ContactHandling, Integrator, Response, Step, StepOutput};
 use super::timer::{Stage, StageTimer};
-use crate::contacts::{Contacts, FrictionMode, constrain_contacts, linearise_squeeze_friction};
+use crate::contacts::{
+    Contacts, CoupledRows, FrictionMode, SystemRows, constrain_contacts, linearise_squeeze_friction,
+};
 use crate::control::PinPaths;
 use crate::energy::{self, EnergyReport};
 use crate::system::assemble;
@@ -512,13 +514,10 @@ fn new_state<S: Linearised>(step: StepInputs<'_, S>, ws: &mut Workspace<'_>, for
     let StepInputs { scheme, model, state, control, h, .. } = step;
     let pins = PinPaths::new(model, control, &state.x, state.time_s, h);
     let s = &*ws.s;
+    let rows = CoupledRows { matrix: &s.system.matrix, coupled: &s.coupled };
     let forces = ws.out.pin_forces_mut(pins.count());
     for (i, f) in pins.particles().zip(forces) {
-        let residual = if newton {
-            -s.system.rhs[i]
-        } else {
-            s.system.matrix.row_times(i, &s.unknown) + s.coupled[i] - s.system.rhs[i]
-        };
+        let residual = if newton { -s.system.rhs[i] } else { rows.row_times(i, &s.unknown) - s.system.rhs[i] };
         *f = residual / force_coefficient;
     }
     for i in 0..state.len() {
