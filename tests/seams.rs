@@ -270,14 +270,15 @@ fn explicit_steps_above_the_stitch_limit_are_refused() {
     assert!((gap - 0.005).abs() < 3.5e-5, "gap {gap} m after {steps} steps of {h:e} s");
 }
 
-/// A stitch closes once its gap is within `pull / k` and stays closed; a
+/// A stitch closes once its gap is within `pull / k` (or half the contact
+/// thickness, where that is wider) and stays closed; a
 /// state whose stitch flags do not fit the model is refused.
 #[test]
 fn a_stitch_closes_once_its_gap_is_within_its_linear_range_and_stays_closed() {
     let (mut sim, h, _) = build(&open_seam(0.05), &[]);
     let model = sim.model().clone();
     let s = model.stitches()[0];
-    let reach = s.pull / s.k;
+    let reach = model.stitch_closing_gap(&s);
     let mut ever_within = vec![false; model.stitches().len()];
     let mut switched = 0;
     for _ in 0..30 {

@@ -57,17 +57,18 @@ pub(crate) struct Garment {
 /// and straps (1.08 cm cells) make 2866 (the paper's top, 3396, had
 /// sleeves), the one-piece's 5458 (the paper's, 5579-5608).
 const TOP: [&str; 3] = ["panels.0.particles=[96, 23]", "panels.1.particles=[47, 7]", "panels.2.particles=[47, 7]"];
-const ONE_PIECE: [&str; 6] = [
+const ONE_PIECE: [&str; 7] = [
     "panels.0.particles=[96, 23]",
     "panels.1.particles=[47, 7]",
     "panels.2.particles=[47, 7]",
     "panels.3.particles=[96, 27]",
     DEFORMATION_CONSTRAINTS[0],
     DEFORMATION_CONSTRAINTS[1],
+    DEFORMATION_CONSTRAINTS[2],
 ];
 /// Provot's deformation constraints for the skirts and the one-piece, as
-/// the T-shirt's, the dress's and the top's fixtures have them (10%, 50
-/// passes): without them the pattern skirt's layers lock where the legs
+/// the T-shirt's, the dress's, the top's and the skirt's fixtures have
+/// them (10%, 50 passes after 10 fast projections): without them the pattern skirt's layers lock where the legs
 /// pinch its front (peak 1.58 on the primitives, 3.39 on the
 /// triangle-mesh mannequin), the flared skirt at 2738 particles peaks at
 /// 1.55 with a seam 5 mm open, and the shins striking the one-piece's hem
@@ -77,18 +78,24 @@ const ONE_PIECE: [&str; 6] = [
 /// (4.6 mm without); at the one-piece fixture's count the tube's lower
 /// edge, which the skirt's seam draws down over the pelvis box (whose
 /// outline is 23% longer than the edge), cannot stretch over it and a
-/// seam stays 22 mm open.
-const DEFORMATION_CONSTRAINTS: [&str; 2] =
-    ["simulation.effects=[\"gravity\", \"bending\", \"damping\", \"strain-limit\"]", "constraints.passes=50"];
+/// seam stays 22 mm open. The OBJ skirt has them as `skirt-walk.toml`,
+/// whose skirt it is, does: without them a shin striking its hem at four
+/// times its Table-1 count stretched a link 1.49 times.
+const DEFORMATION_CONSTRAINTS: [&str; 3] = [
+    "simulation.effects=[\"gravity\", \"bending\", \"damping\", \"strain-limit\"]",
+    "constraints.passes=50",
+    "constraints.projections=10",
+];
 /// The pattern garments, meshed finer than their fixtures to the paper's
 /// counts: the skirt's two pieces at 1.75 cm (3540 particles; the
 /// fixture's 3.5 cm make 914), the dress's pieces at 0.6 of their edge
 /// lengths (5510; the fixture's 2024).
-const PATTERN_SKIRT: [&str; 4] = [
+const PATTERN_SKIRT: [&str; 5] = [
     "meshes.0.pattern.edge_length_m=0.0175",
     "meshes.1.pattern.edge_length_m=0.0175",
     DEFORMATION_CONSTRAINTS[0],
     DEFORMATION_CONSTRAINTS[1],
+    DEFORMATION_CONSTRAINTS[2],
 ];
 const PATTERN_DRESS: [&str; 6] = [
     "meshes.0.pattern.edge_length_m=0.015",
@@ -110,21 +117,25 @@ const PATTERN_TSHIRT: [&str; 6] = [
     "meshes.4.pattern.edge_length_m=0.0138",
     "meshes.5.pattern.edge_length_m=0.0138",
 ];
-const FLARED_SKIRT: [&str; 4] = [
+const FLARED_SKIRT: [&str; 5] = [
     "meshes.0.pattern.edge_length_m=0.0186",
     "meshes.1.pattern.edge_length_m=0.0186",
     DEFORMATION_CONSTRAINTS[0],
     DEFORMATION_CONSTRAINTS[1],
+    DEFORMATION_CONSTRAINTS[2],
 ];
 /// The OBJ skirt read from the same tube at the paper's count
 /// (`fixtures/meshes/tube-skirt-3456.obj`, 96 x 36 vertices), its top
 /// ring of 96 held by the pelvis.
-const OBJ_SKIRT: [&str; 2] = [
+const OBJ_SKIRT: [&str; 5] = [
     "meshes.0.obj=\"../meshes/tube-skirt-3456.obj\"",
     "pins.0.vertices=[0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, \
      26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51, 52, 53, \
      54, 55, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72, 73, 74, 75, 76, 77, 78, 79, 80, 81, \
      82, 83, 84, 85, 86, 87, 88, 89, 90, 91, 92, 93, 94, 95]",
+    DEFORMATION_CONSTRAINTS[0],
+    DEFORMATION_CONSTRAINTS[1],
+    DEFORMATION_CONSTRAINTS[2],
 ];
 pub(crate) const GARMENTS: [Garment; 8] = [
     Garment {

@@ -321,11 +321,15 @@ fn beyond(p: Vec3, [a, b, c]: [Vec3; 3], limit: f64) -> bool {
     height * height > bound_sq * normal_sq
 }
 
-/// For each triangle, the sorted particles it never repels: its corners
-/// and the particles linked to a corner, a corner standing for every
-/// particle sewn to it ([`ClothModel::sewn_with`]; a skirt's corner
-/// repelled by the bodice triangle at the back piece's corner, to which
-/// it is not sewn directly, held a dress's waist seams 5 mm open).
+/// For each triangle, the sorted particles it never repels
+/// ([`ClothModel::never_repel`] with any corner): its corners and the
+/// particles linked to a corner, a particle standing for every particle
+/// sewn to it ([`ClothModel::sewn_with`]), on either side of the link (a
+/// skirt's corner repelled by the bodice triangle at the back piece's
+/// corner, to which it is not sewn directly, held a dress's waist seams
+/// 5 mm open; a gathered skirt's top edge, sewn to every other node of
+/// the bodice's lower edge, was pushed off the bodice triangles beside
+/// its stitches and its edges counted as crossing them).
 pub(crate) fn build_exclusions(model: &ClothModel, ptr: &mut Vec<u32>, list: &mut Vec<u32>) {
     ptr.clear();
     list.clear();
@@ -336,7 +340,10 @@ pub(crate) fn build_exclusions(model: &ClothModel, ptr: &mut Vec<u32>, list: &mu
             let group = model.sewn_with(corner as usize);
             for &c in if group.is_empty() { std::slice::from_ref(&corner) } else { group } {
                 list.push(c);
-                list.extend(model.incidence(c as usize).iter().map(|inc| inc.other));
+                for inc in model.incidence(c as usize) {
+                    list.push(inc.other);
+                    list.extend_from_slice(model.sewn_with(inc.other as usize));
+                }
             }
         }
         list[start..].sort_unstable();

@@ -79,12 +79,22 @@ impl ClothModel {
         }
         limit
     }
-    /// Closes every stitch whose gap at `x` is within `pull / k` (the
-    /// closed law's linear range); `closed` holds one flag per stitch, and a
-    /// closed stitch stays closed (see [`crate::SeamSpec`]).
+    /// The gap within which stitch `s` closes, m: its closed law's linear
+    /// range `pull / k` (a tenth of the spacing by default), or half the
+    /// contact thickness where that is wider, since two particles that
+    /// close are touching. With the linear range alone the reach shrank
+    /// with the mesh: at twice the one-piece's Table-1 count a strap's
+    /// corner stitch, which carries more than its sewing pull, stayed
+    /// 2.2 mm open for the whole walk.
+    pub fn stitch_closing_gap(&self, s: &Stitch) -> f64 {
+        (s.pull / s.k).max(0.5 * self.contact_thickness)
+    }
+    /// Closes every stitch whose gap at `x` is within its
+    /// [`ClothModel::stitch_closing_gap`]; `closed` holds one flag per
+    /// stitch, and a closed stitch stays closed (see [`crate::SeamSpec`]).
     pub fn close_stitches(&self, x: &[Vec3], closed: &mut [bool]) {
         for (s, c) in self.stitches.iter().zip(closed) {
-            *c = *c || (x[s.j as usize] - x[s.i as usize]).norm() <= s.pull / s.k;
+            *c = *c || (x[s.j as usize] - x[s.i as usize]).norm() <= self.stitch_closing_gap(s);
         }
     }
     /// Widest gap of a stitch at positions `x`, m (0 without seams): how

@@ -11,7 +11,8 @@
 //! pull alone would fling the seam's light edge particles through each
 //! other: in the linearised step an open stitch has no stiffness along
 //! itself). A stitch is closed once its gap is within `pull / k` (a tenth
-//! of the spacing by default), and stays closed
+//! of the spacing by default) or half the contact thickness, whichever is
+//! wider ([`crate::ClothModel::stitch_closing_gap`]), and stays closed
 //! ([`crate::ClothState::stitches_closed`]): it catches, its pull rising
 //! from `sewing` to `k d`, and its cap is the seam's strength `pull`, so
 //! it opens again only under a load that would double the length of the
