@@ -186,6 +186,9 @@ pub(crate) struct ProjectionScratch {
     /// Per stretch link, then per stitch: in the set since an earlier
     /// projection of this call.
     sticky: Vec<bool>,
+    /// Per stretch link: one end moved since the last gather, so its
+    /// length may have come over the limit (`None`: look at every link).
+    touched: Option<Vec<bool>>,
 }
 
 impl ProjectionScratch {
@@ -256,10 +259,20 @@ impl ProjectionScratch {
         for (k, (st, _)) in closed {
             add(self, links.len() + k, (st.i as usize, st.j as usize), 0.0, bounds.stitch_slack_m);
         }
+        // A link none of whose ends moved since the last gather is where
+        // it was then: over its limit and in the set (sticky), or within it.
+        let touched = self.touched.take();
         for (k, l) in links.iter().enumerate() {
+            if touched.as_ref().is_some_and(|t| !t[k]) && !self.sticky[k] {
+                continue;
+            }
             let max_len = bounds.stretch * l.rest;
             add(self, k, (l.i as usize, l.j as usize), max_len, max_len * (1.0 + bounds.slack));
         }
+        let mut touched = touched.unwrap_or_default();
+        touched.clear();
+        touched.resize(links.len(), false);
+        self.touched = Some(touched);
         // A solid's bound `C = offset - n . x <= 0`, gradient `-n`: a
         // positive multiplier moves the particle out along `n`. Only the
         // particles that the rows above move need it (the others stay
@@ -304,6 +317,7 @@ pub(crate) fn fast_projection(
     s.local.resize(x.len(), u32::MAX);
     s.sticky.clear();
     s.sticky.resize(model.stretch_links().len() + model.stitches().len() + bounds.solids.len(), false);
+    s.touched = None;
     for _ in 0..iterations {
         s.gather(model, bounds, &free, x);
         if !s.rows.iter().any(|r| r.c > 0.0) {
@@ -341,6 +355,14 @@ pub(crate) fn fast_projection(
         report.iterations += 1;
         for (k, &i) in particles.iter().enumerate() {
             v[i as usize] -= g[k] * (alpha / h);
+        }
+        if let Some(touched) = &mut s.touched {
+            let stretch_links = model.stretch_links().len();
+            for &i in &s.particles {
+                for inc in model.incidence(i as usize).iter().filter(|inc| (inc.link as usize) < stretch_links) {
+                    touched[inc.link as usize] = true;
+                }
+            }
         }
     }
     report
