@@ -364,13 +364,19 @@ fn the_sewn_top_stays_on_the_walking_mannequin() {
 /// steps beyond 1.2; mu 0: 1 step). The 1.455 while sewn the sewing
 /// limit allows was one step of a strap's link on the shoulder, which
 /// jumps between 0.89 and 1.46 from step to step while the skirt's
-/// stitches close.
+/// stitches close. Since stitches close within half the contact
+/// thickness and triangles never repel the particles sewn to their
+/// corners' neighbours, the scene's own run typically stretches to 1.279
+/// (1.442 worn, 1.372 while sewn, seams within 0.71 mm); at h = 1/89,
+/// 1/90 and 1/91 s and `rel_tol` 1e-3 and 5e-4, typically 1.128-1.279,
+/// worn 1.200-1.442, sewn 1.349-1.407. This fixture runs without the
+/// deformation constraints that Table 1's one-piece has.
 #[test]
 #[ignore = "slow tier: cargo test --release -- --ignored"]
 fn the_sewn_one_piece_stays_on_the_walking_mannequin() {
     let worn = wear("one-piece-walk.toml", "torso", &[]);
     worn.assert_stays_on(1.5, 0.45, [-0.65, 0.55]);
-    worn.assert_sewn(1e-3, 1.46, 1.27);
+    worn.assert_sewn(1e-3, 1.46, 1.28);
 }
 
 /// Volino's and Provot's models wear the sewn top too (their membranes,

@@ -477,6 +477,15 @@ mod tests {
         }
     }
 
+    /// Deterministic numbers in [-1, 1) from `seed` (a linear congruential
+    /// generator).
+    fn noise(mut seed: u64) -> impl FnMut() -> f64 {
+        move || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+        }
+    }
+
     /// A move of some particles changes the summed violation by what the
     /// terms that touch them change (`violation_near`), to rounding: the
     /// projection's line search compares those alone. With solid bounds on
@@ -484,11 +493,7 @@ mod tests {
     #[test]
     fn the_violation_near_moved_particles_changes_as_the_whole_does() {
         let model = sheet([9, 7], [0.16, 0.12]);
-        let mut seed = 5_u64;
-        let mut noise = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 52) as f64 - 1.0
-        };
+        let mut noise = noise(5);
         let before: Vec<Vec3> =
             model.rest_positions().iter().map(|p| p * 1.2 + Vec3::new(noise(), noise(), noise()) * 0.004).collect();
         let solids: Vec<SolidBound> = (0..before.len())
@@ -519,11 +524,7 @@ mod tests {
     #[test]
     fn a_projection_never_raises_the_violation() {
         let model = sheet([11, 9], [0.2, 0.16]);
-        let mut seed = 11_u64;
-        let mut noise = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 52) as f64 - 1.0
-        };
+        let mut noise = noise(11);
         let mut x: Vec<Vec3> =
             model.rest_positions().iter().map(|p| p * 1.3 + Vec3::new(noise(), noise(), noise()) * 0.01).collect();
         let mut v = vec![Vec3::zeros(); x.len()];
