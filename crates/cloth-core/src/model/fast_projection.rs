@@ -37,6 +37,8 @@
 //! conjugate gradients without assembly; every loop is serial in a fixed
 //! order, so the result is the same on any thread count.
 
+use super::links::StretchLink;
+use crate::seams::Stitch;
 use crate::{ClothModel, Vec3};
 
 /// The compliance `a`, relative to the diagonal of `J W J^T`.
@@ -88,26 +90,24 @@ impl Bounds<'_> {
     /// stitches open by more than the slack, m^2.
     #[cfg(test)]
     pub(crate) fn violation(&self, model: &ClothModel, x: &[Vec3]) -> f64 {
-        let links: f64 = model
-            .stretch_links()
-            .iter()
-            .map(|l| ((x[l.j as usize] - x[l.i as usize]).norm() - self.stretch * l.rest).max(0.0).powi(2))
-            .sum();
-        let stitches: f64 = model
-            .stitches()
-            .iter()
-            .zip(self.stitches_closed)
-            .filter(|(_, closed)| **closed)
-            .map(|(st, _)| (x[st.j as usize] - x[st.i as usize]).norm())
-            .filter(|d| *d > self.stitch_slack_m)
-            .map(|d| d * d)
-            .sum();
-        let solids: f64 = self.solids.iter().map(|b| b.depth(x).max(0.0).powi(2)).sum();
+        let links: f64 = model.stretch_links().iter().map(|l| self.link_term(l, x)).sum();
+        let closed = model.stitches().iter().zip(self.stitches_closed).filter(|(_, closed)| **closed);
+        let stitches: f64 = closed.map(|(st, _)| self.stitch_term(st, x)).sum();
+        let solids: f64 = self.solids.iter().map(|b| b.term(x)).sum();
         links + stitches + solids
     }
-}
 
-impl Bounds<'_> {
+    /// A stretch link's term of [`Bounds::violation`], m^2.
+    fn link_term(&self, l: &StretchLink, x: &[Vec3]) -> f64 {
+        ((x[l.j as usize] - x[l.i as usize]).norm() - self.stretch * l.rest).max(0.0).powi(2)
+    }
+
+    /// A closed stitch's term of [`Bounds::violation`], m^2.
+    fn stitch_term(&self, st: &Stitch, x: &[Vec3]) -> f64 {
+        let d = (x[st.j as usize] - x[st.i as usize]).norm();
+        if d > self.stitch_slack_m { d * d } else { 0.0 }
+    }
+
     /// [`Bounds::violation`] over the constraints that touch the particles
     /// `local` marks (`local[i] != u32::MAX`, listed in `particles`): the
     /// only terms a move of those particles changes, so two positions
@@ -123,25 +123,24 @@ impl Bounds<'_> {
                 if local[inc.other as usize] != u32::MAX && inc.other < p {
                     continue;
                 }
-                links += ((x[l.j as usize] - x[l.i as usize]).norm() - self.stretch * l.rest).max(0.0).powi(2);
+                links += self.link_term(l, x);
             }
         }
         let here = |i: u32| local[i as usize] != u32::MAX;
-        let stitches: f64 = model
-            .stitches()
-            .iter()
-            .zip(self.stitches_closed)
-            .filter(|(st, closed)| **closed && (here(st.i) || here(st.j)))
-            .map(|(st, _)| (x[st.j as usize] - x[st.i as usize]).norm())
-            .filter(|d| *d > self.stitch_slack_m)
-            .map(|d| d * d)
-            .sum();
-        let solids: f64 = self.solids.iter().filter(|b| here(b.particle)).map(|b| b.depth(x).max(0.0).powi(2)).sum();
+        let closed = model.stitches().iter().zip(self.stitches_closed).filter(|(_, closed)| **closed);
+        let stitches: f64 =
+            closed.filter(|(st, _)| here(st.i) || here(st.j)).map(|(st, _)| self.stitch_term(st, x)).sum();
+        let solids: f64 = self.solids.iter().filter(|b| here(b.particle)).map(|b| b.term(x)).sum();
         links + stitches + solids
     }
 }
 
 impl SolidBound {
+    /// Its term of [`Bounds::violation`], m^2.
+    fn term(&self, x: &[Vec3]) -> f64 {
+        self.depth(x).max(0.0).powi(2)
+    }
+
     /// How far particle `particle` at positions `x` is inside the bound,
     /// m (negative: outside).
     fn depth(&self, x: &[Vec3]) -> f64 {
@@ -187,8 +186,10 @@ pub(crate) struct ProjectionScratch {
     /// projection of this call.
     sticky: Vec<bool>,
     /// Per stretch link: one end moved since the last gather, so its
-    /// length may have come over the limit (`None`: look at every link).
-    touched: Option<Vec<bool>>,
+    /// length may have come over the limit.
+    touched: Vec<bool>,
+    /// Whether the next gather looks at every link (the call's first).
+    gather_all: bool,
 }
 
 impl ProjectionScratch {
@@ -247,7 +248,7 @@ impl ProjectionScratch {
                 return;
             }
             let w = [f64::from(u8::from(free(i))), f64::from(u8::from(free(j)))];
-            let d = (x[j] - x[i]).norm();
+            let d = d2.sqrt();
             if w == [0.0, 0.0] || (d <= tol && !s.sticky[k]) {
                 return;
             }
@@ -261,18 +262,16 @@ impl ProjectionScratch {
         }
         // A link none of whose ends moved since the last gather is where
         // it was then: over its limit and in the set (sticky), or within it.
-        let touched = self.touched.take();
+        let all = std::mem::replace(&mut self.gather_all, false);
         for (k, l) in links.iter().enumerate() {
-            if touched.as_ref().is_some_and(|t| !t[k]) && !self.sticky[k] {
+            if !all && !self.touched[k] && !self.sticky[k] {
                 continue;
             }
             let max_len = bounds.stretch * l.rest;
             add(self, k, (l.i as usize, l.j as usize), max_len, max_len * (1.0 + bounds.slack));
         }
-        let mut touched = touched.unwrap_or_default();
-        touched.clear();
-        touched.resize(links.len(), false);
-        self.touched = Some(touched);
+        self.touched.clear();
+        self.touched.resize(links.len(), false);
         // A solid's bound `C = offset - n . x <= 0`, gradient `-n`: a
         // positive multiplier moves the particle out along `n`. Only the
         // particles that the rows above move need it (the others stay
@@ -317,7 +316,7 @@ pub(crate) fn fast_projection(
     s.local.resize(x.len(), u32::MAX);
     s.sticky.clear();
     s.sticky.resize(model.stretch_links().len() + model.stitches().len() + bounds.solids.len(), false);
-    s.touched = None;
+    s.gather_all = true;
     for _ in 0..iterations {
         s.gather(model, bounds, &free, x);
         if !s.rows.iter().any(|r| r.c > 0.0) {
@@ -356,12 +355,10 @@ pub(crate) fn fast_projection(
         for (k, &i) in particles.iter().enumerate() {
             v[i as usize] -= g[k] * (alpha / h);
         }
-        if let Some(touched) = &mut s.touched {
-            let stretch_links = model.stretch_links().len();
-            for &i in &s.particles {
-                for inc in model.incidence(i as usize).iter().filter(|inc| (inc.link as usize) < stretch_links) {
-                    touched[inc.link as usize] = true;
-                }
+        let stretch_links = model.stretch_links().len();
+        for &i in &s.particles {
+            for inc in model.incidence(i as usize).iter().filter(|inc| (inc.link as usize) < stretch_links) {
+                s.touched[inc.link as usize] = true;
             }
         }
     }
