@@ -210,7 +210,7 @@ fn cases(fixtures: &Path) -> Result<Vec<Case>> {
         cases.push(Case {
             name: format!("table1-{}", g.name),
             scene: format!("scenes/{file}"),
-            overrides: g.overrides.iter().map(|o| o.to_string()).collect(),
+            overrides: g.overrides(),
             max_steps: TABLE1_STEPS,
         });
     }

@@ -192,7 +192,7 @@ pub fn garments(args: &GarmentsArgs) -> Result<()> {
 /// The overrides that make `garment` about `scale` times its Table-1
 /// particle count, after its Table-1 overrides.
 pub fn refined(garment: &Garment, scene: &Path, scale: f64) -> Result<Vec<String>> {
-    let base: Vec<String> = garment.overrides.iter().map(|s| s.to_string()).collect();
+    let base = garment.overrides();
     if let Some(&(obj, ring)) = nearest_obj(garment, scale) {
         let ring: Vec<usize> = (0..ring).collect();
         return Ok(base

@@ -42,7 +42,10 @@ const PAPER: [PaperRow; 5] = [
 pub(crate) struct Garment {
     pub name: &'static str,
     pub scene: &'static str,
-    pub overrides: &'static [&'static str],
+    /// The garment's own overrides of its scene (counts, meshes).
+    own: &'static [&'static str],
+    /// Whether Table 1 adds [`DEFORMATION_CONSTRAINTS`] the scene leaves out.
+    constrained: bool,
     paper: &'static [usize],
     /// A garment read from an OBJ file: the same garment written finer,
     /// as `(file, as the scene names it; the vertices of its held top
@@ -57,14 +60,11 @@ pub(crate) struct Garment {
 /// and straps (1.08 cm cells) make 2866 (the paper's top, 3396, had
 /// sleeves), the one-piece's 5458 (the paper's, 5579-5608).
 const TOP: [&str; 3] = ["panels.0.particles=[96, 23]", "panels.1.particles=[47, 7]", "panels.2.particles=[47, 7]"];
-const ONE_PIECE: [&str; 7] = [
+const ONE_PIECE: [&str; 4] = [
     "panels.0.particles=[96, 23]",
     "panels.1.particles=[47, 7]",
     "panels.2.particles=[47, 7]",
     "panels.3.particles=[96, 27]",
-    DEFORMATION_CONSTRAINTS[0],
-    DEFORMATION_CONSTRAINTS[1],
-    DEFORMATION_CONSTRAINTS[2],
 ];
 /// Provot's deformation constraints for the skirts and the one-piece, as
 /// the T-shirt's, the dress's, the top's and the skirt's fixtures have
@@ -90,13 +90,7 @@ const DEFORMATION_CONSTRAINTS: [&str; 3] = [
 /// counts: the skirt's two pieces at 1.75 cm (3540 particles; the
 /// fixture's 3.5 cm make 914), the dress's pieces at 0.6 of their edge
 /// lengths (5510; the fixture's 2024).
-const PATTERN_SKIRT: [&str; 5] = [
-    "meshes.0.pattern.edge_length_m=0.0175",
-    "meshes.1.pattern.edge_length_m=0.0175",
-    DEFORMATION_CONSTRAINTS[0],
-    DEFORMATION_CONSTRAINTS[1],
-    DEFORMATION_CONSTRAINTS[2],
-];
+const PATTERN_SKIRT: [&str; 2] = ["meshes.0.pattern.edge_length_m=0.0175", "meshes.1.pattern.edge_length_m=0.0175"];
 const PATTERN_DRESS: [&str; 6] = [
     "meshes.0.pattern.edge_length_m=0.015",
     "meshes.1.pattern.edge_length_m=0.015",
@@ -117,79 +111,93 @@ const PATTERN_TSHIRT: [&str; 6] = [
     "meshes.4.pattern.edge_length_m=0.0138",
     "meshes.5.pattern.edge_length_m=0.0138",
 ];
-const FLARED_SKIRT: [&str; 5] = [
-    "meshes.0.pattern.edge_length_m=0.0186",
-    "meshes.1.pattern.edge_length_m=0.0186",
-    DEFORMATION_CONSTRAINTS[0],
-    DEFORMATION_CONSTRAINTS[1],
-    DEFORMATION_CONSTRAINTS[2],
-];
+const FLARED_SKIRT: [&str; 2] = ["meshes.0.pattern.edge_length_m=0.0186", "meshes.1.pattern.edge_length_m=0.0186"];
 /// The OBJ skirt read from the same tube at the paper's count
 /// (`fixtures/meshes/tube-skirt-3456.obj`, 96 x 36 vertices), its top
 /// ring of 96 held by the pelvis.
-const OBJ_SKIRT: [&str; 5] = [
+const OBJ_SKIRT: [&str; 2] = [
     "meshes.0.obj=\"../meshes/tube-skirt-3456.obj\"",
     "pins.0.vertices=[0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, \
      26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51, 52, 53, \
      54, 55, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72, 73, 74, 75, 76, 77, 78, 79, 80, 81, \
      82, 83, 84, 85, 86, 87, 88, 89, 90, 91, 92, 93, 94, 95]",
-    DEFORMATION_CONSTRAINTS[0],
-    DEFORMATION_CONSTRAINTS[1],
-    DEFORMATION_CONSTRAINTS[2],
 ];
 pub(crate) const GARMENTS: [Garment; 8] = [
     Garment {
         name: "one-piece",
         scene: "fixtures/scenes/one-piece-walk.toml",
-        overrides: &ONE_PIECE,
+        own: &ONE_PIECE,
+        constrained: true,
         paper: &[0, 1, 2],
         finer_objs: &[],
     },
-    Garment { name: "top", scene: "fixtures/scenes/top-walk.toml", overrides: &TOP, paper: &[3], finer_objs: &[] },
+    Garment {
+        name: "top",
+        scene: "fixtures/scenes/top-walk.toml",
+        own: &TOP,
+        constrained: false,
+        paper: &[3],
+        finer_objs: &[],
+    },
     Garment {
         name: "skirt",
         scene: "fixtures/scenes/skirt-walk.toml",
-        overrides: &["panels.0.particles=[96, 36]"],
+        own: &["panels.0.particles=[96, 36]"],
+        constrained: false,
         paper: &[4],
         finer_objs: &[],
     },
     Garment {
         name: "pattern-dress",
         scene: "fixtures/scenes/pattern-dress-walk.toml",
-        overrides: &PATTERN_DRESS,
+        own: &PATTERN_DRESS,
+        constrained: false,
         paper: &[0, 1, 2],
         finer_objs: &[],
     },
     Garment {
         name: "pattern-skirt",
         scene: "fixtures/scenes/pattern-skirt-walk.toml",
-        overrides: &PATTERN_SKIRT,
+        own: &PATTERN_SKIRT,
+        constrained: true,
         paper: &[4],
         finer_objs: &[],
     },
     Garment {
         name: "pattern-tshirt",
         scene: "fixtures/scenes/pattern-tshirt-walk.toml",
-        overrides: &PATTERN_TSHIRT,
+        own: &PATTERN_TSHIRT,
+        constrained: false,
         paper: &[3],
         finer_objs: &[],
     },
     Garment {
         name: "flared-skirt",
         scene: "fixtures/scenes/pattern-flared-skirt-walk.toml",
-        overrides: &FLARED_SKIRT,
+        own: &FLARED_SKIRT,
+        constrained: true,
         paper: &[4],
         finer_objs: &[],
     },
     Garment {
         name: "obj-skirt",
         scene: "fixtures/scenes/obj-skirt-walk.toml",
-        overrides: &OBJ_SKIRT,
+        own: &OBJ_SKIRT,
+        constrained: true,
         paper: &[4],
         // 144 x 54 and 192 x 71 vertices (`fixtures/meshes/make_tube_skirt.py`).
         finer_objs: &[("../meshes/tube-skirt-7776.obj", 144), ("../meshes/tube-skirt-13632.obj", 192)],
     },
 ];
+
+impl Garment {
+    /// The overrides that make the Table-1 variant of the scene: the
+    /// garment's own, then the deformation constraints if it takes them.
+    pub fn overrides(&self) -> Vec<String> {
+        let constraints = if self.constrained { &DEFORMATION_CONSTRAINTS[..] } else { &[] };
+        self.own.iter().chain(constraints).map(|o| o.to_string()).collect()
+    }
+}
 
 /// Frames of 30 Hz animation per simulated second.
 pub(crate) const FRAME_RATE_HZ: f64 = 30.0;
@@ -292,7 +300,7 @@ pub fn table1(args: &BenchArgs) -> Result<()> {
     let mut rows = Vec::new();
     for garment in &GARMENTS {
         let paper: Vec<PaperRow> = garment.paper.iter().map(|&k| PAPER[k]).collect();
-        let measured = measure(&cloth_tools::in_checkout(garment.scene), garment.overrides, args)?;
+        let measured = measure(&cloth_tools::in_checkout(garment.scene), &garment.overrides(), args)?;
         let speedup = match measured.cpu_s_per_frame {
             Some(ours) => paper.iter().map(|p| p.cpu_s_per_frame / ours).collect(),
             None => vec![],
@@ -313,8 +321,8 @@ pub(crate) fn write_results(md: &str, rows: &impl Serialize, out: &Path, name: &
 }
 
 /// Runs one garment `repeat` times and keeps the median run by wall time.
-fn measure(scene: &Path, overrides: &[&str], args: &BenchArgs) -> Result<Measured> {
-    let mut set: Vec<String> = overrides.iter().map(|s| s.to_string()).chain(args.overrides.iter().cloned()).collect();
+fn measure(scene: &Path, overrides: &[String], args: &BenchArgs) -> Result<Measured> {
+    let mut set: Vec<String> = overrides.iter().chain(&args.overrides).cloned().collect();
     if let Some(d) = args.duration_s {
         set.push(format!("simulation.duration_s={d}"));
     }
