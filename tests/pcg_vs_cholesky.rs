@@ -2,8 +2,8 @@
 //! without Baraff-Witkin filters.
 
 use cloth_linalg::{
-    Aggregation, BlockPattern, BlockSparseMatrix, Constraint, ConstraintFilter, Cycle, Mat3, Multigrid, MultigridError,
-    Pcg, PcgError, PcgParams, PreconditionerKind, SMOOTHED_MIN_NODES, Vec3,
+    Aggregation, BlockPattern, BlockSparseMatrix, Constraint, ConstraintFilter, Coupling, Couplings, Cycle, Mat3,
+    Multigrid, MultigridError, Pcg, PcgError, PcgParams, PreconditionerKind, SMOOTHED_MIN_NODES, Vec3,
 };
 use cloth_tests::{Rng, same_bits};
 use faer::linalg::solvers::Solve;
@@ -727,4 +727,98 @@ fn models_without_solids_take_the_smoothed_level_from_its_threshold() {
     assert!(!hierarchy("hang.toml", side - 1).is_smoothed());
     let (sim, _) = cloth_tests::simulation("drape-sphere.toml", &[&format!("panels.0.particles=[{side}, {side}]")]);
     assert!(!sim.model().multigrid().is_smoothed());
+}
+
+/// Two `n x n` grids ([`grid_system`]) one over the other, every node of
+/// the first pressed on its twin in the second by a contact of stiffness
+/// `k_c` along `z`, across which each sheet is soft: a heap's layers in
+/// miniature. Returns the matrix with each node's own block of its
+/// contact (`k_c z z^T`, as the cloth's assembly makes it), the contacts
+/// as couplings, the same operator assembled whole (`A + E`, its pattern
+/// holding the pairs), and each sheet's aggregations side by side.
+fn two_sheets(n: usize, k_c: f64) -> (BlockSparseMatrix, Couplings, BlockSparseMatrix, Vec<Aggregation>) {
+    let (sheet, sheet_levels) = grid_system(n);
+    let m = sheet.n();
+    let blocks: Vec<(usize, usize, Mat3)> = sheet.blocks().map(|(i, j, b)| (i, j, *b)).collect();
+    let own = Vec3::z() * Vec3::z().transpose() * k_c;
+    let build = |with_pairs: bool| {
+        let pairs = blocks.iter().flat_map(|&(i, j, _)| [(i, j), (i + m, j + m)]);
+        let ties = (0..m).filter(move |_| with_pairs).map(|i| (i, i + m));
+        let pattern = BlockPattern::from_pairs(2 * m, pairs.chain(ties)).unwrap();
+        let mut a = BlockSparseMatrix::new(pattern.clone());
+        let v = a.values_mut();
+        for &(i, j, b) in &blocks {
+            v[pattern.slot(i, j).unwrap()] += b;
+            v[pattern.slot(i + m, j + m).unwrap()] += b;
+        }
+        for i in 0..2 * m {
+            v[pattern.diag_slot(i)] += own;
+        }
+        if with_pairs {
+            for i in 0..m {
+                v[pattern.slot(i, i + m).unwrap()] -= own;
+                v[pattern.slot(i + m, i).unwrap()] -= own;
+            }
+        }
+        a
+    };
+    let mut couplings = Couplings::default();
+    for i in 0..m as u32 {
+        let (nodes, weights) = ([i, i + m as u32, 0, 0], [1.0, -1.0, 0.0, 0.0]);
+        couplings.push(Coupling { nodes, weights, direction: Vec3::z(), stiffness: k_c });
+    }
+    let levels = sheet_levels
+        .iter()
+        .map(|l| {
+            let n_coarse = l.n_coarse as u32;
+            let second = l.coarse_of.iter().map(|&c| c + n_coarse);
+            Aggregation { coarse_of: l.coarse_of.iter().copied().chain(second).collect(), n_coarse: 2 * l.n_coarse }
+        })
+        .collect();
+    (build(false), couplings, build(true), levels)
+}
+
+/// Two sheets pressed together by contacts that are couplings outside the
+/// matrix: with the couplings on every level of the hierarchy, PCG solves
+/// `A + E` (the operator assembled whole gives the same solution, to
+/// 1e-8), with and without a filter, W-cycle and K-cycle, in about half
+/// the iterations the hierarchy of `A` alone took. Measured at 32 x 32
+/// with `k_c` a twelfth of the links' stiffness, W / K, without and with
+/// a filter: 154 / 154 and 102 / 100 iterations to 1e-10 with the
+/// hierarchy of `A` alone, 69 / 68 and 58 / 55 with the couplings.
+/// The W-cycle stays symmetric positive definite.
+#[test]
+fn couplings_on_every_level_keep_pressed_layers_iterations_down() {
+    let (a, couplings, whole, levels) = two_sheets(32, 100.0);
+    let n = a.n();
+    let mut rng = Rng(17);
+    let b: Vec<Vec3> = (0..n).map(|_| rng.vec3()).collect();
+    let mut filter = ConstraintFilter::new(n);
+    for i in (0..n).step_by(13) {
+        let c = if i % 2 == 0 { Constraint::Fixed } else { Constraint::OneDirection { normal: rng.vec3() } };
+        filter.set(i, c, rng.vec3()).unwrap();
+    }
+    for (cycle, f, most) in [
+        (Cycle::W, ConstraintFilter::new(n), 75),
+        (Cycle::W, filter.clone(), 64),
+        (Cycle::K, ConstraintFilter::new(n), 75),
+        (Cycle::K, filter, 61),
+    ] {
+        let exact = PcgParams { rel_tol: 1e-13, max_iter: 20_000, preconditioner: PreconditionerKind::BlockJacobi };
+        let mut reference = vec![Vec3::zeros(); n];
+        Pcg::new(n).solve(&whole, &b, &f, &exact, &mut reference).expect("block-Jacobi converges");
+        let mut pcg = Pcg::new(n);
+        pcg.set_multigrid(Multigrid::new(a.pattern(), &levels).unwrap().with_cycle(cycle));
+        *pcg.couplings_mut() = couplings.clone();
+        let params = PcgParams { rel_tol: 1e-10, max_iter: 1000, preconditioner: PreconditionerKind::Multigrid };
+        let mut x = vec![Vec3::zeros(); n];
+        let info = pcg.solve(&a, &b, &f, &params, &mut x).expect("multigrid PCG converges");
+        let err = max_rel_diff(&x, &reference);
+        assert!(err < 1e-8, "{cycle:?}: relative difference {err:e}");
+        assert!(info.iterations <= most, "{cycle:?}: {} iterations", info.iterations);
+    }
+    let mut mg = Multigrid::new(a.pattern(), &levels).unwrap().with_cycle(Cycle::W);
+    mg.set_couplings(&couplings, &ConstraintFilter::new(n));
+    mg.update(&a);
+    assert_cycle_is_spd(&mut mg, &a, &mut rng, 5);
 }

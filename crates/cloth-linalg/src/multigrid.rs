@@ -18,6 +18,10 @@
 //! - **A smoothed first level** ([`Multigrid::smoothed`]; Vaněk, Mandel &
 //!   Brezina 1996, from [`SMOOTHED_MIN_NODES`]) for matrices solved once a
 //!   step: plain aggregates correct less well as `h^2 k / m` grows.
+//! - **Couplings outside the matrix** ([`Multigrid::set_couplings`]: a
+//!   self-collision contact's blocks between its particles) on every
+//!   level: their Galerkin products over the aggregates, in the cycle's
+//!   residuals, and in the coarsest factor.
 //! - **`f32` operators** on levels of at least 500,000 blocks: the
 //!   cycle's residuals read a rounded copy and accumulate in `f64`, so the
 //!   preconditioner stays symmetric positive definite and PCG's own
@@ -34,11 +38,13 @@ use rayon::prelude::*;
 
 mod coarsest;
 mod kernels;
+mod level_couplings;
 mod single;
 mod smoothed;
 
 use coarsest::*;
 use kernels::*;
+use level_couplings::LevelCouplings;
 use single::*;
 
 /// One level's grouping of nodes: `coarse_of[i]` is node `i`'s aggregate.
@@ -141,6 +147,9 @@ struct Level {
     v: Vec<Vec3>,
     /// Chunk partials for this level's dot products.
     partials: Vec<f64>,
+    /// The solve's couplings on this level's operator (see
+    /// [`Multigrid::set_couplings`]).
+    couplings: LevelCouplings,
 }
 
 /// An aggregation multigrid hierarchy; rebuild the operators with
@@ -265,6 +274,7 @@ impl Multigrid {
                 first: if l == 0 { Vec::new() } else { vec![Vec3::zeros(); n] },
                 v: if l == 0 { Vec::new() } else { vec![Vec3::zeros(); n] },
                 partials: vec![0.0; chunk_count(n)],
+                couplings: LevelCouplings::default(),
             });
             pattern = coarse_pattern;
         }
@@ -376,6 +386,32 @@ impl Multigrid {
         self.smoothed.as_ref().map_or(self.levels.len() + 1, |first| first.depth())
     }
 
+    /// Takes the couplings a solve adds to its matrix ([`crate::Couplings`],
+    /// each node's part projected by `filter`) into every level's operator
+    /// from the next [`Multigrid::update`] or [`Multigrid::update_rows`]
+    /// on: the coarse levels get their Galerkin products, the cycle's
+    /// residuals their products, and the coarsest factor them. A
+    /// [`Multigrid::smoothed`] hierarchy leaves them out.
+    pub fn set_couplings(&mut self, couplings: &crate::Couplings, filter: &crate::ConstraintFilter) {
+        if self.smoothed.is_some() {
+            return;
+        }
+        let Some(first) = self.levels.first_mut() else {
+            self.coarsest.couplings.set_fine(couplings, filter);
+            return;
+        };
+        if couplings.is_empty() && first.couplings.is_empty() {
+            return;
+        }
+        first.couplings.set_fine(couplings, filter);
+        for l in 0..self.levels.len() {
+            let (done, rest) = self.levels.split_at_mut(l + 1);
+            let level = &done[l];
+            let next = rest.first_mut().map_or(&mut self.coarsest.couplings, |next| &mut next.couplings);
+            level.couplings.aggregate_into(&level.coarse_of, next);
+        }
+    }
+
     /// Rebuilds every level's operator from the fine matrix `a`.
     pub fn update(&mut self, a: &BlockSparseMatrix) {
         let omega = self.omega;
@@ -391,6 +427,7 @@ impl Multigrid {
             if let Some((partner, inv_off)) = &mut level.pairs {
                 invert_pairs(fine, omega, partner, &mut level.inv_diag, inv_off);
             }
+            level.couplings.stiffen_smoother(fine, (omega, l == 0), &mut level.inv_diag, level.pairs.as_mut());
             // The Galerkin product of the rounded operator the residuals
             // use, so each coarse level is exactly the Galerkin level of
             // the operator above it (the sewn seam of `tests/seams.rs` at
@@ -454,10 +491,11 @@ impl Multigrid {
                     let p = partner[i] as usize;
                     if p != i {
                         level.inv_diag[p] = inverse_diagonal_block(fine, omega, p);
-                        invert_pair(fine, omega, (i.min(p), i.max(p)), &mut level.inv_diag, inv_off);
+                        invert_pair(fine, omega, (i.min(p), i.max(p)), no_extra(), &mut level.inv_diag, inv_off);
                     }
                 }
             }
+            level.couplings.stiffen_smoother(fine, (omega, l == 0), &mut level.inv_diag, level.pairs.as_mut());
             if let Some(single) = &mut level.single {
                 for &(slot, _, _) in fine_dirty {
                     single.copy_slot(fine, slot as usize);
@@ -556,6 +594,7 @@ fn cycle(levels: &mut [Level], coarsest: &mut Coarsest, a: &BlockSparseMatrix, f
     let (level, rest) = levels.split_first_mut().expect("a cycle runs on a level");
     jacobi_from_zero(&level.inv_diag, level.pairs.as_ref(), &level.b, &mut level.x);
     residual(level.single.as_ref(), a, &level.b, &level.x, &mut level.r);
+    level.couplings.add_product(&level.x, -1.0, &mut level.r);
     if rest.is_empty() {
         restrict(&level.members, &level.r, &mut coarsest.b);
         coarsest.solve();
@@ -569,6 +608,7 @@ fn cycle(levels: &mut [Level], coarsest: &mut Coarsest, a: &BlockSparseMatrix, f
                 let next = &mut rest[0];
                 std::mem::swap(&mut next.first, &mut next.x);
                 residual(next.single.as_ref(), coarse, &next.b, &next.first, &mut next.r);
+                next.couplings.add_product(&next.first, -1.0, &mut next.r);
                 // The coarse right-hand side becomes its residual; the old one
                 // (now in `r`) is not needed again.
                 std::mem::swap(&mut next.b, &mut next.r);
@@ -584,6 +624,7 @@ fn cycle(levels: &mut [Level], coarsest: &mut Coarsest, a: &BlockSparseMatrix, f
         *xi += correction[c as usize];
     });
     residual(level.single.as_ref(), a, &level.b, &level.x, &mut level.r);
+    level.couplings.add_product(&level.x, -1.0, &mut level.r);
     let (r, inv_diag, pairs) = (&level.r, &level.inv_diag, level.pairs.as_ref());
     level.x.par_iter_mut().enumerate().with_min_len(ROW_CHUNK).for_each(|(i, xi)| {
         *xi += smoothed(inv_diag, pairs, r, i);
@@ -604,7 +645,8 @@ fn cycle(levels: &mut [Level], coarsest: &mut Coarsest, a: &BlockSparseMatrix, f
 /// without positive curvature (roundoff, `c2` parallel to `c1`) is dropped.
 fn krylov_second_step(rest: &mut [Level], coarsest: &mut Coarsest, coarse: &BlockSparseMatrix) {
     let next = &mut rest[0];
-    let rho1 = coarse.mul_vec_dot(&next.x, &mut next.v, &mut next.partials);
+    let rho1 = coarse.mul_vec_dot(&next.x, &mut next.v, &mut next.partials)
+        + next.couplings.add_product(&next.x, 1.0, &mut next.v);
     let t1 = dot_with(&next.x, &next.b, &mut next.partials) / rho1;
     if !(rho1 > 0.0 && t1.is_finite()) {
         return;
@@ -616,7 +658,8 @@ fn krylov_second_step(rest: &mut [Level], coarsest: &mut Coarsest, coarse: &Bloc
     std::mem::swap(&mut next.b, &mut next.r);
     cycle(rest, coarsest, coarse, false, Cycle::K);
     let next = &mut rest[0];
-    let c2_a_c2 = coarse.mul_vec_dot(&next.x, &mut next.r, &mut next.partials);
+    let c2_a_c2 = coarse.mul_vec_dot(&next.x, &mut next.r, &mut next.partials)
+        + next.couplings.add_product(&next.x, 1.0, &mut next.r);
     let gamma = dot_with(&next.x, &next.v, &mut next.partials);
     let alpha2 = dot_with(&next.x, &next.b, &mut next.partials);
     let (w1, w2) = krylov_weights(rho1, t1, c2_a_c2, gamma, alpha2);

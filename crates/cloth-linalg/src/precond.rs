@@ -30,6 +30,14 @@ pub struct Preconditioner {
 }
 
 impl Preconditioner {
+    /// Hands the solve's couplings to the multigrid hierarchy, if any (see
+    /// [`Multigrid::set_couplings`]); the other kinds see only the matrix.
+    pub fn set_couplings(&mut self, couplings: &crate::Couplings, filter: &crate::ConstraintFilter) {
+        if let Some(mg) = &mut self.multigrid {
+            mg.set_couplings(couplings, filter);
+        }
+    }
+
     /// Rebuilds `P^-1` from the diagonal blocks of `a`, reusing storage.
     /// A block that cannot be inverted (not positive) falls back to the
     /// identity for that row, which keeps `P^-1` symmetric positive definite.

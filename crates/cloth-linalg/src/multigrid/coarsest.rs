@@ -22,6 +22,9 @@ pub(super) struct Coarsest {
     pub(super) inv_diag: Vec<Mat3>,
     pub(super) b: Vec<Vec3>,
     pub(super) x: Vec<Vec3>,
+    /// The solve's couplings on the coarsest nodes, factored with the
+    /// operator.
+    pub(super) couplings: LevelCouplings,
 }
 
 impl Coarsest {
@@ -35,6 +38,7 @@ impl Coarsest {
             inv_diag: vec![Mat3::identity(); n],
             b: vec![Vec3::zeros(); n],
             x: vec![Vec3::zeros(); n],
+            couplings: LevelCouplings::default(),
         }
     }
 
@@ -50,6 +54,7 @@ impl Coarsest {
                 }
             }
         }
+        self.couplings.add_to_dense(&mut self.factor, dim);
         self.ok = cholesky_in_place(&mut self.factor, dim, &mut self.rhs);
         if self.ok {
             transpose_lower(&self.factor, dim, &mut self.factor_t);

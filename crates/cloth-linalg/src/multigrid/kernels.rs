@@ -14,7 +14,12 @@ pub(super) fn inverse_diagonal(a: &BlockSparseMatrix, omega: f64, inv: &mut [Mat
 
 /// `omega * A_ii^-1` (the identity where the block is not positive definite).
 pub(super) fn inverse_diagonal_block(a: &BlockSparseMatrix, omega: f64, i: usize) -> Mat3 {
-    a.diag(i).cholesky().map_or_else(Mat3::identity, |c| c.inverse()) * omega
+    inverse_block(a.diag(i), omega)
+}
+
+/// `omega * d^-1` (the identity where `d` is not positive definite).
+pub(super) fn inverse_block(d: &Mat3, omega: f64) -> Mat3 {
+    d.cholesky().map_or_else(Mat3::identity, |c| c.inverse()) * omega
 }
 
 /// The pairs' damped inverse blocks (see [`invert_pair`]), over `inv_diag`'s
@@ -28,19 +33,26 @@ pub(super) fn invert_pairs(
 ) {
     for (i, &j) in partner.iter().enumerate() {
         if j as usize > i {
-            invert_pair(a, omega, (i, j as usize), inv_diag, inv_off);
+            invert_pair(a, omega, (i, j as usize), no_extra(), inv_diag, inv_off);
         }
     }
 }
 
-/// The pair `i < j`'s damped inverse `omega [A_ii A_ij; A_ji A_jj]^-1`
-/// into the diagonal and off-diagonal slots. A pair whose block is not
-/// positive definite (or not stored) keeps its two point blocks in
-/// `inv_diag` and no coupling.
+/// No addition to a pair's diagonal blocks (see [`invert_pair`]).
+pub(super) fn no_extra() -> (Mat3, Mat3) {
+    (Mat3::zeros(), Mat3::zeros())
+}
+
+/// The pair `i < j`'s damped inverse `omega [A_ii + e_i, A_ij; A_ji, A_jj +
+/// e_j]^-1` into the diagonal and off-diagonal slots, `(e_i, e_j) =
+/// extra` (zero but where couplings stiffen the smoother). A pair whose
+/// block is not positive definite (or not stored) keeps its two point
+/// blocks in `inv_diag` and no coupling.
 pub(super) fn invert_pair(
     a: &BlockSparseMatrix,
     omega: f64,
     (i, j): (usize, usize),
+    extra: (Mat3, Mat3),
     inv_diag: &mut [Mat3],
     inv_off: &mut [Mat3],
 ) {
@@ -48,10 +60,10 @@ pub(super) fn invert_pair(
     let Some(slot) = a.pattern().slot(i, j) else { return };
     let mut m = nalgebra::Matrix6::<f64>::zeros();
     let (aij, aji) = (a.values()[slot], a.values()[slot].transpose());
-    m.fixed_view_mut::<3, 3>(0, 0).copy_from(a.diag(i));
+    m.fixed_view_mut::<3, 3>(0, 0).copy_from(&(a.diag(i) + extra.0));
     m.fixed_view_mut::<3, 3>(0, 3).copy_from(&aij);
     m.fixed_view_mut::<3, 3>(3, 0).copy_from(&aji);
-    m.fixed_view_mut::<3, 3>(3, 3).copy_from(a.diag(j));
+    m.fixed_view_mut::<3, 3>(3, 3).copy_from(&(a.diag(j) + extra.1));
     let Some(c) = m.cholesky() else { return };
     let inv = c.inverse() * omega;
     inv_diag[i] = inv.fixed_view::<3, 3>(0, 0).into_owned();
