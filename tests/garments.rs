@@ -201,19 +201,21 @@ fn skirts_stay_on_other_characters_walking_keyframes() {
 /// Skirts that are not grids stay on as the grid's tube does and walk
 /// with the hips: cut from pattern pieces (`pattern-skirt-walk.toml`:
 /// front and back meshed irregularly, two side seams; measured: nothing
-/// inside a link, stretch 1.1135 at its worst step (where the knee
-/// strikes the hem by the front seam; 1.0852, 1.1135, 1.1035 at
-/// h = 1/89, 1/90, 1/91 s, and 1.140, 1.0993, 1.1918 before the
-/// self-collision couplings were in the solve), typically 1.0108,
-/// closest 5.9 mm at a 6 mm thickness, radial 0.308 m, down to 0.372 m,
-/// seams within 2.8 um with its stitches at 100 x E, 2.2 mm at the default 10 x E) and
+/// inside a link, stretch 1.1219 at its worst step (where the knee
+/// strikes the hem by the front seam; 1.0836, 1.1219, 1.1384 at
+/// h = 1/89, 1/90, 1/91 s, 1.066-1.138 over these, 1/88 and 1/92 s and
+/// `rel_tol` 5e-4; 1.072-1.114 over the same eight before the multigrid
+/// took the self-collision couplings, and 1.140, 1.0993, 1.1918 at the
+/// first three before the couplings were in the solve), typically 1.0115,
+/// closest 5.3 mm at a 6 mm thickness, radial 0.309 m, down to 0.372 m,
+/// seams within 2.4 um with its stitches at 100 x E, 2.2 mm at the default 10 x E) and
 /// read from an OBJ (`obj-skirt-walk.toml`, a closed irregular tube;
 /// measured: stretch 1.0805, typically 1.0096, closest 11.5 mm). The
 /// grid's tube: 1.0562.
 #[test]
 #[ignore = "slow tier: cargo test --release -- --ignored"]
 fn skirts_from_patterns_and_obj_files_stay_on_the_walking_mannequin() {
-    for (scene, stretch) in [("pattern-skirt-walk.toml", 1.12), ("obj-skirt-walk.toml", 1.09)] {
+    for (scene, stretch) in [("pattern-skirt-walk.toml", 1.13), ("obj-skirt-walk.toml", 1.09)] {
         let worn = wear(scene, "pelvis", &[]);
         worn.assert_stays_on(stretch, 0.35, [-0.40, 0.15]);
         assert!(worn.seam_gap < 1e-5, "{scene}: a seam opened by {} m", worn.seam_gap);
@@ -244,15 +246,17 @@ fn hem_reach(worn: &Worn, on: &str) -> f64 {
 /// The flared skirt (`pattern-flared-skirt-walk.toml`: two gores cut as
 /// half annuli, started on their cone, held at the waist arc, sewn at the
 /// sides) stays on through the walk, sewn, and its hem hangs out as cut
-/// (measured: nothing inside a link, stretch 1.0545, typically 1.0110,
-/// closest 5.8 mm, 0.428 m out at most, from 0.321 m below the hip joints,
-/// seams within 2.1 um). Its hem, in folds, reaches 0.352 m from the
+/// (measured: nothing inside a link, stretch 1.0625, typically 1.0111,
+/// closest 5.2 mm, 0.429 m out at most, from 0.321 m below the hip joints,
+/// seams within 2.1 um; stretch 1.0288, 1.0625, 1.0586 at h = 1/89, 1/90,
+/// 1/91 s, and 1.0630, 1.0518, 1.0426 before the multigrid took the
+/// self-collision couplings). Its hem, in folds, reaches 0.352 m from the
 /// pelvis's axis at the end; the straight pattern skirt's 0.278 m.
 #[test]
 #[ignore = "slow tier: cargo test --release -- --ignored"]
 fn the_flared_pattern_skirt_stays_on_the_walking_mannequin() {
     let worn = wear("pattern-flared-skirt-walk.toml", "pelvis", &[]);
-    worn.assert_stays_on(1.06, 0.45, [-0.35, 0.12]);
+    worn.assert_stays_on(1.065, 0.45, [-0.35, 0.12]);
     assert!(worn.seam_gap < 1e-5, "a seam opened by {} m", worn.seam_gap);
     let straight = wear("pattern-skirt-walk.toml", "pelvis", &[]);
     let (flared, straight) = (hem_reach(&worn, "pelvis"), hem_reach(&straight, "pelvis"));
@@ -405,7 +409,9 @@ fn the_sewn_top_stays_on_in_every_model() {
 /// front and back, two shoulder pieces, two set-in sleeves with caps,
 /// sixteen seams) is sewn with the arms raised and stays on through the
 /// walk under Provot's deformation constraints (measured: nothing inside
-/// a link, stretch 1.1000, typically 1.0778, 1.1000 while sewn, closest
+/// a link, stretch 1.1000, typically 1.0803 (1.0797-1.0803 at h = 1/89,
+/// 1/90, 1/91 s; 1.0789-1.0800 before the multigrid took the
+/// self-collision couplings), 1.1000 while sewn, closest
 /// 4.5 mm, 0.416 m out, from the waist joint to 0.507 m above it, seams
 /// shut to 1e-12 m). Without the constraints: stretch 1.2244 for one step
 /// (a hem particle on the pelvis's rear edge slides 12 mm back while its
@@ -419,7 +425,7 @@ fn the_sewn_top_stays_on_in_every_model() {
 fn the_pattern_tshirt_stays_on_the_walking_mannequin() {
     let worn = wear("pattern-tshirt-walk.toml", "torso", &[]);
     worn.assert_stays_on(1.101, 0.43, [-0.02, 0.52]);
-    worn.assert_sewn(1e-9, 1.101, 1.08);
+    worn.assert_sewn(1e-9, 1.101, 1.081);
 }
 
 /// The dress cut from a sewing pattern (`pattern-dress-walk.toml`: bodice
