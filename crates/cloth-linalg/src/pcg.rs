@@ -343,7 +343,9 @@ impl Pcg {
         (ref_sq, mut r_sq): (f64, f64),
         changed_rows: Option<&[usize]>,
     ) -> Result<PcgInfo, PcgError> {
-        self.precond.set_couplings(&self.couplings, filter);
+        if params.preconditioner == PreconditionerKind::Multigrid {
+            self.precond.set_couplings(&self.couplings, filter);
+        }
         let (built, partial_refill) = match changed_rows {
             Some(changed) => self.precond.update_rows(params.preconditioner, a, changed),
             None => (self.precond.update(params.preconditioner, a), false),
