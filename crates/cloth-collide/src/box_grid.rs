@@ -2,6 +2,7 @@
 //! cubic cells of a uniform grid (stored sorted by cell, no hash map), so
 //! elements whose boxes share a cell become candidate pairs.
 
+use crate::cell::cell_index;
 use crate::{BroadPhaseError, Vec3};
 
 /// An axis-aligned box, m.
@@ -260,7 +261,7 @@ fn neighbour(centre: [i64; 3], c: [i64; 3]) -> Option<usize> {
 const NOT_LOOKED_UP: (usize, usize) = (usize::MAX, usize::MAX);
 
 fn cell_of(p: Vec3, cell: f64) -> [i64; 3] {
-    [0, 1, 2].map(|k| (p[k] / cell).floor() as i64)
+    [0, 1, 2].map(|k| cell_index(p[k], cell))
 }
 
 /// A cell's key: 21 bits of each coordinate. Far cells can share a key.

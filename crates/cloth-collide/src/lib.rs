@@ -17,6 +17,7 @@
 
 mod box_grid;
 mod ccd;
+mod cell;
 mod collider;
 mod gltf_mesh;
 mod obj;

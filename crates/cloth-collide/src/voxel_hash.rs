@@ -1,6 +1,7 @@
 //! The voxel spatial hash.
 
 use crate::Vec3;
+use crate::cell::cell_index;
 
 /// Why a broad-phase query cannot run.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -90,7 +91,7 @@ impl VoxelHash {
     }
 
     fn cell_of(&self, p: &Vec3) -> [i64; 3] {
-        [(p.x / self.voxel).floor() as i64, (p.y / self.voxel).floor() as i64, (p.z / self.voxel).floor() as i64]
+        [cell_index(p.x, self.voxel), cell_index(p.y, self.voxel), cell_index(p.z, self.voxel)]
     }
 
     /// The table's first probe for cell `c`. The table's length is a power
