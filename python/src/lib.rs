@@ -240,7 +240,7 @@ impl Builder {
     }
 
     /// A simulation of the model built so far, stepping with `integrator`
-    /// (`"bdf2"` by default, Choi & Ko's; `"backward-euler"`, `"vbd"`, ...)
+    /// (`"bdf2"` by default, Choi & Ko's; `"backward-euler"`, `"vbd"`, `"quasi-newton"`, ...)
     /// at `dt_s` (s) by default, its linear solves to `rel_tol` (the
     /// solver's default when not given), on `threads` threads (default:
     /// rayon's).

@@ -261,8 +261,9 @@ enum StudyKind {
     Cost,
     /// Error against a converged reference versus CPU time (work-precision).
     Precision,
-    /// The vertex solver's work-precision on four scenes, and where its
-    /// sweeps leave stiff stretch unconverged.
+    /// The minimisers' (vertex solver, quasi-Newton) work-precision on four
+    /// scenes beside BDF2, and where the sweeps leave stiff stretch
+    /// unconverged.
     Vbd,
     /// Co-simulation masters on the two-mass oscillator: order and energy drift.
     Cosim,

@@ -61,6 +61,7 @@ pub use integrate::explicit::ENERGY_WINDOW;
 pub use integrate::implicit::{BackwardEuler, Bdf2};
 pub use integrate::loads::Loads;
 pub use integrate::matrix_free::BackwardEulerFixedCg;
+pub use integrate::quasi_newton::QuasiNewton;
 pub use integrate::timer::{Lap, Stage, StageTimer};
 pub use material::{BendConstants, Compressive, Lattice, Material, Membrane};
 pub use model::{
@@ -68,7 +69,9 @@ pub use model::{
     Incidence, MeshPanel, MeshRange, ModelBuilder, ModelError, ModelKind, ModelSpec, PanelRange, PatternMesh,
     PatternPiece, PinSpec, StrainLimit, StretchLink,
 };
-pub use params::{AUTO_NEWTON_MIN_K_H2_M, AdaptiveParams, ContactSetParams, NewtonParams, SolverParams, VbdParams};
+pub use params::{
+    AUTO_NEWTON_MIN_K_H2_M, AdaptiveParams, ContactSetParams, NewtonParams, QuasiNewtonParams, SolverParams, VbdParams,
+};
 pub use pins::{Pin, PinMotion};
 pub use registry::IntegratorKind;
 pub use report::{NewtonReport, StageTimes, StepError, StepReport};

@@ -12,7 +12,7 @@
 //! bending_law = "arc-path"     # choi-ko only (default): flexural rigidity that holds
 //!                              # at every spacing; "arc-chord": the paper's pair law
 //! integrator = "bdf2"          # backward-euler, backward-euler-fixed-cg, forward-euler,
-//!                              # symplectic-euler, midpoint, rk4, dopri5, vbd
+//!                              # symplectic-euler, midpoint, rk4, dopri5, vbd, quasi-newton
 //! dt_s = 0.011111111111111112  # s
 //! duration_s = 2.0             # s
 //! effects = ["gravity", "bending", "damping"]   # also "strain-limit", "drag", "wind", "aerodynamics"
@@ -47,6 +47,11 @@
 //! tolerance_m = 0.0            # stop earlier once no particle moves farther in a sweep (0: always all)
 //! chebyshev_rho = 0.0          # Chebyshev acceleration's spectral radius estimate (0: off)
 //! line_search = true           # halve a local step until the particle's potential falls
+//!
+//! [solver.quasi_newton]        # quasi-newton only: L-BFGS on backward Euler's potential
+//! iterations = 50              # most iterations (line searches) per step
+//! history = 5                  # (s, y) pairs kept; the history restarts each step
+//! tolerance_m = 1e-6           # stop once the gradient, as a distance (|g| h^2 / m), is below
 //!
 //! [material]
 //! areal_density_kg_m2 = 0.1
@@ -614,6 +619,8 @@ nodes = [[0, 3]]
             ("solver.vbd.iterations=0", "solver.vbd.iterations"),
             ("solver.vbd.tolerance_m=-1.0", "solver.vbd.tolerance_m"),
             ("solver.vbd.chebyshev_rho=1.0", "solver.vbd.chebyshev_rho"),
+            ("solver.quasi_newton.iterations=0", "solver.quasi_newton.iterations"),
+            ("solver.quasi_newton.tolerance_m=nan", "solver.quasi_newton.tolerance_m"),
             ("constraints.max_strain=-0.1", "constraints.max_strain"),
             ("panels.0.particles=[1, 4]", "panels[0].particles"),
             ("panels.0.size_m=[1.0, inf]", "panels[0].size_m"),

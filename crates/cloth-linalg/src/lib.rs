@@ -17,6 +17,7 @@ mod multigrid;
 mod par;
 mod pcg;
 mod precond;
+mod scalar_cholesky;
 
 pub use block_sparse::{BlockPattern, BlockSparseMatrix, PatternError};
 pub use cg::{CgScratch, cg_fixed_iterations};
@@ -28,6 +29,7 @@ pub use multigrid::{Aggregation, Cycle, K_CYCLE_MIN_NODES, Multigrid, MultigridE
 pub use par::{ROW_CHUNK, dot};
 pub use pcg::{Pcg, PcgError, PcgInfo, PcgParams};
 pub use precond::{Preconditioner, PreconditionerKind};
+pub use scalar_cholesky::{CholeskyError, ScalarCholesky};
 
 /// A 3-vector of `f64` (one particle's position, velocity or force).
 pub type Vec3 = nalgebra::Vector3<f64>;

@@ -274,6 +274,12 @@ impl BenchArgs {
     /// The command line that reproduces this run.
     fn command(&self) -> String {
         let mut c = String::from("cargo run --release -p cloth-tools -- bench table1");
+        if self.threads != 2 {
+            c += &format!(" --threads {}", self.threads);
+        }
+        if self.repeat != 3 {
+            c += &format!(" --repeat {}", self.repeat);
+        }
         if self.name != "table1" {
             c += &format!(" --name {}", self.name);
         }

@@ -3,7 +3,8 @@
 //! body engine plugs in), the step's stages (`pipeline.rs`: loads,
 //! collision, assemble, solve, respond, balance, commit, finish), the
 //! integrators behind the [`crate::Integrator`] trait (implicit with
-//! filtered PCG, explicit, matrix-free, the vertex solver [`vbd`]) found by
+//! filtered PCG, explicit, matrix-free, the vertex solver [`vbd`], the
+//! quasi-Newton minimisation [`quasi_newton`]) found by
 //! name in a registry, and [`crate::Simulation`], which owns model, state,
 //! control, the integrator and what each stage hands on.
 
@@ -17,6 +18,7 @@ pub(crate) mod loads;
 pub(crate) mod matrix_free;
 pub(crate) mod params;
 pub(crate) mod pipeline;
+pub(crate) mod quasi_newton;
 pub(crate) mod registry;
 pub(crate) mod report;
 pub(crate) mod sim;

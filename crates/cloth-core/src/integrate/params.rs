@@ -21,7 +21,7 @@ pub(crate) const SETTLING_ITERATIONS: usize = 4;
 /// refused). The PCG settings are shared by every assembled implicit step;
 /// each algorithm's own settings are a table of their own
 /// (`[solver.newton]`, `[solver.contacts]`, `[solver.adaptive]`,
-/// `[solver.vbd]`).
+/// `[solver.vbd]`, `[solver.quasi_newton]`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SolverParams {
@@ -57,6 +57,9 @@ pub struct SolverParams {
     pub adaptive: AdaptiveParams,
     /// The vertex solver's settings (`[solver.vbd]`; `vbd` only).
     pub vbd: VbdParams,
+    /// The quasi-Newton integrator's settings (`[solver.quasi_newton]`;
+    /// `quasi-newton` only).
+    pub quasi_newton: QuasiNewtonParams,
 }
 
 impl SolverParams {
@@ -80,7 +83,8 @@ impl SolverParams {
         let within = |table: &str, r: Result<(), FieldError>| r.map_err(|e| e.within(table));
         within("newton", self.newton.validate())?;
         within("adaptive", self.adaptive.validate())?;
-        within("vbd", self.vbd.validate())
+        within("vbd", self.vbd.validate())?;
+        within("quasi_newton", self.quasi_newton.validate())
     }
 }
 
@@ -101,6 +105,7 @@ impl Default for SolverParams {
             contacts: ContactSetParams::default(),
             adaptive: AdaptiveParams::default(),
             vbd: VbdParams::default(),
+            quasi_newton: QuasiNewtonParams::default(),
         }
     }
 }
@@ -290,15 +295,52 @@ impl Default for VbdParams {
 impl VbdParams {
     /// Checks the settings; names the first bad field.
     pub fn validate(&self) -> Result<(), FieldError> {
-        if self.iterations == 0 {
-            return Err(FieldError::new("iterations", "must be >= 1"));
-        }
-        if !(self.tolerance_m.is_finite() && self.tolerance_m >= 0.0) {
-            return Err(FieldError::new("tolerance_m", format!("must be finite and >= 0, got {}", self.tolerance_m)));
-        }
+        check_iterations_and_tolerance(self.iterations, self.tolerance_m)?;
         if !(0.0..1.0).contains(&self.chebyshev_rho) {
             return Err(FieldError::new("chebyshev_rho", format!("must be in [0, 1), got {}", self.chebyshev_rho)));
         }
         Ok(())
     }
+}
+
+/// Settings of the quasi-Newton integrator (`[solver.quasi_newton]` in a
+/// scene).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct QuasiNewtonParams {
+    /// Most L-BFGS iterations (line searches) per step. Default 50: at 20
+    /// a cloth draped on a mesh kept particles jumping at 2.8 m/s
+    /// (`docs/results/quasi-newton.md`).
+    pub iterations: usize,
+    /// `(s, y)` pairs the L-BFGS history keeps; it restarts each step.
+    /// Default 5 (Liu, Bouaziz & Kavan 2017).
+    pub history: usize,
+    /// Stop once the gradient of the step's potential, as a distance
+    /// (`max_i |g_i| h^2 / m_i`: how far particle `i` would still move
+    /// under its unbalanced force alone), is below this, m. Default 1e-6.
+    pub tolerance_m: f64,
+}
+
+impl Default for QuasiNewtonParams {
+    fn default() -> Self {
+        Self { iterations: 50, history: 5, tolerance_m: 1e-6 }
+    }
+}
+
+impl QuasiNewtonParams {
+    /// Checks the settings; names the first bad field.
+    pub fn validate(&self) -> Result<(), FieldError> {
+        check_iterations_and_tolerance(self.iterations, self.tolerance_m)
+    }
+}
+
+/// A minimiser's `iterations` (>= 1) and `tolerance_m` (finite, >= 0).
+fn check_iterations_and_tolerance(iterations: usize, tolerance_m: f64) -> Result<(), FieldError> {
+    if iterations == 0 {
+        return Err(FieldError::new("iterations", "must be >= 1"));
+    }
+    if !(tolerance_m.is_finite() && tolerance_m >= 0.0) {
+        return Err(FieldError::new("tolerance_m", format!("must be finite and >= 0, got {tolerance_m}")));
+    }
+    Ok(())
 }

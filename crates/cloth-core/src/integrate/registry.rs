@@ -5,6 +5,7 @@
 use super::explicit::{Explicit, Method};
 use super::implicit::{BackwardEuler, Bdf2};
 use super::matrix_free::BackwardEulerFixedCg;
+use super::quasi_newton::QuasiNewton;
 use super::step::Integrator;
 use super::vbd::Vbd;
 use serde::{Deserialize, Serialize};
@@ -39,6 +40,12 @@ pub enum IntegratorKind {
     /// sweeps of per-particle Newton steps ([`crate::Vbd`]); the sweeps
     /// are [`SolverParams::vbd`](crate::SolverParams::vbd)'s.
     Vbd,
+    /// Quasi-Newton (`quasi-newton`), Liu, Bouaziz & Kavan (2017): backward
+    /// Euler's incremental potential minimised by L-BFGS with a
+    /// prefactored mass-plus-Laplacian initial Hessian
+    /// ([`crate::QuasiNewton`]); its settings are
+    /// [`SolverParams::quasi_newton`](crate::SolverParams::quasi_newton)'s.
+    QuasiNewton,
 }
 
 /// One built-in integrator: its kind, its name in scene files, and how
@@ -51,7 +58,7 @@ struct Entry {
 
 /// Every built-in integrator, in [`IntegratorKind::ALL`]'s order. One line
 /// an integrator.
-const REGISTRY: [Entry; 9] = [
+const REGISTRY: [Entry; 10] = [
     explicit(IntegratorKind::ForwardEuler, Method::ForwardEuler),
     explicit(IntegratorKind::SymplecticEuler, Method::SymplecticEuler),
     explicit(IntegratorKind::Midpoint, Method::Midpoint),
@@ -65,6 +72,7 @@ const REGISTRY: [Entry; 9] = [
     },
     Entry { kind: IntegratorKind::Bdf2, name: Bdf2::NAME, build: || Box::<Bdf2>::default() },
     Entry { kind: IntegratorKind::Vbd, name: Vbd::NAME, build: || Box::<Vbd>::default() },
+    Entry { kind: IntegratorKind::QuasiNewton, name: QuasiNewton::NAME, build: || Box::<QuasiNewton>::default() },
 ];
 
 /// The entry of an explicit method.
@@ -81,7 +89,7 @@ const fn explicit(kind: IntegratorKind, method: Method) -> Entry {
 
 impl IntegratorKind {
     /// Every kind, in the order above.
-    pub const ALL: [IntegratorKind; 9] = [
+    pub const ALL: [IntegratorKind; 10] = [
         IntegratorKind::ForwardEuler,
         IntegratorKind::SymplecticEuler,
         IntegratorKind::Midpoint,
@@ -91,6 +99,7 @@ impl IntegratorKind {
         IntegratorKind::BackwardEulerFixedCg,
         IntegratorKind::Bdf2,
         IntegratorKind::Vbd,
+        IntegratorKind::QuasiNewton,
     ];
 
     fn entry(self) -> &'static Entry {

@@ -70,7 +70,8 @@ pub struct StepReport {
     /// step was retaken with [`NewtonParams::auto_iterations`](crate::NewtonParams::auto_iterations) Newton
     /// iterations (reported in `newton`).
     pub retaken_with_newton: bool,
-    /// Sweeps of the vertex solver (`vbd`; 0 for the others).
+    /// Sweeps of the vertex solver (`vbd`), L-BFGS iterations of
+    /// `quasi-newton`; 0 for the others.
     pub descent_iterations: usize,
 }
 
@@ -116,6 +117,17 @@ pub enum StepError {
         time_s: f64,
         /// The solver's error.
         source: PcgError,
+    },
+    /// The quasi-Newton step's initial Hessian could not be factored (a
+    /// free particle without mass or links).
+    #[error("step {step} (t = {time_s} s): the quasi-Newton initial Hessian: {source}")]
+    Factor {
+        /// Index of the failed step (1-based).
+        step: u64,
+        /// Time at the start of the step, s.
+        time_s: f64,
+        /// The factor's error.
+        source: cloth_linalg::CholeskyError,
     },
     /// The new state is not finite.
     #[error("step {step} (t = {time_s} s): particle {particle} has a non-finite {quantity}")]
@@ -164,8 +176,8 @@ pub enum StepError {
         attempts: usize,
     },
     /// The model asks for self-collision, which only `backward-euler`,
-    /// `bdf2` (assembled) and `vbd` (in its sweeps) handle.
-    #[error("integrator {integrator} does not handle self-collisions: use backward-euler, bdf2 or vbd")]
+    /// `bdf2` (assembled), `vbd` and `quasi-newton` (in their minimisation) handle.
+    #[error("integrator {integrator} does not handle self-collisions: use backward-euler, bdf2, vbd or quasi-newton")]
     SelfCollisionNeedsMatrix {
         /// The integrator's scene name.
         integrator: &'static str,

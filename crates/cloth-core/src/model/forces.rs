@@ -83,6 +83,42 @@ pub fn forces_into(
     }
 }
 
+/// The dampers' forms along `p` (m) at `(x, v)`: `(v^T C p, p^T C p)`
+/// (J, J s) with `C = -df/dv` the drag, the link dampers along the links'
+/// directions at `x` (m) and the stitch dashpots: the damping's part of an
+/// implicit step's potential along a line, with its directions frozen
+/// there. `stitches_closed` as for [`crate::ClothState::stitches_closed`].
+pub(crate) fn damping_forms(
+    model: &ClothModel,
+    x: &[Vec3],
+    v: &[Vec3],
+    p: &[Vec3],
+    stitches_closed: &[bool],
+) -> (f64, f64) {
+    let (mut vcp, mut pcp) = (0.0, 0.0);
+    for i in 0..p.len() {
+        let drag = model.drag(i);
+        vcp += drag * v[i].dot(&p[i]);
+        pcp += drag * p[i].norm_squared();
+    }
+    for l in model.stretch_links().iter().filter(|l| l.k_d > 0.0) {
+        let (i, j) = (l.i as usize, l.j as usize);
+        let e = (x[j] - x[i]).normalize();
+        let (dv, dp) = (e.dot(&(v[j] - v[i])), e.dot(&(p[j] - p[i])));
+        if dv.is_finite() && dp.is_finite() {
+            vcp += l.k_d * dv * dp;
+            pcp += l.k_d * dp * dp;
+        }
+    }
+    for (s, &closed) in model.stitches().iter().zip(stitches_closed) {
+        let (i, j) = (s.i as usize, s.j as usize);
+        let c = s.dashpot(closed);
+        vcp += c * (v[j] - v[i]).dot(&(p[j] - p[i]));
+        pcp += c * (p[j] - p[i]).norm_squared();
+    }
+    (vcp, pcp)
+}
+
 /// Total force on every particle at `(x, v)`: elastic, damping and
 /// gravity, N. `stitches_closed` as for [`crate::ClothState::stitches_closed`].
 pub fn total_forces(model: &ClothModel, x: &[Vec3], v: &[Vec3], stitches_closed: &[bool]) -> Vec<Vec3> {

@@ -62,7 +62,7 @@ use crate::contacts::{
     SolidContact, contact_friction_potential, contact_penalty_energy, contact_penalty_stiffness,
     linearise_contact_friction, penalty_contacts, penalty_watch,
 };
-use crate::forces::{EnergyBuffers, elastic_energy};
+use crate::forces::{EnergyBuffers, damping_forms, elastic_energy};
 use crate::integrate::timer::{Stage, StageTimer};
 use crate::system::SystemTerms;
 use crate::system::{SystemBuffers, assemble};
@@ -534,10 +534,10 @@ impl<'a> Line<'a> {
             // (u - y0).p = -y.p
             q1 += -m * y[i].dot(&p[i]) - c_f * load.dot(&p[i]);
             q2 += 0.5 * m * p[i].norm_squared();
-            // Drag and squeezed-particle friction: (c_f/b) 1/2 v^T C v.
-            let (drag, cp) = (model.drag(i), extra.friction.map_or(Vec3::zeros(), |c| c[i] * p[i]));
-            q1 += c_f * (drag * v[i].dot(&p[i]) + v[i].dot(&cp));
-            q2 += 0.5 * c_f * b * (drag * p[i].norm_squared() + p[i].dot(&cp));
+            // Squeezed-particle friction: (c_f/b) 1/2 v^T C v.
+            let cp = extra.friction.map_or(Vec3::zeros(), |c| c[i] * p[i]);
+            q1 += c_f * v[i].dot(&cp);
+            q2 += 0.5 * c_f * b * p[i].dot(&cp);
         }
         if let Some((diag, couplings, x0)) = extra.self_contacts {
             // Positions move by `a alpha p`: c_f (K d).p and c_f a p^T K p / 2.
@@ -549,23 +549,10 @@ impl<'a> Line<'a> {
             q1 += c_f * (couplings.bilinear(p, x) - couplings.bilinear(p, x0));
             q2 += 0.5 * c_f * a * couplings.bilinear(p, p);
         }
-        // Link dampers `k_d (e.(v_j - v_i))^2`, directions frozen at the iterate.
-        for l in model.stretch_links().iter().filter(|l| l.k_d > 0.0) {
-            let (i, j) = (l.i as usize, l.j as usize);
-            let e = (x[j] - x[i]).normalize();
-            let (dv, dp) = (e.dot(&(v[j] - v[i])), e.dot(&(p[j] - p[i])));
-            if dv.is_finite() && dp.is_finite() {
-                q1 += c_f * l.k_d * dv * dp;
-                q2 += 0.5 * c_f * b * l.k_d * dp * dp;
-            }
-        }
-        // Stitch dashpots `c |v_j - v_i|^2`.
-        for (s, &closed) in model.stitches().iter().zip(extra.stitches_closed) {
-            let (i, j) = (s.i as usize, s.j as usize);
-            let (dv, dp, c) = (v[j] - v[i], p[j] - p[i], s.dashpot(closed));
-            q1 += c_f * c * dv.dot(&dp);
-            q2 += 0.5 * c_f * b * c * dp.norm_squared();
-        }
+        // Drag, link dampers and stitch dashpots, directions frozen at the iterate.
+        let (vcp, pcp) = damping_forms(model, x, v, p, extra.stitches_closed);
+        q1 += c_f * vcp;
+        q2 += 0.5 * c_f * b * pcp;
         let contacts = extra.contacts.map(|(c, watch)| {
             let penalty = contact_penalty_energy(c, model, extra.h, x, p, 0.0)
                 + contact_penalty_energy(watch, model, extra.h, x, p, 0.0);

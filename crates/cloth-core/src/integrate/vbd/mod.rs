@@ -17,9 +17,9 @@
 //! lagged, smoothed Coulomb friction (IPC), and per-particle bounds on each
 //! local step keep particles out of solids (its `contact` module).
 
-mod self_pairs;
+pub(crate) mod self_pairs;
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;
 
 use super::step::{Capabilities, ContactHandling, Integrator, Step, StepOutput};
 use super::timer::{Stage, StageTimer};
@@ -306,29 +306,15 @@ impl Integrator for Vbd {
         out: &mut StepOutput,
         timer: &mut StageTimer,
     ) -> Result<StepReport, StepError> {
-        let Step { model, state, control, h, solver, loads, .. } = *step;
+        let Step { model, state, h, solver, loads, .. } = *step;
         let params = solver.vbd;
         let b = self.buffers.get_or_insert_with(|| Box::new(VbdBuffers::new(model)));
         let n = state.len();
         let (xn, vn) = (&state.x[..], &state.v[..]);
         let gravity = model.effects().gravity.unwrap_or_else(Vec3::zeros);
         let lap = timer.start();
-        for (inertial, v) in b.inertial.iter_mut().zip(vn) {
-            *inertial = v * h;
-        }
-        b.fixed.iter_mut().for_each(|f| *f = false);
-        let paths = PinPaths::new(model, control, xn, state.time_s, h);
-        for k in 0..paths.count() {
-            b.fixed[paths.particle(k)] = true;
-        }
-        // The self pairs the collision stage found, as penalties.
-        b.pairs.clear();
-        let self_thickness = model.self_collision().map_or(0.0, |sc| sc.thickness_m);
-        if let Some(sc) = model.self_collision() {
-            let repelling = contacts.self_pairs.iter().filter(|c| c.repels);
-            b.pairs.extend(repelling.map(|c| SelfPair::of(c, sc.stiffness_n_m)));
-        }
-        b.index.rebuild(n, &b.pairs);
+        let (paths, self_thickness) =
+            start_step(step, contacts, (&mut b.inertial, &mut b.fixed), (&mut b.pairs, &mut b.index));
         timer.stop(lap, Stage::Update);
         let thickness = model.contact_thickness();
         let common = Common {
@@ -468,11 +454,41 @@ impl Integrator for Vbd {
     }
 }
 
+/// What both minimisers (`vbd`, `quasi-newton`) set up at a step's start:
+/// each particle's displacement under inertia alone, `h v_n` (m), which
+/// particles are prescribed, and the self pairs the collision stage found
+/// as penalties, indexed by particle. Returns the prescribed paths and the
+/// self-collision thickness, m.
+pub(crate) fn start_step<'a>(
+    step: &Step<'a>,
+    contacts: &Contacts,
+    (inertial, fixed): (&mut [Vec3], &mut [bool]),
+    (pairs, index): (&mut Vec<SelfPair>, &mut PairIndex),
+) -> (PinPaths<'a>, f64) {
+    let Step { model, state, control, h, .. } = *step;
+    for (inertial, v) in inertial.iter_mut().zip(&state.v) {
+        *inertial = v * h;
+    }
+    fixed.iter_mut().for_each(|f| *f = false);
+    let paths = PinPaths::new(model, control, &state.x, state.time_s, h);
+    for k in 0..paths.count() {
+        fixed[paths.particle(k)] = true;
+    }
+    pairs.clear();
+    let self_thickness = model.self_collision().map_or(0.0, |sc| sc.thickness_m);
+    if let Some(sc) = model.self_collision() {
+        let repelling = contacts.self_pairs.iter().filter(|c| c.repels);
+        pairs.extend(repelling.map(|c| SelfPair::of(c, sc.stiffness_n_m)));
+    }
+    index.rebuild(state.len(), pairs);
+    (paths, self_thickness)
+}
+
 /// The share of the contact thickness no local step may carry a particle
 /// below. Not 0: a particle left exactly on a surface has no direction to
 /// it, and the next step's closest point then gave a wrong normal (the
 /// table fixture's rim let particles 2 cm into the top).
-const SOLID_FLOOR: f64 = 0.5;
+pub(crate) const SOLID_FLOOR: f64 = 0.5;
 
 /// Particles a task of one colour's sweep takes at a time.
 const MOVE_CHUNK: usize = 32;

@@ -21,7 +21,7 @@ pub(crate) struct SelfPair {
 
 impl SelfPair {
     /// The pair of a detected self contact, with penalty stiffness `k` (N/m).
-    pub(super) fn of(c: &SelfContact, k: f64) -> Self {
+    pub(crate) fn of(c: &SelfContact, k: f64) -> Self {
         let [a, b, e] = c.others;
         let [wa, wb, we] = c.weights;
         Self {
@@ -33,13 +33,13 @@ impl SelfPair {
     }
 
     /// The gap at `x`, m.
-    pub(super) fn gap(&self, x: &[Vec3]) -> f64 {
+    pub(crate) fn gap(&self, x: &[Vec3]) -> f64 {
         let p: Vec3 = (0..4).map(|k| x[self.nodes[k] as usize] * self.coefficients[k]).sum();
         self.direction.dot(&p)
     }
 
     /// Force on the pair's slot `slot` (N) and its stiffness block (N/m) at `x`.
-    pub(super) fn force_on(&self, slot: usize, x: &[Vec3], thickness: f64) -> (Vec3, Mat3) {
+    pub(crate) fn force_on(&self, slot: usize, x: &[Vec3], thickness: f64) -> (Vec3, Mat3) {
         let (_, push) = contact_penalty(self.gap(x), thickness, self.stiffness_n_m);
         if push == 0.0 {
             return (Vec3::zeros(), Mat3::zeros());
@@ -61,7 +61,7 @@ pub(crate) struct PairIndex {
 impl PairIndex {
     /// Rebuilds the index of `pairs` over `n` particles (no allocation
     /// once the buffers have grown).
-    pub(super) fn rebuild(&mut self, n: usize, pairs: &[SelfPair]) {
+    pub(crate) fn rebuild(&mut self, n: usize, pairs: &[SelfPair]) {
         self.start.clear();
         self.start.resize(n + 1, 0);
         fn slots(p: &SelfPair) -> impl Iterator<Item = usize> + '_ {
@@ -89,7 +89,7 @@ impl PairIndex {
     }
 
     /// Particle `i`'s pairs and slots.
-    pub(super) fn of(&self, i: usize) -> &[(u32, u8)] {
+    pub(crate) fn of(&self, i: usize) -> &[(u32, u8)] {
         if self.start.len() <= i + 1 {
             return &[];
         }
