@@ -16,13 +16,16 @@
 //!
 //! Contacts are energies in the same minimisation, as for the vertex
 //! solver: each particle's nearby solid planes with penalty and lagged,
-//! smoothed Coulomb friction (Li et al. 2020), and the self-collision pairs
-//! the collision stage found. Their stiffness is not in the prefactored
-//! matrix; the history learns it. A step along a direction is cut so that
-//! no particle comes closer to a plane than half the contact thickness,
-//! no self pair closes more than half its gap, and no particle leaves the
-//! ball free of other solids; a particle that reaches its ball looks
-//! around again and the history restarts.
+//! smoothed Coulomb friction (Li et al. 2020), the normal forces lagged
+//! from the first guess and once more from the iterate the step converges
+//! with, and the self-collision pairs the collision stage found.
+//! Friction's sticking stiffness joins the initial Hessian's diagonal; the
+//! penalties' act along their normals alone and are left to the history.
+//! The search is projected: each particle moves at most as far as its
+//! bounds let it (no closer to a plane than half the contact thickness,
+//! no self pair closing by more than half its gap, inside the ball free
+//! of other solids); a particle that reaches its ball looks around again
+//! and the history restarts. Measurements: `docs/results/quasi-newton.md`.
 //!
 //! A pair `(s, y)` with `s . y <= 0` (a concave stretch of the energy:
 //! compressed links buckling) is skipped, as Liu et al. advise.
@@ -93,29 +96,36 @@ impl History {
         (self.head + k) % self.s.len()
     }
 
-    /// Keeps `s = d - d_prev`, `y = g - g_prev` if `s . y > 0`; whether kept.
+    /// Keeps `s = d - d_prev`, `y = g - g_prev` if `s . y > 0`, in place of
+    /// the oldest pair when full; whether kept. A refused pair written over
+    /// the oldest drops it.
     fn push(&mut self, d: &[Vec3], d_prev: &[Vec3], g: &[Vec3], g_prev: &[Vec3]) -> bool {
         let capacity = self.s.len();
         if capacity == 0 {
             return false;
         }
-        let k = if self.len < capacity { self.slot(self.len) } else { self.head };
+        let full = self.len == capacity;
+        let k = if full { self.head } else { self.slot(self.len) };
         for (((s, y), (a, b)), (c, e)) in
             self.s[k].iter_mut().zip(self.y[k].iter_mut()).zip(d.iter().zip(d_prev)).zip(g.iter().zip(g_prev))
         {
             (*s, *y) = (a - b, c - e);
         }
         let sy = dot(&self.s[k], &self.y[k]);
-        if sy.is_nan() || sy <= 1e-300 || !sy.is_finite() {
-            return false;
+        let kept = sy.is_finite() && sy > 1e-300;
+        if kept {
+            self.rho[k] = 1.0 / sy;
         }
-        self.rho[k] = 1.0 / sy;
-        if self.len < capacity {
-            self.len += 1;
-        } else {
-            self.head = (self.head + 1) % capacity;
+        match (full, kept) {
+            (false, true) => self.len += 1,
+            (true, true) => self.head = (self.head + 1) % capacity,
+            (true, false) => {
+                self.head = (self.head + 1) % capacity;
+                self.len -= 1;
+            }
+            (false, false) => {}
         }
-        true
+        kept
     }
 
     /// `r = H g` by the two-loop recursion with `H0^-1` from `h0`.

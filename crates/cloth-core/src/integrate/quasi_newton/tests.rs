@@ -159,3 +159,47 @@ fn one_and_two_threads_give_the_same_bits() {
     };
     assert!(same(&one.x, &two.x) && same(&one.v, &two.v));
 }
+
+/// The history's two-loop recursion meets the newest pair's secant
+/// equation `H y = s`, and a refused pair (`s . y <= 0`) written over the
+/// oldest of a full history drops that pair: what is left acts as a
+/// history of the kept pairs alone.
+#[test]
+fn the_history_keeps_the_secant_pairs_and_drops_a_refused_one() {
+    let model = ClothModel::builder().grid([3, 3], [0.2, 0.2]).kind(ModelKind::Provot).build().unwrap();
+    let n = model.particle_count();
+    let mut hessian = InitialHessian::new(&model, &[]).unwrap();
+    hessian.prepare(&model, 0.01, &vec![false; n], &vec![0.0; n]).unwrap();
+    let field = |a: f64| -> Vec<Vec3> {
+        (0..n).map(|i| Vec3::new((a * i as f64).sin(), (a + 0.3 * i as f64).cos(), 0.1 * a * i as f64)).collect()
+    };
+    let zeros = vec![Vec3::zeros(); n];
+    // y = B s with B diagonal and positive: s . y > 0.
+    let pair = |a: f64| {
+        let s = field(a);
+        let y: Vec<Vec3> = s.iter().enumerate().map(|(i, v)| v * (1.0 + i as f64)).collect();
+        (s, y)
+    };
+    let mut history = History::new(2, n);
+    for a in [0.7, 1.3, 2.1] {
+        let (s, y) = pair(a);
+        assert!(history.push(&s, &zeros, &y, &zeros));
+    }
+    let (s3, y3) = pair(2.1);
+    let mut r = zeros.clone();
+    history.apply(&y3, &mut r, &mut hessian);
+    let secant = largest_difference(&r, &s3) / s3.iter().map(|v| v.norm()).fold(0.0, f64::max);
+    assert!(secant < 1e-12, "H y = s off by {secant:e}");
+    // A refused pair: y = -s.
+    let s4 = field(3.3);
+    let y4: Vec<Vec3> = s4.iter().map(|v| -v).collect();
+    assert!(!history.push(&s4, &zeros, &y4, &zeros));
+    assert_eq!(history.len, 1);
+    let mut only = History::new(2, n);
+    only.push(&s3, &zeros, &y3, &zeros);
+    let g = field(0.4);
+    let (mut a, mut b) = (zeros.clone(), zeros.clone());
+    history.apply(&g, &mut a, &mut hessian);
+    only.apply(&g, &mut b, &mut hessian);
+    assert_eq!(largest_difference(&a, &b), 0.0);
+}
