@@ -6,7 +6,7 @@
 //! (the idea of Offset Geometric Contact; Chen et al. 2025), with no
 //! continuous collision detection and no active set.
 
-use super::contacts::{Plane, SolidPose, Surroundings, contact_penalty, smoothed_friction};
+use super::contacts::{Plane, SolidPose, Surroundings, contact_penalty, contact_penalty_stiffness, smoothed_friction};
 use crate::{ClothModel, Mat3, Vec3};
 
 impl Plane {
@@ -111,6 +111,26 @@ pub(crate) fn plane_force(plane: &Plane, x: &Vec3, v: &Vec3, k: f64, thickness: 
         stiffness += tangent * (friction_secant(slip.norm(), limit, eps) / h);
     }
     (force, stiffness)
+}
+
+/// Lags friction's normal forces (Li et al. 2020): each plane of
+/// `around` takes the penalty's push (N) at its particle's position in `x`
+/// (m), for a step of `h` s and the contact `thickness` (m), and holds it
+/// until the next lag.
+pub(crate) fn lag_normal_forces(model: &ClothModel, around: &mut [Surroundings], x: &[Vec3], h: f64, thickness: f64) {
+    for (i, a) in around.iter_mut().enumerate() {
+        let k = contact_penalty_stiffness(model.masses()[i], h);
+        for p in a.planes.iter_mut().flatten() {
+            p.lagged_normal_n = contact_penalty(p.gap(&x[i]), thickness, k).1;
+        }
+    }
+}
+
+/// The share of a move (in `[0, 1]`) that keeps a gap `gap` (m), which
+/// the whole move changes by `change` (m), from going below `bound` (m):
+/// 1 when the move stays above it. The minimisers' conservative bounds.
+pub(crate) fn share_to_bound(gap: f64, change: f64, bound: f64) -> f64 {
+    if change < 0.0 && gap + change < bound { ((bound - gap) / change).max(0.0) } else { 1.0 }
 }
 
 /// The friction's secant coefficient `mu N f1(s) / s` at slip speed `s`

@@ -39,7 +39,7 @@ use super::timer::{Stage, StageTimer};
 use super::vbd::self_pairs::{PairIndex, SelfPair};
 use super::vbd::{SOLID_FLOOR, start_step};
 use crate::contacts::{FRICTION_SMOOTHING_M_S, contact_penalty, contact_penalty_stiffness, plane_force};
-use crate::contacts::{Surroundings, friction_secant, smoothed_slip};
+use crate::contacts::{Surroundings, friction_secant, lag_normal_forces, share_to_bound, smoothed_slip};
 use crate::forces::{EnergyBuffers, damping_forms, elastic_energy, forces_into};
 use crate::terms::ForceBuffers;
 use crate::{ClothModel, StepError, StepReport, Vec3};
@@ -310,11 +310,8 @@ fn contact_stiffness(around: &Surroundings, x: Vec3, m: f64, h: f64, thickness: 
 fn particle_limit(around: &Surroundings, x: Vec3, dx: Vec3, floor: f64) -> (f64, bool) {
     let mut share = 1.0_f64;
     for plane in around.planes.iter().flatten() {
-        let (gap, change) = (plane.gap(&x), plane.normal.dot(&dx));
-        let bound = gap.min(floor);
-        if change < 0.0 && gap + change < bound {
-            share = share.min(((bound - gap) / change).max(0.0));
-        }
+        let gap = plane.gap(&x);
+        share = share.min(share_to_bound(gap, plane.normal.dot(&dx), gap.min(floor)));
     }
     if around.radius_m.is_finite() {
         let (a, r) = (dx.norm_squared(), x - around.centre);
@@ -331,9 +328,8 @@ fn particle_limit(around: &Surroundings, x: Vec3, dx: Vec3, floor: f64) -> (f64,
 
 /// The largest share of `p` a self pair allows: its gap closes by at most half.
 fn pair_limit(pair: &SelfPair, x: &[Vec3], p: &[Vec3]) -> f64 {
-    let (gap, change) = (pair.gap(x), pair.gap(p));
-    let bound = (0.5 * gap).min(gap);
-    if change < 0.0 && gap + change < bound { ((bound - gap) / change).max(0.0) } else { 1.0 }
+    let gap = pair.gap(x);
+    share_to_bound(gap, pair.gap(p), (0.5 * gap).min(gap))
 }
 
 impl Integrator for QuasiNewton {
@@ -415,12 +411,7 @@ impl Integrator for QuasiNewton {
             // first guess, and once more from the iterate the step
             // converges with (or reaches half its iterations with).
             if iterations == 0 || relag {
-                for (i, a) in contacts.around.iter_mut().enumerate() {
-                    let k = contact_penalty_stiffness(masses[i], h);
-                    for p in a.planes.iter_mut().flatten() {
-                        p.lagged_normal_n = contact_penalty(p.gap(&b.x[i]), thickness, k).1;
-                    }
-                }
+                lag_normal_forces(model, &mut contacts.around, &b.x, h, thickness);
                 relag = false;
             }
             let common = Common {

@@ -25,7 +25,8 @@ use super::step::{Capabilities, ContactHandling, Integrator, Step, StepOutput};
 use super::timer::{Stage, StageTimer};
 use crate::colouring::Colouring;
 use crate::contacts::{
-    Contacts, FRICTION_SMOOTHING_M_S, Surroundings, contact_penalty, contact_penalty_stiffness, plane_force,
+    Contacts, FRICTION_SMOOTHING_M_S, Surroundings, contact_penalty, contact_penalty_stiffness, lag_normal_forces,
+    plane_force, share_to_bound,
 };
 use crate::control::PinPaths;
 use crate::terms::{At, acting};
@@ -260,11 +261,7 @@ impl<'a> Local<'a> {
     fn bounded(&self, i: usize, mut dx: Vec3) -> (Vec3, bool) {
         let from = self.x[i];
         let mut share = 1.0_f64;
-        let mut keep = |gap: f64, change: f64, floor: f64| {
-            if change < 0.0 && gap + change < floor {
-                share = share.min(((floor - gap) / change).max(0.0));
-            }
-        };
+        let mut keep = |gap: f64, change: f64, floor: f64| share = share.min(share_to_bound(gap, change, floor));
         let floor = SOLID_FLOOR * self.common.thickness;
         for plane in self.around[i].planes.iter().flatten() {
             let gap = plane.gap(&from);
@@ -367,12 +364,7 @@ impl Integrator for Vbd {
         for sweep in 1..=params.iterations {
             sweeps = sweep;
             // The friction's normal forces, lagged from the sweep's start.
-            for (i, a) in contacts.around.iter_mut().enumerate() {
-                let k = contact_penalty_stiffness(model.masses()[i], h);
-                for p in a.planes.iter_mut().flatten() {
-                    p.lagged_normal_n = contact_penalty(p.gap(&b.x[i]), thickness, k).1;
-                }
-            }
+            lag_normal_forces(model, &mut contacts.around, &b.x, h, thickness);
             let mut largest = 0.0_f64;
             for c in 0..b.colouring.len() {
                 let group = &b.colouring.groups()[c];
