@@ -31,6 +31,12 @@ pub enum CholeskyError {
         /// The matrix's order.
         n: usize,
     },
+    /// An off-diagonal pair names one row twice.
+    #[error("pair ({row}, {row}) is on the diagonal, not off it")]
+    OnDiagonal {
+        /// The row.
+        row: usize,
+    },
     /// The matrix is not numerically positive definite.
     #[error("the matrix is not positive definite (pivot {pivot} of the ordered matrix)")]
     NotPositiveDefinite {

@@ -33,13 +33,19 @@
 //! like a link when they would pull it in. Projected apart from them,
 //! links shortened along their chords through a solid's curve, and the
 //! projection out of the solids that followed stretched them again (the
-//! T-shirt's armpit, `docs/garments.md`). The system is solved by Jacobi-preconditioned
-//! conjugate gradients without assembly; every loop is serial in a fixed
-//! order, so the result is the same on any thread count.
+//! T-shirt's armpit, `docs/garments.md`). The system is small (the
+//! violated links and their neighbours, a few hundred rows) and changes
+//! with every projection: it is assembled and factored directly
+//! ([`EnvelopeCholesky`]), and solved by Jacobi-preconditioned conjugate
+//! gradients without assembly where its envelope is too wide for that to
+//! pay. Every loop is serial in a fixed order, so the result is the same
+//! on any thread count.
 
 use super::links::StretchLink;
+use crate::buckets::Buckets;
 use crate::seams::Stitch;
 use crate::{ClothModel, Vec3};
+use cloth_linalg::EnvelopeCholesky;
 
 /// The compliance `a`, relative to the diagonal of `J W J^T`.
 const COMPLIANCE: f64 = 1e-6;
@@ -47,6 +53,14 @@ const COMPLIANCE: f64 = 1e-6;
 const CG_TOLERANCE: f64 = 1e-3;
 /// Most conjugate-gradient iterations per projection.
 const CG_MAX: usize = 200;
+/// The direct factor's largest work ([`EnvelopeCholesky::analyse`]) per
+/// row of the system; wider envelopes are solved by conjugate gradients.
+/// On the garments a gradient solve takes some 70 iterations of about
+/// 9 ns a row, near what a factor of this work per row costs, while
+/// their envelopes hold 2 to 16 entries a row, a work of at most some
+/// 250 (docs/results/stages.md): denser systems (every link of a sheet
+/// violated at once) and envelopes that fill stay iterative.
+const DIRECT_WORK_PER_ROW: usize = 1000;
 /// A particle this close to a solid's bound, m, is held by it from the
 /// start: one that the projection out of the solids left at the
 /// thickness is on its bound, and the linearised links alone would move
@@ -182,6 +196,12 @@ pub(crate) struct ProjectionScratch {
     p: Vec<f64>,
     q: Vec<f64>,
     diag: Vec<f64>,
+    /// The direct solve: the factor, each local particle's rows (where it
+    /// is free) with the sign of their gradient there, and the system's off-diagonal pairs with their values.
+    factor: EnvelopeCholesky,
+    rows_at: Buckets<(u32, f64)>,
+    pairs: Vec<(u32, u32)>,
+    couplings: Vec<f64>,
     /// Per stretch link, then per stitch: in the set since an earlier
     /// projection of this call.
     sticky: Vec<bool>,
@@ -295,7 +315,9 @@ impl ProjectionScratch {
 pub(crate) struct ProjectionReport {
     /// Projections applied.
     pub iterations: usize,
-    /// Conjugate-gradient iterations over all of them.
+    /// Linear solves made by the direct factor.
+    pub direct_solves: usize,
+    /// Conjugate-gradient iterations of the other solves.
     pub cg_iterations: usize,
 }
 
@@ -322,12 +344,12 @@ pub(crate) fn fast_projection(
         if !s.rows.iter().any(|r| r.c > 0.0) {
             break;
         }
-        report.cg_iterations += solve(s);
+        solve(s, &mut report);
         // A held constraint within its limit that the solve would push
         // apart (`lambda < 0`) leaves the set: the bound is one-sided.
         if s.release_pushing() {
             s.gather(model, bounds, &free, x);
-            report.cg_iterations += solve(s);
+            solve(s, &mut report);
         }
         let ProjectionScratch { rows, g, lambda, particles, start, local, .. } = &mut *s;
         ProjectionScratch::gradient_times(rows, lambda, g);
@@ -365,12 +387,66 @@ pub(crate) fn fast_projection(
     report
 }
 
-/// Solves `(J W J^T + a D) lambda = c` into `s.lambda` by Jacobi-
-/// preconditioned conjugate gradients from zero; returns the iterations.
-fn solve(s: &mut ProjectionScratch) -> usize {
-    let n = s.rows.len();
+/// Solves `(J W J^T + a D) lambda = c` into `s.lambda`: directly where
+/// the factor's envelope is narrow, otherwise by conjugate gradients.
+fn solve(s: &mut ProjectionScratch, report: &mut ProjectionReport) {
     s.g.clear();
     s.g.resize(s.particles.len(), Vec3::zeros());
+    if solve_direct(s, DIRECT_WORK_PER_ROW) {
+        report.direct_solves += 1;
+    } else {
+        report.cg_iterations += solve_iteratively(s);
+    }
+}
+
+/// Assembles `J W J^T + a D` and solves it by [`EnvelopeCholesky`];
+/// false (nothing solved) when the factor's work exceeds
+/// `max_work_per_row` times the rows or the factor fails.
+fn solve_direct(s: &mut ProjectionScratch, max_work_per_row: usize) -> bool {
+    let n = s.rows.len();
+    // `(J W J^T)_kl` sums, over the particles rows `k` and `l` share,
+    // the particle's weight times their gradients' product there: the
+    // weights are 1 or 0, so a row is listed at its free ends only.
+    let np = s.particles.len();
+    let ends = |row: &Row| {
+        let [a, b] = row.ends;
+        let first = (a != b && row.w[0] != 0.0).then_some((a, -1.0));
+        first.into_iter().chain((row.w[1] != 0.0).then_some((b, 1.0)))
+    };
+    let rows = &s.rows;
+    s.rows_at.rebuild(np, || {
+        rows.iter().enumerate().flat_map(|(k, row)| ends(row).map(move |(p, sign)| (p as usize, (k as u32, sign))))
+    });
+    s.pairs.clear();
+    s.couplings.clear();
+    for p in 0..np {
+        let here = s.rows_at.of(p);
+        for (x, &(k, sk)) in here.iter().enumerate() {
+            for &(l, sl) in &here[x + 1..] {
+                s.pairs.push((k, l));
+                s.couplings.push(sk * sl * s.rows[k as usize].n.dot(&s.rows[l as usize].n));
+            }
+        }
+    }
+    match s.factor.analyse(n, &s.pairs) {
+        Ok(work) if work <= max_work_per_row.saturating_mul(n) => {}
+        _ => return false,
+    }
+    s.diag.clear();
+    s.diag.extend(s.rows.iter().map(|row| (row.w[0] + row.w[1]) * (1.0 + COMPLIANCE)));
+    if s.factor.factor(&s.diag, &s.couplings).is_err() {
+        return false;
+    }
+    s.lambda.clear();
+    s.lambda.extend(s.rows.iter().map(|row| row.c));
+    s.factor.solve(&mut s.lambda);
+    true
+}
+
+/// Solves `(J W J^T + a D) lambda = c` into `s.lambda` by Jacobi-
+/// preconditioned conjugate gradients from zero; returns the iterations.
+fn solve_iteratively(s: &mut ProjectionScratch) -> usize {
+    let n = s.rows.len();
     let ProjectionScratch { rows, g, lambda, r, z, p, q, diag, .. } = s;
     for buf in [&mut *lambda, &mut *r, &mut *z, &mut *p, &mut *q, &mut *diag] {
         buf.clear();
@@ -466,12 +542,88 @@ mod tests {
         let projected = model.max_stretch_ratio(&x);
         assert!(projected < 1.1 * (1.0 + 4e-6), "after {report:?}: {projected}");
         assert!(report.iterations >= 2, "{report:?}");
+        assert!(report.direct_solves > 0 && report.cg_iterations == 0, "{report:?}");
         for i in 0..x.len() {
             if held(i) {
                 assert_eq!(x[i], stretched[i]);
             }
             assert!((v[i] - (x[i] - stretched[i]) / h).norm() < 1e-9, "particle {i}");
         }
+    }
+
+    /// The projection system at `x`, gathered, with the solids' bounds
+    /// `offset_m` above every third particle.
+    fn gathered(model: &ClothModel, x: &[Vec3], free: impl Fn(usize) -> bool, offset_m: f64) -> ProjectionScratch {
+        let solids: Vec<SolidBound> = (0..x.len())
+            .step_by(3)
+            .map(|i| SolidBound { particle: i as u32, normal: Vec3::z(), offset_m: x[i].z + offset_m })
+            .collect();
+        let b = Bounds { solids: &solids, ..bounds(1.1) };
+        let mut s = ProjectionScratch::default();
+        s.local.resize(x.len(), u32::MAX);
+        s.sticky.resize(model.stretch_links().len() + model.stitches().len() + solids.len(), false);
+        s.gather_all = true;
+        s.gather(model, &b, &free, x);
+        s.g.resize(s.particles.len(), Vec3::zeros());
+        s
+    }
+
+    /// The moves `W J^T lambda` of the last solve, per local particle.
+    fn moves(s: &mut ProjectionScratch) -> Vec<Vec3> {
+        ProjectionScratch::gradient_times(&s.rows, &s.lambda, &mut s.g);
+        s.g.clone()
+    }
+
+    /// The system the direct factor assembles is the matrix-free operator
+    /// the conjugate gradients apply: its solution satisfies that operator
+    /// to rounding (4.2e-11 relative; the compliance leaves it near
+    /// singular) on a stretched, jittered sheet, every link in the set,
+    /// with a held edge (links with one end held) and solid bounds on
+    /// every third particle (one-particle rows).
+    #[test]
+    fn the_direct_solve_satisfies_the_matrix_free_system() {
+        let model = sheet([12, 9], [0.22, 0.16]);
+        let mut noise = noise(11);
+        let x: Vec<Vec3> =
+            model.rest_positions().iter().map(|p| p * 1.25 + Vec3::new(noise(), noise(), noise()) * 0.003).collect();
+        let mut s = gathered(&model, &x, |i| !i.is_multiple_of(12), 0.0005);
+        let n = s.rows.len();
+        assert!(n > 300 && s.rows.iter().any(|r| r.ends[0] == r.ends[1]), "{n} rows");
+        // Every link at once is denser than the garments' systems: its
+        // factor costs more than the gradients, which the step then runs.
+        assert!(!solve_direct(&mut s, DIRECT_WORK_PER_ROW));
+        assert!(solve_direct(&mut s, usize::MAX));
+        let mut y = vec![0.0; n];
+        let diag: Vec<f64> = s.rows.iter().map(|r| r.w[0] + r.w[1]).collect();
+        ProjectionScratch::apply(&s.rows, &diag, &s.lambda, &mut s.g, &mut y);
+        let norm = |v: &mut dyn Iterator<Item = f64>| v.map(|a| a * a).sum::<f64>().sqrt();
+        let residual = norm(&mut y.iter().zip(&s.rows).map(|(y, r)| y - r.c));
+        let rel = residual / norm(&mut s.rows.iter().map(|r| r.c));
+        assert!(rel < 1e-10, "relative residual {rel:e}");
+    }
+
+    /// Where the linearised constraints can all hold (a sheet with some
+    /// particles pulled 6 mm out of place, fewer violated links than
+    /// freedoms round them), the direct solve's moves are those of
+    /// conjugate gradients run to their tolerance: 2.6e-4 apart, relative.
+    #[test]
+    fn the_direct_and_iterative_solves_move_the_particles_alike() {
+        let model = sheet([15, 11], [0.28, 0.2]);
+        let mut noise = noise(3);
+        let mut x = model.rest_positions().to_vec();
+        for i in (20..x.len()).step_by(37) {
+            x[i] += Vec3::new(noise(), noise(), noise()).normalize() * 0.006;
+        }
+        let mut s = gathered(&model, &x, |i| !i.is_multiple_of(15), 0.0002);
+        assert!(s.rows.iter().any(|r| r.ends[0] == r.ends[1]));
+        assert!(solve_direct(&mut s, usize::MAX));
+        let direct = moves(&mut s);
+        let iterations = solve_iteratively(&mut s);
+        assert!(iterations < CG_MAX, "the gradients did not converge");
+        let iterative = moves(&mut s);
+        let size: f64 = direct.iter().map(|g| g.norm_squared()).sum::<f64>().sqrt();
+        let apart: f64 = direct.iter().zip(&iterative).map(|(a, b)| (a - b).norm_squared()).sum::<f64>().sqrt();
+        assert!(apart / size < 5e-4, "{iterations} iterations: {:e} apart", apart / size);
     }
 
     /// Deterministic numbers in [-1, 1) from `seed` (a linear congruential

@@ -2,6 +2,7 @@
 //! stage found ([`crate::contacts::SelfContact`]) as a penalty energy of
 //! the particles it touches, indexed by particle for the local steps.
 
+use crate::buckets::Buckets;
 use crate::contacts::{SelfContact, contact_penalty};
 use crate::{Mat3, Vec3};
 
@@ -50,50 +51,24 @@ impl SelfPair {
     }
 }
 
-/// Per particle, the self pairs it is in (pair index and slot), CSR.
+/// Per particle, the self pairs it is in (pair index and slot).
 #[derive(Debug, Clone, Default)]
-pub(crate) struct PairIndex {
-    start: Vec<u32>,
-    entries: Vec<(u32, u8)>,
-    fill: Vec<u32>,
-}
+pub(crate) struct PairIndex(Buckets<(u32, u8)>);
 
 impl PairIndex {
     /// Rebuilds the index of `pairs` over `n` particles (no allocation
     /// once the buffers have grown).
     pub(crate) fn rebuild(&mut self, n: usize, pairs: &[SelfPair]) {
-        self.start.clear();
-        self.start.resize(n + 1, 0);
-        fn slots(p: &SelfPair) -> impl Iterator<Item = usize> + '_ {
-            (0..4).filter(move |&s| p.coefficients[s] != 0.0)
-        }
-        for p in pairs {
-            for s in slots(p) {
-                self.start[p.nodes[s] as usize + 1] += 1;
-            }
-        }
-        for i in 0..n {
-            self.start[i + 1] += self.start[i];
-        }
-        self.entries.clear();
-        self.entries.resize(self.start[n] as usize, (0, 0));
-        self.fill.clear();
-        self.fill.extend_from_slice(&self.start[..n]);
-        for (k, p) in pairs.iter().enumerate() {
-            for s in slots(p) {
-                let i = p.nodes[s] as usize;
-                self.entries[self.fill[i] as usize] = (k as u32, s as u8);
-                self.fill[i] += 1;
-            }
-        }
+        self.0.rebuild(n, || {
+            pairs.iter().enumerate().flat_map(|(k, p)| {
+                (0..4).filter(|&s| p.coefficients[s] != 0.0).map(move |s| (p.nodes[s] as usize, (k as u32, s as u8)))
+            })
+        });
     }
 
     /// Particle `i`'s pairs and slots.
     pub(crate) fn of(&self, i: usize) -> &[(u32, u8)] {
-        if self.start.len() <= i + 1 {
-            return &[];
-        }
-        &self.entries[self.start[i] as usize..self.start[i + 1] as usize]
+        self.0.of(i)
     }
 }
 
