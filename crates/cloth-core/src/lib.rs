@@ -18,7 +18,6 @@
 //! the laws ([`laws`], [`element_laws`], [`contact_laws`], [`aero_laws`])
 //! and the force-term interface ([`terms`]).
 
-mod buckets;
 mod contact;
 mod field_error;
 #[cfg(test)]

@@ -14,7 +14,7 @@
 //! whose envelope is wide. Every loop is serial in a fixed order, and
 //! the buffers are reused: no allocation once they have grown.
 
-use crate::CholeskyError;
+use crate::{Buckets, CholeskyError};
 
 /// The envelope factor and its ordering; see the module documentation.
 #[derive(Debug, Clone, Default)]
@@ -24,9 +24,8 @@ pub struct EnvelopeCholesky {
     order: Vec<u32>,
     /// `position[i]`: the ordered position of original row `i`.
     position: Vec<u32>,
-    /// Adjacency in compressed rows (original numbering), each pair both ways.
-    adj_ptr: Vec<u32>,
-    adj: Vec<u32>,
+    /// Each row's neighbours (original numbering, sorted), each pair both ways.
+    adj: Buckets<u32>,
     /// Ordered row `r`'s first stored column.
     first: Vec<u32>,
     /// Where ordered row `r`'s segment starts in `env`.
@@ -35,10 +34,8 @@ pub struct EnvelopeCholesky {
     env: Vec<f64>,
     /// For each off-diagonal pair of the last analysis, its slot in `env`.
     slots: Vec<usize>,
-    /// Each row's fill cursor into `adj`, a row's neighbours being
-    /// sorted, and the rows by degree (where each component's search
-    /// starts).
-    cursor: Vec<u32>,
+    /// A row's neighbours being sorted, and the rows by degree (where
+    /// each component's search starts).
     neighbours: Vec<u32>,
     by_degree: Vec<u32>,
     /// Right-hand side in the ordered numbering.
@@ -63,7 +60,8 @@ impl EnvelopeCholesky {
                 return Err(CholeskyError::OnDiagonal { row: i as usize });
             }
         }
-        self.build_adjacency(n, pairs);
+        self.adj.rebuild(n, || pairs.iter().flat_map(|&(i, j)| [(i as usize, j), (j as usize, i)]));
+        self.adj.sort_each();
         self.order_reverse_cuthill_mckee(n);
         // Each ordered row's envelope: back to its earliest neighbour.
         self.first.clear();
@@ -71,7 +69,7 @@ impl EnvelopeCholesky {
         let mut len = 0;
         for r in 0..n {
             let i = self.order[r] as usize;
-            let neighbours = &self.adj[self.adj_ptr[i] as usize..self.adj_ptr[i + 1] as usize];
+            let neighbours = self.adj.of(i);
             let first = neighbours.iter().map(|&j| self.position[j as usize]).fold(r as u32, u32::min);
             self.first.push(first);
             self.start.push(len);
@@ -159,44 +157,17 @@ impl EnvelopeCholesky {
         self.env.len()
     }
 
-    fn build_adjacency(&mut self, n: usize, pairs: &[(u32, u32)]) {
-        self.adj_ptr.clear();
-        self.adj_ptr.resize(n + 1, 0);
-        for &(i, j) in pairs {
-            self.adj_ptr[i as usize + 1] += 1;
-            self.adj_ptr[j as usize + 1] += 1;
-        }
-        for i in 0..n {
-            self.adj_ptr[i + 1] += self.adj_ptr[i];
-        }
-        self.adj.clear();
-        self.adj.resize(self.adj_ptr[n] as usize, 0);
-        self.cursor.clear();
-        self.cursor.extend_from_slice(&self.adj_ptr[..n]);
-        for &(i, j) in pairs {
-            for (a, b) in [(i, j), (j, i)] {
-                let k = &mut self.cursor[a as usize];
-                self.adj[*k as usize] = b;
-                *k += 1;
-            }
-        }
-        for i in 0..n {
-            let list = &mut self.adj[self.adj_ptr[i] as usize..self.adj_ptr[i + 1] as usize];
-            list.sort_unstable();
-        }
-    }
-
     /// Cuthill-McKee from a least-connected row of each component (lowest
     /// index among equals), neighbours by increasing degree, reversed.
     fn order_reverse_cuthill_mckee(&mut self, n: usize) {
-        let degree = |adj_ptr: &[u32], i: u32| adj_ptr[i as usize + 1] - adj_ptr[i as usize];
+        let degree = |adj: &Buckets<u32>, i: u32| adj.of(i as usize).len();
         self.position.clear();
         self.position.resize(n, u32::MAX);
         self.order.clear();
         let mut by_degree = std::mem::take(&mut self.by_degree);
         by_degree.clear();
         by_degree.extend(0..n as u32);
-        by_degree.sort_unstable_by_key(|&i| (degree(&self.adj_ptr, i), i));
+        by_degree.sort_unstable_by_key(|&i| (degree(&self.adj, i), i));
         for &root in &by_degree {
             if self.position[root as usize] != u32::MAX {
                 continue;
@@ -208,10 +179,10 @@ impl EnvelopeCholesky {
                 let i = self.order[head] as usize;
                 head += 1;
                 self.neighbours.clear();
-                let list = &self.adj[self.adj_ptr[i] as usize..self.adj_ptr[i + 1] as usize];
+                let list = self.adj.of(i);
                 self.neighbours.extend(list.iter().copied().filter(|&j| self.position[j as usize] == u32::MAX));
                 self.neighbours.dedup();
-                self.neighbours.sort_unstable_by_key(|&j| (degree(&self.adj_ptr, j), j));
+                self.neighbours.sort_unstable_by_key(|&j| (degree(&self.adj, j), j));
                 for &j in &self.neighbours {
                     self.position[j as usize] = self.order.len() as u32;
                     self.order.push(j);
@@ -235,8 +206,6 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 mod tests {
     use super::*;
 
-    /// A random sparse symmetric matrix made diagonally dominant: pairs of
-    /// a 2D grid's neighbours (shuffled numbering) plus a few far ones.
     /// A test system: its order, off-diagonal pairs, diagonal and pair values.
     struct System {
         n: usize,
@@ -245,6 +214,8 @@ mod tests {
         off: Vec<f64>,
     }
 
+    /// A random sparse symmetric matrix made diagonally dominant: pairs of
+    /// a 2D grid's neighbours (shuffled numbering) plus a repeated far one.
     fn system(n_side: usize, seed: u64) -> System {
         let mut s = seed;
         let mut next = move || {

@@ -1,6 +1,8 @@
 //! Aggregates for the multigrid on an unstructured graph (a triangle
 //! mesh's edges), as the grid's `2 x 2` blocks are on a grid.
 
+use crate::Buckets;
+
 /// One level's aggregates of a graph and the graph of the aggregates.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct GraphAggregation {
@@ -21,26 +23,10 @@ pub struct GraphAggregation {
 /// contract (they never occur: the graph comes from a checked mesh).
 pub fn graph_aggregation(n: usize, edges: &[[u32; 2]], size: usize) -> GraphAggregation {
     let size = size.max(2);
-    // Neighbour lists, compressed, each sorted.
-    let mut ptr = vec![0usize; n + 1];
-    for &[a, b] in edges {
-        ptr[a as usize + 1] += 1;
-        ptr[b as usize + 1] += 1;
-    }
-    for i in 0..n {
-        ptr[i + 1] += ptr[i];
-    }
-    let mut fill = ptr.clone();
-    let mut adj = vec![0u32; ptr[n]];
-    for &[a, b] in edges {
-        adj[fill[a as usize]] = b;
-        fill[a as usize] += 1;
-        adj[fill[b as usize]] = a;
-        fill[b as usize] += 1;
-    }
-    for i in 0..n {
-        adj[ptr[i]..ptr[i + 1]].sort_unstable();
-    }
+    // Neighbour lists, each sorted.
+    let mut adj = Buckets::default();
+    adj.rebuild(n, || edges.iter().flat_map(|&[a, b]| [(a as usize, b), (b as usize, a)]));
+    adj.sort_each();
     const FREE: u32 = u32::MAX;
     let mut coarse_of = vec![FREE; n];
     let mut members: Vec<usize> = Vec::new();
@@ -49,9 +35,8 @@ pub fn graph_aggregation(n: usize, edges: &[[u32; 2]], size: usize) -> GraphAggr
         if coarse_of[i] != FREE {
             continue;
         }
-        let free: Vec<u32> =
-            adj[ptr[i]..ptr[i + 1]].iter().copied().filter(|&q| coarse_of[q as usize] == FREE).collect();
-        if free.is_empty() && ptr[i + 1] > ptr[i] {
+        let free: Vec<u32> = adj.of(i).iter().copied().filter(|&q| coarse_of[q as usize] == FREE).collect();
+        if free.is_empty() && !adj.of(i).is_empty() {
             lonely.push(i);
             continue;
         }
@@ -63,7 +48,8 @@ pub fn graph_aggregation(n: usize, edges: &[[u32; 2]], size: usize) -> GraphAggr
         members.push(1 + free.len().min(size - 1));
     }
     for i in lonely {
-        let to = adj[ptr[i]..ptr[i + 1]]
+        let to = adj
+            .of(i)
             .iter()
             .map(|&q| coarse_of[q as usize])
             .filter(|&a| a != FREE)

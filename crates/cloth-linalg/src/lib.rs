@@ -8,6 +8,7 @@
 //! number of threads.
 
 mod block_sparse;
+mod buckets;
 mod cg;
 mod coupled;
 mod couplings;
@@ -21,6 +22,7 @@ mod precond;
 mod scalar_cholesky;
 
 pub use block_sparse::{BlockPattern, BlockSparseMatrix, PatternError};
+pub use buckets::Buckets;
 pub use cg::{CgScratch, cg_fixed_iterations};
 pub use coupled::{CoupledPcg, RigidCoupling, RigidLink};
 pub use couplings::{Coupling, Couplings};

@@ -42,9 +42,9 @@
 //! on any thread count.
 
 use super::links::StretchLink;
-use crate::buckets::Buckets;
 use crate::seams::Stitch;
 use crate::{ClothModel, Vec3};
+use cloth_linalg::Buckets;
 use cloth_linalg::EnvelopeCholesky;
 
 /// The compliance `a`, relative to the diagonal of `J W J^T`.

@@ -2,9 +2,9 @@
 //! stage found ([`crate::contacts::SelfContact`]) as a penalty energy of
 //! the particles it touches, indexed by particle for the local steps.
 
-use crate::buckets::Buckets;
 use crate::contacts::{SelfContact, contact_penalty};
 use crate::{Mat3, Vec3};
+use cloth_linalg::Buckets;
 
 /// A self-collision pair as an energy of up to four particles: its gap
 /// `g(x) = d . sum_k c_k x_k` along the direction `d` found at detection

@@ -1,10 +1,10 @@
-//! Items grouped by a key in `0..n`, in compressed rows: the per-particle
-//! lists the solvers build every step (a counting sort, no allocation
-//! once the buffers have grown).
+//! Items grouped by a key in `0..n`, in compressed rows: neighbour lists
+//! of a matrix's graph and the per-particle lists the solvers build every
+//! step (a counting sort, no allocation once the buffers have grown).
 
 /// Items of type `T` grouped by key, each group in the items' order.
 #[derive(Debug, Clone, Default)]
-pub(crate) struct Buckets<T> {
+pub struct Buckets<T> {
     start: Vec<u32>,
     items: Vec<T>,
     fill: Vec<u32>,
@@ -13,7 +13,7 @@ pub(crate) struct Buckets<T> {
 impl<T: Copy + Default> Buckets<T> {
     /// Regroups the `(key, item)` pairs `entries` yields (called twice:
     /// once to count, once to place) over keys `0..n`.
-    pub(crate) fn rebuild<I: Iterator<Item = (usize, T)>>(&mut self, n: usize, entries: impl Fn() -> I) {
+    pub fn rebuild<I: Iterator<Item = (usize, T)>>(&mut self, n: usize, entries: impl Fn() -> I) {
         self.start.clear();
         self.start.resize(n + 1, 0);
         for (key, _) in entries() {
@@ -33,11 +33,22 @@ impl<T: Copy + Default> Buckets<T> {
     }
 
     /// Key `i`'s items; none for a key past the last rebuild's `n`.
-    pub(crate) fn of(&self, i: usize) -> &[T] {
+    pub fn of(&self, i: usize) -> &[T] {
         if self.start.len() <= i + 1 {
             return &[];
         }
         &self.items[self.start[i] as usize..self.start[i + 1] as usize]
+    }
+
+    /// Sorts each key's items (an order that does not depend on the
+    /// order `entries` yielded them in).
+    pub fn sort_each(&mut self)
+    where
+        T: Ord,
+    {
+        for w in self.start.windows(2) {
+            self.items[w[0] as usize..w[1] as usize].sort_unstable();
+        }
     }
 }
 
@@ -56,8 +67,12 @@ mod tests {
         assert_eq!(b.of(3), ['d']);
         assert_eq!(b.of(4), [] as [char; 0]);
         assert_eq!(b.of(9), [] as [char; 0]);
-        b.rebuild(1, || [(0, 'z')].into_iter());
+        b.sort_each();
+        assert_eq!(b.of(0), ['b', 'e']);
+        b.rebuild(3, || [(1, 'q'), (0, 'z'), (1, 'p')].into_iter());
+        b.sort_each();
+        assert_eq!(b.of(1), ['p', 'q']);
         assert_eq!(b.of(0), ['z']);
-        assert_eq!(b.of(2), [] as [char; 0]);
+        assert_eq!(b.of(3), [] as [char; 0]);
     }
 }
