@@ -23,9 +23,9 @@
 //!   level: their Galerkin products over the aggregates, in the cycle's
 //!   residuals, and in the coarsest factor.
 //! - **`f32` operators** on levels of at least 500,000 blocks: the
-//!   cycle's residuals read a rounded copy and accumulate in `f64`, so the
-//!   preconditioner stays symmetric positive definite and PCG's own
-//!   products keep full precision.
+//!   cycle's residuals and the K-cycle's coarse Krylov products read a
+//!   rounded copy and accumulate in `f64`, so the W-cycle stays symmetric
+//!   positive definite and PCG's own products keep full precision.
 //!
 //! Measurements behind each choice: `docs/results/solver-before-after.md`
 //! and `docs/results/scaling.md`.
@@ -126,7 +126,8 @@ struct Level {
     /// The coarse operator `P^T A P`.
     coarse: BlockSparseMatrix,
     /// This level's own operator (the fine matrix, or the previous
-    /// level's `coarse`) in single precision, for the residuals, on levels
+    /// level's `coarse`) in single precision, for the residuals and the
+    /// K-cycle's products with it, on levels
     /// of at least `SINGLE_MIN_BLOCKS` blocks (smaller ones read the
     /// `f64` operator).
     single: Option<SinglePrecision>,
@@ -231,7 +232,8 @@ impl Multigrid {
     }
 
     /// As [`Multigrid::new`], with `f32` copies of the operators of the
-    /// levels of at least `blocks` blocks for the cycle's residuals (`new`
+    /// levels of at least `blocks` blocks for the cycle's residuals and
+    /// products (`new`
     /// takes `SINGLE_MIN_BLOCKS`; see the module docs).
     pub fn with_single_precision_from(
         fine: &BlockPattern,
@@ -319,6 +321,12 @@ impl Multigrid {
             fine_dirty: Vec::new(),
             smoothed: Some(Box::new(first)),
         })
+    }
+
+    /// The `f32` copy of the finest operator, when it is large enough to
+    /// have one (see [`Level::single`]).
+    fn finest_single(&self) -> Option<&SinglePrecision> {
+        self.levels.first().and_then(|l| l.single.as_ref())
     }
 
     /// Sets the smoother's damping directly (the smoothed level hands its
@@ -645,7 +653,7 @@ fn cycle(levels: &mut [Level], coarsest: &mut Coarsest, a: &BlockSparseMatrix, f
 /// without positive curvature (roundoff, `c2` parallel to `c1`) is dropped.
 fn krylov_second_step(rest: &mut [Level], coarsest: &mut Coarsest, coarse: &BlockSparseMatrix) {
     let next = &mut rest[0];
-    let rho1 = coarse.mul_vec_dot(&next.x, &mut next.v, &mut next.partials)
+    let rho1 = mul_vec_dot(next.single.as_ref(), coarse, &next.x, &mut next.v, &mut next.partials)
         + next.couplings.add_product(&next.x, 1.0, &mut next.v);
     let t1 = dot_with(&next.x, &next.b, &mut next.partials) / rho1;
     if !(rho1 > 0.0 && t1.is_finite()) {
@@ -658,7 +666,7 @@ fn krylov_second_step(rest: &mut [Level], coarsest: &mut Coarsest, coarse: &Bloc
     std::mem::swap(&mut next.b, &mut next.r);
     cycle(rest, coarsest, coarse, false, Cycle::K);
     let next = &mut rest[0];
-    let c2_a_c2 = coarse.mul_vec_dot(&next.x, &mut next.r, &mut next.partials)
+    let c2_a_c2 = mul_vec_dot(next.single.as_ref(), coarse, &next.x, &mut next.r, &mut next.partials)
         + next.couplings.add_product(&next.x, 1.0, &mut next.r);
     let gamma = dot_with(&next.x, &next.v, &mut next.partials);
     let alpha2 = dot_with(&next.x, &next.b, &mut next.partials);
@@ -685,6 +693,23 @@ fn residual(single: Option<&SinglePrecision>, a: &BlockSparseMatrix, b: &[Vec3],
     match single {
         Some(single) => single.residual(a.pattern(), b, x, r),
         None => a.residual(b, x, r),
+    }
+}
+
+/// `y = A x`, returning `x.y`, from the level's `f32` copy of `a` when it
+/// has one: the K-cycle's coarse Krylov steps then read half the bytes,
+/// and take the same rounded operator as the cycle's residuals and the
+/// Galerkin products below.
+fn mul_vec_dot(
+    single: Option<&SinglePrecision>,
+    a: &BlockSparseMatrix,
+    x: &[Vec3],
+    y: &mut [Vec3],
+    partials: &mut [f64],
+) -> f64 {
+    match single {
+        Some(single) => single.mul_vec_dot(a.pattern(), x, y, partials),
+        None => a.mul_vec_dot(x, y, partials),
     }
 }
 

@@ -35,7 +35,7 @@
 
 use super::{
     Cycle, Multigrid, SinglePrecision, inverse_diagonal_block, invert_pairs, jacobi_from_zero, krylov_weights,
-    residual, smoothed, widen,
+    mul_vec_dot, residual, smoothed, widen,
 };
 use crate::par::{ROW_CHUNK, chunk_count, dot_with};
 use crate::{Aggregation, BlockPattern, BlockSparseMatrix, Mat3, Vec3};
@@ -396,7 +396,7 @@ impl SmoothedFirst {
 fn coarse_solve(b: &mut Built) {
     let (coarse, partials) = (&b.coarse, &mut b.partials);
     b.inner.apply(coarse, &b.b_c, &mut b.c1);
-    let rho1 = coarse.mul_vec_dot(&b.c1, &mut b.v, partials);
+    let rho1 = mul_vec_dot(b.inner.finest_single(), coarse, &b.c1, &mut b.v, partials);
     let t1 = dot_with(&b.c1, &b.b_c, partials) / rho1;
     if !(rho1 > 0.0 && t1.is_finite()) {
         return;
@@ -404,7 +404,7 @@ fn coarse_solve(b: &mut Built) {
     let (b_c, v) = (&b.b_c, &b.v);
     b.r2.par_iter_mut().enumerate().with_min_len(ROW_CHUNK).for_each(|(i, ri)| *ri = b_c[i] - v[i] * t1);
     b.inner.apply(coarse, &b.r2, &mut b.c2);
-    let c2_a_c2 = coarse.mul_vec_dot(&b.c2, &mut b.w, partials);
+    let c2_a_c2 = mul_vec_dot(b.inner.finest_single(), coarse, &b.c2, &mut b.w, partials);
     let gamma = dot_with(&b.c2, &b.v, partials);
     let alpha2 = dot_with(&b.c2, &b.r2, partials);
     let (w1, w2) = krylov_weights(rho1, t1, c2_a_c2, gamma, alpha2);
