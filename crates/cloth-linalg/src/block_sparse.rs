@@ -5,7 +5,8 @@
 //! Storing both triangles costs memory but lets every row of a product be
 //! computed independently, so the parallel product needs no reduction.
 
-use crate::{Mat3, Vec3, par::ROW_CHUNK};
+use crate::par::{ROW_CHUNK, residual_rows, rows_with_dot};
+use crate::{Mat3, Vec3};
 use rayon::prelude::*;
 use std::ops::Range;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -253,11 +254,7 @@ impl BlockSparseMatrix {
     pub fn residual(&self, b: &[Vec3], x: &[Vec3], r: &mut [Vec3]) {
         let n = self.n();
         assert!(x.len() == n && b.len() == n && r.len() == n, "residual: dimension mismatch");
-        r.par_chunks_mut(ROW_CHUNK).zip(b.par_chunks(ROW_CHUNK)).enumerate().for_each(|(chunk, (rs, bs))| {
-            for (k, (ri, bi)) in rs.iter_mut().zip(bs).enumerate() {
-                *ri = bi - self.row_times(chunk * ROW_CHUNK + k, x);
-            }
-        });
+        residual_rows(b, r, |i| self.row_times(i, x));
     }
 
     /// `r1 = b - A x1` and `r2 = b - A x2` in one pass over the matrix (a
@@ -296,16 +293,7 @@ impl BlockSparseMatrix {
         let n = self.n();
         assert!(x.len() == n && y.len() == n, "mul_vec_dot: dimension mismatch");
         assert_eq!(partials.len(), n.div_ceil(ROW_CHUNK).max(1), "mul_vec_dot: partials length");
-        y.par_chunks_mut(ROW_CHUNK).zip(partials.par_iter_mut()).enumerate().for_each(|(chunk, (ys, p))| {
-            let mut acc = 0.0;
-            for (k, yi) in ys.iter_mut().enumerate() {
-                let i = chunk * ROW_CHUNK + k;
-                *yi = self.row_times(i, x);
-                acc += x[i].dot(yi);
-            }
-            *p = acc;
-        });
-        partials.iter().sum()
+        rows_with_dot(x, y, partials, |i| self.row_times(i, x))
     }
 
     /// Iterates over the stored blocks as `(row, col, block)`.

@@ -127,9 +127,8 @@ struct Level {
     coarse: BlockSparseMatrix,
     /// This level's own operator (the fine matrix, or the previous
     /// level's `coarse`) in single precision, for the residuals and the
-    /// K-cycle's products with it, on levels
-    /// of at least `SINGLE_MIN_BLOCKS` blocks (smaller ones read the
-    /// `f64` operator).
+    /// K-cycle's products with it, on levels of at least
+    /// `SINGLE_MIN_BLOCKS` blocks (smaller ones read the `f64` operator).
     single: Option<SinglePrecision>,
     /// Damped inverse diagonal blocks of this level's (fine) operator (for
     /// a paired node, its diagonal block of the pair's inverse).
@@ -233,8 +232,7 @@ impl Multigrid {
 
     /// As [`Multigrid::new`], with `f32` copies of the operators of the
     /// levels of at least `blocks` blocks for the cycle's residuals and
-    /// products (`new`
-    /// takes `SINGLE_MIN_BLOCKS`; see the module docs).
+    /// products (`new` takes `SINGLE_MIN_BLOCKS`; see the module docs).
     pub fn with_single_precision_from(
         fine: &BlockPattern,
         aggregations: &[Aggregation],

@@ -27,6 +27,39 @@ pub(crate) fn dot_with(a: &[Vec3], b: &[Vec3], partials: &mut [f64]) -> f64 {
     partials.iter().sum()
 }
 
+/// `r_i = b_i - row(i)` for every row, parallel over chunks of
+/// [`ROW_CHUNK`] rows: a matrix's residual from its row product.
+#[inline(always)]
+pub(crate) fn residual_rows(b: &[Vec3], r: &mut [Vec3], row: impl Fn(usize) -> Vec3 + Sync) {
+    r.par_chunks_mut(ROW_CHUNK).zip(b.par_chunks(ROW_CHUNK)).enumerate().for_each(|(chunk, (rs, bs))| {
+        for (k, (ri, bi)) in rs.iter_mut().zip(bs).enumerate() {
+            *ri = bi - row(chunk * ROW_CHUNK + k);
+        }
+    });
+}
+
+/// `y_i = row(i)` for every row, returning `x.y` summed in chunk order
+/// (one partial per chunk of [`ROW_CHUNK`] rows in `partials`): a
+/// matrix's product and CG's curvature in one pass.
+#[inline(always)]
+pub(crate) fn rows_with_dot(
+    x: &[Vec3],
+    y: &mut [Vec3],
+    partials: &mut [f64],
+    row: impl Fn(usize) -> Vec3 + Sync,
+) -> f64 {
+    y.par_chunks_mut(ROW_CHUNK).zip(partials.par_iter_mut()).enumerate().for_each(|(chunk, (ys, p))| {
+        let mut acc = 0.0;
+        for (k, yi) in ys.iter_mut().enumerate() {
+            let i = chunk * ROW_CHUNK + k;
+            *yi = row(i);
+            acc += x[i].dot(yi);
+        }
+        *p = acc;
+    });
+    partials.iter().sum()
+}
+
 /// Number of chunk partials for a vector of `n` particles.
 pub(crate) fn chunk_count(n: usize) -> usize {
     n.div_ceil(ROW_CHUNK).max(1)

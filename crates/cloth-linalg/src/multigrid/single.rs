@@ -3,7 +3,7 @@
 //! `f64`.
 
 use super::*;
-use crate::par::ROW_CHUNK;
+use crate::par::{ROW_CHUNK, residual_rows, rows_with_dot};
 use crate::{BlockPattern, BlockSparseMatrix, Mat3, Vec3};
 
 /// A block matrix with `f32` blocks (column-major, like [`Mat3`]) on a
@@ -40,28 +40,14 @@ impl SinglePrecision {
     /// `r = b - A x` on `pattern` (this copy's), accumulated in `f64`,
     /// parallel over rows.
     pub(super) fn residual(&self, pattern: &BlockPattern, b: &[Vec3], x: &[Vec3], r: &mut [Vec3]) {
-        let rows = r.par_chunks_mut(ROW_CHUNK).zip(b.par_chunks(ROW_CHUNK));
-        rows.enumerate().for_each(|(chunk, (rs, bs))| {
-            for (k, (ri, bi)) in rs.iter_mut().zip(bs).enumerate() {
-                *ri = bi - self.row_times(pattern, chunk * ROW_CHUNK + k, x);
-            }
-        });
+        residual_rows(b, r, |i| self.row_times(pattern, i, x));
     }
 
     /// `y = A x` on `pattern` (this copy's), accumulated in `f64`, and
     /// `x.y` summed in chunk order (`partials`: one per chunk of
     /// [`ROW_CHUNK`] rows), as [`BlockSparseMatrix::mul_vec_dot`].
     pub(super) fn mul_vec_dot(&self, pattern: &BlockPattern, x: &[Vec3], y: &mut [Vec3], partials: &mut [f64]) -> f64 {
-        y.par_chunks_mut(ROW_CHUNK).zip(partials.par_iter_mut()).enumerate().for_each(|(chunk, (ys, p))| {
-            let mut acc = 0.0;
-            for (k, yi) in ys.iter_mut().enumerate() {
-                let i = chunk * ROW_CHUNK + k;
-                *yi = self.row_times(pattern, i, x);
-                acc += x[i].dot(yi);
-            }
-            *p = acc;
-        });
-        partials.iter().sum()
+        rows_with_dot(x, y, partials, |i| self.row_times(pattern, i, x))
     }
 
     /// Row `i` of `A x`, each block widened column by column and summed in
