@@ -235,3 +235,22 @@ fn sorted(mut quad: [u32; 4]) -> [u32; 4] {
     quad.sort_unstable();
     quad
 }
+
+/// The branch-free corner test agrees with comparing corner by corner on
+/// every pair of triangles over six vertices, sharing corners or not.
+#[test]
+fn triangles_share_a_corner_exactly_when_one_corner_is_in_both() {
+    let triangles: Vec<[u32; 3]> = (0..6)
+        .flat_map(|a| (0..6).flat_map(move |b| (0..6).map(move |c| [a, b, c])))
+        .filter(|[a, b, c]| a != b && b != c && a != c)
+        .collect();
+    let (mut shared, mut apart) = (0, 0);
+    for &s in &triangles {
+        for &t in &triangles {
+            let expected = s.iter().any(|v| t.contains(v));
+            assert_eq!(share_a_corner(s, t), expected, "{s:?} {t:?}");
+            if expected { shared += 1 } else { apart += 1 }
+        }
+    }
+    assert!(shared > 0 && apart > 0);
+}

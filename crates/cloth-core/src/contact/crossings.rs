@@ -3,7 +3,7 @@
 //! ends, or linked or sewn to them). A check of a state, not a force: a run
 //! counts its crossings each step to say when a garment tangles.
 
-use super::impact_zones::owned_features;
+use super::impact_zones::{owned_features, share_a_corner};
 use super::self_collision::build_exclusions;
 use crate::{ClothModel, Vec3};
 use cloth_collide::{Aabb, BoxGrid, segment_crosses_triangle};
@@ -131,7 +131,7 @@ impl CrossingCheck {
                 grid.wide_pairs(grid, true, pairs);
             }
             for &(s, t) in pairs.iter() {
-                if skip_adjacent && triangles[s as usize].iter().any(|v| triangles[t as usize].contains(v)) {
+                if skip_adjacent && share_a_corner(triangles[s as usize], triangles[t as usize]) {
                     continue;
                 }
                 crossings(s as usize, t as usize, found);
