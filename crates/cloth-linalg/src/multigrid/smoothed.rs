@@ -88,6 +88,10 @@ struct Built {
     /// `t_src[t_ptr[c]..t_ptr[c + 1]]`, ascending.
     t_ptr: Vec<u32>,
     t_src: Vec<u32>,
+    /// `P`'s blocks in `t_src`'s order, `t_val[m] = p_val[t_src[m]]`:
+    /// the restriction and `P^T (A P)` read them in order instead of
+    /// gathering them across `P`'s rows.
+    t_val: Vec<Mat3>,
     /// `A P`, stored `ap_width` to a row (its aggregates ascending, then
     /// zero padding), `ap_len` real entries a row (their aggregates are
     /// needed only to place the products, in `ap_at` and `coarse_at`).
@@ -185,6 +189,10 @@ impl SmoothedFirst {
                 row[of_slot[s] as usize] += scaled * a.values()[s];
             }
         });
+        let (p_val, t_src) = (&b.p_val, &b.t_src);
+        b.t_val.par_iter_mut().zip(t_src.par_iter()).with_min_len(ROW_CHUNK).for_each(|(t, &e)| {
+            *t = p_val[e as usize];
+        });
         if let Some(single) = &mut b.single {
             single.copy_from(a);
         }
@@ -203,12 +211,13 @@ impl SmoothedFirst {
             }
         });
         let (ap_val, ap_len, coarse_at, t_ptr, t_src) = (&b.ap_val, &b.ap_len, &b.coarse_at, &b.t_ptr, &b.t_src);
+        let t_val = &b.t_val;
         let upper_from = &b.upper_from;
         b.coarse.fill_rows(|c, out| {
             out.iter_mut().for_each(|o| *o = Mat3::zeros());
             for m in t_ptr[c] as usize..t_ptr[c + 1] as usize {
                 let e = t_src[m] as usize;
-                let (i, p_t) = (e / width, p_val[e].transpose());
+                let (i, p_t) = (e / width, t_val[m].transpose());
                 for q in upper_from[m] as usize..ap_len[i] as usize {
                     out[coarse_at[m * ap_width + q] as usize] += p_t * ap_val[i * ap_width + q];
                 }
@@ -333,6 +342,7 @@ impl SmoothedFirst {
             p_col,
             p_len,
             p_entry_of_slot,
+            t_val: vec![Mat3::zeros(); t_src.len()],
             t_ptr,
             t_src,
             ap_width,
@@ -367,12 +377,14 @@ impl SmoothedFirst {
         let b = self.built.as_mut().expect("Multigrid::update builds the smoothed level");
         jacobi_from_zero(&b.inv_diag, b.pairs.as_ref(), rhs, &mut b.x);
         residual(b.single.as_ref(), a, rhs, &b.x, &mut b.r);
-        let (width, p_val, r) = (b.width, &b.p_val, &b.r);
-        let (t_ptr, t_src) = (&b.t_ptr, &b.t_src);
+        let (width, r) = (b.width, &b.r);
+        let (t_ptr, t_src, t_val) = (&b.t_ptr, &b.t_src, &b.t_val);
         b.b_c.par_iter_mut().enumerate().with_min_len(ROW_CHUNK / 4).for_each(|(c, t)| {
-            *t = t_src[t_ptr[c] as usize..t_ptr[c + 1] as usize]
+            let entries = t_ptr[c] as usize..t_ptr[c + 1] as usize;
+            *t = t_src[entries.clone()]
                 .iter()
-                .map(|&e| p_val[e as usize].tr_mul(&r[e as usize / width]))
+                .zip(&t_val[entries])
+                .map(|(&e, p)| p.tr_mul(&r[e as usize / width]))
                 .sum();
         });
         coarse_solve(b);
