@@ -98,6 +98,57 @@ pub struct ElementSet {
     curvature_slots: Vec<[[u32; 6]; 6]>,
     triple_slots: Vec<[[u32; 3]; 3]>,
     hinge_slots: Vec<[[u32; 4]; 4]>,
+    /// Where each kind's elements were put when [`ElementSet::index`]
+    /// stored them in the order of their lowest particle.
+    order: BuildOrder,
+}
+
+/// Each kind's elements in the order they were built: storage indices.
+///
+/// [`ElementSet::index`] stores the elements by their lowest particle, so
+/// that a pass over the particles (gathering rows, reading positions)
+/// meets them nearly in storage order: on a pattern T-shirt (3,411
+/// particles) the mesher's order made the gather of the rows 20% slower.
+/// Sums over elements (a particle's corners, the energies) still run in
+/// build order, so the order in memory changes no result.
+#[derive(Debug, Clone, Default)]
+struct BuildOrder {
+    membranes: Vec<u32>,
+    curvatures: Vec<u32>,
+    triples: Vec<u32>,
+    hinges: Vec<u32>,
+}
+
+/// Storage indices of `len` elements in build order (`order`, or the
+/// identity before [`ElementSet::index`] stored them).
+fn in_build_order(len: usize, order: &[u32]) -> impl Iterator<Item = usize> + '_ {
+    let stored = order.len() == len;
+    (0..len).map(move |k| if stored { order[k] as usize } else { k })
+}
+
+/// Sorts `elems` by their lowest particle (ties in build order) and
+/// updates `order` (storage indices in build order; the identity when it
+/// does not match `elems`).
+fn store_by_lowest_particle<E: Clone, const K: usize>(
+    elems: &mut [E],
+    order: &mut Vec<u32>,
+    nodes: impl Fn(&E) -> [u32; K],
+) {
+    if order.len() != elems.len() {
+        *order = (0..elems.len() as u32).collect();
+    }
+    let mut built_at = vec![0u32; elems.len()];
+    for (k, &e) in order.iter().enumerate() {
+        built_at[e as usize] = k as u32;
+    }
+    let lowest = |e: &E| nodes(e).into_iter().min().unwrap_or(0);
+    let mut perm: Vec<u32> = (0..elems.len() as u32).collect();
+    perm.sort_by_key(|&e| (lowest(&elems[e as usize]), built_at[e as usize]));
+    let sorted: Vec<E> = perm.iter().map(|&e| elems[e as usize].clone()).collect();
+    elems.clone_from_slice(&sorted);
+    for (stored, &old) in perm.iter().enumerate() {
+        order[built_at[old as usize] as usize] = stored as u32;
+    }
 }
 
 impl ElementSet {
@@ -119,11 +170,22 @@ impl ElementSet {
         }
     }
 
+    /// Every element as `(kind, storage index, corners)`, kind by kind,
+    /// each kind in build order.
     fn node_lists(&self) -> impl Iterator<Item = (Kind, usize, &[u32])> {
-        let m = self.membranes.iter().enumerate().map(|(e, m)| (Kind::Membrane, e, &m.nodes[..]));
-        let c = self.curvatures.iter().enumerate().map(|(e, c)| (Kind::Curvature, e, &c.nodes[..]));
-        let t = self.triples.iter().enumerate().map(|(e, t)| (Kind::Triple, e, &t.nodes[..]));
-        let h = self.hinges.iter().enumerate().map(|(e, h)| (Kind::Hinge, e, &h.nodes[..]));
+        fn kind<'a, E, const K: usize>(
+            kind: Kind,
+            elems: &'a [E],
+            order: &'a [u32],
+            nodes: impl Fn(&'a E) -> &'a [u32; K] + 'a,
+        ) -> impl Iterator<Item = (Kind, usize, &'a [u32])> + 'a {
+            in_build_order(elems.len(), order).map(move |e| (kind, e, &nodes(&elems[e])[..]))
+        }
+        let o = &self.order;
+        let m = kind(Kind::Membrane, &self.membranes, &o.membranes, |m| &m.nodes);
+        let c = kind(Kind::Curvature, &self.curvatures, &o.curvatures, |c| &c.nodes);
+        let t = kind(Kind::Triple, &self.triples, &o.triples, |t| &t.nodes);
+        let h = kind(Kind::Hinge, &self.hinges, &o.hinges, |h| &h.nodes);
         m.chain(c).chain(t).chain(h)
     }
 
@@ -142,6 +204,11 @@ impl ElementSet {
 
     /// Builds incidence and slot tables for `n` particles and `pattern`.
     pub fn index(&mut self, n: usize, pattern: &BlockPattern) {
+        let order = &mut self.order;
+        store_by_lowest_particle(&mut self.membranes, &mut order.membranes, |m| m.nodes);
+        store_by_lowest_particle(&mut self.curvatures, &mut order.curvatures, |c| c.nodes);
+        store_by_lowest_particle(&mut self.triples, &mut order.triples, |t| t.nodes);
+        store_by_lowest_particle(&mut self.hinges, &mut order.hinges, |h| h.nodes);
         let mut per: Vec<Vec<Corner>> = vec![Vec::new(); n];
         for (kind, e, nodes) in self.node_lists() {
             for (a, &p) in nodes.iter().enumerate() {
@@ -237,8 +304,9 @@ impl<const K: usize> KindBuffers<K> {
         }
     }
 
-    fn energy(&self) -> f64 {
-        self.rhs.iter().map(|r| r.energy).sum()
+    /// The elements' energies summed in build order (`order`), J.
+    fn energy(&self, order: &[u32]) -> f64 {
+        in_build_order(self.rhs.len(), order).map(|e| self.rhs[e].energy).sum()
     }
 }
 
@@ -394,13 +462,15 @@ pub(crate) fn for_each_block(
 ) {
     let mut bufs = ElementBuffers::new(set);
     evaluate(set, x, 1.0, 1.0, None, &mut bufs);
-    fn each<const K: usize>(
-        nodes: impl Iterator<Item = [u32; K]>,
+    fn each<E, const K: usize>(
+        (elems, order): (&[E], &[u32]),
+        nodes: impl Fn(&E) -> [u32; K],
         kind: &KindBuffers<K>,
         force: &mut impl FnMut(usize, Vec3),
         block: &mut impl FnMut(usize, usize, &Mat3),
     ) {
-        for ((nodes, rhs), blocks) in nodes.zip(&kind.rhs).zip(&kind.blocks) {
+        for e in in_build_order(elems.len(), order) {
+            let (nodes, rhs, blocks) = (nodes(&elems[e]), &kind.rhs[e], &kind.blocks[e]);
             for a in 0..K {
                 force(nodes[a] as usize, rhs.rhs[a]);
                 for b in 0..K {
@@ -409,10 +479,11 @@ pub(crate) fn for_each_block(
             }
         }
     }
-    each(set.membranes.iter().map(|e| e.nodes), &bufs.membranes, &mut force, &mut block);
-    each(set.curvatures.iter().map(|e| e.nodes), &bufs.curvatures, &mut force, &mut block);
-    each(set.triples.iter().map(|e| e.nodes), &bufs.triples, &mut force, &mut block);
-    each(set.hinges.iter().map(|e| e.nodes), &bufs.hinges, &mut force, &mut block);
+    let o = &set.order;
+    each((&set.membranes, &o.membranes), |e| e.nodes, &bufs.membranes, &mut force, &mut block);
+    each((&set.curvatures, &o.curvatures), |e| e.nodes, &bufs.curvatures, &mut force, &mut block);
+    each((&set.triples, &o.triples), |e| e.nodes, &bufs.triples, &mut force, &mut block);
+    each((&set.hinges, &o.hinges), |e| e.nodes, &bufs.hinges, &mut force, &mut block);
 }
 
 /// `sum_b blocks_ab w_b s_b` over the elements of particle `i` (with
@@ -558,10 +629,10 @@ impl ElementEnergies {
 }
 
 /// `energy(e)` of every element into `out`, in parallel, summed in
-/// element order as an evaluation's energies are, J.
-fn kind_energy<E: Sync>(out: &mut [f64], elems: &[E], energy: impl Fn(&E) -> f64 + Sync) -> f64 {
+/// build order (`order`) as an evaluation's energies are, J.
+fn kind_energy<E: Sync>(out: &mut [f64], elems: &[E], order: &[u32], energy: impl Fn(&E) -> f64 + Sync) -> f64 {
     out.par_iter_mut().zip(elems.par_iter()).with_min_len(ROW_CHUNK).for_each(|(out, e)| *out = energy(e));
-    out.iter().copied().sum()
+    in_build_order(out.len(), order).map(|e| out[e]).sum()
 }
 
 /// Total element energy at `x`, J: bit for bit what [`evaluate`] then
@@ -570,19 +641,126 @@ fn kind_energy<E: Sync>(out: &mut [f64], elems: &[E], energy: impl Fn(&E) -> f64
 /// monitor and a line search need).
 pub(crate) fn energy_only(set: &ElementSet, x: &[Vec3], bufs: &mut ElementEnergies) -> f64 {
     let at = |nodes: &[u32; 3]| nodes.map(|p| x[p as usize]);
-    let membranes = kind_energy(&mut bufs.membranes, &set.membranes, |m| {
+    let o = &set.order;
+    let membranes = kind_energy(&mut bufs.membranes, &set.membranes, &o.membranes, |m| {
         membrane_triangle_into(at(&m.nodes), &m.rest, None).energy
     });
-    let curvatures = kind_energy(&mut bufs.curvatures, &set.curvatures, |e| {
+    let curvatures = kind_energy(&mut bufs.curvatures, &set.curvatures, &o.curvatures, |e| {
         curvature_bending_into(e.nodes.map(|p| x[p as usize]), e.rest_angles, &e.stiffness, None).energy
     });
-    let triples = kind_energy(&mut bufs.triples, &set.triples, |t| bend_triple_energy(at(&t.nodes), t.rest, t.k_b));
+    let triples =
+        kind_energy(&mut bufs.triples, &set.triples, &o.triples, |t| bend_triple_energy(at(&t.nodes), t.rest, t.k_b));
     let at4 = |nodes: &[u32; 4]| nodes.map(|p| x[p as usize]);
-    let hinges = kind_energy(&mut bufs.hinges, &set.hinges, |h| bend_hinge_energy(at4(&h.nodes), h.w, h.rest, h.k_b));
+    let hinges =
+        kind_energy(&mut bufs.hinges, &set.hinges, &o.hinges, |h| bend_hinge_energy(at4(&h.nodes), h.w, h.rest, h.k_b));
     membranes + curvatures + triples + hinges
 }
 
-/// Total element energy of the last [`evaluate`], J.
-pub(crate) fn energy(bufs: &ElementBuffers) -> f64 {
-    bufs.membranes.energy() + bufs.curvatures.energy() + bufs.triples.energy() + bufs.hinges.energy()
+/// Total element energy of the last [`evaluate`] of `set`, J.
+pub(crate) fn energy(set: &ElementSet, bufs: &ElementBuffers) -> f64 {
+    let o = &set.order;
+    bufs.membranes.energy(&o.membranes)
+        + bufs.curvatures.energy(&o.curvatures)
+        + bufs.triples.energy(&o.triples)
+        + bufs.hinges.energy(&o.hinges)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::element_laws::Matrix3Voigt;
+    use nalgebra::Vector2;
+
+    /// A 5 x 5 grid, its membrane triangles and the hinges across their
+    /// diagonals, listed in an order far from their particles' (as a
+    /// mesher's can be), at bent positions.
+    fn scrambled() -> (ElementSet, Vec<Vec3>) {
+        let (side, h) = (5u32, 0.01);
+        let id = |i: u32, j: u32| i + side * j;
+        let mut x = Vec::new();
+        for j in 0..side {
+            for i in 0..side {
+                let z = 0.002 * ((i * 7 + j * 3) % 5) as f64 - 0.003 * ((i + 2 * j) % 3) as f64;
+                x.push(Vec3::new(i as f64 * h + 1e-4 * j as f64, j as f64 * h, z));
+            }
+        }
+        let uv = [Vector2::new(0.0, 0.0), Vector2::new(h, 0.0), Vector2::new(0.0, h)];
+        let rest = TriangleRest::new(uv, Matrix3Voigt::orthotropic(50.0, 30.0, 8.0, 0.3)).unwrap();
+        let mut set = ElementSet::default();
+        for j in (0..side - 1).rev() {
+            for i in [3, 0, 2, 1] {
+                let (a, b, c, d) = (id(i, j), id(i + 1, j), id(i, j + 1), id(i + 1, j + 1));
+                set.membranes.push(MembraneElement { nodes: [b, d, c], rest });
+                set.membranes.push(MembraneElement { nodes: [a, b, c], rest });
+                let k_b = 1e-3 * (1.0 + i as f64);
+                set.hinges.push(BendHinge { nodes: [a, b, c, d], w: 0.5, rest: 2.0 * h, k_b });
+            }
+        }
+        (set, x)
+    }
+
+    /// Elements stored by their lowest particle still sum in the order
+    /// they were built: energies, forces and row blocks are bit for bit
+    /// the sums over the elements as built (which storage order would not
+    /// give here: the energy summed in storage order differs).
+    #[test]
+    fn storing_elements_by_particle_keeps_every_sum_in_build_order() {
+        let (mut set, x) = scrambled();
+        let built = set.clone();
+        let n = x.len();
+        let pattern = BlockPattern::from_pairs(n, set.pairs()).unwrap();
+        set.index(n, &pattern);
+        let lowest = |nodes: &[u32]| *nodes.iter().min().unwrap();
+        assert!(set.membranes.windows(2).all(|w| lowest(&w[0].nodes) <= lowest(&w[1].nodes)));
+        assert!(set.hinges.windows(2).all(|w| lowest(&w[0].nodes) <= lowest(&w[1].nodes)));
+        assert_ne!(set.membranes, built.membranes, "the build order was already the storage order");
+
+        // The sums as built: membranes, then hinges, element by element.
+        let at3 = |n: &[u32; 3]| n.map(|p| x[p as usize]);
+        let at4 = |n: &[u32; 4]| n.map(|p| x[p as usize]);
+        let mut energy_m = 0.0;
+        let mut energy_h = 0.0;
+        let mut force = vec![Vec3::zeros(); n];
+        let mut rows = vec![vec![Mat3::zeros(); n]; n];
+        for m in &built.membranes {
+            let mut hess = [[Mat3::zeros(); 3]; 3];
+            let r = membrane_triangle_into(at3(&m.nodes), &m.rest, Some(&mut hess));
+            energy_m += r.energy;
+            for a in 0..3 {
+                force[m.nodes[a] as usize] += r.forces[a];
+                for b in 0..3 {
+                    rows[m.nodes[a] as usize][m.nodes[b] as usize] += hess[a][b];
+                }
+            }
+        }
+        for e in &built.hinges {
+            let mut hess = [[Mat3::zeros(); 4]; 4];
+            let r = bend_hinge_into(at4(&e.nodes), e.w, e.rest, e.k_b, Some(&mut hess));
+            energy_h += r.energy;
+            for a in 0..4 {
+                force[e.nodes[a] as usize] += r.forces[a];
+                for b in 0..4 {
+                    rows[e.nodes[a] as usize][e.nodes[b] as usize] += hess[a][b];
+                }
+            }
+        }
+        let expected = energy_m + 0.0 + 0.0 + energy_h;
+
+        assert_eq!(energy_only(&set, &x, &mut ElementEnergies::new(&set)).to_bits(), expected.to_bits());
+        let mut bufs = ElementBuffers::new(&set);
+        evaluate(&set, &x, 1.0, 1.0, None, &mut bufs);
+        assert_eq!(energy(&set, &bufs).to_bits(), expected.to_bits());
+        let in_storage_order: f64 = bufs.membranes.rhs.iter().map(|r| r.energy).sum();
+        let in_build_order = energy_m;
+        assert_ne!(in_storage_order.to_bits(), in_build_order.to_bits(), "the test cannot tell the orders apart");
+        for i in 0..n {
+            assert_eq!(rhs_at(&set, &bufs, i), force[i], "force on particle {i}");
+            let cols = pattern.row_cols(i);
+            let mut row = vec![Mat3::zeros(); cols.len()];
+            add_row(&set, &bufs, i, |slot, b| row[slot] += b);
+            for (block, &j) in row.iter().zip(cols) {
+                assert_eq!(*block, rows[i][j as usize], "block ({i}, {j})");
+            }
+        }
+    }
 }

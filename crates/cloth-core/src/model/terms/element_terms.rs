@@ -94,7 +94,7 @@ impl TermAssembly for Elements {
     fn evaluate(&self, at: &At<'_>, c: &SystemTerms<'_>, scratch: &mut TermScratch) -> f64 {
         let bufs: &mut ElementBuffers = scratch.downcast_mut().expect("the elements' own scratch");
         elements::evaluate(at.model.elements(), at.x, c.c_x, c.force, c.k_times, bufs);
-        elements::energy(bufs)
+        elements::energy(at.model.elements(), bufs)
     }
 
     fn add_rhs(&self, at: &At<'_>, _: &SystemTerms<'_>, scratch: &TermScratch, i: usize, rhs: &mut Vec3) {
