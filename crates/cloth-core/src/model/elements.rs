@@ -81,7 +81,8 @@ struct Corner {
 }
 
 /// All elements of a model, with per-particle incidence and, once the
-/// pattern is known, the matrix slot of every corner pair.
+/// pattern is known, the matrix slot of every corner pair. From
+/// [`ElementSet::index`] on, each kind is stored by its lowest particle.
 #[derive(Debug, Clone, Default)]
 pub struct ElementSet {
     /// Membrane triangles (Volino).
@@ -107,10 +108,10 @@ pub struct ElementSet {
 ///
 /// [`ElementSet::index`] stores the elements by their lowest particle, so
 /// that a pass over the particles (gathering rows, reading positions)
-/// meets them nearly in storage order: on a pattern T-shirt (3,411
-/// particles) the mesher's order made the gather of the rows 20% slower.
-/// Sums over elements (a particle's corners, the energies) still run in
-/// build order, so the order in memory changes no result.
+/// meets them nearly in storage order, where a mesher's order scatters
+/// them (`docs/results/stages.md`). Sums over elements (a particle's
+/// corners, the energies) still run in build order, so the order in
+/// memory changes no result.
 #[derive(Debug, Clone, Default)]
 struct BuildOrder {
     membranes: Vec<u32>,
