@@ -485,12 +485,31 @@ fn tied_system(rng: &mut Rng, n: usize) -> (BlockSparseMatrix, Vec<(usize, usize
 /// fixed and one-direction particles, on tied pairs too; some released,
 /// turned, added; most particles at once, which refills everything; the
 /// matrix changed, which must not be refilled in part), with `f64` and
-/// `f32` coarse operators, point and paired smoothing, W- and K-cycles.
+/// `f32` coarse operators, point and paired smoothing, W- and K-cycles,
+/// without couplings and with couplings (whose nodes' smoother blocks a
+/// partial refill recomputes only where their row or their pair
+/// partner's changed).
 #[test]
 fn re_solves_under_a_changed_filter_refill_the_hierarchy_to_the_same_bits() {
     let mut rng = Rng(0xa11ce);
-    let (a, ties) = tied_system(&mut rng, 800);
+    let (mut a, ties) = tied_system(&mut rng, 800);
     let n = a.n();
+    // Couplings over two or three nodes, each node's own block in `A` (so
+    // `A + E` stays positive definite): spread over the cloth, and on tied
+    // nodes whose partner's filter changes while their own does not.
+    let mut couplings = Couplings::default();
+    let spread = (0..n as u32).step_by(37).map(|i| [i, (i + 101) % n as u32, (i + 202) % n as u32]);
+    let on_ties = [ties[5].0, ties[7].1].map(|i| [i as u32, i as u32 + 1, i as u32 + 1]);
+    for nodes in spread.chain(on_ties) {
+        let weights = if nodes[1] == nodes[2] { [1.0, -1.0, 0.0, 0.0] } else { [1.0, -0.5, -0.5, 0.0] };
+        let direction = rng.vec3().normalize();
+        let c = Coupling { nodes: [nodes[0], nodes[1], nodes[2], 0], weights, direction, stiffness: 30.0 };
+        for (&node, &g) in c.nodes.iter().zip(&c.weights).filter(|(_, g)| **g != 0.0) {
+            let slot = a.pattern().diag_slot(node as usize);
+            a.values_mut()[slot] += direction * direction.transpose() * (c.stiffness * g * g);
+        }
+        couplings.push(c);
+    }
     let b: Vec<Vec3> = (0..n).map(|_| rng.vec3()).collect();
     let mut constrain = |f: &mut ConstraintFilter, i: usize| {
         let c = if i.is_multiple_of(3) { Constraint::Fixed } else { Constraint::OneDirection { normal: rng.vec3() } };
@@ -530,9 +549,10 @@ fn re_solves_under_a_changed_filter_refill_the_hierarchy_to_the_same_bits() {
     filters.push(most);
     filters.push(g);
     let params = PcgParams { rel_tol: 1e-9, max_iter: 5000, preconditioner: PreconditionerKind::Multigrid };
-    for (single_from, paired, cycle) in
-        [(usize::MAX, false, Cycle::W), (0, true, Cycle::W), (usize::MAX, true, Cycle::K), (0, false, Cycle::K)]
-    {
+    let configurations =
+        [(usize::MAX, false, Cycle::W), (0, true, Cycle::W), (usize::MAX, true, Cycle::K), (0, false, Cycle::K)];
+    for ((single_from, paired, cycle), coupled) in configurations.into_iter().flat_map(|c| [(c, false), (c, true)]) {
+        let terms = if coupled { couplings.clone() } else { Couplings::default() };
         let hierarchy = || {
             let mg =
                 Multigrid::with_single_precision_from(a.pattern(), &chunk_aggregations(n, 4), single_from).unwrap();
@@ -541,6 +561,7 @@ fn re_solves_under_a_changed_filter_refill_the_hierarchy_to_the_same_bits() {
         };
         let mut reused = Pcg::new(n);
         reused.set_multigrid(hierarchy());
+        *reused.couplings_mut() = terms.clone();
         let mut matrix = a.clone();
         let mut partial = Vec::new();
         for (k, filter) in filters.iter().enumerate() {
@@ -552,9 +573,11 @@ fn re_solves_under_a_changed_filter_refill_the_hierarchy_to_the_same_bits() {
             let got = reused.solve_in_place(&mut matrix, &b, filter, &params, &mut x).unwrap();
             let mut fresh = Pcg::new(n);
             fresh.set_multigrid(hierarchy());
+            *fresh.couplings_mut() = terms.clone();
             let want = fresh.solve_in_place(&mut matrix.clone(), &b, filter, &params, &mut y).unwrap();
-            assert_eq!(got.iterations, want.iterations, "{cycle:?}, filter {k}");
-            assert!(same_bits(&x, &y), "{cycle:?} (f32 from {single_from}, paired {paired}): filter {k} differs");
+            let case = format!("{cycle:?} (f32 from {single_from}, paired {paired}, coupled {coupled}): filter {k}");
+            assert_eq!(got.iterations, want.iterations, "{case}");
+            assert!(same_bits(&x, &y), "{case} differs");
             partial.push(got.partial_refill);
             // Started from its own answer the solve is done before any set-up
             // (the hierarchy stays the one it describes: the next filter's

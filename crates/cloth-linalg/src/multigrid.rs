@@ -123,6 +123,9 @@ struct Level {
     /// [`Multigrid::update_rows`]).
     dirty: Vec<Dirty>,
     marked: Vec<bool>,
+    /// Per node, whether a partial refill recomputed its diagonal inverse
+    /// (false between refills).
+    refilled: Vec<bool>,
     /// The coarse operator `P^T A P`.
     coarse: BlockSparseMatrix,
     /// This level's own operator (the fine matrix, or the previous
@@ -264,6 +267,7 @@ impl Multigrid {
                 slot_target: slot_target.iter().map(|&t| t as u32).collect(),
                 dirty: Vec::new(),
                 marked: vec![false; coarse_pattern.nnz_blocks()],
+                refilled: vec![false; n],
                 coarse: BlockSparseMatrix::new(coarse_pattern.clone()),
                 single: (pattern.nnz_blocks() >= blocks).then(|| SinglePrecision::new(&pattern)),
                 inv_diag: vec![Mat3::identity(); n],
@@ -433,7 +437,7 @@ impl Multigrid {
             if let Some((partner, inv_off)) = &mut level.pairs {
                 invert_pairs(fine, omega, partner, &mut level.inv_diag, inv_off);
             }
-            level.couplings.stiffen_smoother(fine, (omega, l == 0), &mut level.inv_diag, level.pairs.as_mut());
+            level.couplings.stiffen_smoother(fine, (omega, l == 0), &mut level.inv_diag, level.pairs.as_mut(), None);
             // The Galerkin product of the rounded operator the residuals
             // use, so each coarse level is exactly the Galerkin level of
             // the operator above it (the sewn seam of `tests/seams.rs` at
@@ -453,7 +457,8 @@ impl Multigrid {
 
     /// As [`Multigrid::update`], for an `a` that differs from the matrix of
     /// the last update only in the rows and columns of the nodes `changed`
-    /// (a solve's constraint filter changed there, the matrix did not):
+    /// (a solve's constraint filter changed there, the matrix and the
+    /// couplings given to [`Multigrid::set_couplings`] did not):
     /// only what those blocks reach is recomputed, each block, inverse and
     /// Galerkin sum as `update` computes it, so the hierarchy is the same
     /// bit for bit. The caller vouches for the premise; a `changed` that
@@ -492,6 +497,7 @@ impl Multigrid {
             // whose diagonal block changed.
             for &(_, i, _) in fine_dirty.iter().filter(|&&(_, i, j)| i == j) {
                 let i = i as usize;
+                level.refilled[i] = true;
                 level.inv_diag[i] = inverse_diagonal_block(fine, omega, i);
                 if let Some((partner, inv_off)) = &mut level.pairs {
                     let p = partner[i] as usize;
@@ -501,7 +507,17 @@ impl Multigrid {
                     }
                 }
             }
-            level.couplings.stiffen_smoother(fine, (omega, l == 0), &mut level.inv_diag, level.pairs.as_mut());
+            let refilled = Some(&level.refilled[..]);
+            level.couplings.stiffen_smoother(
+                fine,
+                (omega, l == 0),
+                &mut level.inv_diag,
+                level.pairs.as_mut(),
+                refilled,
+            );
+            for &(_, i, _) in fine_dirty.iter().filter(|&&(_, i, j)| i == j) {
+                level.refilled[i as usize] = false;
+            }
             if let Some(single) = &mut level.single {
                 for &(slot, _, _) in fine_dirty {
                     single.copy_slot(fine, slot as usize);

@@ -57,8 +57,9 @@ pub(super) struct LevelCouplings {
     /// Per node of the level: what the smoother's diagonal gains (zero
     /// between calls of [`LevelCouplings::stiffen_smoother`]).
     extra: Vec<Mat3>,
-    /// The nodes with a nonzero `extra`, each once.
+    /// The nodes some term reaches, each once, and their marks.
     touched: Vec<u32>,
+    listed: Vec<bool>,
 }
 
 impl LevelCouplings {
@@ -138,17 +139,26 @@ impl LevelCouplings {
     /// Recomputes the smoother's damped inverse blocks `inv_diag` (and the
     /// pairs', `pairs`) of the nodes the terms touch, from `a`'s diagonal
     /// plus each node's bound of the terms (see the module docs).
+    ///
+    /// `refilled`: `None` after a full refill (every inverse is plain:
+    /// each touched node's is recomputed), or after a partial refill
+    /// ([`super::Multigrid::update_rows`]) the nodes whose diagonal inverse
+    /// it recomputed. Only they and their pair partners are recomputed: the
+    /// other nodes' diagonal blocks and filters, so their bounds and their
+    /// inverses, are those of the last call.
     pub(super) fn stiffen_smoother(
         &mut self,
         a: &BlockSparseMatrix,
         (omega, finest): (f64, bool),
         inv_diag: &mut [Mat3],
         pairs: Option<&mut (Vec<u32>, Vec<Mat3>)>,
+        refilled: Option<&[bool]>,
     ) {
         if self.terms.is_empty() {
             return;
         }
         self.extra.resize(inv_diag.len(), Mat3::zeros());
+        self.listed.resize(inv_diag.len(), false);
         let element_nodes = 2.0 * super::OMEGA / omega;
         for t in &self.terms {
             let m = t.len as f64;
@@ -156,25 +166,26 @@ impl LevelCouplings {
             let scale = 0.5 * omega * share * t.k;
             for a in 0..t.len {
                 let i = t.nodes[a] as usize;
-                if self.extra[i] == Mat3::zeros() {
+                if !self.listed[i] {
+                    self.listed[i] = true;
                     self.touched.push(i as u32);
                 }
                 self.extra[i] += t.w[a] * t.w[a].transpose() * scale;
             }
         }
-        // A term whose bound is zero (its weights filtered away) may list a
-        // node twice.
-        self.touched.sort_unstable();
-        self.touched.dedup();
+        let partner = |i: usize| pairs.as_ref().map_or(i, |(partner, _)| partner[i] as usize);
+        let stale = |i: usize, p: usize| refilled.is_none_or(|marks| marks[i] || marks[p]);
         let extra = &self.extra;
         for &i in &self.touched {
             let i = i as usize;
-            inv_diag[i] = inverse_block(&(a.diag(i) + extra[i]), omega);
+            if stale(i, partner(i)) {
+                inv_diag[i] = inverse_block(&(a.diag(i) + extra[i]), omega);
+            }
         }
         if let Some((partner, inv_off)) = pairs {
             for &i in &self.touched {
                 let (i, p) = (i as usize, partner[i as usize] as usize);
-                if p != i {
+                if p != i && stale(i, p) {
                     inv_diag[p] = inverse_block(&(a.diag(p) + extra[p]), omega);
                     let (lo, hi) = (i.min(p), i.max(p));
                     invert_pair(a, omega, (lo, hi), (extra[lo], extra[hi]), inv_diag, inv_off);
@@ -182,7 +193,7 @@ impl LevelCouplings {
             }
         }
         for &i in &self.touched {
-            self.extra[i as usize] = Mat3::zeros();
+            (self.extra[i as usize], self.listed[i as usize]) = (Mat3::zeros(), false);
         }
         self.touched.clear();
     }
