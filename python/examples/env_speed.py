@@ -3,7 +3,7 @@ thread (the simulation's pool and NumPy's), 25 x 25 particles, a random
 policy and an idle one (pickers still, nothing held), the median of
 ``--repeat`` runs of ``--steps`` steps. Prints a Markdown table.
 
-    python python/examples/env_speed.py [--steps 200] [--repeat 3] [--dt-s 0.0333 --substeps 1]
+    python python/examples/env_speed.py [--steps 200] [--repeat 3] [--dt-s 0.0333 --substeps 1] [--set KEY=VALUE]
 """
 
 from __future__ import annotations
@@ -21,15 +21,15 @@ import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
 
 import cloth.envs  # noqa: E402,F401
-import step_size  # noqa: E402
+import task_options  # noqa: E402
 
 TASKS = ["cloth/Flatten-v0", "cloth/Fold-v0", "cloth/Drop-v0"]
 
 
-def rate(task: str, policy: str, steps: int, seed: int, **size) -> float:
+def rate(task: str, policy: str, steps: int, seed: int, **options) -> float:
     """Env steps per second over ``steps`` steps after a reset (not timed);
-    ``size``: ``dt_s`` and ``substeps`` when not the task's own."""
-    env = gym.make(task, threads=1, **size)
+    ``options``: ``gym.make`` keywords (``dt_s``, ``substeps``, ``overrides``)."""
+    env = gym.make(task, threads=1, **options)
     env.reset(seed=seed)
     env.action_space.seed(seed)
     idle = np.zeros(env.action_space.shape, dtype=np.float32)
@@ -47,14 +47,14 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--steps", type=int, default=200)
     parser.add_argument("--repeat", type=int, default=3)
-    step_size.add_arguments(parser)
+    task_options.add_arguments(parser)
     args = parser.parse_args()
-    size = step_size.kwargs(args)
+    options = task_options.kwargs(args)
     print("| task | policy | env steps/s (median) | runs |")
     print("|---|---|---|---|")
     for task in TASKS:
         for policy in ("random", "idle"):
-            runs = [rate(task, policy, args.steps, seed, **size) for seed in range(args.repeat)]
+            runs = [rate(task, policy, args.steps, seed, **options) for seed in range(args.repeat)]
             shown = ", ".join(f"{r:.0f}" for r in runs)
             print(f"| {task} | {policy} | {statistics.median(runs):.0f} | {shown} |")
 

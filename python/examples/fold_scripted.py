@@ -3,7 +3,7 @@ of the cloth's left edge, grasp them, turn them over the middle onto the
 right corners, let go and wait. Prints the fold distance
 and whether the task counts it a success.
 
-    python python/examples/fold_scripted.py [--seed 0] [--save fold.png] [--dt-s 0.0333 --substeps 1]
+    python python/examples/fold_scripted.py [--seed 0] [--save fold.png] [--dt-s 0.0333 --substeps 1] [--set KEY=VALUE]
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import gymnasium as gym
 import numpy as np
 
 import cloth.envs  # noqa: F401  (registers the tasks)
-import step_size
+import task_options
 
 
 def towards(env, goals, pick):
@@ -63,10 +63,10 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--save", help="write the last frame as a PNG (needs matplotlib)")
-    step_size.add_arguments(parser)
+    task_options.add_arguments(parser)
     args = parser.parse_args()
-    size = step_size.kwargs(args)
-    env = gym.make("cloth/Fold-v0", render_mode="rgb_array", **size)
+    options = task_options.kwargs(args)
+    env = gym.make("cloth/Fold-v0", render_mode="rgb_array", **options)
     reward, info = fold(env, args.seed)
     print(f"fold distance {-reward:.4f} m, success {info['success']}")
     if args.save:

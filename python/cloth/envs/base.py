@@ -68,6 +68,12 @@ class ClothTaskEnv(gym.Env):
     scripted fold that succeeds with steps of 1/90 s misses with it
     (docs/results/python-envs.md).
 
+    ``overrides`` changes the task's scene as ``cloth run --set`` does: a
+    dict of dotted keys to values (``{"solver.contacts.max_passes": 3}``)
+    or a list of ``"key=value"`` strings; a key the scene does not have
+    raises ``ValueError`` naming it. The step is ``dt_s``'s, not an
+    override's.
+
     Observation (float32): with ``observation="positions"``, every
     particle's position (m, row by row) then each picker's position and a
     holding flag; with ``"keypoints"``, the four corners and the centre
@@ -93,6 +99,7 @@ class ClothTaskEnv(gym.Env):
         picker_radius_m: float = 0.02,
         threads: int | None = 1,
         image_size: int = 128,
+        overrides: dict | list | None = None,
     ):
         if pickers not in (1, 2):
             raise ValueError(f"pickers = {pickers}: one or two")
@@ -117,7 +124,10 @@ class ClothTaskEnv(gym.Env):
         self.dt_s, self.substeps, self.max_move_m = dt_s, substeps, max_move_m
         self.picker_radius_m, self.threads = picker_radius_m, threads
         self.spacing_m = side_m / (particles - 1)
-        self._scene = cloth.Scene.from_text(self.scene_text(), name=f"{type(self).__name__} scene")
+        if any(key.split("=")[0].strip() == "simulation.dt_s" for key in overrides or []):
+            raise ValueError("overrides: simulation.dt_s is the dt_s argument")
+        self.overrides = overrides
+        self._scene = self.build_scene()
         self.action_space = spaces.Box(-1.0, 1.0, shape=(4 * pickers,), dtype=np.float32)
         points = particles * particles if observation == "positions" else 5
         self.observation_space = spaces.Box(-np.inf, np.inf, shape=(3 * points + 4 * pickers,), dtype=np.float32)
@@ -145,6 +155,11 @@ class ClothTaskEnv(gym.Env):
             thickness_m=0.004,
             self_thickness_m=0.006,
         )
+
+    def build_scene(self):
+        """The scene of ``scene_text`` with the ``overrides``."""
+        name = f"{type(self).__name__} scene"
+        return cloth.Scene.from_text(self.scene_text(), overrides=self.overrides, name=name)
 
     def index(self, i: int, j: int) -> int:
         """The particle at column ``i`` (along x) and row ``j``."""

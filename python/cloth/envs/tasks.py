@@ -5,8 +5,6 @@ from __future__ import annotations
 
 import numpy as np
 
-import cloth
-
 from .base import ClothTaskEnv
 from .raster import covered_area
 
@@ -78,7 +76,7 @@ class FoldEnv(ClothTaskEnv):
     def episode_scene(self):
         # The whole cloth shifted: the pickers must find it.
         self._shift = self.np_random.uniform(-0.03, 0.03, size=2)
-        return cloth.Scene.from_text(self.scene_text(), name="FoldEnv scene")
+        return self.build_scene()
 
     def setup(self):
         self.settle(self.dt_s)

@@ -1,0 +1,27 @@
+"""The options the task examples share: ``--dt-s`` and ``--substeps`` (a
+simulation step and steps per env step other than the task's own) and
+``--set`` (changes to the task's scene, as ``cloth run --set`` takes
+them)."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Adds ``--dt-s``, ``--substeps`` and ``--set`` to ``parser``."""
+    parser.add_argument("--dt-s", type=float, help="simulation step, s (default: the task's, 1/90)")
+    parser.add_argument("--substeps", type=int, help="simulation steps an env step (default: the task's, 3)")
+    parser.add_argument(
+        "--set",
+        action="append",
+        metavar="KEY=VALUE",
+        help="a change to the task's scene, e.g. solver.contacts.max_passes=3 (repeatable)",
+    )
+
+
+def kwargs(args: argparse.Namespace) -> dict:
+    """The ``gym.make`` keywords of the options given: ``dt_s``,
+    ``substeps``, ``overrides``."""
+    given = (("dt_s", args.dt_s), ("substeps", args.substeps), ("overrides", args.set))
+    return {k: v for k, v in given if v is not None}
