@@ -126,7 +126,8 @@ class ClothTaskEnv(gym.Env):
         self.spacing_m = side_m / (particles - 1)
         if any(key.split("=")[0].strip() == "simulation.dt_s" for key in overrides or []):
             raise ValueError("overrides: simulation.dt_s is the dt_s argument")
-        self.overrides = overrides
+        # A copy: the caller's later changes do not reach new episodes.
+        self.overrides = dict(overrides) if isinstance(overrides, dict) else overrides and list(overrides)
         self._scene = self.build_scene()
         self.action_space = spaces.Box(-1.0, 1.0, shape=(4 * pickers,), dtype=np.float32)
         points = particles * particles if observation == "positions" else 5
