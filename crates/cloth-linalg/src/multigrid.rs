@@ -165,6 +165,10 @@ pub struct Multigrid {
     cycle: Cycle,
     /// The finest operator's changed slots in a partial refill.
     fine_dirty: Vec<Dirty>,
+    /// Per fine node, whether [`Multigrid::set_couplings_rows`] is to
+    /// make its terms again (false between calls), and those terms.
+    coupling_marks: Vec<bool>,
+    redone_terms: Vec<u32>,
     /// A smoothed-aggregation finest level in place of `levels` and
     /// `coarsest` (see [`Multigrid::smoothed`]).
     smoothed: Option<Box<smoothed::SmoothedFirst>>,
@@ -284,7 +288,16 @@ impl Multigrid {
         }
         let cycle = if fine.n() >= K_CYCLE_MIN_NODES { Cycle::K } else { Cycle::W };
         let coarsest = Coarsest::new(pattern.n());
-        Ok(Self { levels, coarsest, omega: OMEGA, cycle, fine_dirty: Vec::new(), smoothed: None })
+        Ok(Self {
+            levels,
+            coarsest,
+            omega: OMEGA,
+            cycle,
+            fine_dirty: Vec::new(),
+            coupling_marks: Vec::new(),
+            redone_terms: Vec::new(),
+            smoothed: None,
+        })
     }
 
     /// A hierarchy whose finest level is smoothed aggregation (`P = (I -
@@ -321,6 +334,8 @@ impl Multigrid {
             omega: OMEGA,
             cycle: Cycle::K,
             fine_dirty: Vec::new(),
+            coupling_marks: Vec::new(),
+            redone_terms: Vec::new(),
             smoothed: Some(Box::new(first)),
         })
     }
@@ -419,6 +434,33 @@ impl Multigrid {
             let level = &done[l];
             let next = rest.first_mut().map_or(&mut self.coarsest.couplings, |next| &mut next.couplings);
             level.couplings.aggregate_into(&level.coarse_of, next);
+        }
+    }
+
+    /// As [`Multigrid::set_couplings`], for the couplings of the last call
+    /// under a filter that changed only at the nodes `changed` (the premise
+    /// of [`Multigrid::update_rows`]): only the terms reaching those nodes
+    /// are made again, on every level, each as `set_couplings` makes it.
+    pub fn set_couplings_rows(
+        &mut self,
+        couplings: &crate::Couplings,
+        filter: &crate::ConstraintFilter,
+        changed: &[usize],
+    ) {
+        let Some(first) = self.levels.first_mut() else { return self.set_couplings(couplings, filter) };
+        if self.smoothed.is_some() || first.couplings.len() != couplings.terms().len() {
+            return self.set_couplings(couplings, filter);
+        }
+        let (marked, redone) = (&mut self.coupling_marks, &mut self.redone_terms);
+        marked.resize(first.inv_diag.len(), false);
+        changed.iter().for_each(|&i| marked[i] = true);
+        first.couplings.update_fine(couplings, filter, marked, redone);
+        changed.iter().for_each(|&i| marked[i] = false);
+        for l in 0..self.levels.len() {
+            let (done, rest) = self.levels.split_at_mut(l + 1);
+            let level = &done[l];
+            let next = rest.first_mut().map_or(&mut self.coarsest.couplings, |next| &mut next.couplings);
+            level.couplings.aggregate_redone(&level.coarse_of, next, redone);
         }
     }
 

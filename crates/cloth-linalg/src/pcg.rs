@@ -344,7 +344,11 @@ impl Pcg {
         changed_rows: Option<&[usize]>,
     ) -> Result<PcgInfo, PcgError> {
         if params.preconditioner == PreconditionerKind::Multigrid {
-            self.precond.set_couplings(&self.couplings, filter);
+            match changed_rows {
+                // The same matrix, so the same couplings (the refill's premise).
+                Some(changed) => self.precond.set_couplings_rows(&self.couplings, filter, changed),
+                None => self.precond.set_couplings(&self.couplings, filter),
+            }
         }
         let (built, partial_refill) = match changed_rows {
             Some(changed) => self.precond.update_rows(params.preconditioner, a, changed),

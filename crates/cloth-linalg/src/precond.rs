@@ -38,6 +38,20 @@ impl Preconditioner {
         }
     }
 
+    /// As [`Preconditioner::set_couplings`], for the couplings of the last
+    /// call under a filter changed only at `changed` (see
+    /// [`Multigrid::set_couplings_rows`]).
+    pub fn set_couplings_rows(
+        &mut self,
+        couplings: &crate::Couplings,
+        filter: &crate::ConstraintFilter,
+        changed: &[usize],
+    ) {
+        if let Some(mg) = &mut self.multigrid {
+            mg.set_couplings_rows(couplings, filter, changed);
+        }
+    }
+
     /// Rebuilds `P^-1` from the diagonal blocks of `a`, reusing storage.
     /// A block that cannot be inverted (not positive) falls back to the
     /// identity for that row, which keeps `P^-1` symmetric positive definite.

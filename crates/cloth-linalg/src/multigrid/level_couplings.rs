@@ -72,28 +72,46 @@ impl LevelCouplings {
     /// weight projected by its filter.
     pub(super) fn set_fine(&mut self, couplings: &Couplings, filter: &ConstraintFilter) {
         self.terms.clear();
-        for c in couplings.terms() {
-            let mut t = Term { nodes: [0; 4], len: 0, w: [Vec3::zeros(); 4], own: [Mat3::zeros(); 4], k: c.stiffness };
-            for (&node, &g) in c.nodes.iter().zip(&c.weights) {
-                if g != 0.0 {
-                    let w = filter.projector(node as usize) * c.direction * g;
-                    t.add(node, w, w * w.transpose());
-                }
+        self.terms.extend(couplings.terms().iter().map(|c| Term::fine(c, filter)));
+    }
+
+    /// As [`LevelCouplings::set_fine`], for the couplings of the last call
+    /// (as many terms) under a filter that changed only at the nodes
+    /// `marked`: only the terms reaching them are made again, and their
+    /// places listed in `redone`.
+    pub(super) fn update_fine(
+        &mut self,
+        couplings: &Couplings,
+        filter: &ConstraintFilter,
+        marked: &[bool],
+        redone: &mut Vec<u32>,
+    ) {
+        redone.clear();
+        for (k, (c, t)) in couplings.terms().iter().zip(&mut self.terms).enumerate() {
+            if c.nodes.iter().zip(&c.weights).any(|(&node, &g)| g != 0.0 && marked[node as usize]) {
+                *t = Term::fine(c, filter);
+                redone.push(k as u32);
             }
-            self.terms.push(t);
         }
+    }
+
+    /// The number of terms.
+    pub(super) fn len(&self) -> usize {
+        self.terms.len()
     }
 
     /// The next level's terms: each node taken to its aggregate
     /// (`coarse_of`), nodes in one aggregate merged.
     pub(super) fn aggregate_into(&self, coarse_of: &[u32], next: &mut LevelCouplings) {
         next.terms.clear();
-        for t in &self.terms {
-            let mut c = Term { len: 0, ..*t };
-            for a in 0..t.len {
-                c.add(coarse_of[t.nodes[a] as usize], t.w[a], t.own[a]);
-            }
-            next.terms.push(c);
+        next.terms.extend(self.terms.iter().map(|t| t.aggregated(coarse_of)));
+    }
+
+    /// As [`LevelCouplings::aggregate_into`] for the terms `redone` alone
+    /// (the others are as the last call left them).
+    pub(super) fn aggregate_redone(&self, coarse_of: &[u32], next: &mut LevelCouplings, redone: &[u32]) {
+        for &k in redone {
+            next.terms[k as usize] = self.terms[k as usize].aggregated(coarse_of);
         }
     }
 
@@ -200,6 +218,29 @@ impl LevelCouplings {
 }
 
 impl Term {
+    /// The finest level's term of coupling `c`: each node's weight times
+    /// the direction, projected by its filter.
+    fn fine(c: &crate::Coupling, filter: &ConstraintFilter) -> Self {
+        let mut t = Term { nodes: [0; 4], len: 0, w: [Vec3::zeros(); 4], own: [Mat3::zeros(); 4], k: c.stiffness };
+        for (&node, &g) in c.nodes.iter().zip(&c.weights) {
+            if g != 0.0 {
+                let w = filter.projector(node as usize) * c.direction * g;
+                t.add(node, w, w * w.transpose());
+            }
+        }
+        t
+    }
+
+    /// This term on the next level: each node taken to its aggregate,
+    /// nodes in one aggregate merged.
+    fn aggregated(&self, coarse_of: &[u32]) -> Self {
+        let mut c = Term { len: 0, ..*self };
+        for a in 0..self.len {
+            c.add(coarse_of[self.nodes[a] as usize], self.w[a], self.own[a]);
+        }
+        c
+    }
+
     /// Adds `w` and `own` to `node`'s entry, making one if it has none.
     fn add(&mut self, node: u32, w: Vec3, own: Mat3) {
         let a = (0..self.len).find(|&a| self.nodes[a] == node).unwrap_or_else(|| {
