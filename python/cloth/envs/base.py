@@ -124,7 +124,7 @@ class ClothTaskEnv(gym.Env):
         self.dt_s, self.substeps, self.max_move_m = dt_s, substeps, max_move_m
         self.picker_radius_m, self.threads = picker_radius_m, threads
         self.spacing_m = side_m / (particles - 1)
-        if any(key.split("=")[0].strip() == "simulation.dt_s" for key in overrides or []):
+        if any(str(key).split("=")[0].strip() == "simulation.dt_s" for key in overrides or []):
             raise ValueError("overrides: simulation.dt_s is the dt_s argument")
         # A copy: the caller's later changes do not reach new episodes.
         self.overrides = dict(overrides) if isinstance(overrides, dict) else overrides and list(overrides)
