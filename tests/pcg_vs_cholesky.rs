@@ -486,9 +486,10 @@ fn tied_system(rng: &mut Rng, n: usize) -> (BlockSparseMatrix, Vec<(usize, usize
 /// turned, added; most particles at once, which refills everything; the
 /// matrix changed, which must not be refilled in part), with `f64` and
 /// `f32` coarse operators, point and paired smoothing, W- and K-cycles,
-/// without couplings and with couplings (whose nodes' smoother blocks a
-/// partial refill recomputes only where their row or their pair
-/// partner's changed).
+/// without couplings and with couplings (a partial refill remakes only
+/// the terms that reach a changed particle, and recomputes a coupled
+/// node's smoother block only where its row or its pair partner's
+/// changed).
 #[test]
 fn re_solves_under_a_changed_filter_refill_the_hierarchy_to_the_same_bits() {
     let mut rng = Rng(0xa11ce);
