@@ -21,6 +21,7 @@ mod cell;
 mod collider;
 mod gltf_mesh;
 mod obj;
+mod patch_tree;
 mod triangle;
 mod voxel_hash;
 
@@ -29,6 +30,7 @@ pub use ccd::{Path, edge_edge_impact, point_triangle_impact, segment_crosses_tri
 pub use collider::{BodyPose, ShapeError, ShapeSpec, SolidShape, SurfacePoint};
 pub use gltf_mesh::{GltfError, parse_gltf, read_gltf};
 pub use obj::{ObjError, SurfaceMesh, parse_obj, parse_obj_points};
+pub use patch_tree::{PatchTask, PatchTree, share_a_corner};
 pub use triangle::closest_point_on_triangle;
 pub use voxel_hash::{BroadPhaseError, TRIANGLE_GROUP, VoxelHash};
 

@@ -3,31 +3,29 @@
 //! ends, or linked or sewn to them). A check of a state, not a force: a run
 //! counts its crossings each step to say when a garment tangles.
 
-use super::impact_zones::{owned_features, share_a_corner};
+use super::impact_zones::owned_features;
 use super::self_collision::build_exclusions;
 use crate::{ClothModel, Vec3};
-use cloth_collide::{Aabb, BoxGrid, segment_crosses_triangle};
+use cloth_collide::{Aabb, PatchTask, PatchTree, segment_crosses_triangle};
 use rayon::prelude::*;
 
-/// Occupied cells of the edge grid per parallel task.
-const CELL_CHUNK: usize = 64;
+/// Pieces of the tree search to split into for the parallel tasks.
+const TASKS: usize = 64;
 
 /// One crossing: the mesh edge `[a, b]` (`a < b`) through triangle `t`.
 pub type Crossing = ([u32; 2], u32);
-
-/// Scratch of one parallel chunk of cells: the triangle pairs whose boxes
-/// overlap and the crossings found among them.
-type CrossingChunk = (Vec<(u32, u32)>, Vec<Crossing>);
 
 /// Finds a model's self-crossings, step after step: what depends on the
 /// model alone (which edges each triangle tests, which corners never count
 /// against which triangle) is built once, and the broad phase's buffers
 /// are reused.
 ///
-/// The broad phase pairs triangles whose boxes overlap; each edge is tested
-/// from the one triangle that owns it (`owned_features`) against the other
-/// triangle of the pair. An edge's box lies in its owner's, so no crossing
-/// is missed, and each (edge, triangle) is tested once.
+/// The broad phase ([`PatchTree`]) pairs triangles whose boxes overlap,
+/// outside patches that cannot pass through themselves; each edge is
+/// tested from the one triangle that owns it (`owned_features`) against
+/// the other triangle of the pair. An edge's box lies in its owner's, and
+/// an edge of a skipped patch cannot cross the patch's other triangles, so
+/// no crossing is missed, and each (edge, triangle) is tested once.
 #[derive(Debug, Clone)]
 pub struct CrossingCheck {
     owned: Vec<[u8; 2]>,
@@ -39,10 +37,10 @@ pub struct CrossingCheck {
     skip_adjacent: bool,
     excluded_ptr: Vec<u32>,
     excluded: Vec<u32>,
-    triangle_boxes: Vec<Aabb>,
-    extents: Vec<f64>,
-    grid: BoxGrid,
-    chunks: Vec<CrossingChunk>,
+    tree: PatchTree,
+    tasks: Vec<PatchTask>,
+    /// The crossings each task found.
+    chunks: Vec<Vec<Crossing>>,
     found: Vec<Crossing>,
 }
 
@@ -62,9 +60,8 @@ impl CrossingCheck {
             skip_adjacent,
             excluded_ptr,
             excluded,
-            triangle_boxes: Vec::new(),
-            extents: Vec::new(),
-            grid: BoxGrid::default(),
+            tree: PatchTree::new(triangles, model.rest_positions()),
+            tasks: Vec::new(),
             chunks: Vec::new(),
             found: Vec::new(),
         }
@@ -89,18 +86,16 @@ impl CrossingCheck {
     pub fn find(&mut self, model: &ClothModel, x: &[Vec3]) -> &[Crossing] {
         self.found.clear();
         let triangles = model.triangles();
-        let box_of = |ids: &[u32]| Aabb::around(ids.iter().map(|&i| x[i as usize]), 0.0);
-        self.triangle_boxes.clear();
-        self.triangle_boxes.extend(triangles.iter().map(|t| box_of(t)));
-        let cell = BoxGrid::cell_for(&self.triangle_boxes, 1e-6, &mut self.extents);
-        if self.grid.build(self.triangle_boxes.iter().copied(), cell).is_err() {
+        if self.tree.refit(triangles, x).is_err() {
             return &self.found;
         }
-        let (owned, ptr, excluded, boxes) = (&self.owned, &self.excluded_ptr, &self.excluded, &self.triangle_boxes);
+        let (owned, ptr, excluded) = (&self.owned, &self.excluded_ptr, &self.excluded);
+        let box_of = |ids: &[u32]| Aabb::around(ids.iter().map(|&i| x[i as usize]), 0.0);
         // The edges that triangle `s` owns, tested against triangle `t`.
         let crossings = |s: usize, t: usize, out: &mut Vec<Crossing>| {
             let never = &excluded[ptr[t] as usize..ptr[t + 1] as usize];
             let [i, j, k] = triangles[t].map(|i| x[i as usize]);
+            let t_box = box_of(&triangles[t]);
             for e in (0..3).filter(|&e| owned[s][1] & (1 << e) != 0) {
                 let (a, b) = (triangles[s][e], triangles[s][(e + 1) % 3]);
                 // Lower end first, as the crossing names it: the test's
@@ -108,7 +103,7 @@ impl CrossingCheck {
                 let edge @ [a, b] = [a.min(b), a.max(b)];
                 // The geometry first: it rejects most pairs (an edge with
                 // an end on the triangle at once), the exclusions few.
-                if box_of(&edge).overlaps(&boxes[t])
+                if box_of(&edge).overlaps(&t_box)
                     && segment_crosses_triangle(x[a as usize], x[b as usize], i, j, k)
                     && never.binary_search(&a).is_err()
                     && never.binary_search(&b).is_err()
@@ -117,28 +112,19 @@ impl CrossingCheck {
                 }
             }
         };
-        // The cells in parallel chunks (the last for the wide boxes); the
-        // result is sorted, so the same for any thread count.
-        let (grid, cells, skip_adjacent) = (&self.grid, self.grid.cells(), self.skip_adjacent);
-        let chunks = cells.div_ceil(CELL_CHUNK) + 1;
-        self.chunks.resize_with(chunks, Default::default);
-        self.chunks.par_iter_mut().enumerate().for_each(|(c, (pairs, found))| {
-            pairs.clear();
+        // The tree's tasks in parallel; the result is sorted, so the same
+        // for any thread count.
+        self.tree.tasks(x, TASKS, &mut self.tasks);
+        self.chunks.resize_with(self.tasks.len(), Vec::new);
+        let (tree, skip_adjacent) = (&self.tree, self.skip_adjacent);
+        self.chunks.par_iter_mut().zip(&self.tasks).for_each(|(found, &task)| {
             found.clear();
-            if c < chunks - 1 {
-                grid.pairs(grid, c * CELL_CHUNK..((c + 1) * CELL_CHUNK).min(cells), true, pairs);
-            } else {
-                grid.wide_pairs(grid, true, pairs);
-            }
-            for &(s, t) in pairs.iter() {
-                if skip_adjacent && share_a_corner(triangles[s as usize], triangles[t as usize]) {
-                    continue;
-                }
+            tree.run(task, triangles, x, skip_adjacent, &mut |s, t| {
                 crossings(s as usize, t as usize, found);
                 crossings(t as usize, s as usize, found);
-            }
+            });
         });
-        self.found.extend(self.chunks.iter().flat_map(|(_, found)| found));
+        self.found.extend(self.chunks.iter().flatten());
         self.found.sort_unstable();
         &self.found
     }

@@ -15,7 +15,7 @@ use super::contacts::{Contacts, CrossingBuffers};
 use super::self_collision::build_exclusions;
 use crate::colliders::SelfCollision;
 use crate::{ClothModel, Mat3, Vec3};
-use cloth_collide::{Aabb, BoxGrid, edge_edge_impact, point_triangle_impact};
+use cloth_collide::{Aabb, BoxGrid, edge_edge_impact, point_triangle_impact, share_a_corner};
 use nalgebra::Rotation3;
 use rayon::prelude::*;
 
@@ -301,14 +301,6 @@ pub(crate) fn ring_edge_pairs(model: &ClothModel, owned: &[[u8; 2]]) -> Vec<[u32
         }
     }
     pairs
-}
-
-/// Whether triangles `s` and `t` have a corner in common: all nine
-/// comparisons, without a branch (most broad-phase candidates share one,
-/// in no order a branch predictor could learn).
-#[inline]
-pub(crate) fn share_a_corner(s: [u32; 3], t: [u32; 3]) -> bool {
-    s.iter().fold(false, |any, &v| any | (v == t[0]) | (v == t[1]) | (v == t[2]))
 }
 
 /// Whether edges `[a, b]` and `[c, d]` have an end in common.
