@@ -15,6 +15,8 @@
 //! Adjacent triangles' boxes always overlap, so a box search spends most
 //! of its tests on them; a skipped patch takes them all at once.
 
+use rayon::prelude::*;
+
 use crate::{Aabb, BroadPhaseError, Vec3};
 
 /// A cone's cosine under this is taken as 90 degrees: a triangle seen
@@ -24,6 +26,10 @@ const MIN_CONE_COS: f64 = 1e-6;
 /// Outline segments closer than this fraction of their lengths count as
 /// meeting: the outline test errs towards not skipping.
 const OUTLINE_TOLERANCE: f64 = 1e-9;
+
+/// Nodes a parallel task of the refit takes: a depth with fewer is
+/// refitted on one thread.
+const REFIT_CHUNK: usize = 4096;
 
 /// A node: a triangle (a leaf) or two children.
 #[derive(Debug, Clone, Copy)]
@@ -89,6 +95,10 @@ pub struct PatchTree {
     /// skipped).
     outline_ptr: Vec<u32>,
     outline: Vec<u32>,
+    /// Where each depth of the tree starts in `nodes`, and the end:
+    /// `nodes[depths[d]..depths[d + 1]]` are the nodes `d` splits below
+    /// the root.
+    depths: Vec<u32>,
     boxes: Vec<Aabb>,
     cones: Vec<Cone>,
 }
@@ -129,10 +139,14 @@ impl PatchTree {
     /// outlines from the children's.
     fn build(&mut self, order: &mut [(u32, u32)], centroids: &[Vec3], triangles: &[[u32; 3]]) {
         // Node ranges, parents first.
-        let mut ranges = vec![(0usize, order.len())];
+        let mut ranges = vec![(0usize, order.len(), 0u32)];
         let mut i = 0;
         while i < ranges.len() {
-            let (lo, hi) = ranges[i];
+            let (lo, hi, depth) = ranges[i];
+            // Breadth first: the nodes of one depth are consecutive.
+            if depth as usize == self.depths.len() {
+                self.depths.push(i as u32);
+            }
             if hi - lo == 1 {
                 self.nodes.push(Node::Leaf(order[lo].1));
             } else {
@@ -160,13 +174,14 @@ impl PatchTree {
                     mid
                 };
                 let first = ranges.len() as u32;
-                ranges.push((lo, split));
-                ranges.push((split, hi));
+                ranges.push((lo, split, depth + 1));
+                ranges.push((split, hi, depth + 1));
                 self.nodes.push(Node::Split(first, first + 1));
             }
             self.sizes.push((hi - lo) as u32);
             i += 1;
         }
+        self.depths.push(self.nodes.len() as u32);
         // Each node's boundary: its directed edges that no opposite edge of
         // the node cancels, children before parents. `None`: a node with an
         // edge met twice the same way or by more than two triangles.
@@ -201,30 +216,49 @@ impl PatchTree {
 
     /// Refits the boxes and cones to positions `x` (the triangles those
     /// the tree was made from). Fails on a corner that is not finite.
+    ///
+    /// Each depth of the tree is one range of nodes whose children all lie
+    /// in the next, so a depth is refitted in parallel once the one below
+    /// it is done: every node's box and cone are found alone from its
+    /// children's, the same for any thread count.
     pub fn refit(&mut self, triangles: &[[u32; 3]], x: &[Vec3]) -> Result<(), BroadPhaseError> {
-        for n in (0..self.nodes.len()).rev() {
-            let (b, cone) = match self.nodes[n] {
-                Node::Leaf(t) => {
-                    let [i, j, k] = triangles[t as usize].map(|v| x[v as usize]);
-                    let b = Aabb::around([i, j, k], 0.0);
-                    if !b.min.iter().chain(b.max.iter()).all(|c| c.is_finite()) {
-                        return Err(BroadPhaseError::NonFinite { what: "triangle", index: t as usize });
-                    }
-                    let normal = (j - i).cross(&(k - i));
-                    let norm = normal.norm();
-                    let cone = if norm > 0.0 { Cone { axis: normal / norm, cos: 1.0, sin: 0.0 } } else { Cone::NONE };
-                    (b, cone)
+        let nodes = &self.nodes;
+        let mut all_finite = true;
+        for depth in self.depths.windows(2).rev() {
+            let (start, end) = (depth[0] as usize, depth[1] as usize);
+            let (boxes, child_boxes) = self.boxes.split_at_mut(end);
+            let (cones, child_cones) = self.cones.split_at_mut(end);
+            let (child_boxes, child_cones) = (&*child_boxes, &*child_cones);
+            let fit = |(k, (b, c)): (usize, (&mut [Aabb], &mut [Cone]))| {
+                let first = start + k * REFIT_CHUNK;
+                let mut finite = true;
+                for (i, (b, c)) in b.iter_mut().zip(c.iter_mut()).enumerate() {
+                    let children = (child_boxes, child_cones, end);
+                    let fitted = fit_node(nodes[first + i], triangles, x, children);
+                    finite &= fitted.is_some();
+                    (*b, *c) = fitted.unwrap_or((Aabb { min: Vec3::zeros(), max: Vec3::zeros() }, Cone::NONE));
                 }
-                Node::Split(l, r) => {
-                    let (bl, br) = (&self.boxes[l as usize], &self.boxes[r as usize]);
-                    let b = Aabb { min: bl.min.inf(&br.min), max: bl.max.sup(&br.max) };
-                    (b, Cone::merge(&self.cones[l as usize], &self.cones[r as usize]))
-                }
+                finite
             };
-            self.boxes[n] = b;
-            self.cones[n] = cone;
+            let chunks = boxes[start..].chunks_mut(REFIT_CHUNK).zip(cones[start..].chunks_mut(REFIT_CHUNK));
+            all_finite &= if end - start > REFIT_CHUNK {
+                chunks.collect::<Vec<_>>().into_par_iter().enumerate().map(fit).reduce(|| true, |a, b| a & b)
+            } else {
+                chunks.enumerate().map(fit).fold(true, |a, b| a & b)
+            };
         }
-        Ok(())
+        if all_finite {
+            return Ok(());
+        }
+        // The leaf a serial refit, last node first, would have stopped at.
+        let index = (0..self.nodes.len())
+            .rev()
+            .find_map(|n| match self.nodes[n] {
+                Node::Leaf(t) if fit_node(self.nodes[n], triangles, x, (&[], &[], 0)).is_none() => Some(t as usize),
+                _ => None,
+            })
+            .unwrap_or_default();
+        Err(BroadPhaseError::NonFinite { what: "triangle", index })
     }
 
     /// Splits the search at the last refit into at least `wanted` pieces
@@ -353,6 +387,37 @@ impl PatchTree {
         let v = d.cross(&u);
         let flat: Vec<[f64; 2]> = outline.iter().map(|&i| [x[i as usize].dot(&u), x[i as usize].dot(&v)]).collect();
         simple_polygon(&flat)
+    }
+}
+
+/// Node `node`'s box and normal cone at positions `x`, from its
+/// triangle or from its children's (`children`: the boxes and cones of the
+/// nodes from index `.2` on); `None` for a leaf with a corner that is not
+/// finite.
+fn fit_node(
+    node: Node,
+    triangles: &[[u32; 3]],
+    x: &[Vec3],
+    (boxes, cones, offset): (&[Aabb], &[Cone], usize),
+) -> Option<(Aabb, Cone)> {
+    match node {
+        Node::Leaf(t) => {
+            let [i, j, k] = triangles[t as usize].map(|v| x[v as usize]);
+            let b = Aabb::around([i, j, k], 0.0);
+            if !b.min.iter().chain(b.max.iter()).all(|c| c.is_finite()) {
+                return None;
+            }
+            let normal = (j - i).cross(&(k - i));
+            let norm = normal.norm();
+            let cone = if norm > 0.0 { Cone { axis: normal / norm, cos: 1.0, sin: 0.0 } } else { Cone::NONE };
+            Some((b, cone))
+        }
+        Node::Split(l, r) => {
+            let (l, r) = (l as usize - offset, r as usize - offset);
+            let (bl, br) = (&boxes[l], &boxes[r]);
+            let b = Aabb { min: bl.min.inf(&br.min), max: bl.max.sup(&br.max) };
+            Some((b, Cone::merge(&cones[l], &cones[r])))
+        }
     }
 }
 

@@ -224,3 +224,60 @@ fn triangles_share_a_corner_exactly_when_one_corner_is_in_both() {
     }
     assert!(shared > 0 && apart > 0);
 }
+
+/// A refit in parallel fits every node: on a rippled sheet whose deepest
+/// depths are split into tasks, each node's box is exactly the union of
+/// its triangles' boxes and its cone (where there is one) holds their
+/// normals, with one thread and with two; a corner that is not finite
+/// names a triangle that holds it.
+#[test]
+fn a_parallel_refit_fits_every_node_below_the_root() {
+    let (triangles, rest) = sheet(120, 120, |u, v| Vec3::new(u, v, 0.0));
+    let x: Vec<Vec3> = rest.iter().map(|p| Vec3::new(p.x, p.y, 0.05 * (9.0 * p.x).sin() * (7.0 * p.y).cos())).collect();
+    let mut tree = PatchTree::new(&triangles, &rest);
+    let widest = tree.depths.windows(2).map(|d| d[1] - d[0]).max().unwrap() as usize;
+    assert!(widest > 2 * REFIT_CHUNK, "the sheet should need parallel tasks ({widest} nodes)");
+    // Each split's children lie in the next depth.
+    for d in tree.depths.windows(3) {
+        for n in d[0]..d[1] {
+            if let Node::Split(l, r) = tree.nodes[n as usize] {
+                assert!((d[1]..d[2]).contains(&l) && (d[1]..d[2]).contains(&r), "node {n}");
+            }
+        }
+    }
+    // The triangles under each node, children before parents.
+    let mut under: Vec<Vec<u32>> = vec![Vec::new(); tree.nodes.len()];
+    for n in (0..tree.nodes.len()).rev() {
+        under[n] = match tree.nodes[n] {
+            Node::Leaf(t) => vec![t],
+            Node::Split(l, r) => [under[l as usize].clone(), under[r as usize].clone()].concat(),
+        };
+    }
+    for threads in [1, 2] {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| tree.refit(&triangles, &x)).unwrap();
+        for (n, ts) in under.iter().enumerate() {
+            let corners = ts.iter().flat_map(|&t| triangles[t as usize].map(|v| x[v as usize]));
+            let expected = Aabb::around(corners, 0.0);
+            assert_eq!((tree.boxes[n].min, tree.boxes[n].max), (expected.min, expected.max), "node {n}");
+            let cone = tree.cones[n];
+            if cone.holds_a_patch() {
+                for &t in ts {
+                    let [i, j, k] = triangles[t as usize].map(|v| x[v as usize]);
+                    let normal = (j - i).cross(&(k - i)).normalize();
+                    assert!(normal.dot(&cone.axis) >= cone.cos - 1e-12, "node {n}, triangle {t}");
+                }
+            }
+        }
+        // The ripples bend the whole sheet less than 90 degrees.
+        assert!(tree.cones[0].holds_a_patch(), "{threads} threads");
+    }
+    let mut broken = x.clone();
+    broken[7_000].z = f64::NAN;
+    match tree.refit(&triangles, &broken) {
+        Err(BroadPhaseError::NonFinite { what: "triangle", index }) => {
+            assert!(triangles[index].contains(&7_000), "triangle {index}")
+        }
+        other => panic!("{other:?}"),
+    }
+}
