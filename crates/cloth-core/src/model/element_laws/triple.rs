@@ -74,10 +74,16 @@ pub fn bend_triple_into(x: [Vec3; 3], rest: f64, k_b: f64, hessian: Option<&mut 
         return ElementForces { energy: 0.0, forces: [Vec3::zeros(); 3] };
     };
     if let Some(hessian) = hessian {
+        // The lower blocks are the upper ones transposed, bit for bit:
+        // each term's factors are symmetric to the bit (`I - e e^T`) or an
+        // outer product, whose entries are the same products commuted.
         for (s, row) in hessian.iter_mut().enumerate() {
-            for (u, block) in row.iter_mut().enumerate() {
-                *block = t.block(s, u);
-            }
+            row[s] = t.block(s, s);
+        }
+        for (s, u) in [(0, 1), (0, 2), (1, 2)] {
+            let block = t.block(s, u);
+            hessian[s][u] = block;
+            hessian[u][s] = block.transpose();
         }
     }
     ElementForces { energy: t.energy, forces: t.grad.map(|g| -g * t.de) }
@@ -190,6 +196,32 @@ mod tests {
     fn on_circle(kappa: f64, h: f64) -> [Vec3; 3] {
         let at = |s: f64| Vec3::new((kappa * s).sin() / kappa, 0.0, (1.0 - (kappa * s).cos()) / kappa);
         [at(-h), at(0.0), at(h)]
+    }
+
+    /// The matrix's lower blocks, taken as the upper ones transposed,
+    /// are the blocks `(u, s)` computed directly, to the bit, on bent,
+    /// folded and straight triples and one with a collapsed half.
+    #[test]
+    fn lower_blocks_are_the_upper_ones_transposed_to_the_bit() {
+        let (rest, k_b) = (0.02, 3e-7);
+        let configurations = [
+            [Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.0101, 0.0007, 0.0023), Vec3::new(0.0195, -0.001, 0.0012)],
+            on_circle(250.0, 0.01),
+            on_circle(31.0, 0.0107),
+            [Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.01, 0.0, 0.0), Vec3::new(0.02, 0.0, 0.0)],
+            [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1e-7, 3e-8, 0.0), Vec3::new(0.017, 0.004, -0.002)],
+        ];
+        let bits = |m: &Mat3| m.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        for x in configurations {
+            let h = bend_triple_with(x, rest, k_b, true).hessian;
+            let t = TripleParts::at(x, rest, k_b).unwrap();
+            assert!(h[0][1].norm() > 0.0, "{x:?}");
+            for (s, row) in h.iter().enumerate() {
+                for (u, block) in row.iter().enumerate() {
+                    assert_eq!(bits(block), bits(&t.block(s, u)), "block ({s}, {u}) at {x:?}");
+                }
+            }
+        }
     }
 
     #[test]
