@@ -71,6 +71,17 @@ fn three_g_plus_t_sin(t: f64) -> f64 {
     }
 }
 
+/// `(g(t), h(t))`: [`cos_minus_sinc`] and [`three_g_plus_t_sin`] bit for
+/// bit, from one sine and cosine (each function alone takes its own).
+fn arc_g_h(t: f64) -> (f64, f64) {
+    if t.abs() <= 0.1 {
+        return (cos_minus_sinc(t), three_g_plus_t_sin(t));
+    }
+    let (sin, cos) = t.sin_cos();
+    let g = cos - sin / t;
+    (g, 3.0 * g + t * sin)
+}
+
 /// Where `1 - sinc t` stops increasing: `s* = 1 - sinc(t*)` at the first
 /// positive root `t* = 4.4934...` of `tan t = t`.
 const INVERSE_SINC_BRANCH: f64 = 1.217_233_628_211_221_7;
@@ -171,18 +182,14 @@ pub fn buckling_arc(d: f64, rest: f64, k_b: f64) -> ScalarLaw {
         return ScalarLaw::default();
     };
     let energy = arc_energy(t, rest, k_b);
-    let g = cos_minus_sinc(t);
+    let (g, h) = arc_g_h(t);
     let l2 = rest * rest;
     if t < 1e-6 {
         return ScalarLaw { energy, ..buckling_arc_onset(rest, k_b) };
     }
     // phi = (4 k_b / L^2) t^2 / g, and with dd/dt = L g / t:
     // dphi/dd = (4 k_b / L^3) t^2 (3 g + t sin t) / g^3.
-    ScalarLaw {
-        energy,
-        phi: 4.0 * k_b / l2 * t * t / g,
-        dphi: 4.0 * k_b / (l2 * rest) * t * t * three_g_plus_t_sin(t) / (g * g * g),
-    }
+    ScalarLaw { energy, phi: 4.0 * k_b / l2 * t * t / g, dphi: 4.0 * k_b / (l2 * rest) * t * t * h / (g * g * g) }
 }
 
 /// [`buckling_arc`]'s energy alone, J, bit for bit: an energy monitor or
@@ -453,6 +460,18 @@ mod tests {
             let t = inverse_sinc(k as f64 / 100_000.0);
             assert!(t >= last, "not monotone at s = {}", k as f64 / 100_000.0);
             last = t;
+        }
+    }
+
+    /// The arc law's `g` and `h` from one sine and cosine are the two
+    /// functions' own, to the bit, on both sides of the series' branch.
+    #[test]
+    fn g_and_h_together_are_each_alone() {
+        for k in 0..=3_000 {
+            let t = k as f64 * PI / 3_000.0;
+            let (g, h) = arc_g_h(t);
+            assert_eq!(g.to_bits(), cos_minus_sinc(t).to_bits(), "g at {t}");
+            assert_eq!(h.to_bits(), three_g_plus_t_sin(t).to_bits(), "h at {t}");
         }
     }
 
