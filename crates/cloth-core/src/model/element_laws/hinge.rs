@@ -30,18 +30,21 @@ pub fn bend_hinge_into(
     let with_matrix = hessian.is_some();
     let r = bend_triple_into([x[0], middle, x[3]], rest, k_b, with_matrix.then_some(&mut h3));
     if let Some(hessian) = hessian {
+        // Each corner lies in one point of the triple: block (c, e) is
+        // that pair of points' block, weighted (added to zero, as a sum
+        // over the points would be). Block (e, c) is its transpose to the
+        // bit, as the triple's are.
+        const POINT: [usize; 4] = [0, 1, 1, 2];
+        let block = |c: usize, e: usize| {
+            let (s, t) = (POINT[c], POINT[e]);
+            Mat3::zeros() + h3[s][t] * (share(s, c) * share(t, e))
+        };
         for (c, row) in hessian.iter_mut().enumerate() {
-            for (e, block) in row.iter_mut().enumerate() {
-                *block = Mat3::zeros();
-                for (s, h_row) in h3.iter().enumerate() {
-                    for (t, h) in h_row.iter().enumerate() {
-                        let weight = share(s, c) * share(t, e);
-                        if weight != 0.0 {
-                            *block += h * weight;
-                        }
-                    }
-                }
-            }
+            row[c] = block(c, c);
+        }
+        for (c, e) in [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)] {
+            hessian[c][e] = block(c, e);
+            hessian[e][c] = hessian[c][e].transpose();
         }
     }
     let forces = std::array::from_fn(|c| (0..3).map(|s| r.forces[s] * share(s, c)).sum());
@@ -105,6 +108,49 @@ mod tests {
                 let scale = m.iter().flatten().map(|b| b.norm()).fold(0.0, f64::max);
                 assert!((dfdx + m[a][k][(2, 2)]).abs() < 1e-5 * scale, "block {a},{k}: {dfdx} vs {}", -m[a][k][(2, 2)]);
             }
+        }
+    }
+
+    /// The hinge's matrix is the chain rule's sum over the triple's blocks,
+    /// `H_ce = sum_st share(s, c) share(t, e) H3_st` summed point by point
+    /// from zero, to the bit, flat, bent and folded.
+    #[test]
+    fn hinge_blocks_are_the_chain_rules_sum_to_the_bit() {
+        let (k_b, rest, w) = (3e-7, 0.021, 0.335);
+        let share = |point: usize, corner: usize| match (point, corner) {
+            (0, 0) | (2, 3) => 1.0,
+            (1, 1) => 1.0 - w,
+            (1, 2) => w,
+            _ => 0.0,
+        };
+        let bits = |m: &Mat3| m.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        for lift in [0.0, 0.002, 0.009, 0.02] {
+            let x = [
+                Vec3::new(0.004, -0.009, lift),
+                Vec3::new(0.0, 0.0, 0.0),
+                Vec3::new(0.02, 0.0, 0.0),
+                Vec3::new(0.01 - 0.3 * lift, 0.011, 0.5 * lift),
+            ];
+            let mut m = [[Mat3::zeros(); 4]; 4];
+            bend_hinge_into(x, w, rest, k_b, Some(&mut m));
+            let middle = x[1] * (1.0 - w) + x[2] * w;
+            let mut h3 = [[Mat3::zeros(); 3]; 3];
+            bend_triple_into([x[0], middle, x[3]], rest, k_b, Some(&mut h3));
+            for (c, row) in m.iter().enumerate() {
+                for (e, got) in row.iter().enumerate() {
+                    let mut want = Mat3::zeros();
+                    for (s, h_row) in h3.iter().enumerate() {
+                        for (t, h) in h_row.iter().enumerate() {
+                            let weight = share(s, c) * share(t, e);
+                            if weight != 0.0 {
+                                want += h * weight;
+                            }
+                        }
+                    }
+                    assert_eq!(bits(got), bits(&want), "block ({c}, {e}) at lift {lift}");
+                }
+            }
+            assert!(m[0][3].norm() > 0.0, "lift {lift}");
         }
     }
 
