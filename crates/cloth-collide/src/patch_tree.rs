@@ -240,11 +240,12 @@ impl PatchTree {
                 }
                 finite
             };
-            let chunks = boxes[start..].chunks_mut(REFIT_CHUNK).zip(cones[start..].chunks_mut(REFIT_CHUNK));
+            let (boxes, cones) = (&mut boxes[start..], &mut cones[start..]);
             all_finite &= if end - start > REFIT_CHUNK {
-                chunks.collect::<Vec<_>>().into_par_iter().enumerate().map(fit).reduce(|| true, |a, b| a & b)
+                let chunks = boxes.par_chunks_mut(REFIT_CHUNK).zip(cones.par_chunks_mut(REFIT_CHUNK));
+                chunks.enumerate().map(fit).reduce(|| true, |a, b| a & b)
             } else {
-                chunks.enumerate().map(fit).fold(true, |a, b| a & b)
+                fit((0, (boxes, cones)))
             };
         }
         if all_finite {
