@@ -84,6 +84,9 @@ pub fn over_stretched(model: &ClothModel, x: &[Vec3]) -> Option<OverStretch> {
 /// move, nor those `held` says are held (see [`crate::Control::is_held`]).
 /// With `limit.projections > 0`, that many fast projections
 /// (Goldenthal et al. 2007) come first: every violated link at once.
+/// For the workspace's tests (`cloth_core::testing`); the step calls the
+/// two passes with its own scratch.
+#[cfg(any(test, feature = "testing"))]
 pub fn apply_strain_limit(
     model: &ClothModel,
     limit: &StrainLimit,
@@ -128,7 +131,7 @@ pub(crate) fn project_strain_limit(
     fast_projection(model, &bounds, |q| movable(model, held, q), (x, v), h, limit.projections, scratch)
 }
 
-/// [`apply_strain_limit`] with its scratch: one bit per stretch link,
+/// `apply_strain_limit` with its scratch: one bit per stretch link,
 /// set while the link may need a correction. A pass looks only at the
 /// links whose bit is set: a link whose ends have not moved since it was
 /// last found within its limit is within it still, so the passes do what
