@@ -228,12 +228,11 @@ impl PatchTree {
             let (start, end) = (depth[0] as usize, depth[1] as usize);
             let (boxes, child_boxes) = self.boxes.split_at_mut(end);
             let (cones, child_cones) = self.cones.split_at_mut(end);
-            let (child_boxes, child_cones) = (&*child_boxes, &*child_cones);
+            let children = (&*child_boxes, &*child_cones, end);
             let fit = |(k, (b, c)): (usize, (&mut [Aabb], &mut [Cone]))| {
                 let first = start + k * REFIT_CHUNK;
                 let mut finite = true;
                 for (i, (b, c)) in b.iter_mut().zip(c.iter_mut()).enumerate() {
-                    let children = (child_boxes, child_cones, end);
                     let fitted = fit_node(nodes[first + i], triangles, x, children);
                     finite &= fitted.is_some();
                     (*b, *c) = fitted.unwrap_or((Aabb { min: Vec3::zeros(), max: Vec3::zeros() }, Cone::NONE));

@@ -182,11 +182,11 @@ pub fn buckling_arc(d: f64, rest: f64, k_b: f64) -> ScalarLaw {
         return ScalarLaw::default();
     };
     let energy = arc_energy(t, rest, k_b);
-    let (g, h) = arc_g_h(t);
-    let l2 = rest * rest;
     if t < 1e-6 {
         return ScalarLaw { energy, ..buckling_arc_onset(rest, k_b) };
     }
+    let (g, h) = arc_g_h(t);
+    let l2 = rest * rest;
     // phi = (4 k_b / L^2) t^2 / g, and with dd/dt = L g / t:
     // dphi/dd = (4 k_b / L^3) t^2 (3 g + t sin t) / g^3.
     ScalarLaw { energy, phi: 4.0 * k_b / l2 * t * t / g, dphi: 4.0 * k_b / (l2 * rest) * t * t * h / (g * g * g) }

@@ -19,22 +19,18 @@ pub fn bend_hinge_into(
     hessian: Option<&mut [[Mat3; 4]; 4]>,
 ) -> ElementForces<4> {
     let middle = x[1] * (1.0 - w) + x[2] * w;
-    // The weight of each corner in each point of the triple.
-    let share = |point: usize, corner: usize| match (point, corner) {
-        (0, 0) | (2, 3) => 1.0,
-        (1, 1) => 1.0 - w,
-        (1, 2) => w,
-        _ => 0.0,
-    };
+    // Each corner lies in one point of the triple, with a weight: the
+    // weight of each corner in each point.
+    const POINT: [usize; 4] = [0, 1, 1, 2];
+    let weight = [1.0, 1.0 - w, w, 1.0];
+    let share = |point: usize, corner: usize| if POINT[corner] == point { weight[corner] } else { 0.0 };
     let mut h3 = [[Mat3::zeros(); 3]; 3];
     let with_matrix = hessian.is_some();
     let r = bend_triple_into([x[0], middle, x[3]], rest, k_b, with_matrix.then_some(&mut h3));
     if let Some(hessian) = hessian {
-        // Each corner lies in one point of the triple: block (c, e) is
-        // that pair of points' block, weighted (added to zero, as a sum
-        // over the points would be). Block (e, c) is its transpose to the
-        // bit, as the triple's are.
-        const POINT: [usize; 4] = [0, 1, 1, 2];
+        // Block (c, e) is that pair of points' block, weighted (added to
+        // zero, as a sum over the points would be). Block (e, c) is its
+        // transpose to the bit, as the triple's are.
         let block = |c: usize, e: usize| {
             let (s, t) = (POINT[c], POINT[e]);
             Mat3::zeros() + h3[s][t] * (share(s, c) * share(t, e))
