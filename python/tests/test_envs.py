@@ -34,6 +34,26 @@ def test_each_task_passes_gymnasiums_checker_and_renders(task):
     assert cloth_pixels.sum() > 100
 
 
+@pytest.mark.parametrize("observation", ["positions", "keypoints"])
+def test_the_pickers_part_of_the_observation_is_bounded_by_their_box(observation):
+    env = gym.make("cloth/Fold-v0", observation=observation).unwrapped
+    space, pickers = env.observation_space, env.pickers
+    low, high = space.low[-4 * pickers :].reshape(pickers, 4), space.high[-4 * pickers :].reshape(pickers, 4)
+    lo, hi = env.BOUNDS
+    assert (low[:, :3] == lo).all() and (high[:, :3] == hi).all()
+    assert (low[:, 3] == 0).all() and (high[:, 3] == 1).all()
+    assert np.isinf(space.low[: -4 * pickers]).all() and np.isinf(space.high[: -4 * pickers]).all()
+    # Pushed against every wall of the box, the pickers stay inside it.
+    obs, _ = env.reset(seed=1)
+    # 0.03 m a step: 40 steps cross the box.
+    for action in ([1, 1, 1, 1], [-1, -1, -1, -1]):
+        for _ in range(40):
+            obs, *_ = env.step(np.array(action * pickers, dtype=np.float32))
+            assert obs in space
+        pos = obs[-4 * pickers :].reshape(pickers, 4)[:, :3]
+        assert np.allclose(pos, hi if action[0] > 0 else lo)
+
+
 @pytest.mark.parametrize("task", TASKS)
 def test_the_same_seed_gives_the_same_bits(task):
     def run(seed):

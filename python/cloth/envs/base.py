@@ -49,6 +49,17 @@ thickness_m = {self_thickness_m!r}
 """
 
 
+def observation_box(points: int, pickers: int, bounds) -> spaces.Box:
+    """The observation's space: ``points`` positions (m), unbounded (a
+    cloth's particles go wherever the simulation takes them), then per
+    picker its position within ``bounds`` (m) and a holding flag in
+    [0, 1]."""
+    lo, hi = (np.asarray(b, dtype=np.float32) for b in bounds)
+    low = np.concatenate([np.full(3 * points, -np.inf, np.float32), np.tile(np.append(lo, 0.0), pickers)])
+    high = np.concatenate([np.full(3 * points, np.inf, np.float32), np.tile(np.append(hi, 1.0), pickers)])
+    return spaces.Box(low.astype(np.float32), high.astype(np.float32), dtype=np.float32)
+
+
 class ClothTaskEnv(gym.Env):
     """A square cloth of ``particles`` x ``particles`` nodes and side
     ``side_m`` (m) on a floor at z = 0 (Choi & Ko's model, BDF2, contacts
@@ -75,9 +86,10 @@ class ClothTaskEnv(gym.Env):
     override's.
 
     Observation (float32): with ``observation="positions"``, every
-    particle's position (m, row by row) then each picker's position and a
-    holding flag; with ``"keypoints"``, the four corners and the centre
-    instead of every particle.
+    particle's position (m, row by row, unbounded) then each picker's
+    position (within ``BOUNDS``) and a holding flag (0 or 1); with
+    ``"keypoints"``, the four corners and the centre instead of every
+    particle.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 30}
@@ -131,7 +143,7 @@ class ClothTaskEnv(gym.Env):
         self._scene = self.build_scene()
         self.action_space = spaces.Box(-1.0, 1.0, shape=(4 * pickers,), dtype=np.float32)
         points = particles * particles if observation == "positions" else 5
-        self.observation_space = spaces.Box(-np.inf, np.inf, shape=(3 * points + 4 * pickers,), dtype=np.float32)
+        self.observation_space = observation_box(points, pickers, self.BOUNDS)
         self._camera = Camera(eye=(0.0, -0.8, 0.8), target=(0.0, 0.0, 0.0), width=image_size, height=image_size)
         self.sim = None
         self.picker_pos = np.zeros((pickers, 3))

@@ -127,7 +127,10 @@ class DropEnv(ClothTaskEnv):
         )
         x = self.sim.positions
         top = [self.index(0, 0), self.index(n - 1, 0)]
-        self.picker_pos = x[top][: self.pickers].copy()
+        # The top edge starts at the box's ceiling, the initial jitter
+        # lifting some corners above it: the pickers start inside the box
+        # (the grasp keeps each particle's offset, so nothing moves).
+        self.picker_pos = np.clip(x[top][: self.pickers], *self.BOUNDS)
         for k in range(self.pickers):
             self.move_picker(k, self.picker_pos[k], True)
         self.settle(0.5)

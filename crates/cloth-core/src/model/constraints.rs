@@ -86,7 +86,7 @@ pub fn over_stretched(model: &ClothModel, x: &[Vec3]) -> Option<OverStretch> {
 /// (Goldenthal et al. 2007) come first: every violated link at once.
 /// For the workspace's tests (`cloth_core::testing`); the step calls the
 /// two passes with its own scratch.
-#[cfg(any(test, feature = "testing"))]
+#[cfg(feature = "testing")]
 pub fn apply_strain_limit(
     model: &ClothModel,
     limit: &StrainLimit,
