@@ -255,25 +255,56 @@ impl<const K: usize> Default for ElementRhs<K> {
 }
 
 /// Per-element scratch of one kind. Blocks live apart from the right-hand
-/// sides so that a forces-only evaluation writes no blocks.
+/// sides so that a forces-only evaluation writes no blocks. With `UPPER`,
+/// a kind whose law gives lower blocks that are the upper ones transposed
+/// to the bit (the bending triples' and hinges') keeps only the blocks
+/// `H_ab` with `a <= b`, and the reads transpose the others: a third
+/// fewer bytes for the forces to write and the assembly to read back for
+/// a triple, three eighths for a hinge, and the same bits.
 #[derive(Debug, Clone, Default)]
-struct KindBuffers<const K: usize> {
+struct KindBuffers<const K: usize, const UPPER: bool> {
     rhs: Vec<ElementRhs<K>>,
-    blocks: Vec<[[Mat3; K]; K]>,
+    /// Each element's blocks `c_x H_ab`, [`KindBuffers::STORED`] of them,
+    /// row by row (`UPPER`: from the diagonal on).
+    blocks: Vec<Mat3>,
 }
 
-impl<const K: usize> KindBuffers<K> {
+impl<const K: usize, const UPPER: bool> KindBuffers<K, UPPER> {
+    /// Blocks kept per element.
+    const STORED: usize = if UPPER { K * (K + 1) / 2 } else { K * K };
+
     /// For `len` elements; their Hessian blocks only `with_hessians`.
     fn new(len: usize, with_hessians: bool) -> Self {
-        let blocks = if with_hessians { len } else { 0 };
-        Self { rhs: vec![ElementRhs::default(); len], blocks: vec![[[Mat3::zeros(); K]; K]; blocks] }
+        let blocks = if with_hessians { len * Self::STORED } else { 0 };
+        Self { rhs: vec![ElementRhs::default(); len], blocks: vec![Mat3::zeros(); blocks] }
+    }
+
+    /// Where block `(a, b)` of an element is among its stored ones, and
+    /// whether it is kept as `(b, a)` (then read transposed).
+    #[inline]
+    fn place(a: usize, b: usize) -> (usize, bool) {
+        if !UPPER {
+            (a * K + b, false)
+        } else if a <= b {
+            (a * (2 * K - a - 1) / 2 + b, false)
+        } else {
+            (b * (2 * K - b - 1) / 2 + a, true)
+        }
+    }
+
+    /// Block `c_x H_ab` of element `e` (of the last evaluation with
+    /// Hessians).
+    #[inline]
+    fn block(&self, e: usize, a: usize, b: usize) -> Mat3 {
+        let (k, transposed) = Self::place(a, b);
+        let m = &self.blocks[e * Self::STORED + k];
+        if transposed { m.transpose() } else { *m }
     }
 
     /// Evaluates `law(e, hessian)` for every element `e` with corners
     /// `nodes(e)`, in parallel, into right-hand sides and (with a Hessian)
     /// blocks `c_x H_ab`. `law` writes every block of `H` into the buffer
-    /// it is given: built and returned, a matrix of `K x K` blocks was a
-    /// temporary copied twice (up to 2.6 kB an element).
+    /// it is given, on the stack; the blocks kept are copied from it.
     #[allow(clippy::too_many_arguments)]
     fn evaluate<E: Sync>(
         &mut self,
@@ -286,16 +317,25 @@ impl<const K: usize> KindBuffers<K> {
         k_times: Option<(f64, &[Vec3])>,
     ) {
         if c_x != 0.0 || k_times.is_some() {
-            assert_eq!(self.blocks.len(), elems.len(), "element Hessians asked of buffers built for forces only");
+            let stored = elems.len() * Self::STORED;
+            assert_eq!(self.blocks.len(), stored, "element Hessians asked of buffers built for forces only");
+            if elems.is_empty() {
+                return;
+            }
             self.rhs
                 .par_iter_mut()
-                .zip(self.blocks.par_iter_mut())
+                .zip(self.blocks.par_chunks_mut(Self::STORED))
                 .zip(elems.par_iter())
                 .with_min_len(ROW_CHUNK)
-                .for_each(|((out, blocks), e)| {
-                    let r = law(e, blocks);
-                    *out = fold(&r, blocks, &nodes(e), force, k_times);
-                    blocks.iter_mut().flatten().for_each(|b| *b *= c_x);
+                .for_each(|((out, kept), e)| {
+                    let mut hessian = [[Mat3::zeros(); K]; K];
+                    let r = law(e, &mut hessian);
+                    *out = fold(&r, &hessian, &nodes(e), force, k_times);
+                    for a in 0..K {
+                        for b in if UPPER { a } else { 0 }..K {
+                            kept[Self::place(a, b).0] = hessian[a][b] * c_x;
+                        }
+                    }
                 });
         } else {
             self.rhs.par_iter_mut().zip(elems.par_iter()).with_min_len(ROW_CHUNK).for_each(|(out, e)| {
@@ -314,10 +354,10 @@ impl<const K: usize> KindBuffers<K> {
 /// Per-element scratch, sized once per model.
 #[derive(Debug, Clone, Default)]
 pub struct ElementBuffers {
-    membranes: KindBuffers<3>,
-    curvatures: KindBuffers<6>,
-    triples: KindBuffers<3>,
-    hinges: KindBuffers<4>,
+    membranes: KindBuffers<3, false>,
+    curvatures: KindBuffers<6, false>,
+    triples: KindBuffers<3, true>,
+    hinges: KindBuffers<4, true>,
 }
 
 impl ElementBuffers {
@@ -434,19 +474,24 @@ pub(crate) fn rhs_at(set: &ElementSet, bufs: &ElementBuffers, i: usize) -> Vec3 
 /// Adds the element blocks of row `i`: `add(slot, block)` for each block,
 /// `slot` its position in the row's stored blocks, corner by corner.
 pub(crate) fn add_row(set: &ElementSet, bufs: &ElementBuffers, i: usize, mut row: impl FnMut(usize, &Mat3)) {
-    fn add<const K: usize>(slots: &[u32; K], blocks: &[Mat3; K], row: &mut impl FnMut(usize, &Mat3)) {
-        for (s, b) in slots.iter().zip(blocks) {
-            row(*s as usize, b);
+    fn add<const K: usize, const U: bool>(
+        slots: &[u32; K],
+        kind: &KindBuffers<K, U>,
+        (e, a): (usize, usize),
+        row: &mut impl FnMut(usize, &Mat3),
+    ) {
+        for (b, s) in slots.iter().enumerate() {
+            row(*s as usize, &kind.block(e, a, b));
         }
     }
     let row = &mut row;
     for c in set.corners(i) {
         let (e, a) = (c.elem as usize, c.corner as usize);
         match c.kind {
-            Kind::Membrane => add(&set.membrane_slots[e][a], &bufs.membranes.blocks[e][a], row),
-            Kind::Curvature => add(&set.curvature_slots[e][a], &bufs.curvatures.blocks[e][a], row),
-            Kind::Triple => add(&set.triple_slots[e][a], &bufs.triples.blocks[e][a], row),
-            Kind::Hinge => add(&set.hinge_slots[e][a], &bufs.hinges.blocks[e][a], row),
+            Kind::Membrane => add(&set.membrane_slots[e][a], &bufs.membranes, (e, a), row),
+            Kind::Curvature => add(&set.curvature_slots[e][a], &bufs.curvatures, (e, a), row),
+            Kind::Triple => add(&set.triple_slots[e][a], &bufs.triples, (e, a), row),
+            Kind::Hinge => add(&set.hinge_slots[e][a], &bufs.hinges, (e, a), row),
         }
     }
 }
@@ -463,19 +508,19 @@ pub(crate) fn for_each_block(
 ) {
     let mut bufs = ElementBuffers::new(set);
     evaluate(set, x, 1.0, 1.0, None, &mut bufs);
-    fn each<E, const K: usize>(
+    fn each<E, const K: usize, const U: bool>(
         (elems, order): (&[E], &[u32]),
         nodes: impl Fn(&E) -> [u32; K],
-        kind: &KindBuffers<K>,
+        kind: &KindBuffers<K, U>,
         force: &mut impl FnMut(usize, Vec3),
         block: &mut impl FnMut(usize, usize, &Mat3),
     ) {
         for e in in_build_order(elems.len(), order) {
-            let (nodes, rhs, blocks) = (nodes(&elems[e]), &kind.rhs[e], &kind.blocks[e]);
+            let (nodes, rhs) = (nodes(&elems[e]), &kind.rhs[e]);
             for a in 0..K {
                 force(nodes[a] as usize, rhs.rhs[a]);
                 for b in 0..K {
-                    block(nodes[a] as usize, nodes[b] as usize, &blocks[a][b]);
+                    block(nodes[a] as usize, nodes[b] as usize, &kind.block(e, a, b));
                 }
             }
         }
@@ -490,17 +535,25 @@ pub(crate) fn for_each_block(
 /// `sum_b blocks_ab w_b s_b` over the elements of particle `i` (with
 /// `s = m^-1/2` for the mass-scaled operator).
 pub(crate) fn apply_at(set: &ElementSet, bufs: &ElementBuffers, i: usize, w: &[Vec3], s: &[f64]) -> Vec3 {
-    fn apply<const K: usize>(nodes: &[u32; K], blocks: &[Mat3; K], w: &[Vec3], s: &[f64]) -> Vec3 {
-        nodes.iter().zip(blocks).fold(Vec3::zeros(), |acc, (&p, b)| acc + b * (w[p as usize] * s[p as usize]))
+    fn apply<const K: usize, const U: bool>(
+        nodes: &[u32; K],
+        kind: &KindBuffers<K, U>,
+        (e, a): (usize, usize),
+        w: &[Vec3],
+        s: &[f64],
+    ) -> Vec3 {
+        let terms = nodes.iter().enumerate();
+        terms.fold(Vec3::zeros(), |acc, (b, &p)| acc + kind.block(e, a, b) * (w[p as usize] * s[p as usize]))
     }
     let mut acc = Vec3::zeros();
     for c in set.corners(i) {
-        let (e, a) = (c.elem as usize, c.corner as usize);
+        let at = (c.elem as usize, c.corner as usize);
+        let e = at.0;
         acc += match c.kind {
-            Kind::Membrane => apply(&set.membranes[e].nodes, &bufs.membranes.blocks[e][a], w, s),
-            Kind::Curvature => apply(&set.curvatures[e].nodes, &bufs.curvatures.blocks[e][a], w, s),
-            Kind::Triple => apply(&set.triples[e].nodes, &bufs.triples.blocks[e][a], w, s),
-            Kind::Hinge => apply(&set.hinges[e].nodes, &bufs.hinges.blocks[e][a], w, s),
+            Kind::Membrane => apply(&set.membranes[e].nodes, &bufs.membranes, at, w, s),
+            Kind::Curvature => apply(&set.curvatures[e].nodes, &bufs.curvatures, at, w, s),
+            Kind::Triple => apply(&set.triples[e].nodes, &bufs.triples, at, w, s),
+            Kind::Hinge => apply(&set.hinges[e].nodes, &bufs.hinges, at, w, s),
         };
     }
     acc
@@ -672,9 +725,10 @@ mod tests {
     use crate::element_laws::Matrix3Voigt;
     use nalgebra::Vector2;
 
-    /// A 5 x 5 grid, its membrane triangles and the hinges across their
-    /// diagonals, listed in an order far from their particles' (as a
-    /// mesher's can be), at bent positions.
+    /// A 5 x 5 grid, its membrane triangles, the hinges across their
+    /// diagonals and bending triples along its rows and columns (their
+    /// rest longer than the chord: buckled), listed in an order far from
+    /// their particles' (as a mesher's can be), at bent positions.
     fn scrambled() -> (ElementSet, Vec<Vec3>) {
         let (side, h) = (5u32, 0.01);
         let id = |i: u32, j: u32| i + side * j;
@@ -697,13 +751,22 @@ mod tests {
                 set.hinges.push(BendHinge { nodes: [a, b, c, d], w: 0.5, rest: 2.0 * h, k_b });
             }
         }
+        for k in [4, 1, 3, 0, 2] {
+            for m in [2, 0, 1] {
+                let k_b = 1e-3 * (1.0 + m as f64);
+                set.triples.push(BendTriple { nodes: [id(m, k), id(m + 1, k), id(m + 2, k)], rest: 2.3 * h, k_b });
+                set.triples.push(BendTriple { nodes: [id(k, m + 2), id(k, m + 1), id(k, m)], rest: 2.3 * h, k_b });
+            }
+        }
         (set, x)
     }
 
     /// Elements stored by their lowest particle still sum in the order
     /// they were built: energies, forces and row blocks are bit for bit
     /// the sums over the elements as built (which storage order would not
-    /// give here: the energy summed in storage order differs).
+    /// give here: the energy summed in storage order differs). The
+    /// triples and hinges keep their upper blocks alone; the rows read
+    /// the lower ones transposed, bit for bit the laws' own.
     #[test]
     fn storing_elements_by_particle_keeps_every_sum_in_build_order() {
         let (mut set, x) = scrambled();
@@ -714,13 +777,16 @@ mod tests {
         let lowest = |nodes: &[u32]| *nodes.iter().min().unwrap();
         assert!(set.membranes.windows(2).all(|w| lowest(&w[0].nodes) <= lowest(&w[1].nodes)));
         assert!(set.hinges.windows(2).all(|w| lowest(&w[0].nodes) <= lowest(&w[1].nodes)));
+        assert!(set.triples.windows(2).all(|w| lowest(&w[0].nodes) <= lowest(&w[1].nodes)));
         assert_ne!(set.membranes, built.membranes, "the build order was already the storage order");
 
         // The sums as built: membranes, then hinges, element by element.
         let at3 = |n: &[u32; 3]| n.map(|p| x[p as usize]);
         let at4 = |n: &[u32; 4]| n.map(|p| x[p as usize]);
         let mut energy_m = 0.0;
+        let mut energy_t = 0.0;
         let mut energy_h = 0.0;
+        let mut asymmetric = 0;
         let mut force = vec![Vec3::zeros(); n];
         let mut rows = vec![vec![Mat3::zeros(); n]; n];
         for m in &built.membranes {
@@ -734,6 +800,18 @@ mod tests {
                 }
             }
         }
+        for t in &built.triples {
+            let mut hess = [[Mat3::zeros(); 3]; 3];
+            let r = bend_triple_into(at3(&t.nodes), t.rest, t.k_b, Some(&mut hess));
+            energy_t += r.energy;
+            for a in 0..3 {
+                force[t.nodes[a] as usize] += r.forces[a];
+                for b in 0..3 {
+                    rows[t.nodes[a] as usize][t.nodes[b] as usize] += hess[a][b];
+                    asymmetric += usize::from(hess[a][b] != hess[a][b].transpose());
+                }
+            }
+        }
         for e in &built.hinges {
             let mut hess = [[Mat3::zeros(); 4]; 4];
             let r = bend_hinge_into(at4(&e.nodes), e.w, e.rest, e.k_b, Some(&mut hess));
@@ -742,10 +820,14 @@ mod tests {
                 force[e.nodes[a] as usize] += r.forces[a];
                 for b in 0..4 {
                     rows[e.nodes[a] as usize][e.nodes[b] as usize] += hess[a][b];
+                    asymmetric += usize::from(hess[a][b] != hess[a][b].transpose());
                 }
             }
         }
-        let expected = energy_m + 0.0 + 0.0 + energy_h;
+        // Blocks that are not symmetric themselves: a block read from its
+        // transposed partner the wrong way round would show.
+        assert!(asymmetric > 100, "{asymmetric} asymmetric blocks");
+        let expected = energy_m + 0.0 + energy_t + energy_h;
 
         assert_eq!(energy_only(&set, &x, &mut ElementEnergies::new(&set)).to_bits(), expected.to_bits());
         let mut bufs = ElementBuffers::new(&set);
@@ -761,6 +843,19 @@ mod tests {
             for (block, &j) in row.iter().zip(cols) {
                 assert_eq!(*block, rows[i][j as usize], "block ({i}, {j})");
             }
+        }
+        // The element blocks one by one (summed as built: the same bits),
+        // and the products over them (summed by element: within 5.1e-14
+        // of the rows' products, measured).
+        let mut each = vec![vec![Mat3::zeros(); n]; n];
+        for_each_block(&set, &x, |_, _| {}, |a, b, block| each[a][b] += block);
+        assert_eq!(each, rows);
+        let w: Vec<Vec3> = (0..n).map(|k| Vec3::new(1.0, -0.5 * k as f64, 0.25 + 0.1 * k as f64)).collect();
+        let scale: Vec<f64> = (0..n).map(|k| 1.0 + 0.01 * k as f64).collect();
+        for (i, row) in rows.iter().enumerate() {
+            let product: Vec3 = row.iter().zip(w.iter().zip(&scale)).map(|(block, (w, s))| block * (w * *s)).sum();
+            let applied = apply_at(&set, &bufs, i, &w, &scale);
+            assert!((applied - product).norm() <= 1e-13 * product.norm(), "apply_at row {i}");
         }
     }
 }
