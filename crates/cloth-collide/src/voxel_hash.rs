@@ -185,11 +185,12 @@ impl VoxelHash {
         self.slots.len()
     }
 
-    /// Appends, unsorted, the pairs of [`VoxelHash::pairs_within`] whose
-    /// lower point's cell sits in table slots `slots`: ranges that cover
-    /// `0..table_slots()` once find every pair once, so callers may split
-    /// the table among threads and sort the union. Visits each occupied
-    /// cell's 27 neighbours once (not once per point).
+    /// Appends, unsorted, the pairs of [`VoxelHash::pairs_within`] that
+    /// the cells in table slots `slots` own: a cell owns the pairs within
+    /// it and those with a point in the 13 neighbours after it (x
+    /// slowest, z fastest). Ranges that cover `0..table_slots()` once find
+    /// every pair once, so callers may split the table among threads and
+    /// sort the union. Each occupied cell looks up 14 cells, not 27.
     pub fn pairs_from_slots(
         &self,
         slots: std::ops::Range<usize>,
@@ -199,23 +200,26 @@ impl VoxelHash {
     ) {
         assert!(radius <= self.voxel, "pairs_within: radius {radius} exceeds the voxel size {}", self.voxel);
         let r2 = radius * radius;
+        let mut keep = |i: u32, j: u32, d2: f64| {
+            let (i, j) = (i.min(j), i.max(j));
+            // Distance first: `skip` may be the costlier test.
+            if d2 < r2 && !skip(i, j) {
+                out.push((i, j));
+            }
+        };
         for slot in self.slots[slots].iter().filter(|slot| slot.len != 0) {
             let (c, mine) = (slot.cell, slot.points());
-            for dx in -1..=1 {
-                for dy in -1..=1 {
-                    for dz in -1..=1 {
-                        let theirs = self.cell_range([c[0] + dx, c[1] + dy, c[2] + dz]);
-                        for a in mine.clone() {
-                            let (i, pi) = (self.sorted[a], &self.sorted_pos[a]);
-                            for b in theirs.clone() {
-                                // Each pair once, from its lower index.
-                                let j = self.sorted[b];
-                                // Distance first: `skip` may be the costlier test.
-                                if j > i && (self.sorted_pos[b] - pi).norm_squared() < r2 && !skip(i, j) {
-                                    out.push((i, j));
-                                }
-                            }
-                        }
+            for a in mine.clone() {
+                for b in a + 1..mine.end {
+                    keep(self.sorted[a], self.sorted[b], (self.sorted_pos[b] - self.sorted_pos[a]).norm_squared());
+                }
+            }
+            for [dx, dy, dz] in FORWARD {
+                let theirs = self.cell_range([c[0] + dx, c[1] + dy, c[2] + dz]);
+                for a in mine.clone() {
+                    let (i, pi) = (self.sorted[a], &self.sorted_pos[a]);
+                    for b in theirs.clone() {
+                        keep(i, self.sorted[b], (self.sorted_pos[b] - pi).norm_squared());
                     }
                 }
             }
@@ -314,6 +318,24 @@ impl VoxelHash {
         });
     }
 }
+
+/// The 13 neighbours of a cell that come after it, x slowest and z
+/// fastest: each pair of neighbouring cells is visited from one of them.
+const FORWARD: [[i64; 3]; 13] = [
+    [0, 0, 1],
+    [0, 1, -1],
+    [0, 1, 0],
+    [0, 1, 1],
+    [1, -1, -1],
+    [1, -1, 0],
+    [1, -1, 1],
+    [1, 0, -1],
+    [1, 0, 0],
+    [1, 0, 1],
+    [1, 1, -1],
+    [1, 1, 0],
+    [1, 1, 1],
+];
 
 /// Triangles whose boxes [`VoxelHash::point_triangle_candidates_into`]
 /// walks together: consecutive triangles of a cloth share most of their
