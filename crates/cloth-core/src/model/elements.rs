@@ -304,7 +304,9 @@ impl<const K: usize, const UPPER: bool> KindBuffers<K, UPPER> {
     /// Evaluates `law(e, hessian)` for every element `e` with corners
     /// `nodes(e)`, in parallel, into right-hand sides and (with a Hessian)
     /// blocks `c_x H_ab`. `law` writes every block of `H` into the buffer
-    /// it is given, on the stack; the blocks kept are copied from it.
+    /// it is given: a scratch each task reuses (made afresh for every
+    /// element, it was copied from a zeroed template each time), from
+    /// which the blocks kept are copied.
     #[allow(clippy::too_many_arguments)]
     fn evaluate<E: Sync>(
         &mut self,
@@ -327,16 +329,18 @@ impl<const K: usize, const UPPER: bool> KindBuffers<K, UPPER> {
                 .zip(self.blocks.par_chunks_mut(Self::STORED))
                 .zip(elems.par_iter())
                 .with_min_len(ROW_CHUNK)
-                .for_each(|((out, kept), e)| {
-                    let mut hessian = [[Mat3::zeros(); K]; K];
-                    let r = law(e, &mut hessian);
-                    *out = fold(&r, &hessian, &nodes(e), force, k_times);
-                    for a in 0..K {
-                        for b in if UPPER { a } else { 0 }..K {
-                            kept[Self::place(a, b).0] = hessian[a][b] * c_x;
+                .for_each_init(
+                    || [[Mat3::zeros(); K]; K],
+                    |hessian, ((out, kept), e)| {
+                        let r = law(e, hessian);
+                        *out = fold(&r, hessian, &nodes(e), force, k_times);
+                        for a in 0..K {
+                            for b in if UPPER { a } else { 0 }..K {
+                                kept[Self::place(a, b).0] = hessian[a][b] * c_x;
+                            }
                         }
-                    }
-                });
+                    },
+                );
         } else {
             self.rhs.par_iter_mut().zip(elems.par_iter()).with_min_len(ROW_CHUNK).for_each(|(out, e)| {
                 let r = forces_only(e);
