@@ -304,9 +304,9 @@ impl<const K: usize, const UPPER: bool> KindBuffers<K, UPPER> {
     /// Evaluates `law(e, hessian)` for every element `e` with corners
     /// `nodes(e)`, in parallel, into right-hand sides and (with a Hessian)
     /// blocks `c_x H_ab`. `law` writes every block of `H` into the buffer
-    /// it is given: a scratch each task reuses (made afresh for every
-    /// element, it was copied from a zeroed template each time), from
-    /// which the blocks kept are copied.
+    /// it is given: a scratch each task reuses (an array made for each
+    /// element costs a copy of a zeroed template), from which the blocks
+    /// kept are copied.
     #[allow(clippy::too_many_arguments)]
     fn evaluate<E: Sync>(
         &mut self,
@@ -551,13 +551,12 @@ pub(crate) fn apply_at(set: &ElementSet, bufs: &ElementBuffers, i: usize, w: &[V
     }
     let mut acc = Vec3::zeros();
     for c in set.corners(i) {
-        let at = (c.elem as usize, c.corner as usize);
-        let e = at.0;
+        let (e, a) = (c.elem as usize, c.corner as usize);
         acc += match c.kind {
-            Kind::Membrane => apply(&set.membranes[e].nodes, &bufs.membranes, at, w, s),
-            Kind::Curvature => apply(&set.curvatures[e].nodes, &bufs.curvatures, at, w, s),
-            Kind::Triple => apply(&set.triples[e].nodes, &bufs.triples, at, w, s),
-            Kind::Hinge => apply(&set.hinges[e].nodes, &bufs.hinges, at, w, s),
+            Kind::Membrane => apply(&set.membranes[e].nodes, &bufs.membranes, (e, a), w, s),
+            Kind::Curvature => apply(&set.curvatures[e].nodes, &bufs.curvatures, (e, a), w, s),
+            Kind::Triple => apply(&set.triples[e].nodes, &bufs.triples, (e, a), w, s),
+            Kind::Hinge => apply(&set.hinges[e].nodes, &bufs.hinges, (e, a), w, s),
         };
     }
     acc
@@ -784,7 +783,8 @@ mod tests {
         assert!(set.triples.windows(2).all(|w| lowest(&w[0].nodes) <= lowest(&w[1].nodes)));
         assert_ne!(set.membranes, built.membranes, "the build order was already the storage order");
 
-        // The sums as built: membranes, then hinges, element by element.
+        // The sums as built: membranes, triples, then hinges, element by
+        // element, from each law's full matrix.
         let at3 = |n: &[u32; 3]| n.map(|p| x[p as usize]);
         let at4 = |n: &[u32; 4]| n.map(|p| x[p as usize]);
         let mut energy_m = 0.0;

@@ -155,8 +155,8 @@ struct TripleParts {
 }
 
 impl TripleParts {
-    /// `None` when the rest length is not a positive length. Inlined: a
-    /// call returned the parts (some 330 bytes) through a copy.
+    /// `None` when the rest length is not a positive length. Inlined:
+    /// through a call, the parts (some 330 bytes) come back by a copy.
     #[inline(always)]
     fn at(x: [Vec3; 3], rest: f64, k_b: f64) -> Option<Self> {
         let Path { chord: c, d, halves: [(l1, e1), (l2, e2)], r } = Path::at(x, rest)?;
