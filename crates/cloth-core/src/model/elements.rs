@@ -764,6 +764,28 @@ mod tests {
         (set, x)
     }
 
+    /// Adds an element's forces and whole matrix, as its `law` gives them
+    /// at the corners `nodes`, into `force` and the dense `rows`; returns
+    /// its energy and how many of its blocks are not symmetric themselves.
+    fn add_whole<const K: usize>(
+        nodes: &[u32; K],
+        law: impl FnOnce(&mut [[Mat3; K]; K]) -> ElementForces<K>,
+        force: &mut [Vec3],
+        rows: &mut [Vec<Mat3>],
+    ) -> (f64, usize) {
+        let mut hess = [[Mat3::zeros(); K]; K];
+        let r = law(&mut hess);
+        let mut unsymmetric = 0;
+        for a in 0..K {
+            force[nodes[a] as usize] += r.forces[a];
+            for b in 0..K {
+                rows[nodes[a] as usize][nodes[b] as usize] += hess[a][b];
+                unsymmetric += usize::from(hess[a][b] != hess[a][b].transpose());
+            }
+        }
+        (r.energy, unsymmetric)
+    }
+
     /// Elements stored by their lowest particle still sum in the order
     /// they were built: energies, forces and row blocks are bit for bit
     /// the sums over the elements as built (which storage order would not
@@ -794,39 +816,18 @@ mod tests {
         let mut force = vec![Vec3::zeros(); n];
         let mut rows = vec![vec![Mat3::zeros(); n]; n];
         for m in &built.membranes {
-            let mut hess = [[Mat3::zeros(); 3]; 3];
-            let r = membrane_triangle_into(at3(&m.nodes), &m.rest, Some(&mut hess));
-            energy_m += r.energy;
-            for a in 0..3 {
-                force[m.nodes[a] as usize] += r.forces[a];
-                for b in 0..3 {
-                    rows[m.nodes[a] as usize][m.nodes[b] as usize] += hess[a][b];
-                }
-            }
+            let law = |h: &mut _| membrane_triangle_into(at3(&m.nodes), &m.rest, Some(h));
+            energy_m += add_whole(&m.nodes, law, &mut force, &mut rows).0;
         }
         for t in &built.triples {
-            let mut hess = [[Mat3::zeros(); 3]; 3];
-            let r = bend_triple_into(at3(&t.nodes), t.rest, t.k_b, Some(&mut hess));
-            energy_t += r.energy;
-            for a in 0..3 {
-                force[t.nodes[a] as usize] += r.forces[a];
-                for b in 0..3 {
-                    rows[t.nodes[a] as usize][t.nodes[b] as usize] += hess[a][b];
-                    asymmetric += usize::from(hess[a][b] != hess[a][b].transpose());
-                }
-            }
+            let law = |h: &mut _| bend_triple_into(at3(&t.nodes), t.rest, t.k_b, Some(h));
+            let (energy, unsymmetric) = add_whole(&t.nodes, law, &mut force, &mut rows);
+            (energy_t, asymmetric) = (energy_t + energy, asymmetric + unsymmetric);
         }
         for e in &built.hinges {
-            let mut hess = [[Mat3::zeros(); 4]; 4];
-            let r = bend_hinge_into(at4(&e.nodes), e.w, e.rest, e.k_b, Some(&mut hess));
-            energy_h += r.energy;
-            for a in 0..4 {
-                force[e.nodes[a] as usize] += r.forces[a];
-                for b in 0..4 {
-                    rows[e.nodes[a] as usize][e.nodes[b] as usize] += hess[a][b];
-                    asymmetric += usize::from(hess[a][b] != hess[a][b].transpose());
-                }
-            }
+            let law = |h: &mut _| bend_hinge_into(at4(&e.nodes), e.w, e.rest, e.k_b, Some(h));
+            let (energy, unsymmetric) = add_whole(&e.nodes, law, &mut force, &mut rows);
+            (energy_h, asymmetric) = (energy_h + energy, asymmetric + unsymmetric);
         }
         // Blocks that are not symmetric themselves: a block read from its
         // transposed partner the wrong way round would show.
