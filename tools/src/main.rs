@@ -262,8 +262,8 @@ enum StudyKind {
     /// Error against a converged reference versus CPU time (work-precision).
     Precision,
     /// The minimisers' (vertex solver, quasi-Newton) work-precision on four
-    /// scenes beside BDF2, and where the sweeps leave stiff stretch
-    /// unconverged.
+    /// scenes and a garment on the walking mannequin beside BDF2, and where
+    /// the sweeps leave stiff stretch unconverged.
     Vbd,
     /// Co-simulation masters on the two-mass oscillator: order and energy drift.
     Cosim,

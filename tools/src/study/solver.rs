@@ -36,7 +36,8 @@ pub fn scaling(args: &StudyArgs) -> Result<()> {
         for &n in sizes {
             let mut o = grid(n, pins);
             o.push(format!("simulation.duration_s={duration}"));
-            let (r, sim) = run_until(&scene, &o, &pool, f64::INFINITY, |_, _| false)?;
+            let (r, runner) = run_until(&scene, &o, &pool, f64::INFINITY, |_, _| false)?;
+            let sim = runner.sim();
             if let Some(e) = r.error {
                 anyhow::bail!("{name} at {n} x {n}: {e}");
             }
@@ -212,7 +213,8 @@ pub fn bending(args: &StudyArgs) -> Result<()> {
                 let strip = CantileverStrip { spacing, overhang, width: 0.02 };
                 let mut overrides = strip.overrides();
                 overrides.extend(selection.iter().map(|s| s.to_string()));
-                let (run, sim) = monitored_run(&scene, &overrides, &pool, |_, _| false)?;
+                let (run, runner) = monitored_run(&scene, &overrides, &pool, |_, _| false)?;
+                let sim = runner.sim();
                 let (exact, c) = strip.exact(sim.model());
                 bending_length = c;
                 let tip = strip.measure(&sim.state().x);
@@ -320,7 +322,8 @@ pub fn large_steps(args: &StudyArgs) -> Result<()> {
                     // One solve is the single linearised step: not engaged on its own.
                     "solver.newton.auto_trigger=0".into(),
                 ]);
-                let (run, sim) = run_until(&scene, &o, &pool, f64::INFINITY, |_, _| false)?;
+                let (run, runner) = run_until(&scene, &o, &pool, f64::INFINITY, |_, _| false)?;
+                let sim = runner.sim();
                 let x = &sim.state().x;
                 let final_stretch = sim.model().max_stretch_ratio(x);
                 let reference = reference.get_or_insert_with(|| x.clone());

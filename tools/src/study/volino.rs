@@ -394,8 +394,8 @@ pub fn precision(args: &StudyArgs) -> Result<()> {
         "solver.adaptive.error_tolerance=1e-10".into(),
         "simulation.dt_s=0.01".into(),
     ]);
-    let (_, reference) = monitored_run(&scene, &reference_overrides, &pool, |_, _| false)?;
-    let reference = reference.state().x.clone();
+    let (_, runner) = monitored_run(&scene, &reference_overrides, &pool, |_, _| false)?;
+    let reference = runner.sim().state().x.clone();
     let implicit_h = [1.0 / 30.0, 1.0 / 60.0, 1.0 / 120.0, 1.0 / 240.0, 1.0 / 480.0];
     let explicit_h = [5e-4, 2.5e-4, 1.25e-4, 6.25e-5];
     let dopri_tol = [1e-3, 1e-5, 1e-7];
@@ -445,7 +445,8 @@ pub fn precision(args: &StudyArgs) -> Result<()> {
                 .map(|s| s.to_string())
                 .collect();
             o.extend(base(&extra));
-            let (r, sim) = monitored_run(&scene, &o, &pool, |_, _| false)?;
+            let (r, runner) = monitored_run(&scene, &o, &pool, |_, _| false)?;
+            let sim = runner.sim();
             let error = if r.stable {
                 let sum: f64 = sim.state().x.iter().zip(&reference).map(|(a, b)| (a - b).norm_squared()).sum();
                 (sum / reference.len() as f64).sqrt()
