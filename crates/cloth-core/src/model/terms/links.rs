@@ -203,7 +203,7 @@ impl ForceTerm for Links {
     }
 
     /// Each link's pair of blocks, `-J_e` between its ends and `J_e` on
-    /// their diagonals (`J_e = df_i/dx_j`, see [`eval_link`]),
+    /// their diagonals (`J_e = df_i/dx_j`, see `eval_link` in this module),
     /// and the same for its damper.
     fn jacobian(&self, at: &At<'_>, out: &mut super::Jacobian<'_>) {
         for k in 0..at.model.link_count() {
