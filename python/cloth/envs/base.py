@@ -3,6 +3,9 @@ two pickers moved by the action, observations, images and seeding."""
 
 from __future__ import annotations
 
+import copy
+import numbers
+
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
@@ -85,6 +88,14 @@ class ClothTaskEnv(gym.Env):
     raises ``ValueError`` naming it. The step is ``dt_s``'s, not an
     override's.
 
+    ``start_states=N`` draws each episode's start from ``N`` start states
+    (SoftGym's cached states): the seed picks one, the first draw of each
+    makes it (the task's crumpling, settling or grasping, from a seed of
+    its own) and every draw, the first included, restores it, so a reset
+    costs a restore instead of the task's settling and the same seed
+    gives the same start however often it was drawn. ``None`` (the
+    default): every episode makes its own start from its seed.
+
     Observation (float32): with ``observation="positions"``, every
     particle's position (m, row by row, unbounded) then each picker's
     position (within ``BOUNDS``) and a holding flag (0 or 1); with
@@ -112,6 +123,7 @@ class ClothTaskEnv(gym.Env):
         threads: int | None = 1,
         image_size: int = 128,
         overrides: dict | list | None = None,
+        start_states: int | None = None,
     ):
         if pickers not in (1, 2):
             raise ValueError(f"pickers = {pickers}: one or two")
@@ -123,6 +135,9 @@ class ClothTaskEnv(gym.Env):
             raise ValueError(f"particles = {particles}: at least 3 a side")
         if substeps < 1:
             raise ValueError(f"substeps = {substeps}: at least 1")
+        whole = isinstance(start_states, numbers.Integral) and not isinstance(start_states, bool)
+        if start_states is not None and not (whole and start_states >= 1):
+            raise ValueError(f"start_states = {start_states!r}: None or an integer of at least 1")
         for name, value in (
             ("side_m", side_m),
             ("dt_s", dt_s),
@@ -148,6 +163,10 @@ class ClothTaskEnv(gym.Env):
         self.sim = None
         self.picker_pos = np.zeros((pickers, 3))
         self.grasps: list[int | None] = [None] * pickers
+        self.start_states = None if start_states is None else int(start_states)
+        # Start state k: its scene, the cloth's snapshot, the pickers (where,
+        # holding or not) and the task's attributes (START_ATTRIBUTES).
+        self._starts: dict[int, tuple] = {}
 
     # -- scene -------------------------------------------------------------
     def cloth_layout(self):
@@ -185,11 +204,52 @@ class ClothTaskEnv(gym.Env):
     # -- the gymnasium interface ------------------------------------------
     def reset(self, *, seed=None, options=None):
         super().reset(seed=seed)
-        self.sim = self.episode_scene().simulation(threads=self.threads)
+        if self.start_states is None:
+            self._make_start()
+        else:
+            self._restore_start(int(self.np_random.integers(self.start_states)))
+        return self._obs(), self._info(self.measure()[1])
+
+    @property
+    def made_starts(self) -> int:
+        """How many of the ``start_states`` have been made so far."""
+        return len(self._starts)
+
+    def _make_start(self):
+        """A new simulation of the episode's scene, set up by the task."""
+        self._scene_of_start = self.episode_scene()
+        self.sim = self._scene_of_start.simulation(threads=self.threads)
         self.grasps = [None] * self.pickers
         self.picker_pos = np.zeros((self.pickers, 3))
         self.setup()
-        return self._obs(), self._info(self.measure()[1])
+
+    def _restore_start(self, k: int):
+        """Starts the episode from start state ``k``, made on its first draw
+        with a generator seeded by ``k`` alone."""
+        if k not in self._starts:
+            # The task draws from ``self.np_random``; swapped, not set, so
+            # the episode keeps its generator and its seed.
+            episode_rng = self.np_random
+            self._np_random = np.random.default_rng([0x5747, k])
+            try:
+                self._make_start()
+            finally:
+                self._np_random = episode_rng
+            held = [g is not None for g in self.grasps]
+            attributes = {name: copy.deepcopy(getattr(self, name)) for name in self.START_ATTRIBUTES}
+            self._starts[k] = (self._scene_of_start, self.sim.snapshot(), self.picker_pos.copy(), held, attributes)
+        scene, snapshot, picker_pos, held, attributes = self._starts[k]
+        self.sim = scene.simulation(threads=self.threads)
+        self.sim.restore(snapshot)
+        for name, value in attributes.items():
+            setattr(self, name, copy.deepcopy(value))
+        self.grasps = [None] * self.pickers
+        self.picker_pos = picker_pos.copy()
+        # Grasps are the pickers', not the cloth's state: taken again
+        # where the made start held them (the particles within reach then).
+        for picker, holding in enumerate(held):
+            if holding:
+                self.move_picker(picker, self.picker_pos[picker], True)
 
     def step(self, action):
         action = np.clip(np.asarray(action, dtype=np.float64).reshape(self.pickers, 4), -1.0, 1.0)
@@ -246,6 +306,10 @@ class ClothTaskEnv(gym.Env):
         self.sim.step(self.steps_for(seconds))
 
     # -- what a task fills in ----------------------------------------------
+    #: The attributes ``setup`` and ``episode_scene`` set that a start
+    #: state keeps (besides the cloth and the pickers).
+    START_ATTRIBUTES: tuple[str, ...] = ()
+
     def episode_scene(self):
         """The scene an episode starts from (drawn with ``self.np_random``)."""
         return self._scene

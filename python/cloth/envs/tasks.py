@@ -58,6 +58,7 @@ class FoldEnv(ClothTaskEnv):
     by up to 3 cm."""
 
     SUCCESS_DISTANCE_M = 0.02
+    START_ATTRIBUTES = ("_shift", "_fixed_start")
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -108,6 +109,7 @@ class DropEnv(ClothTaskEnv):
 
     SUCCESS_DISTANCE_M = 0.03
     LOWER_EDGE_M = 0.1
+    START_ATTRIBUTES = ("_target",)
 
     def cloth_layout(self):
         half = self.side_m / 2
