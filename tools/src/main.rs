@@ -62,7 +62,10 @@ enum Command {
     },
     /// Run a scene several times and print a Markdown row of median timings
     /// (Choi & Ko Table-1 style: ms per step, CG iterations, stage split,
-    /// and the run's tangle watch, which is outside the step).
+    /// and the run's tangle watch, which is outside the step). ms/step is
+    /// the run's median step; each stage is its total over the run per
+    /// step, the first step's set-up included, so on runs of a few steps
+    /// a stage can exceed the median step.
     Time {
         /// Scene file (TOML).
         scene: PathBuf,
