@@ -216,12 +216,14 @@ class ClothTaskEnv(gym.Env):
         return len(self._starts)
 
     def _make_start(self):
-        """A new simulation of the episode's scene, set up by the task."""
-        self._scene_of_start = self.episode_scene()
-        self.sim = self._scene_of_start.simulation(threads=self.threads)
+        """A new simulation of the episode's scene, set up by the task;
+        returns the scene."""
+        scene = self.episode_scene()
+        self.sim = scene.simulation(threads=self.threads)
         self.grasps = [None] * self.pickers
         self.picker_pos = np.zeros((self.pickers, 3))
         self.setup()
+        return scene
 
     def _restore_start(self, k: int):
         """Starts the episode from start state ``k``, made on its first draw
@@ -232,12 +234,14 @@ class ClothTaskEnv(gym.Env):
             episode_rng = self.np_random
             self._np_random = np.random.default_rng([0x5747, k])
             try:
-                self._make_start()
+                scene = self._make_start()
             finally:
                 self._np_random = episode_rng
+            # Kept as they are: the restore below copies them out, so this
+            # episode's own steps never touch the kept ones.
             held = [g is not None for g in self.grasps]
-            attributes = {name: copy.deepcopy(getattr(self, name)) for name in self.START_ATTRIBUTES}
-            self._starts[k] = (self._scene_of_start, self.sim.snapshot(), self.picker_pos.copy(), held, attributes)
+            attributes = {name: getattr(self, name) for name in self.START_ATTRIBUTES}
+            self._starts[k] = (scene, self.sim.snapshot(), self.picker_pos, held, attributes)
         scene, snapshot, picker_pos, held, attributes = self._starts[k]
         self.sim = scene.simulation(threads=self.threads)
         self.sim.restore(snapshot)
