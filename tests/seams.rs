@@ -332,3 +332,65 @@ fn deformation_constraints_shut_closed_stitches() {
     assert!(gaps[4] > 1e-3, "the open stitch was shut too: {gaps:?}");
     assert!(model.max_stretch_ratio(&x) <= 1.1 * (1.0 + 1e-9), "a link at {}", model.max_stretch_ratio(&x));
 }
+
+/// A snapshot written as bytes and read back in a new simulation of the
+/// same scene steps to the same bits as the run it was taken from, with
+/// closed and open stitches and BDF2's history in it. Bytes cut
+/// short or changed anywhere are refused, and a snapshot that does not
+/// fit (another integrator, another cloth) is refused at restore.
+#[test]
+fn a_snapshot_read_back_from_bytes_steps_to_the_same_bits() {
+    use cloth_core::{Snapshot, SnapshotBytesError, StepError};
+    let (mut sim, h, _) = build(&open_seam(0.05), &[]);
+    // Until the stitches close (all in one step: the seam is straight),
+    // then one opened again by hand, so that the bytes hold both states.
+    while !sim.state().stitches_closed.iter().any(|&c| c) {
+        sim.step(h).unwrap();
+    }
+    let mut one_open = sim.state().clone();
+    one_open.stitches_closed[2] = false;
+    sim.set_state(&one_open).unwrap();
+    assert!(sim.state().stitches_closed.iter().any(|&c| !c) && sim.state().has_history);
+    let taken = sim.snapshot();
+    let bytes = taken.to_bytes();
+    assert_eq!(Snapshot::from_bytes(&bytes).as_ref(), Ok(&taken));
+    for _ in 0..10 {
+        sim.step(h).unwrap();
+    }
+    let (mut again, _, _) = build(&open_seam(0.05), &[]);
+    again.restore(&Snapshot::from_bytes(&bytes).unwrap()).unwrap();
+    for _ in 0..10 {
+        again.step(h).unwrap();
+    }
+    assert_eq!(again.snapshot(), sim.snapshot(), "the same bits after 10 steps");
+
+    for k in 0..bytes.len() {
+        let mut changed = bytes.clone();
+        changed[k] ^= 0x10;
+        assert!(Snapshot::from_bytes(&changed).is_err(), "byte {k} changed was read");
+    }
+    for cut in 0..bytes.len() {
+        assert!(Snapshot::from_bytes(&bytes[..cut]).is_err(), "cut to {cut} bytes was read");
+    }
+    // Another version, its checksum made to match.
+    let mut other = bytes[..bytes.len() - 4].to_vec();
+    other[8..12].copy_from_slice(&7u32.to_le_bytes());
+    let crc = crc32fast::hash(&other);
+    other.extend_from_slice(&crc.to_le_bytes());
+    assert_eq!(Snapshot::from_bytes(&other), Err(SnapshotBytesError::Version { found: 7, reads: 1 }));
+    // A flag other than 0 or 1.
+    let mut values: Vec<f64> = taken.values().collect();
+    values[2] = 0.5;
+    let (n, stitches) = (sim.model().particle_count(), sim.model().stitches().len());
+    assert!(matches!(
+        Snapshot::from_values(&values, n, stitches, &taken.integrator),
+        Err(SnapshotBytesError::Value { field: "has_history", .. })
+    ));
+
+    let (mut explicit, _, _) = build(&open_seam(0.05), &["simulation.integrator=\"symplectic-euler\""]);
+    let refused = explicit.restore(&Snapshot::from_bytes(&bytes).unwrap());
+    assert!(matches!(refused, Err(StepError::MemoryMismatch { .. })), "{refused:?}");
+    let (mut larger, _, _) = build(&open_seam(0.05), &["panels.1.particles=[6, 5]"]);
+    let refused = larger.restore(&Snapshot::from_bytes(&bytes).unwrap());
+    assert!(matches!(refused, Err(StepError::StateMismatch { expected: 55, got: 50 })), "{refused:?}");
+}

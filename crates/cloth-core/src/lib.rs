@@ -62,6 +62,7 @@ pub use integrate::implicit::{BackwardEuler, Bdf2};
 pub use integrate::loads::Loads;
 pub use integrate::matrix_free::BackwardEulerFixedCg;
 pub use integrate::quasi_newton::QuasiNewton;
+pub use integrate::snapshot_bytes::{SNAPSHOT_FORMAT_VERSION, SnapshotBytesError};
 pub use integrate::timer::{Lap, Stage, StageTimer};
 pub use material::{BendConstants, Compressive, Lattice, Material, Membrane};
 pub use model::{

@@ -55,7 +55,7 @@
 //! (also when a later substep fails).
 
 use crate::unit::{Causality, StepOutcome, Unit, UnitError, UnitState, ValueRef, Variable, bytes, settable};
-use cloth_core::{BodyPose, ClothModel, ClothState, Simulation, Snapshot, SolidMotion, Vec3, WindProfile};
+use cloth_core::{BodyPose, ClothModel, Simulation, Snapshot, SolidMotion, Vec3, WindProfile};
 use nalgebra::UnitQuaternion;
 
 /// What a variable of the cloth unit stands for.
@@ -132,10 +132,6 @@ pub struct ClothUnit {
 
 const AXES: [&str; 3] = ["x", "y", "z"];
 const TAG: &[u8; 8] = b"clothunt";
-
-/// Scalars before the integrator's memory and the particles' vectors in a
-/// serialised state.
-const HEAD: usize = 4;
 
 /// The variables of one kind of 3-vector: quantity, name after the item
 /// (`pin{k}.` or `solid{k}.`), causality, unit, description.
@@ -679,24 +675,18 @@ impl Unit for ClothUnit {
         Ok(())
     }
 
-    /// Layout: tag, then `time, steps, has_history, last_dt`, the
-    /// integrator's memory (its values in its order: `newton_engaged` for
-    /// the implicit integrators, `next_dt_s` for `dopri5`),
-    /// `x, v, x_prev, v_prev` (3 values per particle each), the stitches'
-    /// states (1 closed, 0 open), the variables' values, their given flags
-    /// (1 given, 0 not) and previous values (NaN: none), the previous step.
+    /// Layout: tag, then the cloth's snapshot as [`Snapshot::values`]
+    /// gives it (`time, steps, has_history, last_dt`, the integrator's
+    /// memory: `newton_engaged` for the implicit integrators, `next_dt_s`
+    /// for `dopri5`; `x, v, x_prev, v_prev`, the stitches' states), the
+    /// variables' values, their given flags (1 given, 0 not) and previous
+    /// values (NaN: none), the previous step.
     fn serialize_state(&self, state: &UnitState) -> Result<Vec<u8>, UnitError> {
         let saved: &Saved = state.downcast(&self.name, "cloth unit")?;
-        let c = &saved.cloth.state;
         let flag = |b: bool| f64::from(u8::from(b));
-        let memory = saved.cloth.integrator.entries().iter().map(|(_, v)| *v);
-        let head = [c.time_s, c.steps as f64, flag(c.has_history), c.last_dt_s].into_iter().chain(memory);
-        let vectors =
-            [&c.x, &c.v, &c.x_prev, &c.v_prev].into_iter().flat_map(|a| a.iter().flat_map(|p| [p.x, p.y, p.z]));
-        let stitches = c.stitches_closed.iter().map(|&closed| f64::from(u8::from(closed)));
-        let values = head
-            .chain(vectors)
-            .chain(stitches)
+        let values = saved
+            .cloth
+            .values()
             .chain(saved.values.iter().copied())
             .chain(saved.given.iter().map(|&g| flag(g)))
             .chain(saved.previous.iter().copied())
@@ -705,43 +695,26 @@ impl Unit for ClothUnit {
     }
 
     fn deserialize_state(&self, data: &[u8]) -> Result<UnitState, UnitError> {
-        let n = self.sim.model().particle_count();
+        let model = self.sim.model();
+        let (n, stitches) = (model.particle_count(), model.stitches().len());
         let m = self.values.len();
-        let stitches = self.sim.model().stitches().len();
         let memory = self.sim.integrator_memory();
-        let head = HEAD + memory.entries().len();
-        let expected = head + 12 * n + stitches + 3 * m + 1;
+        let cloth_values = Snapshot::value_count(n, stitches, memory.entries().len());
+        let expected = cloth_values + 3 * m + 1;
+        let bad = |why: String| UnitError::BadState {
+            unit: self.name.clone(),
+            message: format!("{} bytes are not a serialised state of this cloth unit: {why}", data.len()),
+        };
         let values = bytes::unpack(TAG, data)
             .and_then(|v| {
                 if v.len() == expected { Ok(v) } else { Err(format!("{} values where it holds {expected}", v.len())) }
             })
-            .map_err(|why| UnitError::BadState {
-                unit: self.name.clone(),
-                message: format!("{} bytes are not a serialised state of this cloth unit: {why}", data.len()),
-            })?;
-        let vec3s = |k: usize| -> Vec<Vec3> {
-            (0..n)
-                .map(|i| {
-                    let at = head + 3 * (k * n + i);
-                    Vec3::new(values[at], values[at + 1], values[at + 2])
-                })
-                .collect()
-        };
-        let cloth = ClothState {
-            time_s: values[0],
-            steps: values[1] as u64,
-            has_history: values[2] != 0.0,
-            last_dt_s: values[3],
-            x: vec3s(0),
-            v: vec3s(1),
-            x_prev: vec3s(2),
-            v_prev: vec3s(3),
-            stitches_closed: values[head + 12 * n..head + 12 * n + stitches].iter().map(|&c| c != 0.0).collect(),
-        };
-        let integrator = memory.with_values(&values[HEAD..head]).expect("as many values as the memory has names");
-        let tail = &values[head + 12 * n + stitches..];
+            .map_err(bad)?;
+        let cloth =
+            Snapshot::from_values(&values[..cloth_values], n, stitches, &memory).map_err(|e| bad(e.to_string()))?;
+        let tail = &values[cloth_values..];
         Ok(UnitState(Box::new(Saved {
-            cloth: Snapshot { state: cloth, integrator },
+            cloth,
             values: tail[..m].to_vec(),
             given: tail[m..2 * m].iter().map(|&g| g != 0.0).collect(),
             previous: tail[2 * m..3 * m].to_vec(),

@@ -22,6 +22,7 @@ pub(crate) mod quasi_newton;
 pub(crate) mod registry;
 pub(crate) mod report;
 pub(crate) mod sim;
+pub(crate) mod snapshot_bytes;
 pub(crate) mod state;
 pub(crate) mod step;
 pub(crate) mod timer;

@@ -2,6 +2,8 @@
 //! the state with what the integrator carries from step to step.
 //! Restoring a snapshot and stepping reproduces the same bits.
 
+use std::borrow::Cow;
+
 use crate::{ClothModel, StepError, Vec3};
 
 /// Positions, velocities and the one-step history BDF2 needs.
@@ -119,17 +121,23 @@ fn unit_noise(k: usize) -> f64 {
 /// [`crate::Snapshot`], so that a restored snapshot steps to the same bits.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct IntegratorMemory {
-    entries: Vec<(&'static str, f64)>,
+    /// Names are owned when read back from bytes ([`Snapshot::from_bytes`]).
+    entries: Vec<(Cow<'static, str>, f64)>,
 }
 
 impl IntegratorMemory {
     /// Memory of `entries` (name, value).
     pub fn new(entries: Vec<(&'static str, f64)>) -> Self {
-        Self { entries }
+        Self { entries: entries.into_iter().map(|(n, v)| (Cow::Borrowed(n), v)).collect() }
+    }
+
+    /// Memory of named entries read from elsewhere (a file).
+    pub(crate) fn from_named(entries: Vec<(String, f64)>) -> Self {
+        Self { entries: entries.into_iter().map(|(n, v)| (Cow::Owned(n), v)).collect() }
     }
 
     /// Every entry, in the integrator's order.
-    pub fn entries(&self) -> &[(&'static str, f64)] {
+    pub fn entries(&self) -> &[(Cow<'static, str>, f64)] {
         &self.entries
     }
 
@@ -142,12 +150,14 @@ impl IntegratorMemory {
     /// from a serialised state); `None` when the count differs.
     pub fn with_values(&self, values: &[f64]) -> Option<Self> {
         (values.len() == self.entries.len())
-            .then(|| Self { entries: self.entries.iter().zip(values).map(|((n, _), v)| (*n, *v)).collect() })
+            .then(|| Self { entries: self.entries.iter().zip(values).map(|((n, _), v)| (n.clone(), *v)).collect() })
     }
 
     /// Checks that `other` has this memory's names, in order.
     pub(crate) fn same_names(&self, other: &Self) -> Result<(), StepError> {
-        let names = |m: &Self| m.entries.iter().map(|(n, _)| *n).collect::<Vec<_>>();
+        fn names(m: &IntegratorMemory) -> Vec<&str> {
+            m.entries.iter().map(|(n, _)| n.as_ref()).collect()
+        }
         if names(self) == names(other) {
             Ok(())
         } else {
