@@ -1,6 +1,7 @@
 //! Fuzz targets: each reader of user input (scene TOML and `--set`
-//! overrides, OBJ, glTF, URDF, BVH), the glTF writer's input and call
-//! sequences on the FMU's C API, each a function of arbitrary bytes.
+//! overrides, OBJ, glTF, URDF, BVH, a snapshot's bytes), the glTF
+//! writer's input and call sequences on the FMU's C API, each a function
+//! of arbitrary bytes.
 //!
 //! A target returns normally when the input was read or refused with a
 //! typed error; a panic, an abort or a hang is the defect. The same
@@ -39,11 +40,14 @@ pub enum Target {
     GltfWriter,
     /// A sequence of FMI 3.0 calls on the FMU's C API, valid and invalid.
     FmiCalls,
+    /// A cloth snapshot's bytes (`Snapshot::from_bytes`), restored into a
+    /// small hanging cloth and stepped when they fit it.
+    Snapshot,
 }
 
 impl Target {
     /// Every target.
-    pub const ALL: [Target; 8] = [
+    pub const ALL: [Target; 9] = [
         Target::SceneToml,
         Target::Overrides,
         Target::Obj,
@@ -52,6 +56,7 @@ impl Target {
         Target::Bvh,
         Target::GltfWriter,
         Target::FmiCalls,
+        Target::Snapshot,
     ];
 
     /// The name, as the corpus directory and `cargo fuzz` spell it.
@@ -65,6 +70,7 @@ impl Target {
             Target::Bvh => "bvh",
             Target::GltfWriter => "gltf_writer",
             Target::FmiCalls => "fmi_calls",
+            Target::Snapshot => "snapshot",
         }
     }
 
@@ -92,6 +98,7 @@ impl Target {
             Target::Bvh => readers::bvh(data),
             Target::GltfWriter => writer::gltf_writer(data),
             Target::FmiCalls => fmi::calls(data),
+            Target::Snapshot => readers::snapshot(data),
         }
     }
 
@@ -136,7 +143,7 @@ impl Target {
             Target::Gltf => of("meshes", "glb"),
             Target::Urdf => of("rigs", "urdf"),
             Target::Bvh => of("motions", "bvh"),
-            Target::Overrides | Target::GltfWriter | Target::FmiCalls => Vec::new(),
+            Target::Overrides | Target::GltfWriter | Target::FmiCalls | Target::Snapshot => Vec::new(),
         }
     }
 }

@@ -1,7 +1,7 @@
 //! The readers of user files as targets.
 
 use crate::repository;
-use cloth_core::PatternPiece;
+use cloth_core::{PatternPiece, Snapshot};
 use cloth_rapier::scene::CoupledScene;
 use std::path::Path;
 
@@ -112,4 +112,42 @@ pub(crate) fn bvh(data: &[u8]) -> String {
         Ok(_) => "ok".into(),
         Err(e) => label(e),
     }
+}
+
+/// The cloth a snapshot is restored into: `hang.toml` at 5 x 5 particles,
+/// whose snapshots the corpus's seeds are.
+const SNAPSHOT_SCENE: (&str, [&str; 2]) = ("hang.toml", ["panels.0.particles=[5, 5]", "pins.0.nodes=[[0, 4], [4, 4]]"]);
+
+/// A snapshot read as it is, and again with its checksum made to match
+/// (so that mutations reach the header and the values, not only the
+/// checksum's refusal); what reads is restored into `SNAPSHOT_SCENE`'s
+/// cloth and stepped twice.
+pub(crate) fn snapshot(data: &[u8]) -> String {
+    let as_is = restored_snapshot(data);
+    let Some(body_len) = data.len().checked_sub(4) else { return as_is };
+    let mut stamped = data[..body_len].to_vec();
+    stamped.extend_from_slice(&crc32fast::hash(&stamped).to_le_bytes());
+    format!("{as_is} / {}", restored_snapshot(&stamped))
+}
+
+fn restored_snapshot(data: &[u8]) -> String {
+    let snapshot = match Snapshot::from_bytes(data) {
+        Ok(snapshot) => snapshot,
+        Err(e) => return label(e),
+    };
+    let (file, sets) = SNAPSHOT_SCENE;
+    let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+    let text = std::fs::read_to_string(repository().join("fixtures/scenes").join(file)).expect("the fixture scene");
+    let scene = cloth_core::scene::Scene::parse(&text, &sets).expect("the fixture scene parses");
+    let (model, cfg) = scene.build().expect("the fixture scene builds");
+    let mut sim = cfg.simulation(model);
+    if let Err(e) = sim.restore(&snapshot) {
+        return label(e);
+    }
+    for _ in 0..2 {
+        if let Err(e) = sim.step(cfg.dt_s) {
+            return label(e);
+        }
+    }
+    "stepped".into()
 }

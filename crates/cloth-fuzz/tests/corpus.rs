@@ -80,4 +80,5 @@ whole_corpus! {
     bvh_whole_corpus: Bvh,
     gltf_writer_whole_corpus: GltfWriter,
     fmi_calls_whole_corpus: FmiCalls,
+    snapshot_whole_corpus: Snapshot,
 }
