@@ -16,6 +16,7 @@ from ._cloth import (  # noqa: F401
     Snapshot,
     StepError,
     World,
+    WorldSnapshot,
 )
 
 __all__ = [
@@ -28,4 +29,5 @@ __all__ = [
     "Snapshot",
     "StepError",
     "World",
+    "WorldSnapshot",
 ]

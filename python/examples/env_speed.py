@@ -2,8 +2,9 @@
 thread (the simulation's pool and NumPy's), 25 x 25 particles, a random
 policy and an idle one (pickers still, nothing held), the median of
 ``--repeat`` runs of ``--steps`` steps, the resets of the episodes that
-end among them included; then what a reset takes. Prints Markdown
-tables.
+end among them included; then what a reset takes and, with
+``--start-states N``, what saving the ``N`` starts to a file and making
+an env from it take. Prints Markdown tables.
 
     python python/examples/env_speed.py [--steps 200] [--repeat 3] [--dt-s 0.0333 --substeps 1] [--set KEY=VALUE]
         [--start-states N]
@@ -18,6 +19,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
 import statistics  # noqa: E402
+import tempfile  # noqa: E402
 import time  # noqa: E402
 
 import gymnasium as gym  # noqa: E402
@@ -56,6 +58,26 @@ def rate(task: str, policy: str, steps: int, seed: int, **options) -> float:
     return steps / (time.perf_counter() - start)
 
 
+def starts_file(task: str, repeat: int, **options):
+    """Seconds to make and save the task's start states, the file's bytes,
+    and milliseconds to make an env from the file (``repeat`` runs) and
+    one without start states."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "starts.npz")
+        start = time.perf_counter()
+        gym.make(task, threads=1, **options).unwrapped.save_starts(path)
+        saved = time.perf_counter() - start
+        read = []
+        for _ in range(repeat):
+            start = time.perf_counter()
+            gym.make(task, threads=1, **{**options, "start_states": path})
+            read.append(1e3 * (time.perf_counter() - start))
+        plain = {key: value for key, value in options.items() if key != "start_states"}
+        start = time.perf_counter()
+        gym.make(task, threads=1, **plain)
+        return saved, os.path.getsize(path), read, 1e3 * (time.perf_counter() - start)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--steps", type=int, default=200)
@@ -81,6 +103,14 @@ def main():
             runs.append(1e3 * (time.perf_counter() - start))
         shown = ", ".join(f"{r:.1f}" for r in runs)
         print(f"| {task} | {statistics.median(runs):.1f} | {shown} |")
+    if options.get("start_states"):
+        print("\n| task | make and save the starts, s | file, kB | env from the file, ms (median) | runs", end="")
+        print(" | env without, ms |\n|---|---|---|---|---|---|")
+        for task in TASKS:
+            saved, size, read, plain = starts_file(task, args.repeat, **options)
+            shown = ", ".join(f"{r:.1f}" for r in read)
+            median = statistics.median(read)
+            print(f"| {task} | {saved:.2f} | {size / 1e3:.0f} | {median:.1f} | {shown} | {plain:.1f} |")
 
 
 if __name__ == "__main__":

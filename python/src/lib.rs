@@ -273,7 +273,10 @@ impl Builder {
     }
 }
 
-/// A cloth state saved by [`Simulation::snapshot`].
+/// A cloth state saved by [`Simulation::snapshot`]: positions,
+/// velocities, the step before (BDF2's history), the stitches' states and
+/// the integrator's memory. `Snapshot(data)` reads the bytes of
+/// `to_bytes()` (a file, another process); snapshots pickle the same way.
 #[pyclass(module = "cloth", frozen)]
 struct Snapshot {
     state: cloth_core::Snapshot,
@@ -281,10 +284,48 @@ struct Snapshot {
 
 #[pymethods]
 impl Snapshot {
+    /// Reads bytes written by `to_bytes()`; `ValueError` when they are
+    /// not a snapshot of this format (cut short, changed, another version).
+    #[new]
+    fn new(data: &[u8]) -> PyResult<Self> {
+        cloth_core::Snapshot::from_bytes(data)
+            .map(|state| Snapshot { state })
+            .map_err(|e| PyValueError::new_err(format!("Snapshot({} bytes): {e}", data.len())))
+    }
+
+    /// The snapshot as bytes (a checksummed little-endian layout, about
+    /// 96 bytes a particle), read back to the same bits by `Snapshot(data)`.
+    fn to_bytes<'py>(&self, py: Python<'py>) -> Bound<'py, pyo3::types::PyBytes> {
+        pyo3::types::PyBytes::new(py, &self.state.to_bytes())
+    }
+
+    /// Pickling: the class and the bytes.
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> (Bound<'py, pyo3::types::PyType>, (Bound<'py, pyo3::types::PyBytes>,)) {
+        (slf.get_type(), (slf.get().to_bytes(slf.py()),))
+    }
+
     /// The time it was taken at, s.
     #[getter]
     fn time_s(&self) -> f64 {
         self.state.state.time_s
+    }
+
+    /// The steps taken when it was taken.
+    #[getter]
+    fn steps(&self) -> u64 {
+        self.state.state.steps
+    }
+
+    /// The particles it holds.
+    #[getter]
+    fn particle_count(&self) -> usize {
+        self.state.state.x.len()
+    }
+
+    fn __eq__(&self, other: &Self) -> bool {
+        self.state == other.state
     }
 }
 
@@ -555,7 +596,10 @@ impl Simulation {
         Snapshot { state: self.sim.snapshot() }
     }
 
-    /// Goes back to a snapshot of this simulation.
+    /// Goes back to a snapshot of this simulation, or of another one of
+    /// the same scene and integrator; `StepError` when it does not fit
+    /// (another particle or stitch count, another integrator's memory, a
+    /// position or velocity that is not finite).
     fn restore(&mut self, snapshot: &Snapshot) -> PyResult<()> {
         self.sim.restore(&snapshot.state).map_err(|e| StepError::new_err(e.to_string()))
     }
@@ -569,6 +613,7 @@ fn _cloth(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Simulation>()?;
     m.add_class::<Snapshot>()?;
     m.add_class::<world::World>()?;
+    m.add_class::<world::WorldSnapshot>()?;
     let py = m.py();
     m.add("SceneError", py.get_type::<SceneError>())?;
     m.add("ModelError", py.get_type::<ModelError>())?;

@@ -20,6 +20,8 @@ use std::path::PathBuf;
 /// together with the scene's `[coupling]`.
 #[pyclass(module = "cloth")]
 pub(crate) struct World {
+    /// Which world this is, so that a snapshot goes back to its own.
+    id: u64,
     run: CoupledRun,
     grasps: Grasps,
     pool: std::sync::Arc<rayon::ThreadPool>,
@@ -135,7 +137,9 @@ impl World {
         let sets = override_args(overrides)?;
         let scene = CoupledScene::load(&path, &sets).map_err(|e| scene_error(py, &e.file, &e.kind))?;
         let run = scene.build().map_err(|kind| scene_error(py, &path, &kind))?;
-        Ok(Self { run, grasps: Grasps::default(), pool: crate::threads::pool(threads)?, last: None })
+        static WORLDS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let id = WORLDS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        Ok(Self { id, run, grasps: Grasps::default(), pool: crate::threads::pool(threads)?, last: None })
     }
 
     /// Takes `n` steps of the scene's `dt_s`, with the GIL released. Body
@@ -372,5 +376,46 @@ impl World {
         let handle = self.run.cloth;
         let cloth = self.run.cloths.get_mut(handle).ok_or_else(|| ControlError::new_err("the scene has no cloth"))?;
         self.grasps.release(cloth.simulation_mut(), id).map_err(grasp_error)
+    }
+
+    /// The state of the cloth and of every rapier body, collider and joint
+    /// (the rig's links included) now, to come back to with `restore`.
+    fn snapshot(&self) -> WorldSnapshot {
+        let saved = self.run.cloths.save(&self.run.world);
+        WorldSnapshot { world: self.id, time_s: self.sim().time(), saved }
+    }
+
+    /// Goes back to a snapshot of this world: stepping on repeats the
+    /// steps taken from it, to the bit. The inputs set since (forces,
+    /// kinematic targets, joint positions, grasps) stay as they are.
+    /// `ValueError` for another world's snapshot.
+    fn restore(&mut self, snapshot: &WorldSnapshot) -> PyResult<()> {
+        if snapshot.world != self.id {
+            return Err(pyo3::exceptions::PyValueError::new_err(
+                "a snapshot of another World: a World restores only its own (its rapier bodies are its own)",
+            ));
+        }
+        self.run
+            .cloths
+            .restore(&snapshot.saved, &mut self.run.world)
+            .map_err(|e| crate::StepError::new_err(e.to_string()))
+    }
+}
+
+/// A world's state saved by [`World::snapshot`] (held in memory, for the
+/// world it came from).
+#[pyclass(module = "cloth", frozen)]
+pub(crate) struct WorldSnapshot {
+    world: u64,
+    time_s: f64,
+    saved: cloth_rapier::CoupledSnapshot,
+}
+
+#[pymethods]
+impl WorldSnapshot {
+    /// The time it was taken at, s.
+    #[getter]
+    fn time_s(&self) -> f64 {
+        self.time_s
     }
 }

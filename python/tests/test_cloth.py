@@ -2,7 +2,9 @@
 gravity, pins carrying the weight, snapshots replaying, errors naming the
 file and field, the GIL released while stepping."""
 
+import copy
 import os
+import pickle
 import threading
 
 import numpy as np
@@ -57,6 +59,31 @@ def test_a_snapshot_replays_the_same_steps_bit_for_bit():
     assert saved.time_s == pytest.approx(5 / 90)
     sim.step(10)
     assert np.array_equal(sim.positions, first)
+
+
+def test_a_snapshot_pickled_or_saved_as_bytes_replays_in_another_simulation(tmp_path):
+    scene = cloth.Scene.from_toml(HANG, ["panels.0.particles=[11, 11]", "pins.0.nodes=[[0, 10], [10, 10]]"])
+    sim = scene.simulation()
+    sim.step(5)
+    saved = sim.snapshot()
+    sim.step(10)
+    path = tmp_path / "start.snap"
+    path.write_bytes(saved.to_bytes())
+    for read in (cloth.Snapshot(path.read_bytes()), pickle.loads(pickle.dumps(saved)), copy.deepcopy(saved)):
+        assert read == saved and (read.steps, read.particle_count) == (5, 121)
+        other = scene.simulation()
+        other.restore(read)
+        other.step(10)
+        # BDF2's history and the integrator's memory came along: the same bits.
+        assert np.array_equal(other.positions, sim.positions) and np.array_equal(other.velocities, sim.velocities)
+    data = saved.to_bytes()
+    assert len(data) > 96 * 121
+    for bad in (data[:-1], data[:100], b"", data[:40] + bytes([data[40] ^ 1]) + data[41:]):
+        with pytest.raises(ValueError, match="Snapshot"):
+            cloth.Snapshot(bad)
+    larger = cloth.Scene.from_toml(HANG, ["panels.0.particles=[12, 11]", "pins.0.nodes=[[0, 10], [11, 10]]"])
+    with pytest.raises(cloth.StepError, match="121"):
+        larger.simulation().restore(saved)
 
 
 def test_control_inputs_move_the_cloth_and_bad_ones_are_refused():

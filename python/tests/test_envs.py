@@ -205,6 +205,63 @@ def test_start_states_give_a_seed_the_same_start_made_or_restored(task):
     assert a.unwrapped.made_starts == made
 
 
+@pytest.mark.parametrize("task", TASKS)
+def test_start_states_saved_to_a_file_start_each_seed_as_made(task, tmp_path):
+    # Env a makes two starts and saves them; env b reads them and makes
+    # none: every seed starts and goes on to the bit alike.
+    path = tmp_path / "starts.npz"
+    a = gym.make(task, start_states=2)
+    a.unwrapped.save_starts(path)
+    assert a.unwrapped.made_starts == 2
+    b = gym.make(task, start_states=str(path))
+    assert (b.unwrapped.start_states, b.unwrapped.made_starts) == (2, 2)
+    for seed in range(4):
+        assert a.reset(seed=seed)[0].tobytes() == b.reset(seed=seed)[0].tobytes()
+        a.action_space.seed(seed)
+        for _ in range(2):
+            action = a.action_space.sample()
+            oa, ra, *_ = a.step(action)
+            ob, rb, *_ = b.step(action)
+            assert oa.tobytes() == ob.tobytes() and ra == rb
+    assert b.unwrapped.made_starts == 2
+
+
+def test_a_start_states_file_is_refused_by_another_env_and_shared_by_workers(tmp_path):
+    path = tmp_path / "fold.npz"
+    gym.make("cloth/Fold-v0", start_states=2).unwrapped.save_starts(path)
+    for task, kwargs, field in [
+        ("cloth/Fold-v0", {"particles": 20}, "particles"),
+        ("cloth/Drop-v0", {}, "task"),
+        ("cloth/Fold-v0", {"overrides": {"solver.contacts.max_passes": 3}}, "overrides"),
+        ("cloth/Fold-v0", {"dt_s": 1 / 60, "substeps": 2}, "dt_s"),
+    ]:
+        with pytest.raises(ValueError, match=f"made with {field} = "):
+            gym.make(task, start_states=path, **kwargs)
+    with np.load(path) as data:
+        arrays = dict(data)
+    arrays["snapshot_1"] = arrays["snapshot_1"][:-3]
+    cut = tmp_path / "cut.npz"
+    np.savez(cut, **arrays)
+    with pytest.raises(ValueError, match="Snapshot"):
+        gym.make("cloth/Fold-v0", start_states=cut)
+    not_starts = tmp_path / "other.npy"
+    np.save(not_starts, np.zeros(3))
+    for bad in (not_starts, tmp_path / "missing.npz"):
+        with pytest.raises(ValueError, match="start_states = "):
+            gym.make("cloth/Fold-v0", start_states=bad)
+    with pytest.raises(ValueError, match="no start states"):
+        gym.make("cloth/Fold-v0").unwrapped.save_starts(tmp_path / "none.npz")
+    # Two workers read the one file: a seed starts as in a single env.
+    vec = gym.vector.AsyncVectorEnv([lambda: gym.make("cloth/Fold-v0", start_states=str(path)) for _ in range(2)])
+    try:
+        obs, _ = vec.reset(seed=[5, 6])
+        single = gym.make("cloth/Fold-v0", start_states=2)
+        assert obs[0].tobytes() == single.reset(seed=5)[0].tobytes()
+        assert obs[1].tobytes() == single.reset(seed=6)[0].tobytes()
+    finally:
+        vec.close()
+
+
 def test_restored_starts_are_the_tasks_starts():
     # Flatten's start is crumpled (0.25-0.41 of the flat area for seeds
     # 0-7 made fresh). Drop's hanging cloth does not depend on the seed

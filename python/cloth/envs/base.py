@@ -4,7 +4,9 @@ two pickers moved by the action, observations, images and seeding."""
 from __future__ import annotations
 
 import copy
+import json
 import numbers
+import os
 
 import gymnasium as gym
 import numpy as np
@@ -95,6 +97,12 @@ class ClothTaskEnv(gym.Env):
     costs a restore instead of the task's settling and the same seed
     gives the same start however often it was drawn. ``None`` (the
     default): every episode makes its own start from its seed.
+    ``save_starts(path)`` makes the starts not made yet and writes all
+    ``N`` to a ``.npz`` file; ``start_states=path`` reads them back (the
+    workers of a vector env share one file instead of each making its
+    own), refusing a file made by another task or with other arguments
+    that shape the start (``particles``, ``side_m``, ``pickers``,
+    ``dt_s``, ``substeps``, ``picker_radius_m``, ``overrides``).
 
     Observation (float32): with ``observation="positions"``, every
     particle's position (m, row by row, unbounded) then each picker's
@@ -123,7 +131,7 @@ class ClothTaskEnv(gym.Env):
         threads: int | None = 1,
         image_size: int = 128,
         overrides: dict | list | None = None,
-        start_states: int | None = None,
+        start_states: int | str | os.PathLike | None = None,
     ):
         if pickers not in (1, 2):
             raise ValueError(f"pickers = {pickers}: one or two")
@@ -135,9 +143,10 @@ class ClothTaskEnv(gym.Env):
             raise ValueError(f"particles = {particles}: at least 3 a side")
         if substeps < 1:
             raise ValueError(f"substeps = {substeps}: at least 1")
+        starts_file = start_states if isinstance(start_states, (str, os.PathLike)) else None
         whole = isinstance(start_states, numbers.Integral) and not isinstance(start_states, bool)
-        if start_states is not None and not (whole and start_states >= 1):
-            raise ValueError(f"start_states = {start_states!r}: None or an integer of at least 1")
+        if start_states is not None and starts_file is None and not (whole and start_states >= 1):
+            raise ValueError(f"start_states = {start_states!r}: None, an integer of at least 1 or a file's path")
         for name, value in (
             ("side_m", side_m),
             ("dt_s", dt_s),
@@ -163,10 +172,12 @@ class ClothTaskEnv(gym.Env):
         self.sim = None
         self.picker_pos = np.zeros((pickers, 3))
         self.grasps: list[int | None] = [None] * pickers
-        self.start_states = None if start_states is None else int(start_states)
+        self.start_states = None if start_states is None or starts_file else int(start_states)
         # Start state k: its scene, the cloth's snapshot, the pickers (where,
         # holding or not) and the task's attributes (START_ATTRIBUTES).
         self._starts: dict[int, tuple] = {}
+        if starts_file is not None:
+            self._load_starts(starts_file)
 
     # -- scene -------------------------------------------------------------
     def cloth_layout(self):
@@ -212,7 +223,8 @@ class ClothTaskEnv(gym.Env):
 
     @property
     def made_starts(self) -> int:
-        """How many of the ``start_states`` have been made so far."""
+        """How many of the ``start_states`` have been made (or read from
+        a file) so far."""
         return len(self._starts)
 
     def _make_start(self):
@@ -225,24 +237,29 @@ class ClothTaskEnv(gym.Env):
         self.setup()
         return scene
 
+    def _add_start(self, k: int):
+        """Makes start state ``k`` from a generator seeded by ``k`` alone
+        and keeps it."""
+        # The task draws from ``self.np_random``; swapped, not set, so
+        # the episode keeps its generator and its seed.
+        episode_rng = self.np_random
+        self._np_random = np.random.default_rng([0x5747, k])
+        try:
+            scene = self._make_start()
+        finally:
+            self._np_random = episode_rng
+        # Kept as they are: a restore copies them out, so an episode's own
+        # steps never touch the kept ones.
+        held = [g is not None for g in self.grasps]
+        attributes = {name: getattr(self, name) for name in self.START_ATTRIBUTES}
+        self._starts[k] = (scene, self.scene_text(), self.sim.snapshot(), self.picker_pos, held, attributes)
+
     def _restore_start(self, k: int):
         """Starts the episode from start state ``k``, made on its first draw
         with a generator seeded by ``k`` alone."""
         if k not in self._starts:
-            # The task draws from ``self.np_random``; swapped, not set, so
-            # the episode keeps its generator and its seed.
-            episode_rng = self.np_random
-            self._np_random = np.random.default_rng([0x5747, k])
-            try:
-                scene = self._make_start()
-            finally:
-                self._np_random = episode_rng
-            # Kept as they are: the restore below copies them out, so this
-            # episode's own steps never touch the kept ones.
-            held = [g is not None for g in self.grasps]
-            attributes = {name: getattr(self, name) for name in self.START_ATTRIBUTES}
-            self._starts[k] = (scene, self.sim.snapshot(), self.picker_pos, held, attributes)
-        scene, snapshot, picker_pos, held, attributes = self._starts[k]
+            self._add_start(k)
+        scene, _, snapshot, picker_pos, held, attributes = self._starts[k]
         self.sim = scene.simulation(threads=self.threads)
         self.sim.restore(snapshot)
         for name, value in attributes.items():
@@ -254,6 +271,100 @@ class ClothTaskEnv(gym.Env):
         for picker, holding in enumerate(held):
             if holding:
                 self.move_picker(picker, self.picker_pos[picker], True)
+
+    # -- start states on disk -----------------------------------------------
+    #: The layout ``save_starts`` writes and ``start_states=path`` reads.
+    STARTS_FORMAT = 1
+
+    def _start_config(self) -> dict:
+        """The arguments that shape a start state, as a file records them."""
+        overrides = json.dumps(self.overrides, sort_keys=True, default=str)
+        return {
+            "task": type(self).__name__,
+            "particles": int(self.n),
+            "side_m": float(self.side_m),
+            "pickers": int(self.pickers),
+            "dt_s": float(self.dt_s),
+            "substeps": int(self.substeps),
+            "picker_radius_m": float(self.picker_radius_m),
+            "overrides": overrides,
+        }
+
+    def save_starts(self, path):
+        """Makes the start states not made yet and writes all
+        ``start_states`` of them to ``path`` (a NumPy ``.npz`` file,
+        without pickled objects), for ``start_states=path``. The file is
+        written whole under another name and then renamed, so a reader
+        never sees half of it."""
+        if self.start_states is None:
+            raise ValueError("save_starts: this env has no start states (start_states=None)")
+        for k in range(self.start_states):
+            if k not in self._starts:
+                self._add_start(k)
+        arrays = {
+            "format": np.array(self.STARTS_FORMAT),
+            "config": np.array(json.dumps(self._start_config(), sort_keys=True)),
+            "count": np.array(self.start_states),
+        }
+        for k in range(self.start_states):
+            scene_text, snapshot, picker_pos, held, attributes = self._starts[k][1:]
+            arrays[f"scene_{k}"] = np.array(scene_text)
+            arrays[f"snapshot_{k}"] = np.frombuffer(snapshot.to_bytes(), dtype=np.uint8)
+            arrays[f"pickers_{k}"] = np.asarray(picker_pos, dtype=np.float64)
+            arrays[f"held_{k}"] = np.asarray(held, dtype=bool)
+            for name, value in attributes.items():
+                arrays[f"attribute_{k}_{name}"] = np.asarray(value)
+        path = os.fspath(path)
+        partial = f"{path}.{os.getpid()}.partial"
+        with open(partial, "wb") as f:
+            np.savez(f, **arrays)
+        os.replace(partial, path)
+
+    def _load_starts(self, path):
+        """Reads the start states ``save_starts`` wrote to ``path``."""
+        path = os.fspath(path)
+
+        def refuse(why):
+            raise ValueError(f"start_states = {path!r}: {why}")
+
+        try:
+            data = np.load(path, allow_pickle=False)
+        except (OSError, ValueError) as e:
+            refuse(f"cannot be read as start states ({e})")
+        if not isinstance(data, np.lib.npyio.NpzFile):
+            refuse("not a .npz file of start states")
+        with data:
+            try:
+                if int(data["format"]) != self.STARTS_FORMAT:
+                    refuse(f"format {int(data['format'])}; this version reads {self.STARTS_FORMAT}")
+                saved = json.loads(str(data["config"]))
+                for field, here in self._start_config().items():
+                    if saved.get(field) != here:
+                        refuse(f"made with {field} = {saved.get(field)!r}, this env has {here!r}")
+                count = int(data["count"])
+                if count < 1:
+                    refuse(f"count = {count}: no start states")
+                starts = {}
+                for k in range(count):
+                    attributes = {name: data[f"attribute_{k}_{name}"] for name in self.START_ATTRIBUTES}
+                    for name, value in attributes.items():
+                        setattr(self, name, copy.deepcopy(value[()] if value.ndim == 0 else value))
+                    scene = self.build_scene()
+                    if self.scene_text() != str(data[f"scene_{k}"]):
+                        refuse(f"start {k} was made from another scene than this env builds")
+                    snapshot = cloth.Snapshot(data[f"snapshot_{k}"].tobytes())
+                    try:
+                        scene.simulation(threads=self.threads).restore(snapshot)
+                    except cloth.StepError as e:
+                        refuse(f"start {k} does not fit this env's cloth: {e}")
+                    picker_pos = np.array(data[f"pickers_{k}"], dtype=np.float64)
+                    held = [bool(h) for h in data[f"held_{k}"]]
+                    if picker_pos.shape != (self.pickers, 3) or len(held) != self.pickers:
+                        refuse(f"start {k}'s pickers are not {self.pickers}")
+                    starts[k] = (scene, self.scene_text(), snapshot, picker_pos, held, attributes)
+            except KeyError as e:
+                refuse(f"no array {e} in it: not a file save_starts wrote")
+        self.start_states, self._starts = count, starts
 
     def step(self, action):
         action = np.clip(np.asarray(action, dtype=np.float64).reshape(self.pickers, 4), -1.0, 1.0)
