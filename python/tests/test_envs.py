@@ -244,6 +244,10 @@ def test_a_start_states_file_is_refused_by_another_env_and_shared_by_workers(tmp
     np.savez(cut, **arrays)
     with pytest.raises(ValueError, match="Snapshot"):
         gym.make("cloth/Fold-v0", start_states=cut)
+    arrays["format"] = np.array("one")
+    np.savez(cut, **arrays)
+    with pytest.raises(ValueError, match="cut.npz'?: not start states"):
+        gym.make("cloth/Fold-v0", start_states=cut)
     not_starts = tmp_path / "other.npy"
     np.save(not_starts, np.zeros(3))
     for bad in (not_starts, tmp_path / "missing.npz"):

@@ -65,6 +65,10 @@ def observation_box(points: int, pickers: int, bounds) -> spaces.Box:
     return spaces.Box(low.astype(np.float32), high.astype(np.float32), dtype=np.float32)
 
 
+class StartsFileError(ValueError):
+    """A ``start_states`` file that is not one, or was made for another env."""
+
+
 class ClothTaskEnv(gym.Env):
     """A square cloth of ``particles`` x ``particles`` nodes and side
     ``side_m`` (m) on a floor at z = 0 (Choi & Ko's model, BDF2, contacts
@@ -173,8 +177,9 @@ class ClothTaskEnv(gym.Env):
         self.picker_pos = np.zeros((pickers, 3))
         self.grasps: list[int | None] = [None] * pickers
         self.start_states = None if start_states is None or starts_file else int(start_states)
-        # Start state k: its scene, the cloth's snapshot, the pickers (where,
-        # holding or not) and the task's attributes (START_ATTRIBUTES).
+        # Start state k: its scene and the scene's text, the cloth's
+        # snapshot, the pickers (where, holding or not) and the task's
+        # attributes (START_ATTRIBUTES).
         self._starts: dict[int, tuple] = {}
         if starts_file is not None:
             self._load_starts(starts_file)
@@ -321,50 +326,63 @@ class ClothTaskEnv(gym.Env):
         os.replace(partial, path)
 
     def _load_starts(self, path):
-        """Reads the start states ``save_starts`` wrote to ``path``."""
+        """Reads the start states ``save_starts`` wrote to ``path``; a file
+        that is not one, or was made for another env, raises
+        ``ValueError`` naming the path and what differs."""
         path = os.fspath(path)
-
-        def refuse(why):
-            raise ValueError(f"start_states = {path!r}: {why}")
-
         try:
             data = np.load(path, allow_pickle=False)
         except (OSError, ValueError) as e:
-            refuse(f"cannot be read as start states ({e})")
+            raise StartsFileError(f"start_states = {path!r}: cannot be read as start states ({e})") from None
         if not isinstance(data, np.lib.npyio.NpzFile):
-            refuse("not a .npz file of start states")
+            raise StartsFileError(f"start_states = {path!r}: not a .npz file of start states")
         with data:
             try:
-                if int(data["format"]) != self.STARTS_FORMAT:
-                    refuse(f"format {int(data['format'])}; this version reads {self.STARTS_FORMAT}")
-                saved = json.loads(str(data["config"]))
-                for field, here in self._start_config().items():
-                    if saved.get(field) != here:
-                        refuse(f"made with {field} = {saved.get(field)!r}, this env has {here!r}")
-                count = int(data["count"])
-                if count < 1:
-                    refuse(f"count = {count}: no start states")
-                starts = {}
-                for k in range(count):
-                    attributes = {name: data[f"attribute_{k}_{name}"] for name in self.START_ATTRIBUTES}
-                    for name, value in attributes.items():
-                        setattr(self, name, copy.deepcopy(value[()] if value.ndim == 0 else value))
-                    scene = self.build_scene()
-                    if self.scene_text() != str(data[f"scene_{k}"]):
-                        refuse(f"start {k} was made from another scene than this env builds")
-                    snapshot = cloth.Snapshot(data[f"snapshot_{k}"].tobytes())
-                    try:
-                        scene.simulation(threads=self.threads).restore(snapshot)
-                    except cloth.StepError as e:
-                        refuse(f"start {k} does not fit this env's cloth: {e}")
-                    picker_pos = np.array(data[f"pickers_{k}"], dtype=np.float64)
-                    held = [bool(h) for h in data[f"held_{k}"]]
-                    if picker_pos.shape != (self.pickers, 3) or len(held) != self.pickers:
-                        refuse(f"start {k}'s pickers are not {self.pickers}")
-                    starts[k] = (scene, self.scene_text(), snapshot, picker_pos, held, attributes)
+                count, starts = self._read_starts(data)
+            except StartsFileError as e:
+                raise StartsFileError(f"start_states = {path!r}: {e}") from None
             except KeyError as e:
-                refuse(f"no array {e} in it: not a file save_starts wrote")
+                raise StartsFileError(f"start_states = {path!r}: no array {e} in it: not a save_starts file") from None
+            except (TypeError, ValueError) as e:
+                why = f"not start states as save_starts writes them ({e})"
+                raise StartsFileError(f"start_states = {path!r}: {why}") from None
         self.start_states, self._starts = count, starts
+
+    def _read_starts(self, data) -> tuple[int, dict]:
+        """The count and the start states of an open ``save_starts`` file,
+        each checked against this env (its scene, a restore)."""
+        if int(data["format"]) != self.STARTS_FORMAT:
+            raise StartsFileError(f"format {int(data['format'])}; this version reads {self.STARTS_FORMAT}")
+        saved = json.loads(str(data["config"]))
+        for field, here in self._start_config().items():
+            if saved.get(field) != here:
+                raise StartsFileError(f"made with {field} = {saved.get(field)!r}, this env has {here!r}")
+        count = int(data["count"])
+        if count < 1:
+            raise StartsFileError(f"count = {count}: no start states")
+        starts = {}
+        for k in range(count):
+            attributes = {}
+            for name in self.START_ATTRIBUTES:
+                value = data[f"attribute_{k}_{name}"]
+                attributes[name] = value[()] if value.ndim == 0 else value
+                setattr(self, name, copy.deepcopy(attributes[name]))
+            # The scene the task builds from the start's attributes (Fold's
+            # shift) must be the one the start was made from.
+            scene = self.build_scene()
+            if self.scene_text() != str(data[f"scene_{k}"]):
+                raise StartsFileError(f"start {k} was made from another scene than this env builds")
+            snapshot = cloth.Snapshot(data[f"snapshot_{k}"].tobytes())
+            try:
+                scene.simulation(threads=self.threads).restore(snapshot)
+            except cloth.StepError as e:
+                raise StartsFileError(f"start {k} does not fit this env's cloth: {e}") from None
+            picker_pos = np.array(data[f"pickers_{k}"], dtype=np.float64)
+            held = [bool(h) for h in data[f"held_{k}"]]
+            if picker_pos.shape != (self.pickers, 3) or len(held) != self.pickers:
+                raise StartsFileError(f"start {k}'s pickers are not {self.pickers}")
+            starts[k] = (scene, self.scene_text(), snapshot, picker_pos, held, attributes)
+        return count, starts
 
     def step(self, action):
         action = np.clip(np.asarray(action, dtype=np.float64).reshape(self.pickers, 4), -1.0, 1.0)
