@@ -135,12 +135,17 @@ fn restored_snapshot(data: &[u8]) -> String {
         Ok(snapshot) => snapshot,
         Err(e) => return label(e),
     };
-    let (file, sets) = SNAPSHOT_SCENE;
-    let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
-    let text = std::fs::read_to_string(repository().join("fixtures/scenes").join(file)).expect("the fixture scene");
-    let scene = cloth_core::scene::Scene::parse(&text, &sets).expect("the fixture scene parses");
-    let (model, cfg) = scene.build().expect("the fixture scene builds");
-    let mut sim = cfg.simulation(model);
+    // Read and built once: the snapshot is under test, not the scene.
+    static BUILT: std::sync::OnceLock<(cloth_core::ClothModel, cloth_core::scene::RunConfig)> =
+        std::sync::OnceLock::new();
+    let (model, cfg) = BUILT.get_or_init(|| {
+        let (file, sets) = SNAPSHOT_SCENE;
+        let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+        let text = std::fs::read_to_string(repository().join("fixtures/scenes").join(file)).expect("the fixture scene");
+        let scene = cloth_core::scene::Scene::parse(&text, &sets).expect("the fixture scene parses");
+        scene.build().expect("the fixture scene builds")
+    });
+    let mut sim = cfg.simulation(model.clone());
     if let Err(e) = sim.restore(&snapshot) {
         return label(e);
     }
