@@ -2,7 +2,8 @@
 thread (the simulation's pool and NumPy's), 25 x 25 particles, a random
 policy and an idle one (pickers still, nothing held), the median of
 ``--repeat`` runs of ``--steps`` steps, the resets of the episodes that
-end among them included; then what a reset takes and, with
+end among them included; then what a reset takes, what taking a state
+mid-episode and setting it again take and, with
 ``--start-states N``, what saving the ``N`` starts to a file and making
 an env from it take. Prints Markdown tables.
 
@@ -78,6 +79,32 @@ def starts_file(task: str, repeat: int, **options):
         return saved, os.path.getsize(path), read, 1e3 * (time.perf_counter() - start)
 
 
+def state_costs(task: str, runs: int, **options):
+    """Milliseconds to take a state mid-episode (five env steps of random
+    moves, picking) and to set it again: in the same env (``runs`` of
+    each, an env step between) and in a new one."""
+    env = made(task, **options).unwrapped
+    env.reset(seed=0)
+    env.action_space.seed(0)
+    for _ in range(5):
+        action = env.action_space.sample()
+        action[3::4] = 1.0
+        env.step(action)
+    taken, put = [], []
+    for _ in range(runs):
+        start = time.perf_counter()
+        state = env.get_state()
+        taken.append(1e3 * (time.perf_counter() - start))
+        env.step(env.action_space.sample())
+        start = time.perf_counter()
+        env.set_state(state)
+        put.append(1e3 * (time.perf_counter() - start))
+    other = gym.make(task, threads=1, **options).unwrapped
+    start = time.perf_counter()
+    other.set_state(state)
+    return taken, put, 1e3 * (time.perf_counter() - start)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--steps", type=int, default=200)
@@ -103,6 +130,11 @@ def main():
             runs.append(1e3 * (time.perf_counter() - start))
         shown = ", ".join(f"{r:.1f}" for r in runs)
         print(f"| {task} | {statistics.median(runs):.1f} | {shown} |")
+    print("\n| task | get_state, ms (median) | set_state, ms (median) | set_state in a new env, ms |")
+    print("|---|---|---|---|")
+    for task in TASKS:
+        taken, put, new = state_costs(task, 10 * args.repeat, **options)
+        print(f"| {task} | {statistics.median(taken):.2f} | {statistics.median(put):.2f} | {new:.1f} |")
     if options.get("start_states"):
         print("\n| task | make and save the starts, s | file, kB | env from the file, ms (median) | runs", end="")
         print(" | env without, ms |\n|---|---|---|---|---|---|")

@@ -27,6 +27,22 @@ pub(crate) enum GraspError {
     /// The grasp is on a body: it moves with it.
     #[error("grasp {id} is on a body: it moves with the body")]
     OnBody { id: usize },
+    /// Particles and offsets given for a grasp do not pair up.
+    #[error("grasp of {particles} particles with {offsets} offsets: needs one offset a particle, and a particle")]
+    Unpaired { particles: usize, offsets: usize },
+    /// A particle given for a grasp is not one of the cloth's.
+    #[error("particle {index}: the cloth has {count}")]
+    NoSuchParticle { index: usize, count: usize },
+    /// A particle given for a grasp is pinned, held by another grasp or
+    /// given twice.
+    #[error("particle {index} is not free to grasp (pinned, held by another grasp or given twice)")]
+    NotFree { index: usize },
+    /// The gripper's position given for a grasp is not finite.
+    #[error("grasp at {point:?}: the gripper's position is not finite")]
+    NonFiniteGripper { point: [f64; 3] },
+    /// An offset given for a grasp is not finite.
+    #[error("offset of particle {index} is not finite: {offset:?}")]
+    NonFiniteOffset { index: usize, offset: [f64; 3] },
 }
 
 /// What holds a grasp's particles.
@@ -50,6 +66,12 @@ pub(crate) struct Grasp {
 }
 
 impl Grasp {
+    /// Each particle's offset from the gripper (world axes for a point,
+    /// the body's frame for a body), m, in the order of `particles`.
+    pub(crate) fn offsets(&self) -> &[Vec3] {
+        &self.offsets
+    }
+
     /// Holds the particles at their offsets from the gripper at `pose`, by
     /// the end of the next step. The particles are free and the pose
     /// finite (checked when grasped and moved): `hold` cannot refuse.
@@ -101,10 +123,51 @@ impl Grasps {
         }
         let inverse = pose.rotation.inverse();
         let offsets: Vec<Vec3> = particles.iter().map(|&i| inverse * (x[i] - pose.position)).collect();
-        let grasp = Grasp { particles, offsets, gripper };
-        grasp.place(sim, &pose);
+        Ok(self.push(sim, Grasp { particles, offsets, gripper }, &pose))
+    }
+
+    /// Grasps `particles` at `offsets` (m, in the gripper's frame) from
+    /// `gripper`, whose pose now is `pose`: a grasp taken again as
+    /// [`Grasp::offsets`] recorded it (after a restore, the particles in
+    /// reach and their offsets recomputed from the positions would differ
+    /// by a rounding). Each particle must be free; nothing is held when
+    /// one is refused. Returns the id.
+    pub(crate) fn grasp_at_offsets(
+        &mut self,
+        sim: &mut Simulation,
+        particles: Vec<usize>,
+        offsets: Vec<Vec3>,
+        (gripper, pose): (Gripper, BodyPose),
+    ) -> Result<usize, GraspError> {
+        if !pose.position.iter().all(|c| c.is_finite()) {
+            return Err(GraspError::NonFiniteGripper { point: pose.position.into() });
+        }
+        if particles.len() != offsets.len() || particles.is_empty() {
+            return Err(GraspError::Unpaired { particles: particles.len(), offsets: offsets.len() });
+        }
+        let count = sim.model().particle_count();
+        let mut seen = vec![false; count];
+        for (&index, offset) in particles.iter().zip(&offsets) {
+            if index >= count {
+                return Err(GraspError::NoSuchParticle { index, count });
+            }
+            if seen[index] || sim.model().is_pinned(index) || sim.control().is_held(index) {
+                return Err(GraspError::NotFree { index });
+            }
+            seen[index] = true;
+            if !offset.iter().all(|c| c.is_finite()) {
+                return Err(GraspError::NonFiniteOffset { index, offset: (*offset).into() });
+            }
+        }
+        Ok(self.push(sim, Grasp { particles, offsets, gripper }, &pose))
+    }
+
+    /// Holds `grasp`'s particles where `pose` puts them and keeps it;
+    /// returns its id.
+    fn push(&mut self, sim: &mut Simulation, grasp: Grasp, pose: &BodyPose) -> usize {
+        grasp.place(sim, pose);
         self.slots.push(Some(grasp));
-        Ok(self.slots.len() - 1)
+        self.slots.len() - 1
     }
 
     pub(crate) fn get(&self, id: usize) -> Result<&Grasp, GraspError> {

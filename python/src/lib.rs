@@ -394,6 +394,16 @@ pub(crate) fn report_dict<'py>(py: Python<'py>, r: &cloth_core::StepReport) -> P
     Ok(out)
 }
 
+/// The rows of an `(n, 3)` array as vectors; `ControlError` naming `what`
+/// for another number of columns.
+pub(crate) fn vectors(what: &str, array: PyReadonlyArray2<'_, f64>) -> PyResult<Vec<Vec3>> {
+    let a = array.as_array();
+    if a.ncols() != 3 {
+        return Err(ControlError::new_err(format!("{what}: {} columns, not 3 (x, y, z)", a.ncols())));
+    }
+    Ok(a.rows().into_iter().map(|r| Vec3::new(r[0], r[1], r[2])).collect())
+}
+
 pub(crate) fn grasp_error(e: grasp::GraspError) -> PyErr {
     ControlError::new_err(e.to_string())
 }
@@ -507,11 +517,7 @@ impl Simulation {
 
     /// Forces on every particle, N, an `(n, 3)` array, for the next steps.
     fn set_external_forces(&mut self, forces: PyReadonlyArray2<'_, f64>) -> PyResult<()> {
-        let a = forces.as_array();
-        if a.ncols() != 3 {
-            return Err(ControlError::new_err(format!("external forces: {} columns, not 3 (x, y, z)", a.ncols())));
-        }
-        let f: Vec<Vec3> = a.rows().into_iter().map(|r| Vec3::new(r[0], r[1], r[2])).collect();
+        let f = vectors("external forces", forces)?;
         self.sim.set_external_forces(&f).map_err(control_error)
     }
 
@@ -584,6 +590,32 @@ impl Simulation {
     /// The particles grasp `id` holds.
     fn grasp_particles(&self, id: usize) -> PyResult<Vec<usize>> {
         Ok(self.grasps.get(id).map_err(grasp_error)?.particles.clone())
+    }
+
+    /// Each of grasp `id`'s particles' offset from its gripper, m: an
+    /// `(k, 3)` array in the order of `grasp_particles(id)`.
+    fn grasp_offsets<'py>(&self, py: Python<'py>, id: usize) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        Ok(rows(py, self.grasps.get(id).map_err(grasp_error)?.offsets().iter().copied()))
+    }
+
+    /// Grasps `particles` at `offsets` (m, an `(k, 3)` array) from a
+    /// gripper at `point` (m), as `grasp_particles` and `grasp_offsets`
+    /// gave them: a grasp taken again after `restore`, which holds the
+    /// same particles to the bit. Returns the new grasp's id; raises
+    /// `ControlError` for a particle that is not free (pinned, grasped,
+    /// given twice) or offsets that do not pair up, holding nothing then.
+    fn grasp_at_offsets(
+        &mut self,
+        particles: Vec<usize>,
+        offsets: PyReadonlyArray2<'_, f64>,
+        point: [f64; 3],
+    ) -> PyResult<usize> {
+        let offsets = vectors("offsets", offsets)?;
+        let at = (
+            grasp::Gripper::Point,
+            BodyPose { position: Vec3::from(point), rotation: nalgebra::UnitQuaternion::identity() },
+        );
+        self.grasps.grasp_at_offsets(&mut self.sim, particles, offsets, at).map_err(grasp_error)
     }
 
     /// Lets grasp `id`'s particles go; they keep their velocities.

@@ -4,14 +4,14 @@
 //! and grasps by a point or a body.
 
 use crate::grasp::{Grasps, Gripper};
-use crate::{ControlError, control_error, grasp_error, override_args, rows, scene_error, triangles};
+use crate::{ControlError, control_error, grasp_error, override_args, rows, scene_error, triangles, vectors};
 use cloth_core::{BodyPose, Vec3};
 use cloth_rapier::convert::{pose_from_rapier, vec_from_rapier};
 use cloth_rapier::rapier3d_f64::prelude::RigidBodyHandle;
 use cloth_rapier::rig::JointValue;
 use cloth_rapier::{CoupledRun, CoupledScene};
 use nalgebra::UnitQuaternion;
-use numpy::{IntoPyArray, PyArray1, PyArray2};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::path::PathBuf;
@@ -64,6 +64,18 @@ impl World {
             let mut names: Vec<String> = self.run.bodies.iter().map(|b| b.name.clone()).collect();
             names.extend(self.link_names());
             ControlError::new_err(format!("no body or rig link named {name:?}; the scene has {names:?}"))
+        })
+    }
+
+    /// The gripper of a grasp at `point` (m), or on body `body` at its
+    /// pose now.
+    fn gripper(&self, point: Vec3, body: Option<&str>) -> PyResult<(Gripper, BodyPose)> {
+        Ok(match body {
+            None => (Gripper::Point, BodyPose { position: point, rotation: UnitQuaternion::identity() }),
+            Some(name) => {
+                let b = self.gripper_body(name)?;
+                (Gripper::Body(b), pose_from_rapier(self.run.world.bodies[b].position()))
+            }
         })
     }
 
@@ -342,16 +354,42 @@ impl World {
     #[pyo3(signature = (point, radius_m, body = None))]
     fn grasp(&mut self, point: [f64; 3], radius_m: f64, body: Option<&str>) -> PyResult<usize> {
         let p = Vec3::from(point);
-        let gripper = match body {
-            None => (Gripper::Point, BodyPose { position: p, rotation: UnitQuaternion::identity() }),
-            Some(name) => {
-                let b = self.gripper_body(name)?;
-                (Gripper::Body(b), pose_from_rapier(self.run.world.bodies[b].position()))
-            }
-        };
+        let gripper = self.gripper(p, body)?;
         let handle = self.run.cloth;
         let cloth = self.run.cloths.get_mut(handle).ok_or_else(|| ControlError::new_err("the scene has no cloth"))?;
         self.grasps.grasp(cloth.simulation_mut(), p, radius_m, gripper).map_err(grasp_error)
+    }
+
+    /// Grasps `particles` at `offsets` (m, an `(k, 3)` array; in the
+    /// body's frame for a body) by a gripper at `point` (m) or by body
+    /// `body` (one of the two), as `grasp_particles` and `grasp_offsets`
+    /// gave them: a grasp taken again after `restore`. Returns the new
+    /// grasp's id; `ControlError` for a particle that is not free or
+    /// offsets that do not pair up, holding nothing then.
+    #[pyo3(signature = (particles, offsets, point = None, body = None))]
+    fn grasp_at_offsets(
+        &mut self,
+        particles: Vec<usize>,
+        offsets: PyReadonlyArray2<'_, f64>,
+        point: Option<[f64; 3]>,
+        body: Option<&str>,
+    ) -> PyResult<usize> {
+        let offsets = vectors("offsets", offsets)?;
+        let gripper = match (point, body) {
+            (Some(p), None) => self.gripper(Vec3::from(p), None)?,
+            (None, Some(name)) => self.gripper(Vec3::zeros(), Some(name))?,
+            _ => return Err(ControlError::new_err("grasp_at_offsets: give a point or a body, one of the two")),
+        };
+        let handle = self.run.cloth;
+        let cloth = self.run.cloths.get_mut(handle).ok_or_else(|| ControlError::new_err("the scene has no cloth"))?;
+        self.grasps.grasp_at_offsets(cloth.simulation_mut(), particles, offsets, gripper).map_err(grasp_error)
+    }
+
+    /// Each of grasp `id`'s particles' offset from its gripper (world axes
+    /// for a point, the body's frame for a body), m: an `(k, 3)` array in
+    /// the order of `grasp_particles(id)`.
+    fn grasp_offsets<'py>(&self, py: Python<'py>, id: usize) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        Ok(rows(py, self.grasps.get(id).map_err(grasp_error)?.offsets().iter().copied()))
     }
 
     /// Moves point grasp `id` to `point` (m) by the end of the next step.

@@ -1,10 +1,12 @@
 """The Gymnasium tasks: they pass Gymnasium's checker, replay bit for bit
-from a seed (made or restored from a start state), run under
+from a seed (made or restored from a start state) and from a state taken
+mid-episode, run under
 AsyncVectorEnv, measure what they say (covered area, fold distance,
 distance to the target), and the scripted fold reaches the Fold task's
 success."""
 
 import os
+import pickle
 import sys
 
 import gymnasium as gym
@@ -292,3 +294,86 @@ def test_restored_starts_are_the_tasks_starts():
         restored.step(let_go)
     assert restored.unwrapped.sim.positions[:, 2].min() < 0.01
     assert restored.unwrapped.made_starts == 1
+
+
+def grasping_moves(env, seed: int, count: int):
+    """Actions that lower the pickers onto the cloth and grasp (three
+    steps of 3 cm from 10 cm up), then move them at random, holding."""
+    env.action_space.seed(seed)
+    moves = [np.tile([0.0, 0.0, -1.0, 1.0], env.pickers).astype(np.float32)] * 3
+    for _ in range(count - 3):
+        action = env.action_space.sample()
+        action[3::4] = 1.0
+        moves.append(action)
+    return moves
+
+
+def replay(env, moves):
+    """The observations' bytes, rewards and successes of ``moves``."""
+    out = []
+    for action in moves:
+        obs, reward, _, truncated, info = env.step(action)
+        assert not truncated
+        out.append((obs.tobytes(), reward, info["success"]))
+    return out
+
+
+@pytest.mark.parametrize("task", TASKS)
+def test_set_state_goes_on_to_the_bit_as_the_run_it_was_taken_from(task):
+    # A state taken mid-episode, Fold's and Drop's pickers holding the
+    # cloth: the same moves from it give the same bits in the env it came
+    # from, in another env after another episode (for Fold, another
+    # scene: another shift), pickled, and in an env never reset.
+    env = gym.make(task).unwrapped
+    env.reset(seed=3)
+    moves = grasping_moves(env, seed=3, count=10)
+    replay(env, moves[:5])
+    state = env.get_state()
+    assert state.time_s == env.sim.time_s
+    if task != "cloth/Flatten-v0":
+        assert any(g is not None for g in state.grasps)
+    first = replay(env, moves[5:])
+    env.set_state(state)
+    assert replay(env, moves[5:]) == first
+    other = gym.make(task).unwrapped
+    other.reset(seed=4)
+    other.set_state(pickle.loads(pickle.dumps(state)))
+    assert replay(other, moves[5:]) == first
+    never_reset = gym.make(task).unwrapped
+    never_reset.set_state(state)
+    assert replay(never_reset, moves[5:]) == first
+
+
+def test_set_state_refuses_a_state_of_another_env_by_argument():
+    fold = gym.make("cloth/Fold-v0").unwrapped
+    with pytest.raises(gym.error.ResetNeeded, match="reset the env first"):
+        fold.get_state()
+    fold.reset(seed=0)
+    state = fold.get_state()
+    assert not state.picker_pos.flags.writeable
+    for task, kwargs, field in [
+        ("cloth/Drop-v0", {}, "task"),
+        ("cloth/Fold-v0", {"particles": 20}, "particles"),
+        ("cloth/Fold-v0", {"overrides": {"solver.contacts.max_passes": 3}}, "overrides"),
+    ]:
+        with pytest.raises(ValueError, match=f"a state of an env with {field} = "):
+            gym.make(task, **kwargs).unwrapped.set_state(state)
+    with pytest.raises(TypeError, match="EnvState"):
+        fold.set_state(fold.sim.snapshot())
+
+
+def test_the_workers_of_a_vector_env_send_their_states():
+    # CEM-style planning: the workers' states, sent back through pipes,
+    # go on in a single env as in the workers.
+    vec = gym.vector.AsyncVectorEnv([lambda: gym.make("cloth/Fold-v0") for _ in range(2)])
+    try:
+        vec.reset(seed=[1, 2])
+        states = vec.call("get_state")
+        action = np.tile([0.3, -0.2, -1.0, 1.0], 2).astype(np.float32)
+        obs, *_ = vec.step(np.stack([action, action]))
+    finally:
+        vec.close()
+    single = gym.make("cloth/Fold-v0").unwrapped
+    for k in range(2):
+        single.set_state(states[k])
+        assert single.step(action)[0].tobytes() == obs[k].tobytes()

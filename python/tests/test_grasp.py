@@ -78,3 +78,34 @@ def test_grasps_that_cannot_be_made_are_refused():
     sim.release(grasp)
     with pytest.raises(cloth.ControlError, match="no such grasp"):
         sim.grasp_force(grasp)
+
+
+def test_a_grasp_at_given_offsets_holds_its_particles_there_or_nothing():
+    # The particles end the next step at the gripper plus their offsets;
+    # a refused grasp holds none of its particles.
+    sim = free_cloth("bdf2")
+    grasp = sim.grasp([0.0, 0.0, 1.0], 0.05)
+    particles, offsets = sim.grasp_particles(grasp), sim.grasp_offsets(grasp)
+    assert len(particles) == 5
+    assert np.array_equal(offsets, sim.positions[particles] - [0.0, 0.0, 1.0])
+    sim.release(grasp)
+    point = np.array([0.1, 0.0, 1.2])
+    again = sim.grasp_at_offsets(particles, 2 * offsets, list(point))
+    assert sim.grasp_particles(again) == particles
+    assert np.array_equal(sim.grasp_offsets(again), 2 * offsets)
+    sim.step()
+    assert np.abs(sim.positions[particles] - (point + 2 * offsets)).max() < 1e-12
+    free, one = [0, 1], np.zeros((2, 3))
+    for args, match in [
+        (([0, 0], one, [0.0, 0.0, 1.0]), "particle 0 is not free"),
+        (([0, particles[0]], one, [0.0, 0.0, 1.0]), f"particle {particles[0]} is not free"),
+        (([0, 121], one, [0.0, 0.0, 1.0]), "particle 121: the cloth has 121"),
+        ((free, np.zeros((1, 3)), [0.0, 0.0, 1.0]), "2 particles with 1 offsets"),
+        ((free, np.zeros((2, 4)), [0.0, 0.0, 1.0]), "offsets: 4 columns"),
+        ((free, np.array([[0.0, 0.0, 0.0], [np.nan, 0.0, 0.0]]), [0.0, 0.0, 1.0]), "offset of particle 1"),
+        ((free, one, [0.0, np.inf, 1.0]), "gripper's position is not finite"),
+    ]:
+        with pytest.raises(cloth.ControlError, match=match):
+            sim.grasp_at_offsets(*args)
+    # Particle 0 came first in a refused grasp: it is still free.
+    sim.grasp_at_offsets([0], np.zeros((1, 3)), list(sim.positions[0]))

@@ -131,6 +131,18 @@ def test_a_body_grasp_carries_its_particles_and_the_body_feels_their_pull():
         position, q = world.body_pose("ball")
         off = max(np.linalg.norm(world.positions[i] - (position + rotate(q, l))) for i, l in zip(held, local))
         assert off < 1e-15
+    # Let go and taken again at the offsets it had, the ball carries them
+    # as before.
+    offsets = world.grasp_offsets(grasp)
+    assert np.abs(offsets - local).max() < 1e-15
+    world.release(grasp)
+    with pytest.raises(cloth.ControlError, match="a point or a body"):
+        world.grasp_at_offsets(held, offsets, point=[0.0, 0.0, 1.0], body="ball")
+    grasp = world.grasp_at_offsets(held, offsets, body="ball")
+    world.set_kinematic_target("ball", [0.05, 0.1, 1.4], rotation=[0.0, 0.0, 0.3])
+    world.step()
+    position, q = world.body_pose("ball")
+    assert max(np.linalg.norm(world.positions[i] - (position + rotate(q, l))) for i, l in zip(held, offsets)) < 1e-15
     # A dynamic ball holding the cloth: each step its velocity changes by
     # gravity's and the grasp's pull of the step before (one step late),
     # until it meets the cloth; the particles follow it to 0.1 mm (the

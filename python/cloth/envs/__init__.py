@@ -11,10 +11,10 @@ arguments of ``ClothTaskEnv`` (``particles``, ``pickers``, ``observation``,
 
 from gymnasium.envs.registration import register, registry
 
-from .base import ClothTaskEnv, StartsFileError
+from .base import ClothTaskEnv, EnvState, StartsFileError
 from .tasks import DropEnv, FlattenEnv, FoldEnv
 
-__all__ = ["ClothTaskEnv", "DropEnv", "FlattenEnv", "FoldEnv", "StartsFileError"]
+__all__ = ["ClothTaskEnv", "DropEnv", "EnvState", "FlattenEnv", "FoldEnv", "StartsFileError"]
 
 for _name, _cls, _steps in (("Flatten", "FlattenEnv", 100), ("Fold", "FoldEnv", 80), ("Drop", "DropEnv", 60)):
     if f"cloth/{_name}-v0" not in registry:

@@ -4,6 +4,7 @@ two pickers moved by the action, observations, images and seeding."""
 from __future__ import annotations
 
 import copy
+import dataclasses
 import json
 import numbers
 import os
@@ -63,6 +64,54 @@ def observation_box(points: int, pickers: int, bounds) -> spaces.Box:
     low = np.concatenate([np.full(3 * points, -np.inf, np.float32), np.tile(np.append(lo, 0.0), pickers)])
     high = np.concatenate([np.full(3 * points, np.inf, np.float32), np.tile(np.append(hi, 1.0), pickers)])
     return spaces.Box(low.astype(np.float32), high.astype(np.float32), dtype=np.float32)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class EnvState:
+    """A task env's state as ``ClothTaskEnv.get_state`` took it: enough for
+    ``set_state`` to go on from it, to the bit, in this env or another one
+    made with the same arguments. It pickles (a vector env's workers can
+    send it) and its arrays are read-only."""
+
+    #: The env's arguments that shape a state (``_start_config``).
+    config: dict
+    #: The scene the cloth was built from, as TOML text.
+    scene_text: str
+    #: The cloth and the integrator's memory.
+    snapshot: cloth.Snapshot
+    #: Each picker's position, m, ``(pickers, 3)``.
+    picker_pos: np.ndarray
+    #: Per picker, ``None`` or what it holds: the particles and their
+    #: offsets from the picker (m, ``(k, 3)``).
+    grasps: tuple
+    #: The task's ``START_ATTRIBUTES`` (a Fold episode's shift, a Drop
+    #: episode's target...).
+    attributes: dict
+
+    @property
+    def time_s(self) -> float:
+        """The simulated time the state was taken at, s."""
+        return self.snapshot.time_s
+
+
+def _read_only(array, dtype=None) -> np.ndarray:
+    """A read-only copy of ``array``."""
+    array = np.array(array, dtype=dtype)
+    array.flags.writeable = False
+    return array
+
+
+def _restore(sim, state: EnvState) -> list:
+    """Restores ``state``'s cloth on ``sim`` (holding no grasp) and takes
+    its pickers' grasps again; returns the grasps' ids, ``None`` for a
+    picker holding nothing."""
+    sim.restore(state.snapshot)
+    # The grasps taken as they were, not from the particles in reach now:
+    # offsets recomputed from the positions would differ by a rounding.
+    return [
+        None if held is None else sim.grasp_at_offsets(held[0].tolist(), held[1], list(state.picker_pos[k]))
+        for k, held in enumerate(state.grasps)
+    ]
 
 
 class StartsFileError(ValueError):
@@ -174,12 +223,12 @@ class ClothTaskEnv(gym.Env):
         self.observation_space = observation_box(points, pickers, self.BOUNDS)
         self._camera = Camera(eye=(0.0, -0.8, 0.8), target=(0.0, 0.0, 0.0), width=image_size, height=image_size)
         self.sim = None
+        # The text of the scene ``sim`` was built from.
+        self._sim_scene_text = None
         self.picker_pos = np.zeros((pickers, 3))
         self.grasps: list[int | None] = [None] * pickers
         self.start_states = None if start_states is None or starts_file else int(start_states)
-        # Start state k: its scene and the scene's text, the cloth's
-        # snapshot, the pickers (where, holding or not) and the task's
-        # attributes (START_ATTRIBUTES).
+        # Start state k: its scene and its EnvState.
         self._starts: dict[int, tuple] = {}
         if starts_file is not None:
             self._load_starts(starts_file)
@@ -237,6 +286,7 @@ class ClothTaskEnv(gym.Env):
         returns the scene."""
         scene = self.episode_scene()
         self.sim = scene.simulation(threads=self.threads)
+        self._sim_scene_text = self.scene_text()
         self.grasps = [None] * self.pickers
         self.picker_pos = np.zeros((self.pickers, 3))
         self.setup()
@@ -253,33 +303,80 @@ class ClothTaskEnv(gym.Env):
             scene = self._make_start()
         finally:
             self._np_random = episode_rng
-        # Kept as they are: a restore copies them out, so an episode's own
-        # steps never touch the kept ones.
-        held = [g is not None for g in self.grasps]
-        attributes = {name: getattr(self, name) for name in self.START_ATTRIBUTES}
-        self._starts[k] = (scene, self.scene_text(), self.sim.snapshot(), self.picker_pos, held, attributes)
+        self._starts[k] = (scene, self.get_state())
 
     def _restore_start(self, k: int):
         """Starts the episode from start state ``k``, made on its first draw
         with a generator seeded by ``k`` alone."""
         if k not in self._starts:
             self._add_start(k)
-        scene, _, snapshot, picker_pos, held, attributes = self._starts[k]
-        self.sim = scene.simulation(threads=self.threads)
-        self.sim.restore(snapshot)
-        for name, value in attributes.items():
+        scene, state = self._starts[k]
+        self._apply_state(state, scene)
+
+    # -- states --------------------------------------------------------------
+    def get_state(self) -> EnvState:
+        """The env's state now (SoftGym's ``get_state``): the cloth, the
+        pickers and what they hold, and the task's episode attributes. The
+        episode's generator and a ``TimeLimit`` wrapper's step count are
+        not in it. Raises ``gymnasium.error.ResetNeeded`` before the first
+        ``reset``."""
+        if self.sim is None:
+            raise gym.error.ResetNeeded("get_state: reset the env first")
+        grasps = tuple(
+            None
+            if g is None
+            else (_read_only(self.sim.grasp_particles(g), np.int64), _read_only(self.sim.grasp_offsets(g)))
+            for g in self.grasps
+        )
+        return EnvState(
+            config=self._start_config(),
+            scene_text=self._sim_scene_text,
+            snapshot=self.sim.snapshot(),
+            picker_pos=_read_only(self.picker_pos),
+            grasps=grasps,
+            attributes={name: copy.deepcopy(getattr(self, name)) for name in self.START_ATTRIBUTES},
+        )
+
+    def set_state(self, state: EnvState):
+        """Goes back to ``state`` from ``get_state`` (SoftGym's
+        ``set_state``): stepping on repeats, to the bit, the steps taken
+        from it. The state may come from another env made with the same
+        arguments; one made with others (``particles``, ``dt_s``,
+        ``overrides``...) raises ``ValueError`` naming the argument."""
+        if not isinstance(state, EnvState):
+            raise TypeError(f"set_state: an EnvState from get_state, not {type(state).__name__}")
+        for field, here in self._start_config().items():
+            if state.config.get(field) != here:
+                raise ValueError(f"set_state: a state of an env with {field} = {state.config.get(field)!r}, "
+                                 f"this env has {here!r}")
+        self._apply_state(state)
+
+    def _apply_state(self, state: EnvState, scene=None):
+        """Puts ``state`` in place, on the simulation there is when it is of
+        the state's scene, else on a new one of ``scene`` (built from the
+        state's attributes when not given)."""
+        for name, value in state.attributes.items():
             setattr(self, name, copy.deepcopy(value))
+        if self.sim is not None and self._sim_scene_text == state.scene_text:
+            for g in self.grasps:
+                if g is not None:
+                    self.sim.release(g)
+        else:
+            if scene is None:
+                scene = self.build_scene()
+                if self.scene_text() != state.scene_text:
+                    raise ValueError("set_state: the state's scene is not the one this env builds for it")
+            self.sim = scene.simulation(threads=self.threads)
+            self._sim_scene_text = state.scene_text
+        # The old grasps are gone (released, or on the old simulation):
+        # none is held if the restore is refused.
         self.grasps = [None] * self.pickers
-        self.picker_pos = picker_pos.copy()
-        # Grasps are the pickers', not the cloth's state: taken again
-        # where the made start held them (the particles within reach then).
-        for picker, holding in enumerate(held):
-            if holding:
-                self.move_picker(picker, self.picker_pos[picker], True)
+        self.grasps = _restore(self.sim, state)
+        self.picker_pos = np.array(state.picker_pos, dtype=np.float64)
 
     # -- start states on disk -----------------------------------------------
     #: The layout ``save_starts`` writes and ``start_states=path`` reads.
-    STARTS_FORMAT = 1
+    STARTS_FORMAT = 2
 
     def _start_config(self) -> dict:
         """The arguments that shape a start state, as a file records them."""
@@ -312,12 +409,15 @@ class ClothTaskEnv(gym.Env):
             "count": np.array(self.start_states),
         }
         for k in range(self.start_states):
-            scene_text, snapshot, picker_pos, held, attributes = self._starts[k][1:]
-            arrays[f"scene_{k}"] = np.array(scene_text)
-            arrays[f"snapshot_{k}"] = np.frombuffer(snapshot.to_bytes(), dtype=np.uint8)
-            arrays[f"pickers_{k}"] = np.asarray(picker_pos, dtype=np.float64)
-            arrays[f"held_{k}"] = np.asarray(held, dtype=bool)
-            for name, value in attributes.items():
+            state = self._starts[k][1]
+            arrays[f"scene_{k}"] = np.array(state.scene_text)
+            arrays[f"snapshot_{k}"] = np.frombuffer(state.snapshot.to_bytes(), dtype=np.uint8)
+            arrays[f"pickers_{k}"] = np.asarray(state.picker_pos, dtype=np.float64)
+            arrays[f"held_{k}"] = np.array([g is not None for g in state.grasps])
+            for picker, held in enumerate(state.grasps):
+                if held is not None:
+                    arrays[f"grasp_{k}_{picker}_particles"], arrays[f"grasp_{k}_{picker}_offsets"] = held
+            for name, value in state.attributes.items():
                 arrays[f"attribute_{k}_{name}"] = np.asarray(value)
         path = os.fspath(path)
         partial = f"{path}.{os.getpid()}.partial"
@@ -373,15 +473,27 @@ class ClothTaskEnv(gym.Env):
             if self.scene_text() != str(data[f"scene_{k}"]):
                 raise StartsFileError(f"start {k} was made from another scene than this env builds")
             snapshot = cloth.Snapshot(data[f"snapshot_{k}"].tobytes())
-            try:
-                scene.simulation(threads=self.threads).restore(snapshot)
-            except cloth.StepError as e:
-                raise StartsFileError(f"start {k} does not fit this env's cloth: {e}") from None
-            picker_pos = np.array(data[f"pickers_{k}"], dtype=np.float64)
+            picker_pos = _read_only(data[f"pickers_{k}"], np.float64)
             held = [bool(h) for h in data[f"held_{k}"]]
             if picker_pos.shape != (self.pickers, 3) or len(held) != self.pickers:
                 raise StartsFileError(f"start {k}'s pickers are not {self.pickers}")
-            starts[k] = (scene, self.scene_text(), snapshot, picker_pos, held, attributes)
+            grasps = tuple(
+                (
+                    _read_only(data[f"grasp_{k}_{picker}_particles"], np.int64),
+                    _read_only(data[f"grasp_{k}_{picker}_offsets"], np.float64),
+                )
+                if holding
+                else None
+                for picker, holding in enumerate(held)
+            )
+            state = EnvState(self._start_config(), self.scene_text(), snapshot, picker_pos, grasps, attributes)
+            # Put in place once on a simulation of its own: a snapshot or
+            # a grasp that does not fit this env's cloth is refused here.
+            try:
+                _restore(scene.simulation(threads=self.threads), state)
+            except (cloth.StepError, cloth.ControlError) as e:
+                raise StartsFileError(f"start {k} does not fit this env's cloth: {e}") from None
+            starts[k] = (scene, state)
         return count, starts
 
     def step(self, action):
