@@ -26,6 +26,12 @@ create_exception!(cloth, SceneError, PyValueError, "A scene file or override is 
 create_exception!(cloth, ModelError, PyValueError, "A model cannot be built as described.");
 create_exception!(cloth, ControlError, PyValueError, "A per-step input was refused.");
 create_exception!(cloth, StepError, PyRuntimeError, "A step failed: `.time_s` is where the cloth stayed.");
+create_exception!(
+    cloth,
+    SnapshotError,
+    PyValueError,
+    "A snapshot does not fit what it is restored into (another cloth, integrator or World); nothing was changed."
+);
 
 /// A `SceneError` exception carrying `file`, `field` (None when the
 /// problem is not one field's) and `message`.
@@ -629,11 +635,12 @@ impl Simulation {
     }
 
     /// Goes back to a snapshot of this simulation, or of another one of
-    /// the same scene and integrator; `StepError` when it does not fit
-    /// (another particle or stitch count, another integrator's memory, a
-    /// position or velocity that is not finite).
+    /// the same scene and integrator; `SnapshotError` (a `ValueError`)
+    /// when it does not fit (another particle or stitch count, another
+    /// integrator's memory, a position or velocity that is not finite),
+    /// the simulation left as it was.
     fn restore(&mut self, snapshot: &Snapshot) -> PyResult<()> {
-        self.sim.restore(&snapshot.state).map_err(|e| StepError::new_err(e.to_string()))
+        self.sim.restore(&snapshot.state).map_err(|e| SnapshotError::new_err(e.to_string()))
     }
 }
 
@@ -651,5 +658,6 @@ fn _cloth(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("ModelError", py.get_type::<ModelError>())?;
     m.add("ControlError", py.get_type::<ControlError>())?;
     m.add("StepError", py.get_type::<StepError>())?;
+    m.add("SnapshotError", py.get_type::<SnapshotError>())?;
     Ok(())
 }

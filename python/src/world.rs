@@ -426,17 +426,18 @@ impl World {
     /// Goes back to a snapshot of this world: stepping on repeats the
     /// steps taken from it, to the bit. The inputs set since (forces,
     /// kinematic targets, joint positions, grasps) stay as they are.
-    /// `ValueError` for another world's snapshot.
+    /// `SnapshotError` (a `ValueError`) for another world's snapshot,
+    /// the world left as it was.
     fn restore(&mut self, snapshot: &WorldSnapshot) -> PyResult<()> {
         if snapshot.world != self.id {
-            return Err(pyo3::exceptions::PyValueError::new_err(
+            return Err(crate::SnapshotError::new_err(
                 "a snapshot of another World: a World restores only its own (its rapier bodies are its own)",
             ));
         }
         self.run
             .cloths
             .restore(&snapshot.saved, &mut self.run.world)
-            .map_err(|e| crate::StepError::new_err(e.to_string()))
+            .map_err(|e| crate::SnapshotError::new_err(e.to_string()))
     }
 }
 

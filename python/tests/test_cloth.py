@@ -81,9 +81,22 @@ def test_a_snapshot_pickled_or_saved_as_bytes_replays_in_another_simulation(tmp_
     for bad in (data[:-1], data[:100], b"", data[:40] + bytes([data[40] ^ 1]) + data[41:]):
         with pytest.raises(ValueError, match="Snapshot"):
             cloth.Snapshot(bad)
+    # A snapshot that does not fit is refused as bad input, and the
+    # simulation is left as it was.
     larger = cloth.Scene.from_toml(HANG, ["panels.0.particles=[12, 11]", "pins.0.nodes=[[0, 10], [11, 10]]"])
-    with pytest.raises(cloth.StepError, match="121"):
-        larger.simulation().restore(saved)
+    refusing = larger.simulation()
+    refusing.step(3)
+    before = (refusing.positions, refusing.velocities, refusing.time_s)
+    with pytest.raises(cloth.SnapshotError, match="121") as e:
+        refusing.restore(saved)
+    assert isinstance(e.value, ValueError) and not isinstance(e.value, cloth.StepError)
+    assert np.array_equal(refusing.positions, before[0]) and np.array_equal(refusing.velocities, before[1])
+    assert refusing.time_s == before[2]
+    refusing.step(1)
+    assert refusing.time_s == pytest.approx(4 / 90)
+    vbd = ["panels.0.particles=[11, 11]", "pins.0.nodes=[[0, 10], [10, 10]]", 'simulation.integrator="vbd"']
+    with pytest.raises(cloth.SnapshotError, match="memory"):
+        cloth.Scene.from_toml(HANG, vbd).simulation().restore(saved)
 
 
 def test_control_inputs_move_the_cloth_and_bad_ones_are_refused():

@@ -324,8 +324,22 @@ impl ClothSet {
     }
 
     /// Puts the world and the cloths back as saved. Cloths inserted since
-    /// are left as they are; a removed cloth is not brought back.
+    /// are left as they are; a removed cloth is not brought back. When a
+    /// cloth refuses its saved state, the world and every cloth are put
+    /// back as they were before the call.
     pub fn restore(&mut self, snapshot: &CoupledSnapshot, world: &mut PhysicsWorld) -> Result<(), CouplingError> {
+        let before = self.save(world);
+        let result = self.restore_unchecked(snapshot, world);
+        if result.is_err() {
+            // Each cloth's own restore checks before it writes, so the
+            // state taken just now always goes back in.
+            let undone = self.restore_unchecked(&before, world);
+            debug_assert!(undone.is_ok(), "a state saved from this set fits it");
+        }
+        result
+    }
+
+    fn restore_unchecked(&mut self, snapshot: &CoupledSnapshot, world: &mut PhysicsWorld) -> Result<(), CouplingError> {
         snapshot.world.restore(world);
         for (index, (slot, saved)) in self.slots.iter_mut().zip(&snapshot.cloths).enumerate() {
             if let (Some(c), Some(state)) = (slot.cloth.as_mut(), saved) {

@@ -107,6 +107,38 @@ fn a_rollback_replays_bit_for_bit() {
     assert_eq!(first, second);
 }
 
+/// A snapshot a cloth refuses (its slot now holds another cloth) leaves
+/// the world and every cloth as they were before the call.
+#[test]
+fn a_refused_rollback_changes_nothing() {
+    let gravity = ["simulation.effects=[\"gravity\", \"bending\", \"damping\"]"];
+    let mut run = build(&scene(""), &gravity);
+    for _ in 0..10 {
+        run.step().unwrap();
+    }
+    let saved = run.cloths.save(&run.world);
+    let other = build(&scene("").replace("particles = [13, 13]", "particles = [9, 9]"), &gravity);
+    let model = other.cloths[other.cloth].simulation().model().as_ref().clone();
+    run.cloths.remove(run.cloth).unwrap();
+    run.cloth = run.cloths.insert(cloth_rapier::ClothBuilder::new(model), &run.world).unwrap();
+    for _ in 0..10 {
+        run.step().unwrap();
+    }
+    let bits = |run: &CoupledRun| -> Vec<u64> {
+        let b = ball(run);
+        let mut bits: Vec<u64> =
+            [b.translation().x, b.translation().z, b.linvel().z, b.angvel().y].map(f64::to_bits).to_vec();
+        let cloth = run.cloths[run.cloth].simulation().state();
+        bits.extend(cloth.x.iter().chain(&cloth.v).flat_map(|p| [p.x, p.y, p.z]).map(f64::to_bits));
+        bits.push(cloth.time_s.to_bits());
+        bits
+    };
+    let before = bits(&run);
+    let refused = run.cloths.restore(&saved, &mut run.world);
+    assert!(refused.unwrap_err().to_string().contains("169"), "the saved cloth had 13 x 13 particles");
+    assert_eq!(bits(&run), before);
+}
+
 /// Mechanical energy without the elastic part (kinetic plus gravitational,
 /// cloth and ball): a dissipative coupled run never exceeds its start.
 fn energy(run: &CoupledRun, g: f64) -> f64 {

@@ -491,7 +491,7 @@ class ClothTaskEnv(gym.Env):
             # a grasp that does not fit this env's cloth is refused here.
             try:
                 _restore(scene.simulation(threads=self.threads), state)
-            except (cloth.StepError, cloth.ControlError) as e:
+            except (cloth.SnapshotError, cloth.ControlError) as e:
                 raise StartsFileError(f"start {k} does not fit this env's cloth: {e}") from None
             starts[k] = (scene, state)
         return count, starts
