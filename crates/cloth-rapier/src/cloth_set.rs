@@ -3,7 +3,7 @@
 
 use crate::convert::pose_from_rapier;
 use crate::world::{CollideWith, Momentum, WorldSnapshot, WorldSolid, admitted_colliders, bodies_momentum};
-use cloth_core::{ClothModel, IntegratorKind, ModelError, Simulation, Snapshot, SolverParams, Vec3};
+use cloth_core::{ClothModel, IntegratorKind, ModelError, Simulation, Snapshot, SolverParams, StepError, Vec3};
 use rapier3d_f64::prelude::{InteractionGroups, PhysicsWorld, RigidBodyHandle};
 
 /// A cloth pin held at a point of a rigid body; the cloth's pull on the pin
@@ -324,31 +324,24 @@ impl ClothSet {
     }
 
     /// Puts the world and the cloths back as saved. Cloths inserted since
-    /// are left as they are; a removed cloth is not brought back. When a
-    /// cloth refuses its saved state, the world and every cloth are put
-    /// back as they were before the call.
+    /// are left as they are; a removed cloth is not brought back. Every
+    /// cloth's saved state is checked before anything is written, so a
+    /// refusal leaves the world and every cloth as they were.
     pub fn restore(&mut self, snapshot: &CoupledSnapshot, world: &mut PhysicsWorld) -> Result<(), CouplingError> {
-        let before = self.save(world);
-        let result = self.restore_unchecked(snapshot, world);
-        if result.is_err() {
-            // Each cloth's own restore checks before it writes, so the
-            // state taken just now always goes back in.
-            let undone = self.restore_unchecked(&before, world);
-            debug_assert!(undone.is_ok(), "a state saved from this set fits it");
+        let refused = |index: usize, saved: &Snapshot, e: StepError| CouplingError::Cloth {
+            cloth: index,
+            time_s: saved.state.time_s,
+            message: e.to_string(),
+        };
+        for (index, (slot, saved)) in self.slots.iter().zip(&snapshot.cloths).enumerate() {
+            if let (Some(c), Some(saved)) = (slot.cloth.as_ref(), saved) {
+                c.sim.check_snapshot(saved).map_err(|e| refused(index, saved, e))?;
+            }
         }
-        result
-    }
-
-    fn restore_unchecked(&mut self, snapshot: &CoupledSnapshot, world: &mut PhysicsWorld) -> Result<(), CouplingError> {
         snapshot.world.restore(world);
         for (index, (slot, saved)) in self.slots.iter_mut().zip(&snapshot.cloths).enumerate() {
-            if let (Some(c), Some(state)) = (slot.cloth.as_mut(), saved) {
-                let time_s = state.state.time_s;
-                c.sim.restore(state).map_err(|e| CouplingError::Cloth {
-                    cloth: index,
-                    time_s,
-                    message: e.to_string(),
-                })?;
+            if let (Some(c), Some(saved)) = (slot.cloth.as_mut(), saved) {
+                c.sim.restore(saved).map_err(|e| refused(index, saved, e))?;
             }
         }
         Ok(())

@@ -80,6 +80,19 @@ fn a_ball_thrown_into_a_free_cloth_keeps_the_total_momentum() {
     }
 }
 
+/// The ball's position (x, z), vertical velocity and spin about y, as bits.
+fn ball_bits(run: &CoupledRun) -> [u64; 4] {
+    let b = ball(run);
+    [b.translation().x, b.translation().z, b.linvel().z, b.angvel().y].map(f64::to_bits)
+}
+
+/// The cloth's positions, velocities and time, as bits.
+fn cloth_bits(run: &CoupledRun) -> Vec<u64> {
+    let state = run.cloths[run.cloth].simulation().state();
+    let vectors = state.x.iter().chain(&state.v).flat_map(|p| [p.x, p.y, p.z]);
+    vectors.chain([state.time_s]).map(f64::to_bits).collect()
+}
+
 /// Saving and restoring the world and the cloth replays a run bit for bit.
 #[test]
 fn a_rollback_replays_bit_for_bit() {
@@ -94,11 +107,9 @@ fn a_rollback_replays_bit_for_bit() {
         for _ in 0..30 {
             let report = run.step().unwrap();
             bits.push(report.iterations as u64);
-            let b = ball(run);
-            bits.extend([b.translation().x, b.translation().z, b.linvel().z, b.angvel().y].map(f64::to_bits));
+            bits.extend(ball_bits(run));
         }
-        let cloth = run.cloths[run.cloth].simulation();
-        bits.extend(cloth.state().x.iter().flat_map(|p| [p.x, p.y, p.z]).map(f64::to_bits));
+        bits.extend(cloth_bits(run));
         bits
     };
     let first = record(&mut run);
@@ -124,15 +135,7 @@ fn a_refused_rollback_changes_nothing() {
     for _ in 0..10 {
         run.step().unwrap();
     }
-    let bits = |run: &CoupledRun| -> Vec<u64> {
-        let b = ball(run);
-        let mut bits: Vec<u64> =
-            [b.translation().x, b.translation().z, b.linvel().z, b.angvel().y].map(f64::to_bits).to_vec();
-        let cloth = run.cloths[run.cloth].simulation().state();
-        bits.extend(cloth.x.iter().chain(&cloth.v).flat_map(|p| [p.x, p.y, p.z]).map(f64::to_bits));
-        bits.push(cloth.time_s.to_bits());
-        bits
-    };
+    let bits = |run: &CoupledRun| -> Vec<u64> { ball_bits(run).into_iter().chain(cloth_bits(run)).collect() };
     let before = bits(&run);
     let refused = run.cloths.restore(&saved, &mut run.world);
     assert!(refused.unwrap_err().to_string().contains("169"), "the saved cloth had 13 x 13 particles");

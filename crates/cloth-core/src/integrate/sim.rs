@@ -334,10 +334,18 @@ impl Simulation {
     /// [`StepError::NonFinite`] naming the particle), and so is another
     /// integrator's memory ([`StepError::MemoryMismatch`]).
     pub fn restore(&mut self, snapshot: &Snapshot) -> Result<(), StepError> {
-        self.check_state(&snapshot.state)?;
+        self.check_snapshot(snapshot)?;
         self.integrator.restore_memory(&snapshot.integrator)?;
         self.state.clone_from(&snapshot.state);
         Ok(())
+    }
+
+    /// Whether [`Simulation::restore`] would take `snapshot`, changing
+    /// nothing: the same refusals, so that a caller restoring several
+    /// simulations together can check them all before it writes any.
+    pub fn check_snapshot(&self, snapshot: &Snapshot) -> Result<(), StepError> {
+        self.check_state(&snapshot.state)?;
+        self.integrator.memory().same_names(&snapshot.integrator)
     }
 
     /// Puts `state` in place of the current one, the integrator's memory
